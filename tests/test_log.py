@@ -1,0 +1,250 @@
+"""Run-log format v1: exact round trip (hypothesis), validation messages, truncation."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from slamio.errors import FgslamError
+from slamio.log import (
+    Header,
+    LogFormatError,
+    Observation,
+    Odometry,
+    TruthLandmark,
+    TruthPose,
+    as_matrix3,
+    format_line,
+    group_steps,
+    read_log,
+    write_log,
+)
+
+finite = st.floats(allow_nan=False, allow_infinity=False, width=64)
+positive = st.floats(min_value=1e-12, max_value=1e6, allow_nan=False)
+small = st.floats(min_value=-1e3, max_value=1e3, allow_nan=False)
+json_scalar = st.one_of(st.none(), st.booleans(), st.integers(-(2**53), 2**53), finite, st.text(max_size=8))
+json_object = st.dictionaries(st.text(max_size=6), json_scalar, max_size=3)
+
+
+@st.composite
+def headers(draw):
+    return Header(
+        stamp_s=draw(small),
+        start_pose=(draw(small), draw(small), draw(small)),
+        start_sigma=(draw(positive), draw(positive), draw(positive)),
+        robot={"name": draw(st.text(max_size=10)), **draw(json_object)},
+        sensor={"kind": "range-bearing", **draw(json_object)},
+        noise={"odometry": draw(json_object), "observation": draw(json_object)},
+        source=draw(json_object),
+    )
+
+
+@st.composite
+def covariances(draw):
+    """A symmetric positive-definite 3×3: L Lᵀ + εI with L drawn small."""
+    entries = [draw(st.floats(min_value=-1.0, max_value=1.0)) for _ in range(6)]
+    a, b, c, d, e, f = entries
+    low = [[a, 0.0, 0.0], [b, c, 0.0], [d, e, f]]
+    m = [[sum(low[i][k] * low[j][k] for k in range(3)) + (1e-3 if i == j else 0.0) for j in range(3)] for i in range(3)]
+    m = [[m[min(i, j)][max(i, j)] for j in range(3)] for i in range(3)]  # exactly symmetric
+    return as_matrix3(m)
+
+
+def optional_pair(draw):
+    if draw(st.booleans()):
+        return draw(finite), draw(positive)
+    return None, None
+
+
+@st.composite
+def records_in_time_order(draw, start_stamp_s):
+    stamp = start_stamp_s
+    out = []
+    for _ in range(draw(st.integers(0, 12))):
+        stamp += draw(st.floats(min_value=0.0, max_value=1.0))
+        kind = draw(st.sampled_from(["odometry", "observation", "truth_pose", "truth_landmark"]))
+        if kind == "odometry":
+            raw = draw(st.booleans())
+            out.append(
+                Odometry(
+                    stamp, draw(finite), draw(finite), draw(finite), draw(covariances()),
+                    draw(finite) if raw else None, draw(finite) if raw else None,
+                )
+            )
+        elif kind == "observation":
+            height, sigma_height = optional_pair(draw)
+            yaw, sigma_yaw = optional_pair(draw)
+            out.append(
+                Observation(
+                    stamp, draw(st.one_of(st.none(), st.integers(0, 10**9))), draw(positive), draw(finite),
+                    draw(positive), draw(positive), height, sigma_height, yaw, sigma_yaw,
+                )
+            )
+        elif kind == "truth_pose":
+            out.append(TruthPose(stamp, draw(finite), draw(finite), draw(finite)))
+        else:
+            out.append(
+                TruthLandmark(
+                    draw(st.integers(0, 10**9)), draw(finite), draw(finite),
+                    draw(st.one_of(st.none(), finite)), draw(st.one_of(st.none(), finite)),
+                )
+            )
+    return out
+
+
+@settings(max_examples=150, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_write_then_read_round_trips_exactly(tmp_path, data):
+    header = data.draw(headers())
+    records = data.draw(records_in_time_order(header.stamp_s))
+    path = tmp_path / "run.jsonl"
+    write_log(path, header, records)
+    log = read_log(path)
+    assert log.header == header
+    assert log.records == tuple(records)
+    assert log.truncated is None
+
+
+# ------------------------------------------------------------------ a small valid log
+
+HEADER = Header(
+    stamp_s=0.0,
+    start_pose=(1.0, 2.0, 0.5),
+    start_sigma=(1e-3, 1e-3, 1e-3),
+    robot={"name": "test robot"},
+    sensor={"kind": "range-bearing"},
+    noise={"odometry": {}, "observation": {}},
+)
+COV = as_matrix3([[1e-4, 0, 0], [0, 1e-4, 0], [0, 0, 1e-5]])
+RECORDS = [
+    TruthLandmark(7, 3.0, 4.0),
+    TruthPose(0.0, 1.0, 2.0, 0.5),
+    Observation(0.0, 7, 2.5, 0.1, 0.05, 0.02),
+    Odometry(0.1, 0.1, 0.0, 0.01, COV, 0.1, 0.01),
+    TruthPose(0.1, 1.09, 2.05, 0.51),
+    Observation(0.1, 7, 2.4, 0.1, 0.05, 0.02),
+    Observation(0.1, None, 1.0, -0.3, 0.05, 0.02),
+    Odometry(0.2, 0.1, 0.0, 0.0, COV),
+    Observation(0.2, 7, 2.3, 0.1, 0.05, 0.02),
+]
+
+
+@pytest.fixture
+def log_path(tmp_path):
+    path = tmp_path / "run.jsonl"
+    write_log(path, HEADER, RECORDS)
+    return path
+
+
+def test_steps_group_records_by_pose():
+    steps = group_steps(HEADER, RECORDS)
+    assert [s.index for s in steps] == [0, 1, 2]
+    assert steps[0].odometry is None and steps[0].stamp_s == 0.0
+    assert [len(s.observations) for s in steps] == [1, 2, 1]
+    assert steps[1].odometry == RECORDS[3] and steps[1].truth == RECORDS[4]
+    assert steps[2].truth is None
+
+
+def test_unknown_landmark_is_written_as_null(log_path):
+    lines = log_path.read_text().splitlines()
+    assert json.loads(lines[7])["landmark_id"] is None
+
+
+def replace_line(path, number, text):
+    lines = path.read_text().splitlines(keepends=True)
+    lines[number - 1] = text + "\n"
+    path.write_text("".join(lines))
+
+
+@pytest.mark.parametrize(
+    "line, expected",
+    [
+        ('{"type": "odometry", "stamp_s": 0.1, "dx_m": 0.1', "not valid JSON"),
+        ('{"type": "odometry", "stamp_s": 0.1, "dx_m": "fast", "dy_m": 0, "dtheta_rad": 0, '
+         '"covariance": [[1,0,0],[0,1,0],[0,0,1]]}', "field 'dx_m' must be a number"),
+        ('{"type": "odometry", "stamp_s": 0.1, "dx_m": 0.1, "dy_m": 0, "dtheta_rad": 0, '
+         '"covariance": [[1,0,0],[0,0,0],[0,0,1]]}', "positive definite"),
+        ('{"type": "odometry", "stamp_s": 0.1, "dx_m": 0.1, "dy_m": 0, "dtheta_rad": 0, '
+         '"covariance": [[1,0.5,0],[0,1,0],[0,0,1]]}', "symmetric"),
+        ('{"type": "observation", "stamp_s": 0.1, "landmark_id": 7, "range_m": -1, "bearing_rad": 0, '
+         '"sigma_range_m": 0.1, "sigma_bearing_rad": 0.1}', "'range_m' must be > 0"),
+        ('{"type": "observation", "stamp_s": 0.1, "landmark_id": 7, "range_m": 1, "bearing_rad": 0, '
+         '"sigma_range_m": 0.1, "sigma_bearing_rad": 0.1, "height_m": 0.3}', "give both or neither"),
+        ('{"type": "observation", "stamp_s": 0.1, "landmark_id": 7, "range_m": 1, "bearing_rad": NaN, '
+         '"sigma_range_m": 0.1, "sigma_bearing_rad": 0.1}', "NaN is not a number"),
+        ('{"type": "observation", "stamp_s": 0.1, "range_m": 1, "bearing_rad": 0, '
+         '"sigma_range_m": 0.1, "sigma_bearing_rad": 0.1}', "missing field 'landmark_id'"),
+        ('{"type": "truth_pose", "stamp_s": 0.05, "x_m": 0, "y_m": 0, "theta_rad": 0}', "goes back in time"),
+        ('{"type": "wheel", "stamp_s": 0.1}', "unknown record type \"wheel\""),
+        ('{"type": "truth_pose", "stamp_s": 0.1, "x_m": 0, "y_m": 0, "theta_rad": 0, "z_m": 1}', "unknown field(s) z_m"),
+        ("[1, 2, 3]", "one JSON object"),
+        ("", "empty line"),
+    ],
+)
+def test_bad_middle_line_names_file_and_line_and_keeps_the_good_part(log_path, line, expected):
+    replace_line(log_path, 6, line)  # line 6 holds the truth pose of step 1
+    with pytest.raises(LogFormatError) as err:
+        read_log(log_path)
+    message = str(err.value)
+    assert message.startswith(f"{log_path}:6: ")
+    assert expected in message
+    assert err.value.line == 6
+    assert err.value.partial.records == tuple(RECORDS[:4])
+
+
+def test_truncated_last_line_is_reported_not_fatal(log_path):
+    text = log_path.read_text()
+    log_path.write_text(text[: len(text) - 25])  # cut the last record mid-line
+    log = read_log(log_path)
+    assert log.records == tuple(RECORDS[:-1])
+    assert log.truncated is not None
+    assert f"{log_path}:10:" in log.truncated and "cut off" in log.truncated
+
+
+def test_last_line_without_newline_but_complete_is_fine(log_path):
+    log_path.write_text(log_path.read_text().rstrip("\n"))
+    log = read_log(log_path)
+    assert log.records == tuple(RECORDS) and log.truncated is None
+
+
+def test_complete_but_invalid_last_line_is_an_error(log_path):
+    replace_line(log_path, 10, '{"type": "truth_pose"}')
+    with pytest.raises(LogFormatError, match=r":10: missing field 'stamp_s'"):
+        read_log(log_path)
+
+
+@pytest.mark.parametrize(
+    "mutate, expected",
+    [
+        (lambda h: {**h, "format": "something-else"}, "is this an fgslam run log"),
+        (lambda h: {**h, "version": 2}, "version 2 is not supported"),
+        (lambda h: {**h, "units": {"length": "mm", "angle": "rad", "time": "s"}}, "store SI"),
+        (lambda h: {**h, "noise": {"odometry": {}}}, "lacks 'observation'"),
+        (lambda h: {**h, "start": {**h["start"], "sigma": [0, 1, 1]}}, "start.sigma must be > 0"),
+    ],
+)
+def test_bad_header_is_line_1(log_path, mutate, expected):
+    header = json.loads(log_path.read_text().splitlines()[0])
+    replace_line(log_path, 1, json.dumps(mutate(header)))
+    with pytest.raises(LogFormatError) as err:
+        read_log(log_path)
+    assert str(err.value).startswith(f"{log_path}:1: ") and expected in str(err.value)
+    assert err.value.partial is None
+
+
+def test_missing_and_empty_files(tmp_path):
+    with pytest.raises(FgslamError, match="cannot open"):
+        read_log(tmp_path / "nope.jsonl")
+    (tmp_path / "empty.jsonl").write_text("")
+    with pytest.raises(LogFormatError, match="empty"):
+        read_log(tmp_path / "empty.jsonl")
+
+
+def test_writer_refuses_nan():
+    with pytest.raises(FgslamError, match="NaN"):
+        format_line(TruthPose(0.0, math.nan, 0.0, 0.0))
