@@ -1,0 +1,157 @@
+"""Motion and observation models of 2-D landmark SLAM, with analytic Jacobians.
+
+Everything here is a small pure function of numbers; nothing holds state. Poses are
+``(x_m, y_m, theta_rad)`` in the world frame (theta counter-clockwise from the world x
+axis), landmarks are points ``(x_m, y_m)`` in the world frame, and the robot frame is
+x forward, y left (see ``slamio.geometry``).
+
+Motion model
+    The odometry of a run log is an SE(2) increment ``(dx_m, dy_m, dtheta_rad)`` expressed
+    in the frame of the previous pose, so the new pose is the composition
+
+        x' = x + cos θ · dx − sin θ · dy
+        y' = y + sin θ · dx + cos θ · dy
+        θ' = wrap(θ + dθ)
+
+    This is exactly GTSAM's ``BetweenFactorPose2`` model, so the EKF and the factor graph
+    use the same motion model and differ only in how they estimate.
+
+Observation model
+    A landmark at ``(lx, ly)`` seen from pose ``(x, y, θ)`` gives
+
+        range   = sqrt((lx − x)² + (ly − y)²)
+        bearing = wrap(atan2(ly − y, lx − x) − θ)      (counter-clockwise from forward)
+
+Inverse observation model (landmark initialisation)
+    The point a range/bearing measurement puts the landmark at:
+
+        lx = x + range · cos(θ + bearing),   ly = y + range · sin(θ + bearing)
+
+Every Jacobian below is derived by hand and checked against central finite differences in
+``tests/test_ekf.py``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from slamio.geometry import wrap_angle
+
+__all__ = [
+    "predict_pose",
+    "motion_jacobians",
+    "range_bearing",
+    "range_bearing_jacobians",
+    "landmark_from_range_bearing",
+    "landmark_init_jacobians",
+]
+
+
+# --------------------------------------------------------------------------- motion
+
+
+def predict_pose(pose, increment) -> np.ndarray:
+    """The pose after applying an odometry increment: ``pose ⊕ increment``.
+
+    ``pose`` is ``(x_m, y_m, theta_rad)`` in the world frame; ``increment`` is
+    ``(dx_m, dy_m, dtheta_rad)`` in the frame of ``pose``. Returns a length-3 array with
+    the heading wrapped into [−π, π).
+    """
+    x, y, th = (float(v) for v in pose)
+    dx, dy, dth = (float(v) for v in increment)
+    c, s = math.cos(th), math.sin(th)
+    return np.array([x + c * dx - s * dy, y + s * dx + c * dy, wrap_angle(th + dth)])
+
+
+def motion_jacobians(pose, increment) -> tuple[np.ndarray, np.ndarray]:
+    """Jacobians of :func:`predict_pose`: ``(F_pose, F_increment)``, both 3×3.
+
+    ``F_pose = ∂(pose ⊕ u)/∂pose`` propagates the state covariance and
+    ``F_increment = ∂(pose ⊕ u)/∂u`` maps the increment's covariance Σ (given in the robot
+    frame) into the world frame: the process noise is ``Q = F_increment Σ F_incrementᵀ``.
+    """
+    th = float(pose[2])
+    dx, dy = float(increment[0]), float(increment[1])
+    c, s = math.cos(th), math.sin(th)
+    F_pose = np.array(
+        [
+            [1.0, 0.0, -s * dx - c * dy],
+            [0.0, 1.0, c * dx - s * dy],
+            [0.0, 0.0, 1.0],
+        ]
+    )
+    F_increment = np.array(
+        [
+            [c, -s, 0.0],
+            [s, c, 0.0],
+            [0.0, 0.0, 1.0],
+        ]
+    )
+    return F_pose, F_increment
+
+
+# --------------------------------------------------------------------------- observation
+
+
+def range_bearing(pose, landmark_xy) -> tuple[float, float]:
+    """The ``(range_m, bearing_rad)`` at which ``pose`` sees the landmark at ``landmark_xy``.
+
+    The bearing is counter-clockwise from the robot's forward axis, wrapped into [−π, π).
+    """
+    x, y, th = (float(v) for v in pose)
+    ex, ey = float(landmark_xy[0]) - x, float(landmark_xy[1]) - y
+    return math.hypot(ex, ey), wrap_angle(math.atan2(ey, ex) - th)
+
+
+def range_bearing_jacobians(pose, landmark_xy) -> tuple[np.ndarray, np.ndarray]:
+    """Jacobians of :func:`range_bearing`: ``(H_pose 2×3, H_landmark 2×2)``.
+
+    With ``e = landmark − position``, ``q = |e|²`` and ``r = √q``::
+
+        H_pose     = [[−ex/r, −ey/r,  0],      H_landmark = [[ ex/r, ey/r],
+                      [ ey/q, −ex/q, −1]]                    [−ey/q, ex/q]]
+
+    Undefined when the landmark sits exactly on the robot (r = 0).
+    """
+    x, y = float(pose[0]), float(pose[1])
+    ex, ey = float(landmark_xy[0]) - x, float(landmark_xy[1]) - y
+    q = ex * ex + ey * ey
+    r = math.sqrt(q)
+    H_landmark = np.array([[ex / r, ey / r], [-ey / q, ex / q]])
+    H_pose = np.array(
+        [
+            [-ex / r, -ey / r, 0.0],
+            [ey / q, -ex / q, -1.0],
+        ]
+    )
+    return H_pose, H_landmark
+
+
+# --------------------------------------------------------------------------- inverse observation
+
+
+def landmark_from_range_bearing(pose, range_m: float, bearing_rad: float) -> tuple[float, float]:
+    """The world point ``(x_m, y_m)`` that ``pose`` sees at ``(range_m, bearing_rad)``."""
+    x, y, th = (float(v) for v in pose)
+    a = th + float(bearing_rad)
+    return x + range_m * math.cos(a), y + range_m * math.sin(a)
+
+
+def landmark_init_jacobians(pose, range_m: float, bearing_rad: float) -> tuple[np.ndarray, np.ndarray]:
+    """Jacobians of :func:`landmark_from_range_bearing`: ``(G_pose 2×3, G_measurement 2×2)``.
+
+    With ``a = θ + bearing``::
+
+        G_pose        = [[1, 0, −r sin a],     G_measurement = [[cos a, −r sin a],
+                         [0, 1,  r cos a]]                      [sin a,  r cos a]]
+
+    A new landmark's covariance is ``G_pose P_rr G_poseᵀ + G_measurement R G_measurementᵀ``
+    and its cross-covariance with any other state block b is ``G_pose P_rb``.
+    """
+    a = float(pose[2]) + float(bearing_rad)
+    c, s = math.cos(a), math.sin(a)
+    G_pose = np.array([[1.0, 0.0, -range_m * s], [0.0, 1.0, range_m * c]])
+    G_measurement = np.array([[c, -range_m * s], [s, range_m * c]])
+    return G_pose, G_measurement
