@@ -1,0 +1,638 @@
+"""Comparison maths: how far each estimator's answer is from a reference, and what it cost.
+
+Everything here is pure numpy (no gtsam, no matplotlib) and works on plain arrays:
+
+* a *trajectory* is an ``(n, 3)`` array of poses ``(x_m, y_m, theta_rad)`` in the world
+  frame, one row per pose of the run log (row ``i`` is pose ``X(i)``);
+* a *map* is a ``dict`` landmark id → ``(x_m, y_m)`` in the world frame.
+
+The runner (``fgslam.runner``) produces one :class:`EstimatorRun` per estimator and one
+:class:`Reference` (the log's ground truth when it has one, otherwise the batch-smoothed
+solution); :func:`compute_metrics` turns them into a JSON-ready dictionary, and
+:func:`format_table` into a terminal table. ``fgslam.report`` draws the same figures.
+
+Alignment policy (why and when trajectories are aligned)
+--------------------------------------------------------
+Absolute trajectory error (ATE) is only meaningful when the estimate and the reference are
+expressed in the same world frame. Every estimator in this project anchors pose 0 at the
+log's known start pose (iSAM2 and batch through a prior factor with σ = 1e-3; the EKF by
+starting its state there), and so does the reference. When both trajectories share their
+first pose (see :func:`shares_first_pose`) they are therefore already in the same frame and
+**no alignment is applied**: aligning would hide real error (for example a heading error at
+the start that rotates the whole map).
+
+Only when the first poses differ (an estimate in some other frame, e.g. an imported
+dataset) is the estimate aligned to the reference by the least-squares *rigid* SE(2)
+transform (:func:`align_se2`). The rotation is found in SO(2) directly, so it can never be a
+reflection. (A 3-D Umeyama alignment, as done by evo, can return ``diag(1, -1, -1)`` for
+planar data — a mirror — and report a mirrored estimate as perfect.)
+
+One transform per estimator is computed from its *final* trajectory and applied to its
+final trajectory, its online trajectory and its landmarks: they all live in that estimator's
+frame.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from slamio.errors import FgslamError
+from slamio.geometry import wrap_angle
+
+__all__ = [
+    "ComparisonError",
+    "EstimatorRun",
+    "Reference",
+    "FIRST_POSE_TOL_M",
+    "FIRST_POSE_TOL_RAD",
+    "align_se2",
+    "apply_se2",
+    "shares_first_pose",
+    "resolve_alignment",
+    "estimator_alignment",
+    "position_errors_m",
+    "heading_errors_rad",
+    "ate_rmse_m",
+    "final_pose_error_m",
+    "map_errors_m",
+    "map_rmse_m",
+    "compute_metrics",
+    "METRIC_KEYS",
+    "TOP_LEVEL_KEYS",
+    "COLUMN_MEANINGS",
+    "REFERENCE_DESCRIPTIONS",
+    "estimator_names",
+    "reference_line",
+    "table_rows",
+    "format_table",
+    "format_tum",
+    "write_tum",
+    "read_tum",
+]
+
+
+class ComparisonError(FgslamError, ValueError):
+    """Inputs that cannot be compared (wrong shapes, a bad TUM file, clashing names).
+
+    It is an :class:`~slamio.errors.FgslamError` (the CLI prints it without a traceback)
+    and a :class:`ValueError` (what numpy-style callers expect for bad arguments).
+    """
+
+
+# --------------------------------------------------------------------------- data types
+
+
+@dataclass(frozen=True)
+class EstimatorRun:
+    """What the runner produces for one estimator on one log.
+
+    Attributes:
+        name: short identifier used as the metrics key ("ekf", "isam2", "batch", ...).
+        online: ``(n, 3)`` poses as estimated *at their own step* (what a robot acting live
+            would have used), or ``None`` for a one-shot batch solve.
+        final: ``(n, 3)`` every pose as estimated after the last step (smoothers revise
+            old poses; for a filter this usually equals ``online``).
+        landmarks: landmark id → estimated ``(x_m, y_m)``.
+        step_times_s: ``(n,)`` wall-clock seconds spent on each step, or ``None`` for a
+            one-shot batch solve.
+        total_time_s: wall-clock seconds for the whole run (including any ``finish``).
+    """
+
+    name: str
+    online: np.ndarray | None
+    final: np.ndarray
+    landmarks: dict[int, tuple[float, float]]
+    step_times_s: np.ndarray | None
+    total_time_s: float
+
+
+@dataclass(frozen=True)
+class Reference:
+    """What the estimators are compared against.
+
+    Attributes:
+        kind: ``"ground_truth"`` (simulation, motion capture) or ``"smoothed"`` (the batch
+            Levenberg–Marquardt solution, used when the log has no ground truth).
+        trajectory: ``(n, 3)`` reference poses, one per pose of the log.
+        landmarks: landmark id → reference ``(x_m, y_m)``.
+    """
+
+    kind: str
+    trajectory: np.ndarray
+    landmarks: dict[int, tuple[float, float]]
+
+
+REFERENCE_KINDS = ("ground_truth", "smoothed")
+
+# --------------------------------------------------------------------------- SE(2) alignment
+
+
+def _as_xy(a, what: str) -> np.ndarray:
+    """(n, 2) float array of the x, y columns of an (n, 2) or (n, 3) array."""
+    arr = np.asarray(a, dtype=float)
+    if arr.ndim != 2 or arr.shape[1] not in (2, 3):
+        raise ComparisonError(f"{what}: expected an (n, 2) or (n, 3) array, got shape {arr.shape}")
+    return arr[:, :2]
+
+
+def _as_poses(a, what: str) -> np.ndarray:
+    """(n, 3) float array of poses (x_m, y_m, theta_rad)."""
+    arr = np.asarray(a, dtype=float)
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise ComparisonError(f"{what}: expected an (n, 3) array of poses, got shape {arr.shape}")
+    return arr
+
+
+def align_se2(estimate_xy, reference_xy) -> tuple[float, np.ndarray]:
+    """Least-squares rigid 2-D alignment of ``estimate_xy`` onto ``reference_xy``.
+
+    Finds the rotation ``R(θ)`` (a proper rotation in SO(2), never a reflection) and the
+    translation ``t`` minimising ``Σᵢ |R pᵢ + t − qᵢ|²`` for estimate points ``pᵢ`` and
+    reference points ``qᵢ``. With centred points ``p'ᵢ = pᵢ − p̄`` and ``q'ᵢ = qᵢ − q̄``
+    the closed form is
+
+        θ = atan2(Σ (p'x q'y − p'y q'x),  Σ (p'x q'x + p'y q'y)),    t = q̄ − R(θ) p̄.
+
+    Args:
+        estimate_xy: ``(n, 2)`` points (or ``(n, 3)`` poses; headings are ignored).
+        reference_xy: same shape, row ``i`` corresponds to row ``i`` of the estimate.
+
+    Returns:
+        ``(rotation_rad, translation_xy)`` with ``translation_xy`` a ``(2,)`` array in
+        metres; apply it with :func:`apply_se2`. When the rotation is not determined (one
+        point, or all estimate points coincide) the rotation is 0.
+    """
+    p = _as_xy(estimate_xy, "estimate")
+    q = _as_xy(reference_xy, "reference")
+    if p.shape != q.shape:
+        raise ComparisonError(f"align_se2: estimate has {len(p)} points, reference {len(q)}")
+    if len(p) == 0:
+        raise ComparisonError("align_se2: no points to align")
+    p_mean = p.mean(axis=0)
+    q_mean = q.mean(axis=0)
+    pc = p - p_mean
+    qc = q - q_mean
+    cross = float(np.sum(pc[:, 0] * qc[:, 1] - pc[:, 1] * qc[:, 0]))
+    dot = float(np.sum(pc[:, 0] * qc[:, 0] + pc[:, 1] * qc[:, 1]))
+    rotation_rad = math.atan2(cross, dot)  # atan2(0, 0) = 0 for degenerate inputs
+    c, s = math.cos(rotation_rad), math.sin(rotation_rad)
+    R = np.array([[c, -s], [s, c]])
+    translation_xy = q_mean - R @ p_mean
+    return rotation_rad, translation_xy
+
+
+def apply_se2(poses_or_points, rotation_rad: float, translation_xy) -> np.ndarray:
+    """Apply ``x ↦ R(rotation_rad) x + translation_xy`` to points or poses.
+
+    Accepts ``(n, 2)`` points, ``(n, 3)`` poses (headings are rotated too and wrapped into
+    [-π, π)), or a single ``(2,)`` point / ``(3,)`` pose. Returns a new float array of the
+    same shape.
+    """
+    arr = np.asarray(poses_or_points, dtype=float)
+    single = arr.ndim == 1
+    a = arr[None, :] if single else arr
+    if a.ndim != 2 or a.shape[1] not in (2, 3):
+        raise ComparisonError(f"apply_se2: expected points (…, 2) or poses (…, 3), got {arr.shape}")
+    t = np.asarray(translation_xy, dtype=float).reshape(2)
+    c, s = math.cos(rotation_rad), math.sin(rotation_rad)
+    out = a.copy()
+    out[:, 0] = c * a[:, 0] - s * a[:, 1] + t[0]
+    out[:, 1] = s * a[:, 0] + c * a[:, 1] + t[1]
+    if a.shape[1] == 3:
+        out[:, 2] = wrap_angle(a[:, 2] + rotation_rad)
+    return out[0] if single else out
+
+
+# Anchored estimators hold pose 0 at the start pose through a prior with σ = 1e-3 (m and
+# rad). The other factors can pull the posterior of pose 0 a few σ away, so two anchored
+# trajectories can differ at pose 0 by several 1e-3 — far more than 1e-6, which would
+# wrongly trigger an alignment. Trajectories in genuinely different frames differ by
+# metres or by large angles. 10σ = 1e-2 separates the two cases with margin on both sides.
+FIRST_POSE_TOL_M = 1e-2
+FIRST_POSE_TOL_RAD = 1e-2
+
+
+def shares_first_pose(
+    estimate,
+    reference,
+    tol_m: float = FIRST_POSE_TOL_M,
+    tol_rad: float = FIRST_POSE_TOL_RAD,
+) -> bool:
+    """True when the first poses of two trajectories agree to within the tolerances.
+
+    This is the ATE alignment policy: trajectories that share their first pose are in the
+    same world frame (both anchored at the log's known start pose) and are compared as they
+    are; otherwise the estimate is aligned in SE(2).
+
+    The default tolerances (1 cm, 0.01 rad) are 10× the σ = 1e-3 of the start-pose prior:
+    an anchored estimate stays within a few σ of the start, while a trajectory in another
+    frame is off by far more. Pass tighter values if your prior is tighter.
+
+    Args:
+        estimate, reference: ``(n, 3)`` trajectories (only row 0 is used).
+        tol_m: largest distance between the first positions, metres.
+        tol_rad: largest wrapped difference between the first headings, radians.
+    """
+    e = _as_poses(estimate, "estimate")
+    r = _as_poses(reference, "reference")
+    if len(e) == 0 or len(r) == 0:
+        return False
+    distance_m = math.hypot(e[0, 0] - r[0, 0], e[0, 1] - r[0, 1])
+    heading_rad = abs(float(wrap_angle(e[0, 2] - r[0, 2])))
+    return distance_m <= tol_m and heading_rad <= tol_rad
+
+
+def resolve_alignment(estimate, reference, align: bool | None = None) -> tuple[bool, float, np.ndarray]:
+    """Decide whether to align and with which transform.
+
+    Args:
+        estimate, reference: ``(n, 3)`` trajectories of equal length.
+        align: ``True`` always aligns, ``False`` never does, ``None`` applies the automatic
+            policy (align unless :func:`shares_first_pose`).
+
+    Returns:
+        ``(aligned, rotation_rad, translation_xy)``; the identity transform when not aligned.
+    """
+    e = _as_poses(estimate, "estimate")
+    r = _as_poses(reference, "reference")
+    if e.shape != r.shape:
+        raise ComparisonError(f"estimate has {len(e)} poses but reference has {len(r)}")
+    if align is None:
+        align = not shares_first_pose(e, r)
+    if not align or len(e) == 0:
+        return False, 0.0, np.zeros(2)
+    rotation_rad, translation_xy = align_se2(e, r)
+    return True, rotation_rad, translation_xy
+
+
+# --------------------------------------------------------------------------- error metrics
+
+
+def position_errors_m(estimate, reference) -> np.ndarray:
+    """``(n,)`` Euclidean distance between corresponding positions, metres (no alignment)."""
+    e = _as_xy(estimate, "estimate")
+    r = _as_xy(reference, "reference")
+    if e.shape != r.shape:
+        raise ComparisonError(f"estimate has {len(e)} poses but reference has {len(r)}")
+    return np.hypot(e[:, 0] - r[:, 0], e[:, 1] - r[:, 1])
+
+
+def heading_errors_rad(estimate, reference) -> np.ndarray:
+    """``(n,)`` heading error ``wrap(θ_est − θ_ref)`` in [-π, π), radians (no alignment).
+
+    Wrapping matters: 3.1 rad and −3.1 rad are 0.083 rad apart, not 6.2.
+    """
+    e = _as_poses(estimate, "estimate")
+    r = _as_poses(reference, "reference")
+    if e.shape != r.shape:
+        raise ComparisonError(f"estimate has {len(e)} poses but reference has {len(r)}")
+    return wrap_angle(e[:, 2] - r[:, 2])
+
+
+def _rmse(errors: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.square(errors)))) if len(errors) else math.nan
+
+
+def ate_rmse_m(estimate, reference, *, align: bool | None = None) -> float:
+    """Absolute trajectory error: RMS of the position errors, metres.
+
+    Args:
+        estimate, reference: ``(n, 3)`` trajectories, row ``i`` ↔ row ``i``.
+        align: ``None`` (default) applies the policy in the module docstring (align in SE(2)
+            only when the first poses differ); ``True``/``False`` force it.
+    """
+    aligned, rotation_rad, translation_xy = resolve_alignment(estimate, reference, align)
+    e = apply_se2(estimate, rotation_rad, translation_xy) if aligned else np.asarray(estimate, float)
+    return _rmse(position_errors_m(e, reference))
+
+
+def final_pose_error_m(estimate, reference, *, align: bool | None = False) -> float:
+    """Distance between the last estimated and the last reference position, metres.
+
+    ``align`` as in :func:`ate_rmse_m`, but defaults to ``False``: callers that aligned
+    already (like :func:`compute_metrics`) pass aligned poses.
+    """
+    aligned, rotation_rad, translation_xy = resolve_alignment(estimate, reference, align)
+    e = apply_se2(estimate, rotation_rad, translation_xy) if aligned else np.asarray(estimate, float)
+    r = np.asarray(reference, float)
+    if len(e) == 0:
+        return math.nan
+    return float(math.hypot(e[-1, 0] - r[-1, 0], e[-1, 1] - r[-1, 1]))
+
+
+def map_errors_m(
+    estimated_landmarks: Mapping[int, tuple[float, float]],
+    reference_landmarks: Mapping[int, tuple[float, float]],
+    rotation_rad: float = 0.0,
+    translation_xy=(0.0, 0.0),
+) -> dict[int, float]:
+    """Landmark id → position error in metres, for the ids present in both maps.
+
+    The estimated landmarks are first moved by the SE(2) transform (the same one used to
+    align that estimator's trajectory; the identity by default). Landmarks only one side
+    knows are left out: count them with ``len()`` of each map.
+    """
+    common = sorted(set(estimated_landmarks) & set(reference_landmarks))
+    if not common:
+        return {}
+    est = np.array([estimated_landmarks[i] for i in common], dtype=float).reshape(-1, 2)
+    ref = np.array([reference_landmarks[i] for i in common], dtype=float).reshape(-1, 2)
+    est = apply_se2(est, rotation_rad, translation_xy)
+    errors = np.hypot(est[:, 0] - ref[:, 0], est[:, 1] - ref[:, 1])
+    return {int(i): float(err) for i, err in zip(common, errors)}
+
+
+def map_rmse_m(
+    estimated_landmarks: Mapping[int, tuple[float, float]],
+    reference_landmarks: Mapping[int, tuple[float, float]],
+    rotation_rad: float = 0.0,
+    translation_xy=(0.0, 0.0),
+) -> float:
+    """RMS landmark position error over the ids both maps contain, metres.
+
+    Returns NaN when the maps have no id in common (:func:`compute_metrics` turns it into
+    ``None``). See :func:`map_errors_m` for the per-landmark errors and the transform.
+    """
+    errors = map_errors_m(estimated_landmarks, reference_landmarks, rotation_rad, translation_xy)
+    return _rmse(np.fromiter(errors.values(), dtype=float, count=len(errors)))
+
+
+# --------------------------------------------------------------------------- metrics dict
+
+TOP_LEVEL_KEYS = ("reference", "log", "poses")
+METRIC_KEYS = (
+    "ate_rmse_m",
+    "ate_online_rmse_m",
+    "final_pose_error_m",
+    "map_rmse_m",
+    "landmarks_estimated",
+    "aligned",
+    "time_total_s",
+    "time_step_p50_s",
+    "time_step_p99_s",
+    "steps",
+)
+
+
+def _json_float(value) -> float | None:
+    """A plain Python float, or None for NaN/inf/None (JSON has no NaN)."""
+    if value is None:
+        return None
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def estimator_alignment(run: EstimatorRun, reference: Reference) -> tuple[bool, float, np.ndarray]:
+    """The SE(2) transform :func:`compute_metrics` applies to one run (see module docstring).
+
+    Computed from the run's final trajectory against the same number of reference poses;
+    ``fgslam.report`` uses it to draw exactly what was measured.
+    """
+    final = _as_poses(run.final, f"{run.name}.final")
+    ref = _as_poses(reference.trajectory, "reference.trajectory")
+    if len(final) > len(ref):
+        raise ComparisonError(
+            f"estimator {run.name!r} has {len(final)} poses but the reference only {len(ref)}; "
+            "compare runs of the same log"
+        )
+    return resolve_alignment(final, ref[: len(final)], None)
+
+
+def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path: str) -> dict:
+    """All comparison figures as a JSON-ready dictionary (plain floats, ints, bools, None).
+
+    Shape::
+
+        {"reference": "ground_truth" | "smoothed", "log": log_path, "poses": n,
+         "<estimator name>": {
+             "ate_rmse_m": float,            # final trajectory vs reference
+             "ate_online_rmse_m": float|None,# online trajectory; None for batch
+             "final_pose_error_m": float,    # last pose position error
+             "map_rmse_m": float|None,       # None when no landmark id in common
+             "landmarks_estimated": int,
+             "aligned": bool,                # SE(2) alignment applied (first poses differ)
+             "time_total_s": float,
+             "time_step_p50_s": float|None,  # median step time; None for batch
+             "time_step_p99_s": float|None,  # 99th percentile step time; None for batch
+             "steps": int},                  # poses this estimator estimated
+         ...}
+
+    An estimator that estimated fewer poses than the reference (an interrupted run) is
+    compared over the poses it has: ``steps`` says how many. Any figure that is not finite
+    (e.g. a diverged filter) is ``None``.
+    """
+    if reference.kind not in REFERENCE_KINDS:
+        raise ComparisonError(f"reference kind {reference.kind!r}; expected one of {REFERENCE_KINDS}")
+    ref = _as_poses(reference.trajectory, "reference.trajectory")
+    metrics: dict = {"reference": reference.kind, "log": str(log_path), "poses": int(len(ref))}
+    for run in runs:
+        if run.name in TOP_LEVEL_KEYS or run.name in metrics:
+            raise ComparisonError(
+                f"estimator name {run.name!r} clashes with another key of the metrics; rename it"
+            )
+        final = _as_poses(run.final, f"{run.name}.final")
+        m = len(final)
+        aligned, rot, trans = estimator_alignment(run, reference)
+        final_a = apply_se2(final, rot, trans) if m else final
+
+        ate_online = None
+        if run.online is not None:
+            online = _as_poses(run.online, f"{run.name}.online")
+            if len(online) > len(ref):
+                raise ComparisonError(
+                    f"estimator {run.name!r}: online trajectory has {len(online)} poses, "
+                    f"reference {len(ref)}"
+                )
+            if len(online):
+                online_a = apply_se2(online, rot, trans)
+                ate_online = _rmse(position_errors_m(online_a, ref[: len(online)]))
+
+        p50 = p99 = None
+        if run.step_times_s is not None:
+            times = np.asarray(run.step_times_s, dtype=float).reshape(-1)
+            if len(times):
+                p50, p99 = np.percentile(times, [50.0, 99.0])
+
+        metrics[run.name] = {
+            "ate_rmse_m": _json_float(_rmse(position_errors_m(final_a, ref[:m]))),
+            "ate_online_rmse_m": _json_float(ate_online),
+            "final_pose_error_m": _json_float(final_pose_error_m(final_a, ref[:m])),
+            "map_rmse_m": _json_float(map_rmse_m(run.landmarks, reference.landmarks, rot, trans)),
+            "landmarks_estimated": int(len(run.landmarks)),
+            "aligned": bool(aligned),
+            "time_total_s": _json_float(run.total_time_s),
+            "time_step_p50_s": _json_float(p50),
+            "time_step_p99_s": _json_float(p99),
+            "steps": int(m),
+        }
+    return metrics
+
+
+def estimator_names(metrics: dict) -> list[str]:
+    """The estimator entries of a metrics dictionary, in insertion order."""
+    return [k for k, v in metrics.items() if k not in TOP_LEVEL_KEYS and isinstance(v, dict)]
+
+
+# --------------------------------------------------------------------------- table
+
+TABLE_HEADERS = (
+    "estimator",
+    "ATE final m",
+    "ATE online m",
+    "final err m",
+    "map RMSE m",
+    "landmarks",
+    "total ms",
+    "step p50 ms",
+    "step p99 ms",
+)
+
+COLUMN_MEANINGS = {
+    "ATE final m": "absolute trajectory error, metres: RMS position error of every pose as "
+    "estimated after the last step",
+    "ATE online m": "RMS position error, metres, of each pose as estimated at its own step "
+    "(what the robot knew live); - for a one-shot batch solve",
+    "final err m": "position error of the last pose, metres",
+    "map RMSE m": "RMS landmark position error, metres, over the landmark ids both maps contain",
+    "landmarks": "number of landmarks the estimator mapped",
+    "total ms": "wall-clock time of the whole run, milliseconds",
+    "step p50 ms": "median wall-clock time per step, milliseconds; - for a one-shot batch solve",
+    "step p99 ms": "99th-percentile wall-clock time per step, milliseconds; - for a one-shot "
+    "batch solve",
+}
+
+REFERENCE_DESCRIPTIONS = {
+    "ground_truth": "ground truth recorded in the log",
+    "smoothed": "smoothed solution (batch LM over the whole log; no ground truth)",
+}
+
+
+def _fmt(value, scale: float = 1.0, digits: int = 4) -> str:
+    return "-" if value is None else f"{value * scale:.{digits}f}"
+
+
+def reference_line(metrics: dict) -> str:
+    """One sentence saying what the figures are measured against."""
+    kind = metrics.get("reference")
+    what = REFERENCE_DESCRIPTIONS.get(kind, str(kind))
+    return f"Reference: {what} - {metrics.get('log')}, {metrics.get('poses')} poses"
+
+
+def table_rows(metrics: dict) -> tuple[tuple[str, ...], list[tuple[str, ...]], list[str]]:
+    """The table shared by :func:`format_table` and the HTML report.
+
+    Returns ``(headers, rows, notes)``: ``rows`` hold formatted strings (metres to 0.1 mm,
+    times in milliseconds, ``-`` for "not applicable"); an ``*`` after an ATE means the
+    estimate was aligned in SE(2); ``notes`` explain the marks that occur.
+    """
+    rows = []
+    notes = []
+    any_aligned = False
+    for name in estimator_names(metrics):
+        m = metrics[name]
+        star = "*" if m.get("aligned") else ""
+        any_aligned |= bool(m.get("aligned"))
+        rows.append(
+            (
+                name,
+                _fmt(m.get("ate_rmse_m")) + star,
+                _fmt(m.get("ate_online_rmse_m")) + (star if m.get("ate_online_rmse_m") is not None else ""),
+                _fmt(m.get("final_pose_error_m")),
+                _fmt(m.get("map_rmse_m")),
+                str(m.get("landmarks_estimated")),
+                _fmt(m.get("time_total_s"), 1e3, 1),
+                _fmt(m.get("time_step_p50_s"), 1e3, 3),
+                _fmt(m.get("time_step_p99_s"), 1e3, 3),
+            )
+        )
+        if m.get("steps") != metrics.get("poses"):
+            notes.append(f"{name} estimated {m.get('steps')} of {metrics.get('poses')} poses")
+    if any_aligned:
+        notes.insert(0, "* aligned to the reference in SE(2) (first poses differ)")
+    return TABLE_HEADERS, rows, notes
+
+
+def format_table(metrics: dict) -> str:
+    """A fixed-width terminal table of :func:`compute_metrics` output.
+
+    First line: what the reference is. Then one row per estimator with ATE final, ATE
+    online, final pose error, map RMSE (metres), landmark count, and total / median /
+    99th-percentile step time (milliseconds). ``-`` means not applicable.
+    """
+    headers, rows, notes = table_rows(metrics)
+    widths = [max(len(h), *(len(r[i]) for r in rows)) if rows else len(h) for i, h in enumerate(headers)]
+
+    def line(cells) -> str:
+        first = cells[0].ljust(widths[0])
+        rest = [c.rjust(w) for c, w in zip(cells[1:], widths[1:])]
+        return "  ".join([first, *rest]).rstrip()
+
+    out = [reference_line(metrics), line(headers), line(["-" * w for w in widths])]
+    out += [line(r) for r in rows]
+    out += notes
+    return "\n".join(out)
+
+
+# --------------------------------------------------------------------------- TUM export
+
+
+def format_tum(stamps_s, poses) -> str:
+    """Trajectory in TUM format: one line ``t x y 0 qx qy qz qw`` per pose, in order.
+
+    A planar heading θ is the rotation about z: ``qx = qy = 0, qz = sin(θ/2),
+    qw = cos(θ/2)``. Numbers are written with ``repr`` (shortest text that reads back as
+    the same float), so nothing is lost. The result ends with a newline (empty for no poses).
+    """
+    t = np.asarray(stamps_s, dtype=float).reshape(-1)
+    p = _as_poses(poses, "poses")
+    if len(t) != len(p):
+        raise ComparisonError(f"format_tum: {len(t)} stamps but {len(p)} poses")
+    lines = []
+    for stamp, (x, y, theta) in zip(t, p):
+        half = 0.5 * float(theta)
+        values = (float(stamp), float(x), float(y), 0.0, 0.0, 0.0, math.sin(half), math.cos(half))
+        lines.append(" ".join(repr(v) for v in values))
+    return "".join(line + "\n" for line in lines)
+
+
+def write_tum(path: str | os.PathLike[str], stamps_s, poses) -> None:
+    """Write :func:`format_tum` output to ``path`` (overwriting it)."""
+    Path(path).write_text(format_tum(stamps_s, poses), encoding="utf-8")
+
+
+def read_tum(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Read a TUM trajectory file into ``(stamps_s (n,), poses (n, 3))``.
+
+    Blank lines and ``#`` comments are skipped. The heading is the yaw of the quaternion,
+    ``atan2(2(qw qz + qx qy), 1 − 2(qy² + qz²))``, so files from other tools (with tiny
+    non-zero qx, qy) read too; z is ignored. Raises :class:`ComparisonError` naming
+    ``file:line`` for a malformed line.
+    """
+    stamps, poses = [], []
+    with open(path, encoding="utf-8") as f:
+        for line_no, raw in enumerate(f, start=1):
+            text = raw.strip()
+            if not text or text.startswith("#"):
+                continue
+            fields = text.split()
+            if len(fields) != 8:
+                raise ComparisonError(
+                    f"{path}:{line_no}: expected 8 numbers 't x y z qx qy qz qw', got {len(fields)}"
+                )
+            try:
+                t, x, y, _z, qx, qy, qz, qw = (float(v) for v in fields)
+            except ValueError:
+                raise ComparisonError(
+                    f"{path}:{line_no}: not a number in {text!r}; a TUM line is 8 numbers "
+                    "'t x y z qx qy qz qw'"
+                ) from None
+            yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+            stamps.append(t)
+            poses.append((x, y, yaw))
+    return np.asarray(stamps, dtype=float), np.asarray(poses, dtype=float).reshape(-1, 3)
