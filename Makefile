@@ -1,0 +1,38 @@
+# Two commands do all set-up on a fresh machine:
+#   make demo   virtual environment + install + both estimators on a bundled log + report
+#   make test   the dev extras + the whole test suite
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+DEMO_LOG := data/arena_octagon.jsonl
+DEMO_OUT := out/demo
+
+.PHONY: demo test install data clean
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+
+$(VENV)/.installed: pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e .
+	touch $@
+
+$(VENV)/.installed-dev: pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $(VENV)/.installed $@
+
+install: $(VENV)/.installed
+
+demo: $(VENV)/.installed
+	$(BIN)/fgslam run $(DEMO_LOG) --out $(DEMO_OUT)
+	@echo "open $(DEMO_OUT)/report.html in a browser to see the figures"
+
+test: $(VENV)/.installed-dev
+	$(BIN)/python -m pytest
+
+# Regenerate the bundled logs (deterministic: the same bytes every time).
+data: $(VENV)/.installed
+	$(BIN)/fgslam sim arena-octagon --seed 1 --out data/arena_octagon.jsonl
+	$(BIN)/fgslam sim arena-square --seed 1 --out data/arena_square.jsonl
+
+clean:
+	rm -rf $(VENV) out build *.egg-info .pytest_cache .hypothesis

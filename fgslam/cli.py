@@ -1,0 +1,235 @@
+"""The ``fgslam`` command line: simulate a run, compare estimators on a log, check a log.
+
+Every verb explains itself with ``--help``. Errors a user can cause print one line,
+``fgslam: error: <file:line: what is wrong, how to fix it>``, and exit with status 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import sys
+from pathlib import Path
+from typing import Sequence
+
+from slamio.errors import FgslamError
+from slamio.log import LogFormatError, Observation, Odometry, RunLog, read_log, write_log
+
+DESCRIPTION = """\
+fgslam compares factor-graph smoothing (GTSAM iSAM2) against EKF-SLAM on the same
+2-D landmark run log: record or simulate a run, run every estimator on it, read the
+comparison.
+
+typical use:
+  fgslam sim arena-octagon --seed 1 --out run.jsonl
+  fgslam run run.jsonl --out results/
+"""
+
+
+# --------------------------------------------------------------------------- progress
+
+
+class ProgressBar:
+    """A one-line progress bar on stderr, drawn only when stderr is a terminal."""
+
+    def __init__(self, stream=sys.stderr):
+        self.stream = stream
+        self.enabled = stream.isatty()
+        self._label = None
+
+    def __call__(self, done: int, total: int, label: str) -> None:
+        if not self.enabled:
+            return
+        width = 30
+        filled = int(width * done / max(total, 1))
+        self.stream.write(f"\r{label:>15} [{'#' * filled}{'.' * (width - filled)}] {done}/{total}")
+        if done >= total:
+            self.stream.write("\n")
+        self.stream.flush()
+
+
+# --------------------------------------------------------------------------- verbs
+
+
+def _summary(log: RunLog) -> str:
+    steps = log.steps()
+    observations = [r for r in log.records if isinstance(r, Observation)]
+    ids = {o.landmark_id for o in observations if o.landmark_id is not None}
+    unknown = sum(o.landmark_id is None for o in observations)
+    duration = steps[-1].stamp_s - steps[0].stamp_s
+    truth = "ground truth for every pose" if log.has_full_truth() else "no full ground truth"
+    return (
+        f"{len(steps)} poses over {duration:.1f} s, {len(observations)} observations of "
+        f"{len(ids)} landmarks" + (f" (+{unknown} with unknown id)" if unknown else "") + f", {truth}"
+    )
+
+
+def _read(path: str) -> RunLog:
+    log = read_log(path)
+    if log.truncated:
+        print(f"fgslam: warning: {log.truncated}", file=sys.stderr)
+    return log
+
+
+def cmd_sim(args: argparse.Namespace) -> int:
+    from slamio.sim import simulate
+
+    command = "fgslam " + " ".join(shlex.quote(a) for a in args.argv)
+    header, records = simulate(
+        args.scenario, args.seed, landmarks=args.landmarks, laps=args.laps, command=command
+    )
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_log(out, header, records)
+    print(f"wrote {out}: {_summary(read_log(out))}")
+    return 0
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    log = _read(args.log)
+    odometry = sum(isinstance(r, Odometry) for r in log.records)
+    print(f"{args.log}: valid fgslam run log v{log.header.version}: {_summary(log)}; {odometry} odometry records")
+    return 0
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from fgslam.compare import compute_metrics, format_table, write_tum
+    from fgslam.runner import compare_log, parse_estimator_names
+
+    names = parse_estimator_names(args.estimators)
+    log = _read(args.log)
+    print(f"{args.log}: {_summary(log)}")
+    result = compare_log(log, names, progress=ProgressBar())
+    metrics = compute_metrics(result.runs, result.reference, log_path=str(args.log))
+    if log.truncated:
+        metrics["log_truncated"] = log.truncated
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    write_tum(out / "reference.tum", result.stamps_s, result.reference.trajectory)
+    for run in result.runs:
+        write_tum(out / f"{run.name}.tum", result.stamps_s, run.final)
+        if run.online is not None:
+            write_tum(out / f"{run.name}_online.tum", result.stamps_s, run.online)
+    written = ["metrics.json", "*.tum"]
+    if not args.no_report:
+        from fgslam.report import write_report
+
+        html = write_report(
+            out, metrics, result.runs, result.reference, result.stamps_s, title=f"fgslam run {Path(args.log).name}"
+        )
+        written.insert(1, html.name)
+    print()
+    print(format_table(metrics))
+    print(f"\nwrote {', '.join(written)} to {out}/")
+    if log.truncated:
+        print(f"note: {log.truncated}")
+    return 0
+
+
+# --------------------------------------------------------------------------- parser
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from slamio.sim import SCENARIOS
+
+    parser = argparse.ArgumentParser(
+        prog="fgslam", description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--version", action="version", version=f"fgslam {_version()}")
+    verbs = parser.add_subparsers(dest="verb", metavar="VERB", required=True)
+
+    sim = verbs.add_parser(
+        "sim",
+        help="simulate a run and write its log (with ground truth)",
+        description=(
+            "Simulate a differential-drive robot with noisy wheel odometry and a range-bearing "
+            "landmark sensor, and write the run log with ground truth. The same seed gives the "
+            "same log, byte for byte.\n\nscenarios:\n"
+            "  arena-square   seed 004's 10 ft x 10 ft arena, 8 AprilTags, square path\n"
+            "  arena-octagon  the same arena, octagon path\n"
+            "  cylinders      seed 000's three coloured cylinders seen by a Kinect\n"
+            "  grid           N landmarks on a grid (--landmarks N), a long loop with revisits"
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sim.add_argument("scenario", choices=SCENARIOS, metavar="SCENARIO", help="one of: " + ", ".join(SCENARIOS))
+    sim.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    sim.add_argument("--out", required=True, metavar="LOG", help="run log to write (.jsonl)")
+    sim.add_argument("--landmarks", type=int, default=200, metavar="N", help="grid only: number of landmarks (default 200)")
+    sim.add_argument("--laps", type=int, default=None, metavar="N", help="laps of the path (default: the scenario's)")
+    sim.set_defaults(func=cmd_sim)
+
+    run = verbs.add_parser(
+        "run",
+        help="run the estimators on a log and write the comparison",
+        description=(
+            "Run every estimator on the same log and compare them. The reference is the log's "
+            "ground truth when every pose has one, otherwise the batch Levenberg-Marquardt "
+            "solution started from iSAM2's result (the 'smoothed ground truth'). Writes "
+            "metrics.json, report.html (self-contained), PNG figures, and each estimator's "
+            "trajectory in TUM format (<name>.tum final, <name>_online.tum online) to --out, "
+            "and prints a table of the figures."
+        ),
+    )
+    run.add_argument("log", metavar="LOG", help="run log (.jsonl)")
+    run.add_argument("--out", required=True, metavar="DIR", help="folder for the results (created)")
+    run.add_argument(
+        "--estimators",
+        default="ekf,isam2,dead_reckoning",
+        metavar="LIST",
+        help="comma-separated estimators to run (default ekf,isam2,dead_reckoning); "
+        "the batch solve always runs from isam2's result",
+    )
+    run.add_argument("--no-report", action="store_true", help="skip report.html and the PNG figures")
+    run.set_defaults(func=cmd_run)
+
+    validate = verbs.add_parser(
+        "validate",
+        help="check a run log line by line and summarise it",
+        description="Read a run log, validate every line, and print a one-line summary. "
+        "Exits 1 with file:line and how to fix it at the first bad line.",
+    )
+    validate.add_argument("log", metavar="LOG", help="run log (.jsonl)")
+    validate.set_defaults(func=cmd_validate)
+    return parser
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("fgslam")
+    except PackageNotFoundError:
+        return "unknown"
+
+
+def _explain(error: FgslamError) -> str:
+    message = str(error)
+    if isinstance(error, LogFormatError) and error.partial is not None and error.line > 2:
+        message += (
+            f"\n  (the {error.line - 1} lines before it are valid; fix or delete line {error.line}, "
+            f"or keep only the good part: head -n {error.line - 1} {error.path} > good.jsonl)"
+        )
+    return message
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    args.argv = argv
+    try:
+        return args.func(args)
+    except FgslamError as error:
+        print(f"fgslam: error: {_explain(error)}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("fgslam: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

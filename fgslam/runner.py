@@ -1,0 +1,130 @@
+"""Drive every estimator over the same log, time each step, and pick the reference.
+
+This is the one place that knows about all estimators. Estimators stay pure; the runner
+measures (``time.perf_counter`` around each step) and collects, for each estimator, the
+*online* trajectory (each pose as estimated at its own step — what the robot would have
+acted on) and the *final* one (every pose as estimated after the last step).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+import numpy as np
+
+from ekf import DeadReckoning, EkfSlam
+from fgslam.compare import EstimatorRun, Reference
+from fgslam.smoother import Isam2Smoother, batch_solve
+from slamio.errors import FgslamError
+from slamio.estimator import Estimator
+from slamio.log import Header, RunLog, Step
+
+#: name → factory(header). Each name is what ``--estimators`` accepts.
+ESTIMATORS: dict[str, Callable[[Header], Estimator]] = {
+    "ekf": EkfSlam,
+    "isam2": Isam2Smoother,
+    "dead_reckoning": DeadReckoning,
+}
+DEFAULT_ESTIMATORS = ("ekf", "isam2", "dead_reckoning")
+
+#: Progress callback: (steps done, steps in all, what is running).
+Progress = Callable[[int, int, str], None]
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """Everything ``fgslam run`` reports: one run per estimator (and the batch solve)."""
+
+    runs: list[EstimatorRun]
+    reference: Reference
+    stamps_s: np.ndarray
+
+
+def parse_estimator_names(text: str) -> list[str]:
+    """``"ekf,isam2"`` → ``["ekf", "isam2"]``, rejecting unknown or missing names."""
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    unknown = [n for n in names if n not in ESTIMATORS]
+    if unknown or not names:
+        raise FgslamError(
+            f"unknown estimator(s) {', '.join(unknown) or '(none given)'}; "
+            f"choose from {', '.join(ESTIMATORS)} (comma-separated)"
+        )
+    if "isam2" not in names:
+        raise FgslamError(
+            "the batch solve (the smoothed reference) starts from iSAM2's result: keep isam2 in --estimators"
+        )
+    return list(dict.fromkeys(names))
+
+
+def run_estimator(
+    estimator: Estimator, steps: Sequence[Step], progress: Progress | None = None
+) -> tuple[EstimatorRun, Estimator]:
+    """Feed ``steps`` to ``estimator`` in order, timing each step and ``finish()``."""
+    online = np.empty((len(steps), 3))
+    step_times_s = np.empty(len(steps))
+    every = max(1, len(steps) // 200)
+    for i, step in enumerate(steps):
+        start = time.perf_counter()
+        estimator.step(step)
+        online[i] = estimator.current_pose()
+        step_times_s[i] = time.perf_counter() - start
+        if progress is not None and (i % every == 0 or i == len(steps) - 1):
+            progress(i + 1, len(steps), estimator.name)
+    start = time.perf_counter()
+    estimator.finish()
+    final = np.asarray(estimator.trajectory(), dtype=float)
+    finish_s = time.perf_counter() - start
+    run = EstimatorRun(
+        name=estimator.name,
+        online=online,
+        final=final,
+        landmarks=dict(estimator.landmarks()),
+        step_times_s=step_times_s,
+        total_time_s=float(step_times_s.sum() + finish_s),
+    )
+    return run, estimator
+
+
+def compare_log(
+    log: RunLog, estimator_names: Sequence[str] = DEFAULT_ESTIMATORS, progress: Progress | None = None
+) -> Comparison:
+    """Run the named estimators and the batch solve on ``log``; choose the reference.
+
+    The reference is the log's ground truth when every pose has one, otherwise the batch
+    Levenberg–Marquardt solution started from iSAM2's result (the "smoothed ground truth").
+    """
+    steps = log.steps()
+    runs: list[EstimatorRun] = []
+    smoother: Isam2Smoother | None = None
+    for name in estimator_names:
+        run, estimator = run_estimator(ESTIMATORS[name](log.header), steps, progress)
+        runs.append(run)
+        if isinstance(estimator, Isam2Smoother):
+            smoother = estimator
+    if smoother is None:
+        raise FgslamError("the batch solve needs iSAM2's result: keep isam2 in the estimators")
+    if progress is not None:
+        progress(0, 1, "batch")
+    batch = batch_solve(smoother)
+    if progress is not None:
+        progress(1, 1, "batch")
+    runs.append(
+        EstimatorRun(
+            name="batch",
+            online=None,
+            final=batch.trajectory,
+            landmarks=dict(batch.landmarks),
+            step_times_s=None,
+            total_time_s=batch.time_s,
+        )
+    )
+    stamps_s = np.array([s.stamp_s for s in steps])
+    if log.has_full_truth():
+        truth = np.array([[s.truth.x_m, s.truth.y_m, s.truth.theta_rad] for s in steps])  # type: ignore[union-attr]
+        landmarks = {i: (t.x_m, t.y_m) for i, t in log.truth_landmarks().items()}
+        reference = Reference("ground_truth", truth, landmarks)
+    else:
+        reference = Reference("smoothed", batch.trajectory, dict(batch.landmarks))
+    return Comparison(runs, reference, stamps_s)

@@ -1,0 +1,131 @@
+"""The command line end to end: help texts, outputs of `fgslam run`, bad and cut-off logs."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fgslam.cli import main
+from fgslam.compare import read_tum
+
+VERBS = ["sim", "run", "validate"]
+
+
+def test_console_script_help_lists_every_verb():
+    exe = shutil.which("fgslam") or str(Path(sys.executable).parent / "fgslam")
+    out = subprocess.run([exe, "--help"], capture_output=True, text=True, check=True).stdout
+    assert "iSAM2" in out and "EKF" in out
+    for verb in VERBS:
+        assert verb in out
+
+
+@pytest.mark.parametrize("verb", VERBS)
+def test_each_verb_explains_itself(verb, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main([verb, "--help"])
+    assert exit_.value.code == 0
+    out = capsys.readouterr().out
+    assert f"usage: fgslam {verb}" in out
+    assert len(out.splitlines()) >= 5
+
+
+@pytest.fixture(scope="module")
+def short_log(tmp_path_factory):
+    """A short simulated arena run (1 lap) — enough to exercise every output."""
+    path = tmp_path_factory.mktemp("logs") / "octagon.jsonl"
+    assert main(["sim", "arena-octagon", "--seed", "3", "--laps", "1", "--out", str(path)]) == 0
+    return path
+
+
+def test_sim_is_deterministic(short_log, tmp_path):
+    again = tmp_path / "again.jsonl"
+    assert main(["sim", "arena-octagon", "--seed", "3", "--laps", "1", "--out", str(again)]) == 0
+    assert again.read_bytes().replace(str(again).encode(), b"") == short_log.read_bytes().replace(
+        str(short_log).encode(), b""
+    )
+
+
+def test_run_writes_metrics_tum_and_report(short_log, tmp_path, capsys):
+    out = tmp_path / "results"
+    assert main(["run", str(short_log), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    for name in ("ekf", "isam2", "batch", "dead_reckoning"):
+        assert name in printed
+
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["reference"] == "ground_truth"
+    keys = {
+        "ate_rmse_m", "ate_online_rmse_m", "final_pose_error_m", "map_rmse_m",
+        "time_total_s", "time_step_p50_s", "time_step_p99_s", "steps",
+    }
+    for name in ("ekf", "isam2", "batch"):
+        assert keys <= set(metrics[name]), name
+    assert metrics["batch"]["ate_online_rmse_m"] is None
+
+    poses = sum(json.loads(line)["type"] == "odometry" for line in short_log.read_text().splitlines()) + 1
+    for name in ("ekf", "isam2", "batch", "dead_reckoning", "reference"):
+        stamps, traj = read_tum(out / f"{name}.tum")
+        assert traj.shape == (poses, 3)
+        assert np.all(np.diff(stamps) > 0)
+    for name in ("ekf", "isam2"):
+        assert (out / f"{name}_online.tum").exists()
+    assert (out / "report.html").stat().st_size > 10_000
+    assert (out / "trajectories.png").exists() and (out / "position_error.png").exists()
+
+
+def test_validate_summarises(short_log, capsys):
+    assert main(["validate", str(short_log)]) == 0
+    assert "valid fgslam run log v1" in capsys.readouterr().out
+
+
+def test_corrupted_middle_line_exits_nonzero_with_file_and_line(short_log, tmp_path, capsys):
+    lines = short_log.read_text().splitlines(keepends=True)
+    middle = len(lines) // 2
+    lines[middle - 1] = lines[middle - 1][: len(lines[middle - 1]) // 2] + "\n"  # half a record
+    bad = tmp_path / "corrupt.jsonl"
+    bad.write_text("".join(lines))
+    code = main(["run", str(bad), "--out", str(tmp_path / "r")])
+    err = capsys.readouterr().err
+    assert code == 1
+    assert f"fgslam: error: {bad}:{middle}: not valid JSON" in err
+    assert f"head -n {middle - 1}" in err
+    assert not (tmp_path / "r" / "metrics.json").exists()
+
+
+def test_log_truncated_mid_line_runs_on_the_part_before_the_cut(short_log, tmp_path, capsys):
+    text = short_log.read_text()
+    cut = tmp_path / "cut.jsonl"
+    cut.write_text(text[: int(len(text) * 0.6)])  # a recording stopped mid-line
+    complete_lines = cut.read_text().count("\n")
+    out = tmp_path / "r"
+    assert main(["run", str(cut), "--out", str(out), "--no-report"]) == 0
+    captured = capsys.readouterr()
+    assert "last line is cut off" in captured.err
+    assert f"{cut}:{complete_lines + 1}:" in captured.err
+    assert "cut off" in captured.out  # said again under the table
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert "cut off" in metrics["log_truncated"]
+    assert metrics["isam2"]["ate_rmse_m"] < metrics["dead_reckoning"]["ate_rmse_m"]
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["run", "missing.jsonl", "--out", "x"], "cannot open"),
+        (["run", "LOG", "--out", "x", "--estimators", "ekf,ukf"], "unknown estimator(s) ukf"),
+        (["run", "LOG", "--out", "x", "--estimators", "ekf"], "keep isam2"),
+    ],
+)
+def test_user_errors_are_one_line_not_tracebacks(argv, message, short_log, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    argv = [str(short_log) if a == "LOG" else a for a in argv]
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("fgslam: error: ") and message in err
+    assert "Traceback" not in err
