@@ -77,7 +77,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
 
     command = "fgslam " + " ".join(shlex.quote(a) for a in args.argv)
     header, records = simulate(
-        args.scenario, args.seed, landmarks=args.landmarks, laps=args.laps, command=command
+        args.scenario, args.seed, landmarks=args.landmarks, laps=args.laps, hide_ids=args.hide_ids, command=command
     )
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -160,6 +160,12 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--out", required=True, metavar="LOG", help="run log to write (.jsonl)")
     sim.add_argument("--landmarks", type=int, default=200, metavar="N", help="grid only: number of landmarks (default 200)")
     sim.add_argument("--laps", type=int, default=None, metavar="N", help="laps of the path (default: the scenario's)")
+    sim.add_argument(
+        "--hide-ids",
+        action="store_true",
+        help="write observations without landmark ids (estimators must associate them); "
+        "the true id is kept in truth_landmark_id to score the association",
+    )
     sim.set_defaults(func=cmd_sim)
 
     run = verbs.add_parser(

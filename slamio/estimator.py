@@ -33,4 +33,23 @@ class Estimator(Protocol):
         """(n, 3) array of every pose so far as estimated now (final, after ``finish``)."""
 
     def landmarks(self) -> dict[int, tuple[float, float]]:
-        """Landmark id → estimated (x_m, y_m) in the world frame."""
+        """Landmark key → estimated (x_m, y_m) in the world frame."""
+
+
+class AssociatingEstimator(Estimator, Protocol):
+    """An estimator that can say which landmark it used each observation as.
+
+    Optional: the runner scores data association with it (against
+    ``Observation.truth_landmark_id``, or ``landmark_id`` when the log has ids) and maps the
+    estimator's landmark keys to true ids for the map error.
+
+    Landmark keys: an observation with a ``landmark_id`` that the estimator trusts is keyed
+    by that id (≥ 0). A landmark the estimator created itself from observations without an
+    id is keyed by a negative integer (−1, −2, … in order of creation), so its keys never
+    collide with the log's ids.
+    """
+
+    def step_associations(self) -> list[int | None]:
+        """For each observation of the last step, in order: the landmark key it was used
+        as (a new landmark's key when it created one), or None when it was not used
+        (rejected by a gate, or ignored)."""

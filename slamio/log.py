@@ -105,6 +105,10 @@ class Observation:
     the landmark's height above the floor (seed 002); ``tag_yaw_rad`` the direction the
     tag's face points to, relative to the robot's x axis (seed 004). Each measured value
     carries its standard deviation.
+
+    ``truth_landmark_id`` is ground truth, not a measurement: which landmark this really
+    is, kept when ``landmark_id`` is hidden (``fgslam sim --hide-ids``) so that data
+    association can be scored. Estimators must never read it.
     """
 
     stamp_s: float
@@ -117,6 +121,7 @@ class Observation:
     sigma_height_m: float | None = None
     tag_yaw_rad: float | None = None
     sigma_tag_yaw_rad: float | None = None
+    truth_landmark_id: int | None = None
 
 
 @dataclass(frozen=True)
@@ -450,6 +455,7 @@ def parse_record(d: dict) -> Record:
             sigma_height_m=sigma_height,
             tag_yaw_rad=yaw,
             sigma_tag_yaw_rad=sigma_yaw,
+            truth_landmark_id=_integer(d, "truth_landmark_id", optional=True),
         )  # type: ignore[arg-type]
     if cls is TruthPose:
         return TruthPose(

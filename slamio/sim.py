@@ -111,6 +111,8 @@ grid (N = 200) 11.4 vs 0.40 / 0.19.
 
 from __future__ import annotations
 
+import dataclasses
+
 import math
 import numbers
 from dataclasses import dataclass
@@ -703,6 +705,7 @@ def simulate(
     landmarks: int = 200,
     laps: int | None = None,
     noise_scale: float = 1.0,
+    hide_ids: bool = False,
     command: str | None = None,
 ) -> tuple[Header, list[Record]]:
     """Simulate one run of ``scenario`` and return its log ``(header, records)``.
@@ -712,7 +715,9 @@ def simulate(
     (ignored by the others); ``laps`` overrides the scenario's default number of laps;
     ``noise_scale`` multiplies every random error (0 = exact measurements) while the
     records keep the nominal covariances and sigmas; ``command`` is kept in
-    ``header.source["command"]``.
+    ``header.source["command"]``. ``hide_ids`` writes every observation with
+    ``landmark_id`` null (the estimator must associate it) and the true id in
+    ``truth_landmark_id``, for scoring the association.
 
     Record order: a ``TruthLandmark`` per landmark (ids 0..N−1); ``TruthPose`` of pose 0
     and its observations; then per step ``Odometry``, ``TruthPose`` and the observations at
@@ -728,6 +733,8 @@ def simulate(
     drive = _drive(sc, laps, noise_scale, motion_rng)
     start_pose = tuple(float(v) for v in drive.poses[0])
     header = _header(sc, start_pose, int(seed), laps, noise_scale, command)
+    if hide_ids:
+        header = dataclasses.replace(header, source={**header.source, "hide_ids": True})
 
     # Odometry records: the Create's reading from the measured wheels, the arc increment,
     # and the covariance of the generative noise at the true wheel distances.
@@ -777,10 +784,11 @@ def simulate(
         records.append(TruthPose(stamp, *poses[k]))
         for j in range(bounds[k], bounds[k + 1]):
             records.append(Observation(
-                stamp, ids[j], ranges[j], bearings[j], sigmas_r[j], sigma_b,
+                stamp, None if hide_ids else ids[j], ranges[j], bearings[j], sigmas_r[j], sigma_b,
                 None if height_meas is None else height_meas[j],
                 sigma_h,
                 None if yaw_meas is None else yaw_meas[j],
                 sigma_yaw,
+                ids[j] if hide_ids else None,
             ))
     return header, records

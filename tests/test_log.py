@@ -83,6 +83,7 @@ def records_in_time_order(draw, start_stamp_s):
                 Observation(
                     stamp, draw(st.one_of(st.none(), st.integers(0, 10**9))), draw(positive), draw(finite),
                     draw(positive), draw(positive), height, sigma_height, yaw, sigma_yaw,
+                    draw(st.one_of(st.none(), st.integers(0, 10**9))),
                 )
             )
         elif kind == "truth_pose":
