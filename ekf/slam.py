@@ -1,9 +1,11 @@
-"""Textbook range-bearing EKF-SLAM with known landmark ids (Thrun et al., *Probabilistic
-Robotics*, ch. 10), written so that every step costs O(n) or O(n²) in the state size n.
+"""Textbook range-bearing EKF-SLAM (Thrun et al., *Probabilistic Robotics*, ch. 10) with
+data association for landmarks without ids and optional landmark heights, written so that
+every step costs O(n) or O(n²) in the state size n.
 
 State layout
-    ``mean = [x, y, θ, l1x, l1y, l2x, l2y, ...]`` — the robot pose first, then one 2-D
-    point per landmark in the order the landmarks were first seen. ``P`` is the full
+    ``mean = [x, y, θ, l1x, l1y, (l1h,) l2x, l2y, ...]`` — the robot pose first, then one
+    block per landmark in the order the landmarks were first seen: (x, y), or (x, y, h) for
+    a landmark first seen by an observation with a height (seed 002). ``P`` is the full
     joint covariance. Both live in buffers that grow by doubling their capacity, so adding
     thousands of landmarks copies the n×n matrix only O(log n) times. The covariance
     buffer is Fortran-ordered so that the one O(n²) pass of an update is a single in-place
@@ -21,8 +23,21 @@ One step (:meth:`EkfSlam.step`)
        * later sightings → one sequential EKF update with the bearing innovation wrapped,
          the Joseph-form covariance update in O(n²) (see :func:`joseph_factors`) and the
          heading wrapped.
-       Observations with ``landmark_id is None`` are skipped and counted (data association
-       is a separate concern).
+    3. The observations with ``landmark_id is None`` form one association problem against
+       the current map (χ² gate, then gated nearest neighbour or JCBB, see
+       :mod:`ekf.association`): paired ones update as in 2, those outside every gate
+       become new landmarks keyed −1, −2, …, and the rest are rejected and counted.
+       With ``association=None`` they are skipped and counted instead.
+
+Observation model with a height
+    ``z = (range, bearing, height)``, ``height = h + n_h``: a direct measurement of the
+    landmark's h, so ``H`` has one more row ``[0 0 0 | 0 0 1]`` and up to 6 non-zero
+    columns (pose, x, y, h); R = diag(σ_r², σ_b², σ_h²). A new landmark's h is the measured
+    height with variance σ_h² and no cross-covariance, and nothing ever correlates it with
+    the rest of the state, so each height is an exact scalar Kalman filter: its estimate is
+    the information-weighted mean of the heights measured and its variance
+    ``1 / Σ 1/σ_h,k²``. An observation with a height of a landmark without one (or the
+    reverse) uses range and bearing only.
 
 The module-level functions are the filter's arithmetic (each one small and testable on
 its own); :class:`EkfSlam` only holds the state and the bookkeeping.
@@ -30,9 +45,19 @@ its own); :class:`EkfSlam` only holds the state and the bookkeeping.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.linalg import blas as _blas
 
+from ekf.association import (
+    DEFAULT_GATE_PROBABILITY,
+    DEFAULT_MAX_NODES,
+    chi2_gate,
+    gated_nearest_neighbour,
+    jcbb,
+    mahalanobis_squared,
+)
 from ekf.models import (
     landmark_from_range_bearing,
     landmark_init_jacobians,
@@ -53,6 +78,13 @@ __all__ = [
     "joseph_factors",
     "joseph_update",
     "add_low_rank_in_place",
+    "has_height",
+    "observation_model",
+    "observation_jacobians",
+    "landmark_from_observation",
+    "landmark_from_observation_jacobians",
+    "ASSOCIATION_METHODS",
+    "DEFAULT_NEW_LANDMARK_PROBABILITY",
 ]
 
 ROBOT_DIM = 3  # x_m, y_m, theta_rad
@@ -62,9 +94,64 @@ LANDMARK_DIM = 2  # x_m, y_m
 # --------------------------------------------------------------------------- filter arithmetic
 
 
-def measurement_covariance(observation: Observation) -> np.ndarray:
-    """R = diag(σ_range², σ_bearing²) from the observation's own standard deviations."""
+def measurement_covariance(observation: Observation, with_height: bool = False) -> np.ndarray:
+    """R = diag(σ_range², σ_bearing²) from the observation's own standard deviations;
+    with ``with_height``, diag(σ_range², σ_bearing², σ_height²)."""
+    if with_height:
+        return np.diag([observation.sigma_range_m**2, observation.sigma_bearing_rad**2, observation.sigma_height_m**2])
     return np.diag([observation.sigma_range_m**2, observation.sigma_bearing_rad**2])
+
+
+def has_height(observation: Observation) -> bool:
+    """True when the observation carries a usable height (a value and a positive σ)."""
+    return (
+        observation.height_m is not None
+        and observation.sigma_height_m is not None
+        and observation.sigma_height_m > 0.0
+    )
+
+
+def observation_model(pose, landmark) -> np.ndarray:
+    """Predicted measurement of a landmark state: ``(range, bearing)`` for ``(x, y)``,
+    ``(range, bearing, height)`` for ``(x, y, h)`` — the height is measured directly."""
+    r, b = range_bearing(pose, landmark[:2])
+    if len(landmark) == 3:
+        return np.array([r, b, float(landmark[2])])
+    return np.array([r, b])
+
+
+def observation_jacobians(pose, landmark) -> tuple[np.ndarray, np.ndarray]:
+    """Jacobians of :func:`observation_model`: ``(H_pose m×3, H_landmark m×m)``, m = len(landmark).
+
+    The height row is ``[0 0 0 | 0 0 1]``: the height depends on nothing but h.
+    """
+    H_pose, H_landmark = range_bearing_jacobians(pose, landmark[:2])
+    if len(landmark) == 3:
+        H_pose = np.vstack([H_pose, np.zeros((1, ROBOT_DIM))])
+        H_landmark = np.block([[H_landmark, np.zeros((2, 1))], [np.zeros((1, 2)), np.ones((1, 1))]])
+    return H_pose, H_landmark
+
+
+def landmark_from_observation(pose, range_m: float, bearing_rad: float, height_m: float | None = None) -> np.ndarray:
+    """Inverse observation model: ``(x, y)``, or ``(x, y, h)`` with ``h = height_m`` when given."""
+    x, y = landmark_from_range_bearing(pose, range_m, bearing_rad)
+    return np.array([x, y] if height_m is None else [x, y, float(height_m)])
+
+
+def landmark_from_observation_jacobians(
+    pose, range_m: float, bearing_rad: float, with_height: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
+    """Jacobians of :func:`landmark_from_observation`: ``(G_pose k×3, G_measurement k×k)``.
+
+    Without a height these are :func:`ekf.models.landmark_init_jacobians`. With one, the
+    height row of ``G_pose`` is zero and ``G_measurement`` gets a 1 for the height, so a new
+    landmark's h has variance σ_h² and no correlation with anything else.
+    """
+    G_pose, G_measurement = landmark_init_jacobians(pose, range_m, bearing_rad)
+    if with_height:
+        G_pose = np.vstack([G_pose, np.zeros((1, ROBOT_DIM))])
+        G_measurement = np.block([[G_measurement, np.zeros((2, 1))], [np.zeros((1, 2)), np.ones((1, 1))]])
+    return G_pose, G_measurement
 
 
 def predict_covariance(P: np.ndarray, F_pose: np.ndarray, Q: np.ndarray) -> None:
@@ -86,15 +173,16 @@ def predict_covariance(P: np.ndarray, F_pose: np.ndarray, Q: np.ndarray) -> None
 def augment_covariance(
     P: np.ndarray, n: int, G_pose: np.ndarray, G_measurement: np.ndarray, R: np.ndarray
 ) -> None:
-    """Fill rows/columns ``n, n+1`` of ``P`` for a new landmark, **in place**, in O(n).
+    """Fill rows/columns ``n … n+k−1`` of ``P`` for a new k-dimensional landmark, **in place**, in O(n).
 
-    ``P[:n, :n]`` is the covariance before augmentation; ``P`` must have room for two more
-    rows and columns. The new landmark l = g(pose, z) gets
+    ``P[:n, :n]`` is the covariance before augmentation; ``P`` must have room for k more
+    rows and columns (k = ``G_pose.shape[0]``: 2 for a point, 3 with a height). The new
+    landmark l = g(pose, z) gets
 
         P_ll = G_p P_rr G_pᵀ + G_z R G_zᵀ     (own covariance)
         P_lx = G_p P_rx                        (with the robot and every old landmark)
     """
-    new = slice(n, n + LANDMARK_DIM)
+    new = slice(n, n + G_pose.shape[0])
     P_lx = G_pose @ P[:ROBOT_DIM, :n]  # 2×n
     P[new, :n] = P_lx
     P[:n, new] = P_lx.T
@@ -180,16 +268,70 @@ def add_low_rank_in_place(buffer: np.ndarray, n: int, X: np.ndarray, Y: np.ndarr
 
 # --------------------------------------------------------------------------- the filter
 
+ASSOCIATION_METHODS = ("jcbb", "nn", None)
+_NAMES = {"jcbb": "ekf", "nn": "ekf-nn", None: "ekf-ids"}
+
+#: An unpaired observation creates a new landmark only when it lies outside this larger
+#: gate of *every* landmark (χ²_dof at this probability; 27.6 for dof 2); between the
+#: association gate and this one it is rejected. See the class docstring.
+DEFAULT_NEW_LANDMARK_PROBABILITY = 0.999999
+
 
 class EkfSlam:
-    """Range-bearing EKF-SLAM with known landmark ids (implements ``slamio.estimator.Estimator``).
+    """Range-bearing EKF-SLAM with known or associated landmark ids
+    (implements ``slamio.estimator.AssociatingEstimator``).
 
     Built from the log header: the start mean is ``header.start_pose`` and the start
     covariance ``diag(header.start_sigma²)``. Feed it every :class:`~slamio.log.Step` in
     order with :meth:`step`; read the estimate with the accessors.
 
-    Counters: ``updates`` (EKF updates applied), ``landmarks_added`` (state augmentations),
-    ``skipped_unknown_id`` (observations without a landmark id, ignored).
+    ``association`` decides what happens to observations without a ``landmark_id``:
+    ``"jcbb"`` (default, ``name`` "ekf") or ``"nn"`` (``name`` "ekf-nn") associate them, all
+    those of one step together, against the current map (see :mod:`ekf.association`);
+    ``None`` ignores them (``name`` "ekf-ids", the plain known-ids filter; they are counted
+    in ``skipped_unknown_id``). Observations with an id are always used as that landmark,
+    before the id-less ones of the same step.
+
+    Gates, with ``d²`` the squared Mahalanobis distance of an observation to a landmark
+    (``H P Hᵀ + R``, bearing wrapped) and ``dof`` the measurement size (2, or 3 with a
+    height):
+
+    * ``gate_probability`` p (default 0.999): NN pairs an observation only inside
+      ``χ²_dof(p)``; JCBB accepts a hypothesis only if its joint D² is inside
+      ``χ²_{Σdof}(p)``;
+    * ``new_landmark_probability`` p_new (default 1 − 10⁻⁶, ``χ²_2`` = 27.6): an unpaired
+      observation creates a new landmark only when ``d² > χ²_dof(p_new)`` for *every*
+      landmark — the extra margin beyond the gate. Between the two gates it is rejected.
+      Without the margin, the 1 − p of true re-observations that fall just outside the
+      gate would each create a duplicate landmark, and later observations split between the
+      two copies (measured with p = p_new = 0.99: 13 landmarks for the 8 arena tags, 90 %
+      correct). JCBB takes its candidate pairs from this wider gate as well (the joint test
+      decides).
+
+    For the associated observations of a step:
+
+    * paired (by NN or by JCBB's best hypothesis) → an EKF update of that landmark;
+    * unpaired and outside the new-landmark gate of every landmark → a new landmark, keyed
+      −1, −2, … in order of creation;
+    * otherwise → rejected, counted in ``rejected_observations``: it lost to another
+      observation (NN's conflict rule, JCBB's hypothesis) or lies between the gates.
+
+    Paired observations update in log order, then new landmarks are added (from the
+    updated pose), in log order. :meth:`step_associations` says what each observation of
+    the last step was used as.
+
+    Landmark heights: a landmark first seen by an observation with a height is (x, y, h)
+    and later observations with a height also measure h directly (``h_obs = h + n``,
+    ``n ~ N(0, σ_h²)``), jointly with range and bearing, in the update and in the gates;
+    others stay (x, y). :meth:`landmark_heights` returns the heights.
+
+    Counters: ``updates`` (EKF updates applied), ``landmarks_added`` (state augmentations,
+    known ids and new keys), ``landmarks_created`` (new keys from id-less observations),
+    ``skipped_unknown_id`` (id-less observations ignored, ``association=None``),
+    ``rejected_observations``, ``jcbb_nodes_max`` (largest JCBB search) and
+    ``jcbb_truncated`` (steps where the JCBB node cap ``max_jcbb_nodes`` was hit).
+    ``joint_test`` is passed to :func:`ekf.association.jcbb` ("final", or the paper's
+    "prefix").
 
     ``landmark_capacity`` is only the initial room for landmarks; the storage doubles
     whenever it is full, so it never limits the map.
@@ -197,7 +339,34 @@ class EkfSlam:
 
     name = "ekf"
 
-    def __init__(self, header: Header, *, landmark_capacity: int = 16):
+    def __init__(
+        self,
+        header: Header,
+        *,
+        association: str | None = "jcbb",
+        gate_probability: float = DEFAULT_GATE_PROBABILITY,
+        new_landmark_probability: float | None = None,
+        max_jcbb_nodes: int = DEFAULT_MAX_NODES,
+        joint_test: str = "final",
+        landmark_capacity: int = 16,
+    ):
+        if association not in ASSOCIATION_METHODS:
+            raise ValueError(f"association must be one of {ASSOCIATION_METHODS}, got {association!r}")
+        if joint_test not in ("final", "prefix"):
+            raise ValueError(f"joint_test must be 'final' or 'prefix', got {joint_test!r}")
+        if new_landmark_probability is None:
+            new_landmark_probability = max(DEFAULT_NEW_LANDMARK_PROBABILITY, gate_probability)
+        if not 0.0 < gate_probability <= new_landmark_probability < 1.0:
+            raise ValueError(
+                "need 0 < gate_probability ≤ new_landmark_probability < 1, got "
+                f"{gate_probability!r} and {new_landmark_probability!r}"
+            )
+        self.association = association
+        self.name = _NAMES[association]
+        self.gate_probability = float(gate_probability)
+        self.new_landmark_probability = float(new_landmark_probability)
+        self.max_jcbb_nodes = int(max_jcbb_nodes)
+        self.joint_test = joint_test
         capacity = ROBOT_DIM + LANDMARK_DIM * max(1, int(landmark_capacity))
         self._mean = np.zeros(capacity)
         self._cov = np.zeros((capacity, capacity), order="F")  # see add_low_rank_in_place
@@ -205,26 +374,55 @@ class EkfSlam:
         self._mean[:ROBOT_DIM] = header.start_pose
         self._mean[2] = wrap_angle(float(self._mean[2]))
         self._cov[:ROBOT_DIM, :ROBOT_DIM] = np.diag(np.square(header.start_sigma))
-        self._slot: dict[int, int] = {}  # landmark id → index of its x in the state
+        self._slot: dict[int, int] = {}  # landmark key → index of its x in the state
+        self._has_height: dict[int, bool] = {}  # landmark key → state is (x, y, h)
+        self._keys: list[int] = []  # in order of creation, for the vectorised association
+        self._x_index: list[int] = []
+        self._h_index: list[int] = []  # −1 for a landmark without height
+        self._next_key = -1
         self._trajectory: list[tuple[float, float, float]] = []
+        self._associations: list[int | None] = []
         self.updates = 0
         self.landmarks_added = 0
+        self.landmarks_created = 0
         self.skipped_unknown_id = 0
+        self.rejected_observations = 0
+        self.jcbb_nodes_max = 0
+        self.jcbb_truncated = 0
 
     # ------------------------------------------------------------------ protocol
 
     def step(self, step: Step) -> None:
-        """Predict with ``step.odometry`` (if any), then apply each observation in turn."""
+        """Predict with ``step.odometry`` (if any), apply each observation with an id in
+        turn, then associate and apply the observations without one (see the class docstring)."""
         if step.odometry is not None:
             self._predict(step.odometry)
-        for observation in step.observations:
+        associations: list[int | None] = [None] * len(step.observations)
+        unknown: list[int] = []
+        for k, observation in enumerate(step.observations):
             if observation.landmark_id is None:
-                self.skipped_unknown_id += 1
+                if self.association is None:
+                    self.skipped_unknown_id += 1
+                else:
+                    unknown.append(k)
             elif observation.landmark_id in self._slot:
-                self._update(observation)
+                self._update(observation.landmark_id, observation)
+                associations[k] = observation.landmark_id
             else:
-                self._add_landmark(observation)
+                self._add_landmark(observation.landmark_id, observation)
+                associations[k] = observation.landmark_id
+        if unknown:
+            keys = self._associate_and_apply([step.observations[k] for k in unknown])
+            for k, key in zip(unknown, keys):
+                associations[k] = key
+        self._associations = associations
         self._trajectory.append(self.current_pose())
+
+    def step_associations(self) -> list[int | None]:
+        """For each observation of the last step: the landmark key it was used as (its id,
+        an associated key, or the key of the landmark it created), or None (rejected, or
+        ignored with ``association=None``)."""
+        return list(self._associations)
 
     def current_pose(self) -> tuple[float, float, float]:
         """The current robot pose estimate ``(x_m, y_m, theta_rad)``."""
@@ -239,22 +437,28 @@ class EkfSlam:
         return np.array(self._trajectory, dtype=float).reshape(-1, ROBOT_DIM)
 
     def landmarks(self) -> dict[int, tuple[float, float]]:
-        """Landmark id → estimated ``(x_m, y_m)``, in the order the landmarks were first seen."""
+        """Landmark key → estimated ``(x_m, y_m)``, in the order the landmarks were first seen."""
         return {lid: (float(self._mean[i]), float(self._mean[i + 1])) for lid, i in self._slot.items()}
 
     # ------------------------------------------------------------------ more accessors
+
+    def landmark_heights(self) -> dict[int, float]:
+        """Landmark key → estimated height ``h_m``, for the landmarks that have one."""
+        return {k: float(self._mean[i + 2]) for k, i in self._slot.items() if self._has_height[k]}
 
     def current_covariance(self) -> np.ndarray:
         """3×3 covariance of the current robot pose (a copy)."""
         return self._cov[:ROBOT_DIM, :ROBOT_DIM].copy()
 
     def landmark_covariance(self, landmark_id: int) -> np.ndarray:
-        """2×2 covariance of one landmark (a copy). Raises ``KeyError`` for an unseen id."""
+        """Covariance of one landmark (a copy): 2×2 over (x, y), or 3×3 over (x, y, h) for a
+        landmark with a height. Raises ``KeyError`` for an unknown key."""
         i = self._slot[landmark_id]
-        return self._cov[i : i + LANDMARK_DIM, i : i + LANDMARK_DIM].copy()
+        k = self._landmark_dim(landmark_id)
+        return self._cov[i : i + k, i : i + k].copy()
 
     def state_mean(self) -> np.ndarray:
-        """The full state vector ``[x, y, θ, l1x, l1y, ...]`` (a copy)."""
+        """The full state vector ``[x, y, θ, l1x, l1y, (l1h,) ...]`` (a copy)."""
         return self._mean[: self._dim].copy()
 
     def state_covariance(self) -> np.ndarray:
@@ -262,13 +466,24 @@ class EkfSlam:
         return self._cov[: self._dim, : self._dim].copy()
 
     def landmark_index(self, landmark_id: int) -> int:
-        """Index of the landmark's x coordinate in :meth:`state_mean` (y follows it)."""
+        """Index of the landmark's x coordinate in :meth:`state_mean` (y, then h if any, follow it)."""
         return self._slot[landmark_id]
 
     @property
     def capacity(self) -> int:
         """Allocated state size; grows by doubling (always ≥ the state size)."""
         return self._mean.shape[0]
+
+    def association_distances(self, observations) -> tuple[list[int], np.ndarray, np.ndarray]:
+        """``(keys, d2, dof)`` of observations against every landmark of the current map.
+
+        ``d2[i, j]`` is the squared Mahalanobis distance of observation i to landmark
+        ``keys[j]`` (innovation covariance ``H P Hᵀ + R`` at the current estimate, bearing
+        residual wrapped; with the height row when both carry a height) and ``dof[i, j]`` its
+        number of measured components. Nothing is changed.
+        """
+        problem = self._linearise(list(observations))
+        return list(self._keys), problem.d2, problem.dof
 
     # ------------------------------------------------------------------ the three operations
 
@@ -280,37 +495,54 @@ class EkfSlam:
         self._mean[:ROBOT_DIM] = predict_pose(pose, increment)
         predict_covariance(self._cov[: self._dim, : self._dim], F_pose, Q)
 
-    def _add_landmark(self, observation: Observation) -> None:
+    def _landmark_dim(self, key: int) -> int:
+        return 3 if self._has_height[key] else LANDMARK_DIM
+
+    def _add_landmark(self, key: int, observation: Observation) -> None:
         n = self._dim
-        self._reserve(n + LANDMARK_DIM)
+        with_height = has_height(observation)
+        k = 3 if with_height else LANDMARK_DIM
+        self._reserve(n + k)
         pose = self._mean[:ROBOT_DIM]
-        R = measurement_covariance(observation)
-        self._mean[n : n + LANDMARK_DIM] = landmark_from_range_bearing(
-            pose, observation.range_m, observation.bearing_rad
+        R = measurement_covariance(observation, with_height)
+        self._mean[n : n + k] = landmark_from_observation(
+            pose, observation.range_m, observation.bearing_rad, observation.height_m if with_height else None
         )
-        G_pose, G_measurement = landmark_init_jacobians(pose, observation.range_m, observation.bearing_rad)
+        G_pose, G_measurement = landmark_from_observation_jacobians(
+            pose, observation.range_m, observation.bearing_rad, with_height
+        )
         augment_covariance(self._cov, n, G_pose, G_measurement, R)
-        self._slot[observation.landmark_id] = n  # type: ignore[index]
-        self._dim = n + LANDMARK_DIM
+        self._slot[key] = n
+        self._has_height[key] = with_height
+        self._keys.append(key)
+        self._x_index.append(n)
+        self._h_index.append(n + 2 if with_height else -1)
+        self._dim = n + k
         self.landmarks_added += 1
 
-    def _update(self, observation: Observation) -> None:
+    def _update(self, key: int, observation: Observation) -> None:
         n = self._dim
-        i = self._slot[observation.landmark_id]  # type: ignore[index]
+        i = self._slot[key]
+        use_height = self._has_height[key] and has_height(observation)
+        k = 3 if use_height else LANDMARK_DIM
         mean = self._mean[:n]
         P = self._cov[:n, :n]
-        pose, landmark = mean[:ROBOT_DIM], mean[i : i + LANDMARK_DIM]
-        predicted_range, predicted_bearing = range_bearing(pose, landmark)
-        H_pose, H_landmark = range_bearing_jacobians(pose, landmark)
-        cols = np.array([0, 1, 2, i, i + 1])
+        pose, landmark = mean[:ROBOT_DIM], mean[i : i + k]
+        R = measurement_covariance(observation, use_height)
+        if use_height:
+            predicted = observation_model(pose, landmark)
+            H_pose, H_landmark = observation_jacobians(pose, landmark)
+            cols = np.array([0, 1, 2, i, i + 1, i + 2])
+            innovation = np.array([observation.range_m, observation.bearing_rad, observation.height_m]) - predicted
+            innovation[1] = wrap_angle(float(innovation[1]))
+        else:  # the plain range-bearing update (5 non-zero columns of H)
+            predicted_range, predicted_bearing = range_bearing(pose, landmark)
+            H_pose, H_landmark = range_bearing_jacobians(pose, landmark)
+            cols = np.array([0, 1, 2, i, i + 1])
+            innovation = np.array(
+                [observation.range_m - predicted_range, wrap_angle(observation.bearing_rad - predicted_bearing)]
+            )
         H_cols = np.hstack([H_pose, H_landmark])
-        R = measurement_covariance(observation)
-        innovation = np.array(
-            [
-                observation.range_m - predicted_range,
-                wrap_angle(observation.bearing_rad - predicted_bearing),
-            ]
-        )
         K, _, _ = kalman_gain(P, cols, H_cols, R)
         mean += K @ innovation
         mean[2] = wrap_angle(float(mean[2]))
@@ -330,3 +562,173 @@ class EkfSlam:
         cov = np.zeros((capacity, capacity), order="F")
         cov[:n, :n] = self._cov[:n, :n]
         self._mean, self._cov = mean, cov
+
+    # ------------------------------------------------------------------ data association
+
+    def _linearise(self, observations: list[Observation]) -> "_Linearised":
+        """Innovations, their covariances and d² of every (observation, landmark) pair, O(n·M).
+
+        Vectorised over the M landmarks: with ``e = landmark − position``, every landmark's
+        ``J = [H_pose | H_landmark]`` (2×5) and ``S_j = J P_j Jᵀ``, where ``P_j`` is the 5×5
+        block of P over the robot and that landmark. Height rows are
+        added (m = 3) when some observation and some landmark carry a height; a pair where
+        either lacks it gets a padded row (zero residual, unit variance, no correlation),
+        which adds nothing to d² (see :mod:`ekf.association`).
+        """
+        n_obs, M = len(observations), len(self._keys)
+        obs_h = np.array([has_height(o) for o in observations], dtype=bool)
+        xi = np.asarray(self._x_index, dtype=np.intp)
+        hi = np.asarray(self._h_index, dtype=np.intp)
+        lm_h = hi >= 0
+        m = 3 if (obs_h.any() and lm_h.any()) else 2
+        mean, P = self._mean, self._cov
+        x, y, th = (float(v) for v in mean[:ROBOT_DIM])
+        ex, ey = mean[xi] - x, mean[xi + 1] - y
+        q = ex * ex + ey * ey
+        degenerate = q < 1e-12
+        q = np.where(degenerate, 1.0, q)
+        r = np.sqrt(q)
+        # J = [H_pose | H_landmark] (M, 2, 5) against each landmark's 5×5 block of P.
+        J = np.zeros((M, 2, 5))
+        J[:, 0, 0], J[:, 0, 1] = -ex / r, -ey / r
+        J[:, 1, 0], J[:, 1, 1], J[:, 1, 2] = ey / q, -ex / q, -1.0
+        J[:, 0, 3], J[:, 0, 4] = ex / r, ey / r
+        J[:, 1, 3], J[:, 1, 4] = -ey / q, ex / q
+        Hp, Hl = J[:, :, :3], J[:, :, 3:]
+        block = np.empty((M, 5), dtype=np.intp)
+        block[:, :3] = np.arange(3)
+        block[:, 3], block[:, 4] = xi, xi + 1
+        P5 = P[block[:, :, None], block[:, None, :]]  # (M, 5, 5)
+        S_lm = np.zeros((M, m, m))
+        S_lm[:, :2, :2] = J @ P5 @ np.swapaxes(J, 1, 2)
+
+        z = np.array([[o.range_m, o.bearing_rad] for o in observations], dtype=float).reshape(n_obs, 2)
+        nu = np.zeros((n_obs, M, m))
+        nu[:, :, 0] = z[:, None, 0] - r[None, :]
+        nu[:, :, 1] = wrap_angle(z[:, None, 1] - np.arctan2(ey, ex)[None, :] + th)
+        R_obs = np.zeros((n_obs, m, m))
+        R_obs[:, 0, 0] = [o.sigma_range_m**2 for o in observations]
+        R_obs[:, 1, 1] = [o.sigma_bearing_rad**2 for o in observations]
+        dof = np.full((n_obs, M), 2, dtype=int)
+        if m == 3:
+            hj = np.where(lm_h)[0]
+            h_col = hi[hj]
+            # S rows of the height: H_h = e_h, so S_hh = P_hh and S_(rb),h = H_p P_rh + H_l P_lh.
+            P_rh = P[:ROBOT_DIM, h_col].T  # (k, 3)
+            P_lh = np.stack([P[xi[hj], h_col], P[xi[hj] + 1, h_col]], axis=1)  # (k, 2)
+            s_cross = (Hp[hj] @ P_rh[:, :, None])[:, :, 0] + (Hl[hj] @ P_lh[:, :, None])[:, :, 0]
+            S_lm[hj, :2, 2] = s_cross
+            S_lm[hj, 2, :2] = s_cross
+            S_lm[hj, 2, 2] = P[h_col, h_col]
+            h_obs = np.array([o.height_m if has_height(o) else 0.0 for o in observations], dtype=float)
+            R_obs[:, 2, 2] = [o.sigma_height_m**2 if has_height(o) else 1.0 for o in observations]
+            valid = obs_h[:, None] & lm_h[None, :]
+            h_lm = np.where(lm_h, mean[np.where(lm_h, hi, 0)], 0.0)
+            nu[:, :, 2] = np.where(valid, h_obs[:, None] - h_lm[None, :], 0.0)
+            dof = np.where(valid, 3, 2)
+            S = np.broadcast_to(S_lm, (n_obs, M, m, m)).copy()
+            S[:, :, 2, :] *= valid[:, :, None]
+            S[:, :, :, 2] *= valid[:, :, None]
+            S = S + R_obs[:, None]
+            d2 = mahalanobis_squared(nu, S)
+        else:
+            S = S_lm[None] + R_obs[:, None]
+            a, b, c = S[..., 0, 0], S[..., 0, 1], S[..., 1, 1]
+            v0, v1 = nu[..., 0], nu[..., 1]
+            d2 = (c * v0 * v0 - 2.0 * b * v0 * v1 + a * v1 * v1) / (a * c - b * b)
+        d2 = np.where(degenerate[None, :], np.inf, d2)
+        return _Linearised(m, nu, d2, dof, Hp, Hl, R_obs, obs_h, lm_h)
+
+    def _associate_and_apply(self, observations: list[Observation]) -> list[int | None]:
+        """One association problem for the id-less observations of a step, then the updates
+        and new landmarks it implies. Returns the key used by each observation (or None)."""
+        n = len(observations)
+        pairing: list[int | None] = [None] * n
+        near = np.zeros(n, dtype=bool)
+        if self._keys:
+            lin = self._linearise(observations)
+            candidate = lin.d2 <= chi2_gate(lin.dof, self.new_landmark_probability)  # the new-landmark gate
+            near = candidate.any(axis=1)
+            if self.association == "nn":
+                pairing = gated_nearest_neighbour(lin.d2, chi2_gate(lin.dof, self.gate_probability))
+            elif near.any():
+                pairing = self._jcbb(lin, candidate)
+        keys: list[int | None] = [None] * n
+        for i, j in enumerate(pairing):
+            if j is not None:
+                key = self._keys[j]
+                self._update(key, observations[i])
+                keys[i] = key
+        for i, observation in enumerate(observations):
+            if pairing[i] is not None:
+                continue
+            if near[i]:
+                self.rejected_observations += 1
+                continue
+            key = self._next_key
+            self._next_key -= 1
+            self._add_landmark(key, observation)
+            self.landmarks_created += 1
+            keys[i] = key
+        return keys
+
+    def _jcbb(self, lin: "_Linearised", compatible: np.ndarray) -> list[int | None]:
+        """JCBB over the reduced state: the pose and the landmarks that are candidates
+        (``compatible``, the new-landmark gate) of some observation."""
+        obs = np.flatnonzero(compatible.any(axis=1))
+        # Fewest candidates first, then the most distinctive (smallest best d²) first.
+        best_d2 = np.where(compatible[obs], lin.d2[obs], np.inf).min(axis=1)
+        obs = obs[np.lexsort((best_d2, compatible[obs].sum(axis=1)))]
+        cand = np.flatnonzero(compatible[obs].any(axis=0))
+        m = lin.m
+        # Reduced state: pose, then each candidate's x, y (and h when m == 3 and it has one).
+        columns = [0, 1, 2]
+        offset = []
+        for j in cand.tolist():
+            offset.append(len(columns))
+            columns += [self._x_index[j], self._x_index[j] + 1]
+            if m == 3 and lin.lm_h[j]:
+                columns.append(self._h_index[j])
+        columns_arr = np.asarray(columns, dtype=np.intp)
+        P_red = self._cov[np.ix_(columns_arr, columns_arr)]
+        d = len(columns)
+        H = np.zeros((len(obs), len(cand), m, d))
+        for c, j in enumerate(cand.tolist()):
+            o = offset[c]
+            H[:, c, :2, :3] = lin.H_pose[j]
+            H[:, c, :2, o : o + 2] = lin.H_landmark[j]
+            if m == 3 and lin.lm_h[j]:
+                H[:, c, 2, o + 2] = lin.obs_h[obs].astype(float)
+        result = jcbb(
+            lin.nu[np.ix_(obs, cand)],
+            H,
+            P_red,
+            lin.R[obs],
+            dof=lin.dof[np.ix_(obs, cand)],
+            probability=self.gate_probability,
+            candidate_probability=self.new_landmark_probability,
+            joint_test=self.joint_test,
+            max_nodes=self.max_jcbb_nodes,
+        )
+        self.jcbb_nodes_max = max(self.jcbb_nodes_max, result.nodes)
+        self.jcbb_truncated += int(result.truncated)
+        pairing: list[int | None] = [None] * lin.nu.shape[0]
+        for a, c in enumerate(result.pairing):
+            if c is not None:
+                pairing[int(obs[a])] = int(cand[c])
+        return pairing
+
+
+@dataclass(frozen=True)
+class _Linearised:
+    """One step's association problem against the whole map (see ``EkfSlam._linearise``)."""
+
+    m: int
+    nu: np.ndarray  # (n, M, m)
+    d2: np.ndarray  # (n, M)
+    dof: np.ndarray  # (n, M)
+    H_pose: np.ndarray  # (M, 2, 3)
+    H_landmark: np.ndarray  # (M, 2, 2)
+    R: np.ndarray  # (n, m, m)
+    obs_h: np.ndarray  # (n,) observation has a height
+    lm_h: np.ndarray  # (M,) landmark has a height
