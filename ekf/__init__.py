@@ -1,4 +1,9 @@
-"""ekf: the independent reference estimators — EKF-SLAM and dead reckoning, numpy only.
+"""ekf: the independent reference estimators — EKF-SLAM, the seed papers' filters, dead reckoning.
+
+``EkfSlam`` is the textbook EKF-SLAM (with NN/JCBB data association and optional 3-D
+landmark heights); ``EkfS000``, ``EkfS001`` and ``EkfS004`` reproduce the seed papers'
+filters as written, flaws included (docs/estimators.md); ``g_height`` is seed 002's
+landmark-height formula.
 
 This package never imports gtsam, so it can check the factor-graph estimators
 independently. Estimators here are pure: they consume ``slamio.log.Step`` objects and
@@ -14,11 +19,20 @@ from ekf.models import (
     range_bearing,
     range_bearing_jacobians,
 )
+from ekf.seed000 import EkfS000
+from ekf.seed001 import EkfS001
+from ekf.seed002 import exact_height_m, g_height
+from ekf.seed004 import EkfS004
 from ekf.slam import EkfSlam, joseph_update, kalman_gain
 
 __all__ = [
     "DeadReckoning",
+    "EkfS000",
+    "EkfS001",
+    "EkfS004",
     "EkfSlam",
+    "exact_height_m",
+    "g_height",
     "joseph_update",
     "kalman_gain",
     "landmark_from_range_bearing",

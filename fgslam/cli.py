@@ -27,6 +27,18 @@ typical use:
 """
 
 
+#: What ``--estimators`` accepts (fgslam.runner.ESTIMATORS; a test keeps the two in step).
+ESTIMATOR_HELP = {
+    "ekf": "textbook EKF-SLAM; JCBB data association for observations without an id",
+    "ekf-nn": "the same EKF with Mahalanobis-gated nearest-neighbour association",
+    "ekf-s000": "seed 000's linear KF (Trinity College, Create + Kinect), as written",
+    "ekf-s001": "seed 001's EKF (GoPiGo, forward/rotate moves, nearest neighbour), as written",
+    "ekf-s004": "seed 004's KF over robot and AprilTag poses, as written",
+    "isam2": "GTSAM iSAM2 factor-graph smoother (the batch solve starts from its result)",
+    "dead_reckoning": "odometry alone: the baseline",
+}
+
+
 # --------------------------------------------------------------------------- progress
 
 
@@ -171,12 +183,14 @@ def build_parser() -> argparse.ArgumentParser:
     run = verbs.add_parser(
         "run",
         help="run the estimators on a log and write the comparison",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="estimators:\n" + "\n".join(f"  {name:<15} {text}" for name, text in ESTIMATOR_HELP.items()),
         description=(
-            "Run every estimator on the same log and compare them. The reference is the log's "
-            "ground truth when every pose has one, otherwise the batch Levenberg-Marquardt "
-            "solution started from iSAM2's result (the 'smoothed ground truth'). Writes "
-            "metrics.json, report.html (self-contained), PNG figures, and each estimator's "
-            "trajectory in TUM format (<name>.tum final, <name>_online.tum online) to --out, "
+            "Run every estimator on the same log and compare them. The reference is the log's\n"
+            "ground truth when every pose has one, otherwise the batch Levenberg-Marquardt\n"
+            "solution started from iSAM2's result (the 'smoothed ground truth'). Writes\n"
+            "metrics.json, report.html (self-contained), PNG figures, and each estimator's\n"
+            "trajectory in TUM format (<name>.tum final, <name>_online.tum online) to --out,\n"
             "and prints a table of the figures."
         ),
     )
@@ -186,8 +200,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--estimators",
         default="ekf,isam2,dead_reckoning",
         metavar="LIST",
-        help="comma-separated estimators to run (default ekf,isam2,dead_reckoning); "
-        "the batch solve always runs from isam2's result",
+        help="comma-separated estimators to run (default ekf,isam2,dead_reckoning; all "
+        "names below); the batch solve always runs from isam2's result",
     )
     run.add_argument("--no-report", action="store_true", help="skip report.html and the PNG figures")
     run.set_defaults(func=cmd_run)

@@ -62,6 +62,9 @@ __all__ = [
     "final_pose_error_m",
     "map_errors_m",
     "map_rmse_m",
+    "AssociationScore",
+    "score_associations",
+    "relabel_landmarks",
     "compute_metrics",
     "METRIC_KEYS",
     "TOP_LEVEL_KEYS",
@@ -102,6 +105,11 @@ class EstimatorRun:
         step_times_s: ``(n,)`` wall-clock seconds spent on each step, or ``None`` for a
             one-shot batch solve.
         total_time_s: wall-clock seconds for the whole run (including any ``finish``).
+        association: how well the estimator associated observations itself (see
+            :func:`score_associations`), or ``None`` when it used the log's ids throughout.
+            When present, ``landmarks`` are already keyed by true id.
+        landmark_heights: landmark id → estimated height above the floor (m), for
+            estimators with a 3-D map; ``None`` otherwise.
     """
 
     name: str
@@ -110,6 +118,8 @@ class EstimatorRun:
     landmarks: dict[int, tuple[float, float]]
     step_times_s: np.ndarray | None
     total_time_s: float
+    association: "AssociationScore | None" = None
+    landmark_heights: dict[int, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -126,6 +136,7 @@ class Reference:
     kind: str
     trajectory: np.ndarray
     landmarks: dict[int, tuple[float, float]]
+    landmark_heights: dict[int, float] | None = None
 
 
 REFERENCE_KINDS = ("ground_truth", "smoothed")
@@ -363,6 +374,72 @@ def map_rmse_m(
     return _rmse(np.fromiter(errors.values(), dtype=float, count=len(errors)))
 
 
+# --------------------------------------------------------------------------- data association
+
+
+@dataclass(frozen=True)
+class AssociationScore:
+    """How an estimator associated observations with landmarks, scored against truth.
+
+    Attributes:
+        observations: observations scored (those whose true landmark is known).
+        correct: observations used as the right landmark (see :func:`score_associations`).
+        rejected: observations the estimator did not use (gated out or left unpaired).
+        identity: estimator's landmark key → the true id it stands for.
+        duplicate_keys: keys created for a true landmark that was already mapped.
+    """
+
+    observations: int
+    correct: int
+    rejected: int
+    identity: dict[int, int]
+    duplicate_keys: frozenset[int]
+
+    @property
+    def rate(self) -> float:
+        return self.correct / self.observations if self.observations else math.nan
+
+    @property
+    def landmarks_created(self) -> int:
+        return len(self.identity)
+
+
+def score_associations(true_ids, keys) -> AssociationScore:
+    """Score one run's data association.
+
+    ``true_ids[i]`` is the true landmark of observation ``i`` (None when unknown: not
+    scored) and ``keys[i]`` the estimator's landmark key it was used as (None: rejected),
+    in the order the observations were made. A key stands for the true landmark of the
+    observation that first used it (the one that created it). An observation is correct
+    when its key stands for its true landmark and is not a duplicate: a key created for a
+    true landmark that already had one is a duplicate, and every use of it is wrong. A
+    rejected observation is not correct.
+    """
+    identity: dict[int, int] = {}
+    duplicates: set[int] = set()
+    observations = correct = rejected = 0
+    for true_id, key in zip(true_ids, keys, strict=True):
+        if key is not None and key not in identity and true_id is not None:
+            if true_id in identity.values():
+                duplicates.add(key)
+            identity[key] = true_id
+        if true_id is None:
+            continue
+        observations += 1
+        if key is None:
+            rejected += 1
+        elif key not in duplicates and identity.get(key) == true_id:
+            correct += 1
+    return AssociationScore(observations, correct, rejected, identity, frozenset(duplicates))
+
+
+def relabel_landmarks(landmarks: Mapping[int, object], score: AssociationScore) -> dict:
+    """Re-key an estimator's landmarks by the true id each stands for (duplicates dropped)."""
+    return {
+        score.identity[k]: v for k, v in landmarks.items() if k in score.identity and k not in score.duplicate_keys
+    }
+
+
 # --------------------------------------------------------------------------- metrics dict
 
 TOP_LEVEL_KEYS = ("reference", "log", "poses")
@@ -371,7 +448,9 @@ METRIC_KEYS = (
     "ate_online_rmse_m",
     "final_pose_error_m",
     "map_rmse_m",
+    "map_height_rmse_m",
     "landmarks_estimated",
+    "association",
     "aligned",
     "time_total_s",
     "time_step_p50_s",
@@ -415,7 +494,11 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
              "ate_online_rmse_m": float|None,# online trajectory; None for batch
              "final_pose_error_m": float,    # last pose position error
              "map_rmse_m": float|None,       # None when no landmark id in common
+             "map_height_rmse_m": float|None,# 3-D maps against true heights, else None
              "landmarks_estimated": int,
+             "association": dict|None,       # only for estimators that associate themselves:
+                                             # observations, correct, rate, rejected,
+                                             # landmarks_created, duplicate_landmarks
              "aligned": bool,                # SE(2) alignment applied (first poses differ)
              "time_total_s": float,
              "time_step_p50_s": float|None,  # median step time; None for batch
@@ -464,7 +547,9 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
             "ate_online_rmse_m": _json_float(ate_online),
             "final_pose_error_m": _json_float(final_pose_error_m(final_a, ref[:m])),
             "map_rmse_m": _json_float(map_rmse_m(run.landmarks, reference.landmarks, rot, trans)),
+            "map_height_rmse_m": _json_float(_height_rmse_m(run.landmark_heights, reference.landmark_heights)),
             "landmarks_estimated": int(len(run.landmarks)),
+            "association": _association_dict(run.association),
             "aligned": bool(aligned),
             "time_total_s": _json_float(run.total_time_s),
             "time_step_p50_s": _json_float(p50),
@@ -472,6 +557,27 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
             "steps": int(m),
         }
     return metrics
+
+
+def _height_rmse_m(estimated: Mapping[int, float] | None, reference: Mapping[int, float] | None) -> float | None:
+    """RMS height error over the landmarks both maps give a height for (None if none)."""
+    if not estimated or not reference:
+        return None
+    common = sorted(set(estimated) & set(reference))
+    return _rmse(np.array([estimated[i] - reference[i] for i in common], dtype=float)) if common else None
+
+
+def _association_dict(score: AssociationScore | None) -> dict | None:
+    if score is None:
+        return None
+    return {
+        "observations": score.observations,
+        "correct": score.correct,
+        "rate": _json_float(score.rate),
+        "rejected": score.rejected,
+        "landmarks_created": score.landmarks_created,
+        "duplicate_landmarks": len(score.duplicate_keys),
+    }
 
 
 def estimator_names(metrics: dict) -> list[str]:

@@ -14,8 +14,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ekf import DeadReckoning, EkfSlam
-from fgslam.compare import EstimatorRun, Reference
+from ekf import DeadReckoning, EkfS000, EkfS001, EkfS004, EkfSlam
+from fgslam.compare import EstimatorRun, Reference, relabel_landmarks, score_associations
 from fgslam.smoother import Isam2Smoother, batch_solve
 from slamio.errors import FgslamError
 from slamio.estimator import Estimator
@@ -23,7 +23,11 @@ from slamio.log import Header, RunLog, Step
 
 #: name → factory(header). Each name is what ``--estimators`` accepts.
 ESTIMATORS: dict[str, Callable[[Header], Estimator]] = {
-    "ekf": EkfSlam,
+    "ekf": EkfSlam,  # textbook EKF-SLAM; JCBB for observations without an id
+    "ekf-nn": lambda header: EkfSlam(header, association="nn"),  # the same with gated NN
+    "ekf-s000": EkfS000,  # seed 000's linear KF, as written
+    "ekf-s001": EkfS001,  # seed 001's GoPiGo EKF, as written
+    "ekf-s004": EkfS004,  # seed 004's AprilTag KF, as written
     "isam2": Isam2Smoother,
     "dead_reckoning": DeadReckoning,
 }
@@ -65,26 +69,60 @@ def run_estimator(
     online = np.empty((len(steps), 3))
     step_times_s = np.empty(len(steps))
     every = max(1, len(steps) // 200)
+    associating = hasattr(estimator, "step_associations")
+    true_ids: list[int | None] = []
+    keys: list[int | None] = []
     for i, step in enumerate(steps):
         start = time.perf_counter()
         estimator.step(step)
         online[i] = estimator.current_pose()
         step_times_s[i] = time.perf_counter() - start
+        if associating:  # bookkeeping for the score, outside the timed region
+            keys.extend(estimator.step_associations())  # type: ignore[attr-defined]
+            true_ids.extend(_true_id(o) for o in step.observations)
         if progress is not None and (i % every == 0 or i == len(steps) - 1):
             progress(i + 1, len(steps), estimator.name)
     start = time.perf_counter()
     estimator.finish()
     final = np.asarray(estimator.trajectory(), dtype=float)
     finish_s = time.perf_counter() - start
+
+    landmarks = dict(estimator.landmarks())
+    heights = dict(estimator.landmark_heights()) if hasattr(estimator, "landmark_heights") else None
+    association = None
+    if any(k is not None and k < 0 for k in keys):  # it created landmarks itself: score it
+        association = score_associations(true_ids, keys)
+        landmarks = relabel_landmarks(landmarks, association)
+        heights = relabel_landmarks(heights, association) if heights else heights
     run = EstimatorRun(
         name=estimator.name,
         online=online,
         final=final,
-        landmarks=dict(estimator.landmarks()),
+        landmarks=landmarks,
         step_times_s=step_times_s,
         total_time_s=float(step_times_s.sum() + finish_s),
+        association=association,
+        landmark_heights=heights or None,
     )
     return run, estimator
+
+
+def _true_id(observation) -> int | None:
+    """The landmark an observation really saw: its hidden true id, else its logged id."""
+    if observation.truth_landmark_id is not None:
+        return observation.truth_landmark_id
+    return observation.landmark_id
+
+
+def truth_reference(log: RunLog) -> Reference | None:
+    """The log's ground truth as a :class:`Reference`, or None unless every pose has one."""
+    if not log.has_full_truth():
+        return None
+    truth = np.array([[s.truth.x_m, s.truth.y_m, s.truth.theta_rad] for s in log.steps()])  # type: ignore[union-attr]
+    truth_landmarks = log.truth_landmarks()
+    landmarks = {i: (t.x_m, t.y_m) for i, t in truth_landmarks.items()}
+    heights = {i: t.height_m for i, t in truth_landmarks.items() if t.height_m is not None}
+    return Reference("ground_truth", truth, landmarks, heights or None)
 
 
 def compare_log(
@@ -121,10 +159,5 @@ def compare_log(
         )
     )
     stamps_s = np.array([s.stamp_s for s in steps])
-    if log.has_full_truth():
-        truth = np.array([[s.truth.x_m, s.truth.y_m, s.truth.theta_rad] for s in steps])  # type: ignore[union-attr]
-        landmarks = {i: (t.x_m, t.y_m) for i, t in log.truth_landmarks().items()}
-        reference = Reference("ground_truth", truth, landmarks)
-    else:
-        reference = Reference("smoothed", batch.trajectory, dict(batch.landmarks))
+    reference = truth_reference(log) or Reference("smoothed", batch.trajectory, dict(batch.landmarks))
     return Comparison(runs, reference, stamps_s)

@@ -61,3 +61,58 @@ def test_grid_200_skeleton_promises(tmp_path):
     m = metrics_of(path)
     assert_skeleton_promises(m)
     (tmp_path / "metrics.json").write_text(json.dumps(m))  # kept for a failing run's post-mortem
+
+
+# --------------------------------------------------------------------------- issue 3: the papers' variants
+
+PAPER_ESTIMATORS = ["ekf", "ekf-s000", "ekf-s001", "ekf-s004", "isam2"]
+
+
+def test_all_variants_side_by_side_in_one_report(tmp_path, capsys):
+    from html.parser import HTMLParser
+
+    from fgslam.cli import main
+
+    out = tmp_path / "five"
+    log = DATA / "arena_octagon.jsonl"
+    assert main(["run", str(log), "--out", str(out), "--estimators", ",".join(PAPER_ESTIMATORS)]) == 0
+    table = capsys.readouterr().out
+    metrics = json.loads((out / "metrics.json").read_text())
+    for name in PAPER_ESTIMATORS + ["batch"]:
+        assert name in metrics and name in table
+        assert (out / f"{name}.tum").exists()
+
+    cells: list[str] = []
+
+    class Cells(HTMLParser):
+        def handle_data(self, data):
+            cells.append(data.strip())
+
+    Cells().feed((out / "report.html").read_text())
+    for name in PAPER_ESTIMATORS:
+        assert name in cells  # one table row each, in the one report
+    # The papers' flaws cost what docs/estimators.md says (scripts/flaw_costs.py):
+    assert metrics["ekf-s000"]["ate_rmse_m"] > 1.0  # wrong-way rotation, relative landmark init
+    assert metrics["ekf-s004"]["ate_rmse_m"] > 1.0  # body velocity added unrotated
+    assert 2 * metrics["ekf"]["ate_rmse_m"] < metrics["ekf-s001"]["ate_rmse_m"] < 0.1  # sigma for variance
+    assert metrics["ekf-s001"]["association"]["rate"] == 1.0  # NN is enough for 8 tags 1 m apart
+
+
+@pytest.mark.parametrize("scenario, landmarks", [("arena-octagon", 8), ("grid", 200)])
+def test_jcbb_associates_hidden_ids_at_least_99_percent_and_nn_no_better(scenario, landmarks, tmp_path):
+    path = tmp_path / "hidden.jsonl"
+    write_log(path, *simulate(scenario, 1, landmarks=landmarks, hide_ids=True))
+    log = read_log(path)
+    from fgslam.runner import ESTIMATORS, run_estimator, truth_reference
+
+    reference = truth_reference(log)
+    steps = log.steps()
+    rates = {}
+    for name in ("ekf", "ekf-nn"):
+        run, _ = run_estimator(ESTIMATORS[name](log.header), steps)
+        m = compute_metrics([run], reference, log_path=str(path))[name]
+        rates[name] = m["association"]["rate"]
+        assert m["association"]["observations"] == sum(len(s.observations) for s in steps)
+        assert m["map_rmse_m"] is not None  # landmarks re-keyed by true id
+    assert rates["ekf"] >= 0.99, rates
+    assert rates["ekf-nn"] <= rates["ekf"], rates

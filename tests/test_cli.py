@@ -129,3 +129,15 @@ def test_user_errors_are_one_line_not_tracebacks(argv, message, short_log, tmp_p
     err = capsys.readouterr().err
     assert err.startswith("fgslam: error: ") and message in err
     assert "Traceback" not in err
+
+
+def test_estimator_help_names_every_registered_estimator(capsys):
+    from fgslam.cli import ESTIMATOR_HELP
+    from fgslam.runner import ESTIMATORS
+
+    assert list(ESTIMATOR_HELP) == list(ESTIMATORS)
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    out = capsys.readouterr().out
+    for name in ESTIMATORS:
+        assert name in out

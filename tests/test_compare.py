@@ -352,3 +352,38 @@ def test_compare_imports_neither_gtsam_nor_matplotlib():
     )
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert result.returncode == 0, result.stdout + result.stderr
+
+
+# --------------------------------------------------------------------------- association scoring
+
+
+def test_score_associations_by_hand():
+    from fgslam.compare import relabel_landmarks, score_associations
+
+    # true ids of 8 observations and the keys an estimator used them as
+    true_ids = [5, 7, 5, None, 7, 5, 9, 7]
+    keys = [-1, -2, -1, -1, -3, None, -2, -2]
+    score = score_associations(true_ids, keys)
+    # -1 stands for 5, -2 for 7; -3 is a second landmark for 7 (duplicate);
+    # obs 4 (key -3) wrong, obs 5 rejected, obs 6 (true 9 as -2) wrong; obs 3 unscored.
+    assert score.identity == {-1: 5, -2: 7, -3: 7}
+    assert score.duplicate_keys == {-3}
+    assert (score.observations, score.correct, score.rejected) == (7, 4, 1)
+    assert score.rate == 4 / 7
+    assert score.landmarks_created == 3
+    assert relabel_landmarks({-1: (1.0, 2.0), -2: (3.0, 4.0), -3: (5.0, 6.0)}, score) == {5: (1.0, 2.0), 7: (3.0, 4.0)}
+
+
+def test_metrics_report_association_and_heights():
+    from fgslam.compare import score_associations
+
+    traj = np.zeros((3, 3))
+    score = score_associations([1, 1, 2], [-1, -1, None])
+    run = EstimatorRun("ekf-nn", traj, traj, {1: (0.0, 0.0)}, np.ones(3), 3.0, score, {1: 0.5})
+    ref = Reference("ground_truth", traj, {1: (0.0, 0.0)}, {1: 0.4})
+    m = compute_metrics([run], ref, log_path="x")["ekf-nn"]
+    assert m["association"] == {
+        "observations": 3, "correct": 2, "rate": 2 / 3, "rejected": 1,
+        "landmarks_created": 1, "duplicate_landmarks": 0,
+    }
+    assert m["map_height_rmse_m"] == pytest.approx(0.1)
