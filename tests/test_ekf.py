@@ -38,20 +38,14 @@ from ekf.slam import (
     predict_covariance,
 )
 from slamio.geometry import between_pose, compose_pose, wrap_angle
+from builders import minimal_header
 from slamio.log import Header, Observation, Odometry, Step, as_matrix3
 
 # --------------------------------------------------------------------------- helpers
 
 
 def make_header(start_pose=(0.0, 0.0, 0.0), start_sigma=(1e-3, 1e-3, 1e-3)) -> Header:
-    return Header(
-        stamp_s=0.0,
-        start_pose=tuple(float(v) for v in start_pose),
-        start_sigma=tuple(float(v) for v in start_sigma),
-        robot={"name": "test"},
-        sensor={"kind": "test"},
-        noise={"odometry": {}, "observation": {}},
-    )
+    return minimal_header(start_pose=start_pose, start_sigma=start_sigma)
 
 
 def numeric_jacobian(f, x, angle_rows=(), h=1e-6):

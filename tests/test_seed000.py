@@ -39,6 +39,7 @@ from ekf.seed000 import (
     world_xy_from_paper,
 )
 from slamio.geometry import arc_increment, wrap_angle
+from builders import minimal_header
 from slamio.log import Header, Observation, Odometry, Step, as_matrix3, group_steps
 from slamio.sim import simulate
 
@@ -46,14 +47,7 @@ NORTH_UP = (0.0, 0.0, math.pi / 2)  # a start pose whose paper frame is the worl
 
 
 def make_header(start_pose=NORTH_UP, start_sigma=(1e-3, 1e-3, 1e-3)) -> Header:
-    return Header(
-        stamp_s=0.0,
-        start_pose=tuple(float(v) for v in start_pose),
-        start_sigma=tuple(float(v) for v in start_sigma),
-        robot={"name": "test"},
-        sensor={"kind": "test"},
-        noise={"odometry": {}, "observation": {}},
-    )
+    return minimal_header(start_pose=start_pose, start_sigma=start_sigma)
 
 
 def odo(t, distance_m, angle_rad):

@@ -34,6 +34,7 @@ from ekf.seed001 import (
     rotate_in_place_jacobian,
 )
 from slamio.geometry import arc_increment, wrap_angle
+from builders import minimal_header
 from slamio.log import Header, Observation, Odometry, Step, group_steps
 from slamio.sim import simulate
 
@@ -41,14 +42,7 @@ from slamio.sim import simulate
 
 
 def make_header(start_pose=(0.0, 0.0, 0.0), start_sigma=(1e-3, 1e-3, 1e-3)) -> Header:
-    return Header(
-        stamp_s=0.0,
-        start_pose=tuple(float(v) for v in start_pose),
-        start_sigma=tuple(float(v) for v in start_sigma),
-        robot={"name": "test"},
-        sensor={"kind": "test"},
-        noise={"odometry": {}, "observation": {}},
-    )
+    return minimal_header(start_pose=start_pose, start_sigma=start_sigma)
 
 
 def obs(range_m, bearing_rad, sigma_r=0.05, sigma_b=0.02, height=None, sigma_h=None, landmark_id=None):

@@ -26,19 +26,13 @@ from ekf.seed004 import (
     predict_robot,
     tag_pose_in_robot,
 )
+from builders import minimal_header
 from slamio.log import Header, Observation, Odometry, Step, as_matrix3, group_steps
 from slamio.sim import simulate
 
 
 def make_header(start_pose=(0.0, 0.0, 0.0), start_sigma=(1.0, 1.0, 1.0), stamp_s=0.0) -> Header:
-    return Header(
-        stamp_s=stamp_s,
-        start_pose=tuple(float(v) for v in start_pose),
-        start_sigma=tuple(float(v) for v in start_sigma),
-        robot={"name": "test"},
-        sensor={"kind": "test"},
-        noise={"odometry": {}, "observation": {}},
-    )
+    return minimal_header(start_pose=start_pose, start_sigma=start_sigma, stamp_s=stamp_s)
 
 
 def odo(t, dx, dy, dth, cov=(1e-4, 1e-4, 1e-4)):

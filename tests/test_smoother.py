@@ -17,6 +17,7 @@ from gtsam.symbol_shorthand import L, X
 from fgslam.smoother import BatchResult, Isam2Smoother, batch_solve
 from slamio.errors import FgslamError
 from slamio.geometry import arc_increment, between_pose, compose_pose, wrap_angle
+from builders import minimal_header
 from slamio.log import Header, Observation, Odometry, Step, TruthPose, as_matrix3, group_steps
 
 SIGMA_ODO = (0.02, 0.01, 0.01)  # dx_m, dy_m, dtheta_rad — anisotropic on purpose
@@ -33,14 +34,7 @@ LANDMARKS = {
 
 
 def make_header(start_pose=(3.0, 0.0, math.pi / 2), start_sigma=(1e-3, 1e-3, 1e-3)) -> Header:
-    return Header(
-        stamp_s=0.0,
-        start_pose=start_pose,
-        start_sigma=start_sigma,
-        robot={"name": "test-create"},
-        sensor={"kind": "test"},
-        noise={"odometry": {"sigma": list(SIGMA_ODO)}, "observation": {"sigma_range_m": SIGMA_RANGE}},
-    )
+    return minimal_header(start_pose=start_pose, start_sigma=start_sigma)
 
 
 def observe(pose, landmark, stamp, lid, rng=None, max_range=4.5, fov=math.radians(100)):

@@ -1,0 +1,17 @@
+"""Small record builders shared by the tests (pytest puts tests/ on sys.path)."""
+
+from __future__ import annotations
+
+from slamio.log import Header
+
+
+def minimal_header(start_pose=(0.0, 0.0, 0.0), start_sigma=(1e-3, 1e-3, 1e-3), stamp_s=0.0) -> Header:
+    """A valid header with placeholder robot/sensor/noise descriptions."""
+    return Header(
+        stamp_s=float(stamp_s),
+        start_pose=tuple(float(v) for v in start_pose),
+        start_sigma=tuple(float(v) for v in start_sigma),
+        robot={"name": "test"},
+        sensor={"kind": "test"},
+        noise={"odometry": {}, "observation": {}},
+    )
