@@ -599,6 +599,17 @@ TABLE_HEADERS = (
     "step p99 ms",
 )
 
+def _association_cell(m: dict) -> str:
+    a = m.get("association")
+    return "-" if a is None or a.get("rate") is None else f"{100 * a['rate']:.2f}"
+
+
+#: (header, metrics key, cell formatter) of the columns shown only when some run has them.
+OPTIONAL_COLUMNS = (
+    ("height RMSE m", "map_height_rmse_m", lambda m: _fmt(m.get("map_height_rmse_m"))),
+    ("assoc %", "association", _association_cell),
+)
+
 COLUMN_MEANINGS = {
     "ATE final m": "absolute trajectory error, metres: RMS position error of every pose as "
     "estimated after the last step",
@@ -611,6 +622,9 @@ COLUMN_MEANINGS = {
     "step p50 ms": "median wall-clock time per step, milliseconds; - for a one-shot batch solve",
     "step p99 ms": "99th-percentile wall-clock time per step, milliseconds; - for a one-shot "
     "batch solve",
+    "height RMSE m": "RMS error of the landmark heights, metres, for estimators with a 3-D map",
+    "assoc %": "share of observations associated with the right landmark, for estimators that "
+    "associate observations themselves (rejected ones count as wrong)",
 }
 
 REFERENCE_DESCRIPTIONS = {
@@ -637,10 +651,17 @@ def table_rows(metrics: dict) -> tuple[tuple[str, ...], list[tuple[str, ...]], l
     times in milliseconds, ``-`` for "not applicable"); an ``*`` after an ATE means the
     estimate was aligned in SE(2); ``notes`` explain the marks that occur.
     """
+    names = estimator_names(metrics)
+    # Columns that only matter for some runs appear only when some estimator has them.
+    optional = [
+        (header, cell)
+        for header, key, cell in OPTIONAL_COLUMNS
+        if any(metrics[n].get(key) is not None for n in names)
+    ]
     rows = []
     notes = []
     any_aligned = False
-    for name in estimator_names(metrics):
+    for name in names:
         m = metrics[name]
         star = "*" if m.get("aligned") else ""
         any_aligned |= bool(m.get("aligned"))
@@ -655,13 +676,14 @@ def table_rows(metrics: dict) -> tuple[tuple[str, ...], list[tuple[str, ...]], l
                 _fmt(m.get("time_total_s"), 1e3, 1),
                 _fmt(m.get("time_step_p50_s"), 1e3, 3),
                 _fmt(m.get("time_step_p99_s"), 1e3, 3),
+                *(cell(m) for _, cell in optional),
             )
         )
         if m.get("steps") != metrics.get("poses"):
             notes.append(f"{name} estimated {m.get('steps')} of {metrics.get('poses')} poses")
     if any_aligned:
         notes.insert(0, "* aligned to the reference in SE(2) (first poses differ)")
-    return TABLE_HEADERS, rows, notes
+    return TABLE_HEADERS + tuple(header for header, _ in optional), rows, notes
 
 
 def format_table(metrics: dict) -> str:

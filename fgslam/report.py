@@ -285,7 +285,8 @@ def write_report(
     e = html.escape
     kind = metrics.get("reference")
     reference_text = REFERENCE_DESCRIPTIONS.get(kind, str(kind))
-    columns = "\n".join(f"<dt>{e(k)}</dt><dd>{e(v)}</dd>" for k, v in COLUMN_MEANINGS.items())
+    shown, _, _ = table_rows(metrics)
+    columns = "\n".join(f"<dt>{e(k)}</dt><dd>{e(v)}</dd>" for k, v in COLUMN_MEANINGS.items() if k in shown)
     metrics_json = json.dumps(metrics, indent=2)
     page = f"""<!DOCTYPE html>
 <html lang="en">
