@@ -98,6 +98,17 @@ def cmd_sim(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_import(args: argparse.Namespace) -> int:
+    from slamio.datasets import import_victoria_park
+
+    header, records = import_victoria_park(args.source)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_log(out, header, records)
+    print(f"wrote {out}: {_summary(read_log(out))}")
+    return 0
+
+
 def cmd_validate(args: argparse.Namespace) -> int:
     log = _read(args.log)
     odometry = sum(isinstance(r, Odometry) for r in log.records)
@@ -205,6 +216,28 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run.add_argument("--no-report", action="store_true", help="skip report.html and the PNG figures")
     run.set_defaults(func=cmd_run)
+
+    imp = verbs.add_parser(
+        "import",
+        help="convert a dataset from elsewhere into a run log",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=(
+            "Convert a public dataset into a run log, so every estimator can run on it.\n\n"
+            "datasets:\n"
+            "  victoria-park  the Victoria Park car run shipped inside the gtsam wheel (6 969 poses,\n"
+            "                 151 trees; no ground truth, so `fgslam run` compares against the\n"
+            "                 smoothed solution). See docs/datasets.md for what is converted and how."
+        ),
+    )
+    imp.add_argument("dataset", choices=["victoria-park"], metavar="DATASET", help="victoria-park")
+    imp.add_argument("out", metavar="OUT", help="run log to write (.jsonl)")
+    imp.add_argument(
+        "--source",
+        default=None,
+        metavar="FILE",
+        help="the dataset file (default: victoria_park.txt from the installed gtsam wheel)",
+    )
+    imp.set_defaults(func=cmd_import)
 
     validate = verbs.add_parser(
         "validate",

@@ -14,7 +14,7 @@ import pytest
 from fgslam.cli import main
 from fgslam.compare import read_tum
 
-VERBS = ["sim", "run", "validate"]
+VERBS = ["sim", "run", "import", "validate"]
 
 
 def test_console_script_help_lists_every_verb():
@@ -141,3 +141,11 @@ def test_estimator_help_names_every_registered_estimator(capsys):
     out = capsys.readouterr().out
     for name in ESTIMATORS:
         assert name in out
+
+
+def test_import_victoria_park_writes_a_valid_log(tmp_path, capsys):
+    out = tmp_path / "vp.jsonl"
+    assert main(["import", "victoria-park", str(out)]) == 0
+    assert "6969 poses" in capsys.readouterr().out
+    assert main(["validate", str(out)]) == 0
+    assert "6968 odometry records" in capsys.readouterr().out
