@@ -3,7 +3,8 @@
 ``simulate(scenario, seed)`` returns ``(Header, records)`` ready for
 :func:`slamio.log.write_log`. The same seed gives exactly the same records; all randomness
 comes from ``numpy.random.default_rng(seed)`` (split into one stream for the motion and one
-for the sensor, so changing the sensor never changes the trajectory).
+for the sensor, so changing the sensor never changes the trajectory; a third stream, used
+only when ``outliers`` > 0, draws the outliers).
 
 How one run is made
 ===================
@@ -63,6 +64,27 @@ How one run is made
 ``noise_scale`` multiplies every random draw (wheel error, slip, measurement noise) but not
 the written covariances/sigmas: ``noise_scale=0`` gives exact measurements with the nominal
 uncertainty (estimator tests), ``noise_scale=2`` a log whose stated noise is too optimistic.
+
+6. **Outliers** (``outliers`` = p, default 0). Each observation independently, with
+   probability p, is replaced by a *misdetection with a valid id*: the front-end reports
+   the right landmark id at a wrong place, as a camera does when a tag is decoded off a
+   reflection or a colour blob is found on the wrong object. Its range and bearing are
+   drawn uniformly over what the sensor can report::
+
+       range_m     ~ U(min_range_m, max_range_m)
+       bearing_rad ~ U(−fov_rad/2, fov_rad/2)
+
+   independently of the true geometry (so an outlier may by chance land near the truth;
+   with the arena camera fewer than 1 % do within 3σ). Height and tag yaw keep their
+   ordinary noisy values, and the record's sigmas stay the nominal ones (σ_r at the true
+   range): the front-end does not know it erred, and nothing in the record marks an
+   outlier. ``noise_scale`` does not touch outliers. The draws come from a third random
+   stream, spawned after the motion and sensor streams, which are therefore unchanged:
+   with the same seed a log with outliers has the same trajectory, odometry and inlier
+   measurements as the log without, and a larger p gives a superset of the outliers
+   (each observation draws u ~ U(0, 1) and is an outlier when u < p). With p = 0 nothing
+   is drawn and the log is byte-identical to one made before outliers existed; p > 0 is
+   recorded in ``header.source["outliers"]``.
 
 Scenarios and their numbers
 ===========================
@@ -611,7 +633,7 @@ def _drive(scenario: Scenario, laps: int, noise_scale: float, rng: np.random.Gen
 # --------------------------------------------------------------------------- the log
 
 
-def _check_arguments(scenario: Any, seed: Any, landmarks: Any, laps: Any, noise_scale: Any) -> None:
+def _check_arguments(scenario: Any, seed: Any, landmarks: Any, laps: Any, noise_scale: Any, outliers: Any = 0.0) -> None:
     if scenario not in SCENARIOS:
         raise FgslamError(f"unknown scenario {scenario!r}; choose one of: {', '.join(SCENARIOS)}")
     if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
@@ -629,6 +651,15 @@ def _check_arguments(scenario: Any, seed: Any, landmarks: Any, laps: Any, noise_
         or noise_scale < 0
     ):
         raise FgslamError(f"noise_scale must be a finite number ≥ 0 (0 = exact measurements, 1 = nominal), got {noise_scale!r}")
+    if (
+        isinstance(outliers, bool)
+        or not isinstance(outliers, numbers.Real)
+        or not math.isfinite(outliers)
+        or not 0.0 <= outliers < 1.0
+    ):
+        raise FgslamError(
+            f"outliers must be a fraction 0 ≤ outliers < 1 of the observations to replace by misdetections, got {outliers!r}"
+        )
 
 
 def _header(sc: Scenario, start_pose: tuple[float, float, float], seed: int, laps: int, noise_scale: float,
@@ -707,6 +738,7 @@ def simulate(
     noise_scale: float = 1.0,
     hide_ids: bool = False,
     command: str | None = None,
+    outliers: float = 0.0,
 ) -> tuple[Header, list[Record]]:
     """Simulate one run of ``scenario`` and return its log ``(header, records)``.
 
@@ -717,24 +749,32 @@ def simulate(
     records keep the nominal covariances and sigmas; ``command`` is kept in
     ``header.source["command"]``. ``hide_ids`` writes every observation with
     ``landmark_id`` null (the estimator must associate it) and the true id in
-    ``truth_landmark_id``, for scoring the association.
+    ``truth_landmark_id``, for scoring the association. ``outliers`` (0 ≤ p < 1) replaces
+    each observation with probability p by a misdetection of the same landmark at a
+    uniformly random range and bearing within the sensor's limits (module docstring,
+    step 6); the records do not say which.
 
     Record order: a ``TruthLandmark`` per landmark (ids 0..N−1); ``TruthPose`` of pose 0
     and its observations; then per step ``Odometry``, ``TruthPose`` and the observations at
     the new pose, all with the same stamp (k·dt). Raises :class:`FgslamError` on a bad
     argument.
     """
-    _check_arguments(scenario, seed, landmarks, laps, noise_scale)
+    _check_arguments(scenario, seed, landmarks, laps, noise_scale, outliers)
     noise_scale = float(noise_scale)
+    outliers = float(outliers)
     sc = _scenario(scenario, int(landmarks))
     laps = sc.default_laps if laps is None else int(laps)
-    motion_rng, sensor_rng = np.random.default_rng(int(seed)).spawn(2)
+    # spawn(3)'s first two children are spawn(2)'s: the motion and sensor streams do not
+    # depend on whether outliers are drawn.
+    motion_rng, sensor_rng, outlier_rng = np.random.default_rng(int(seed)).spawn(3)
 
     drive = _drive(sc, laps, noise_scale, motion_rng)
     start_pose = tuple(float(v) for v in drive.poses[0])
     header = _header(sc, start_pose, int(seed), laps, noise_scale, command)
     if hide_ids:
         header = dataclasses.replace(header, source={**header.source, "hide_ids": True})
+    if outliers > 0.0:
+        header = dataclasses.replace(header, source={**header.source, "outliers": outliers})
 
     # Odometry records: the Create's reading from the measured wheels, the arc increment,
     # and the covariance of the generative noise at the true wheel distances.
@@ -748,6 +788,15 @@ def simulate(
     sigma_range = range_sigma_m(seen.range_m, s)
     range_meas = seen.range_m + sigma_range * n[:, 0]
     bearing_meas = wrap_angle(seen.bearing_rad + s.sigma_bearing_rad * n[:, 1])
+    if outliers > 0.0:
+        # Misdetections with a valid id (step 6); drawn for every observation so that the
+        # values do not depend on p, and a larger p only adds outliers.
+        count = len(seen.pose_index)
+        is_outlier = outlier_rng.random(count) < outliers
+        range_out = outlier_rng.uniform(s.min_range_m, s.max_range_m, count)
+        bearing_out = outlier_rng.uniform(-0.5 * s.fov_rad, 0.5 * s.fov_rad, count)
+        range_meas = np.where(is_outlier, range_out, range_meas)
+        bearing_meas = np.where(is_outlier, bearing_out, bearing_meas)
     height_meas = None
     if s.sigma_height_m is not None:
         height_meas = (sc.world.heights_m[seen.landmark_id] + s.sigma_height_m * n[:, 2]).tolist()

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 from gtsam.symbol_shorthand import L, X
 
-from fgslam.smoother import BatchResult, Isam2Smoother, batch_solve
+from fgslam.compare import ate_rmse_m
+from fgslam.smoother import DEFAULT_ROBUST_K, BatchResult, Isam2Smoother, batch_solve
 from slamio.errors import FgslamError
 from slamio.geometry import arc_increment, between_pose, compose_pose, wrap_angle
 from builders import minimal_header
@@ -465,3 +466,128 @@ def test_failure_during_finish_is_recovered():
     assert smoother.update_failures == 1
     assert pose_difference(smoother.trajectory(), truth)[0] < 1e-6
     assert set(smoother.landmarks()) == {lid for s in steps for o in s.observations if (lid := o.landmark_id) is not None}
+
+
+# ---------------------------------------------------------------------------- robust kernels
+
+
+def numpy_kernel_loss(kernel: str, k: float, r: float) -> float:
+    """Huber / Cauchy loss of a whitened residual norm r (Huber 1964; Cauchy as in GTSAM)."""
+    if kernel == "huber":
+        return 0.5 * r * r if r <= k else k * r - 0.5 * k * k
+    return 0.5 * k * k * math.log1p((r / k) ** 2)
+
+
+@pytest.mark.parametrize("kernel", ["huber", "cauchy"])
+@pytest.mark.parametrize("k", [None, 0.8, 3.0])
+def test_robust_landmark_factor_error_is_the_kernel_of_the_whitened_norm(kernel, k):
+    pose, landmark = (1.0, -2.0, 0.7), (3.0, 1.5)
+    sb, sr = 0.03, 0.2
+    true_range = math.hypot(landmark[0] - pose[0], landmark[1] - pose[1])
+    true_bearing = wrap_angle(math.atan2(landmark[1] - pose[1], landmark[0] - pose[0]) - pose[2])
+    values = gtsam.Values()
+    values.insert(X(0), gtsam.Pose2(*pose))
+    values.insert(L(9), gtsam.Point2(*landmark))
+    width = DEFAULT_ROBUST_K[kernel] if k is None else k
+    for db, dr in [(0.0, 0.0), (0.01, 0.05), (0.02, -0.3), (0.5, 1.0), (-1.2, 2.5)]:
+        smoother = Isam2Smoother(make_header(start_pose=pose), robust=kernel, robust_k=k)
+        obs = Observation(0.0, 9, true_range + dr, wrap_angle(true_bearing + db), sr, sb)
+        smoother.step(Step(0, 0.0, None, (obs,), None))
+        graph = smoother.graph()
+        r = math.hypot(db / sb, dr / sr)
+        assert graph.at(1).error(values) == pytest.approx(numpy_kernel_loss(kernel, width, r), rel=1e-9, abs=1e-15)
+        assert graph.at(0).error(values) == pytest.approx(0.0, abs=1e-15)  # the prior is untouched
+
+
+def test_robust_kernel_leaves_odometry_gaussian_and_names_the_estimator():
+    Q = np.diag([4e-4, 1e-4, 2.5e-4])
+    n = np.array([0.2, -0.1, 0.3])  # many σ: a robust kernel would cap this
+    start = (0.5, 0.2, -1.0)
+    header = make_header(start_pose=start)
+    assert Isam2Smoother(header, robust="huber").name == "isam2-huber"
+    values = gtsam.Values()
+    values.insert(X(0), gtsam.Pose2(*start))
+    values.insert(X(1), gtsam.Pose2(*compose_pose(start, (0.3, 0.0, 0.0))))
+    odometry = Odometry(0.1, *(np.array([0.3, 0.0, 0.0]) + n), covariance=as_matrix3(Q))
+    errors = {}
+    for robust in (None, "cauchy"):
+        smoother = Isam2Smoother(header, robust=robust)
+        smoother.step(Step(0, 0.0, None, (), None))
+        smoother.step(Step(1, 0.1, odometry, (), None))
+        errors[smoother.name] = smoother.graph().at(1).error(values)
+    assert errors["isam2-cauchy"] == errors["isam2"] > 100  # far outside any kernel, not capped
+
+
+@pytest.mark.parametrize(
+    "kwargs", [{"robust": "tukey"}, {"robust": "huber", "robust_k": 0.0}, {"robust": "cauchy", "robust_k": float("nan")},
+               {"robust_k": 2.0}]
+)
+def test_bad_robust_arguments_raise(kwargs):
+    with pytest.raises(FgslamError, match="robust"):
+        Isam2Smoother(make_header(), **kwargs)
+
+
+def test_robust_batch_solve_uses_the_robust_graph():
+    """Exact loop log with the first sighting of two landmarks replaced by misdetections.
+
+    iSAM2 (one update per step) and the batch solve both end at the robust optimum; with
+    Cauchy it is within 6 cm of the truth (measured 4.5 cm: the kernel's bias with two
+    outliers seen from the pinned start pose), least squares is dragged metres away.
+    """
+    header, steps, truth, _ = make_loop_log(n_steps=200)
+    first = steps[0].observations
+    assert len(first) == 2
+    wrong = tuple(Observation(o.stamp_s, o.landmark_id, 0.4 * o.range_m + 1.0, o.bearing_rad + 0.6,
+                              o.sigma_range_m, o.sigma_bearing_rad) for o in first)
+    steps = [Step(0, 0.0, None, wrong, steps[0].truth)] + steps[1:]
+    plain = run(header, steps)
+    cauchy = run(header, steps, robust="cauchy")
+    batch = batch_solve(cauchy)
+    assert batch.initial_error == pytest.approx(cauchy.error(), rel=1e-12)
+    assert batch.final_error <= batch.initial_error
+    assert abs(batch.final_error - cauchy.error()) < 1e-3 * batch.final_error
+    assert pose_difference(batch.trajectory, cauchy.trajectory())[0] < 1e-3
+    assert pose_difference(cauchy.trajectory(), truth)[0] < 0.06
+    assert pose_difference(plain.trajectory(), truth)[0] > 1.0
+    # the graph batch_solve optimises holds robust landmark factors, Gaussian odometry
+    kinds = [type(cauchy.graph().at(i).noiseModel()).__name__ for i in range(cauchy.graph().size())]
+    n_obs = sum(len(s.observations) for s in steps)
+    assert kinds.count("Robust") == n_obs and len(kinds) == n_obs + len(steps)
+    assert "Robust" not in [type(plain.graph().at(i).noiseModel()).__name__ for i in range(plain.graph().size())]
+
+
+def _ate(header, records, **kwargs) -> float:
+    steps = group_steps(header, records)
+    smoother = run(header, steps, **kwargs)
+    truth = np.array([[s.truth.x_m, s.truth.y_m, s.truth.theta_rad] for s in steps])
+    return ate_rmse_m(smoother.trajectory(), truth)
+
+
+@pytest.fixture(scope="module")
+def octagon_with_outliers():
+    from slamio.sim import simulate
+
+    clean = _ate(*simulate("arena-octagon", 1))
+    header, records = simulate("arena-octagon", 1, outliers=0.1)
+    return clean, header, records
+
+
+def test_outliers_ruin_least_squares(octagon_with_outliers):
+    clean, header, records = octagon_with_outliers
+    # measured: 0.166 m against 0.0075 m without outliers
+    assert _ate(header, records) > 5 * clean
+
+
+@pytest.mark.parametrize("kernel", ["huber", "cauchy"])
+def test_robust_isam2_with_10_percent_outliers_stays_within_1_2x_of_clean(octagon_with_outliers, kernel):
+    """The issue's acceptance criterion, on the bundled log's seed (arena-octagon, seed 1).
+
+    Measured with the default k: clean 0.0075 m; Huber 0.0083 m (1.11×), Cauchy 0.0080 m
+    (1.07×); an oracle that drops exactly the outliers gets 0.0091 m (1.21×), because the
+    outliers replaced 10 % of the good observations. On other seeds even the oracle can
+    exceed 1.2× (seed 5: 1.55×), and Huber, which never fully rejects, exceeds it on
+    seeds 3 and 4 (see DEFAULT_ROBUST_K); this seed is not a worst case.
+    """
+    clean, header, records = octagon_with_outliers
+    robust = _ate(header, records, robust=kernel)
+    assert robust <= 1.2 * clean, f"{kernel}: ATE {robust:.4f} m vs {clean:.4f} m without outliers"
