@@ -35,6 +35,8 @@ ESTIMATOR_HELP = {
     "ekf-s001": "seed 001's EKF (GoPiGo, forward/rotate moves, nearest neighbour), as written",
     "ekf-s004": "seed 004's KF over robot and AprilTag poses, as written",
     "isam2": "GTSAM iSAM2 factor-graph smoother (the batch solve starts from its result)",
+    "isam2-huber": "iSAM2 with a Huber kernel on landmark factors (robust to outliers)",
+    "isam2-cauchy": "iSAM2 with a Cauchy kernel on landmark factors (robust to outliers)",
     "dead_reckoning": "odometry alone: the baseline",
 }
 
@@ -89,7 +91,13 @@ def cmd_sim(args: argparse.Namespace) -> int:
 
     command = "fgslam " + " ".join(shlex.quote(a) for a in args.argv)
     header, records = simulate(
-        args.scenario, args.seed, landmarks=args.landmarks, laps=args.laps, hide_ids=args.hide_ids, command=command
+        args.scenario,
+        args.seed,
+        landmarks=args.landmarks,
+        laps=args.laps,
+        hide_ids=args.hide_ids,
+        outliers=args.outliers,
+        command=command,
     )
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -188,6 +196,14 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="write observations without landmark ids (estimators must associate them); "
         "the true id is kept in truth_landmark_id to score the association",
+    )
+    sim.add_argument(
+        "--outliers",
+        type=float,
+        default=0.0,
+        metavar="FRACTION",
+        help="share of observations replaced by misdetections: the right id at a random range "
+        "and bearing inside the sensor's limits (default 0)",
     )
     sim.set_defaults(func=cmd_sim)
 

@@ -149,3 +149,13 @@ def test_import_victoria_park_writes_a_valid_log(tmp_path, capsys):
     assert "6969 poses" in capsys.readouterr().out
     assert main(["validate", str(out)]) == 0
     assert "6968 odometry records" in capsys.readouterr().out
+
+
+def test_outliers_from_sim_and_robust_isam2_from_run(tmp_path, capsys):
+    log = tmp_path / "outliers.jsonl"
+    assert main(["sim", "arena-octagon", "--seed", "1", "--laps", "1", "--outliers", "0.1", "--out", str(log)]) == 0
+    out = tmp_path / "r"
+    assert main(["run", str(log), "--out", str(out), "--no-report", "--estimators", "isam2,isam2-cauchy"]) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["isam2-cauchy"]["ate_rmse_m"] < metrics["isam2"]["ate_rmse_m"] / 3
+    assert main(["run", str(log), "--out", str(out), "--no-report", "--estimators", "isam2-huber"]) == 0
