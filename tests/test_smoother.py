@@ -591,3 +591,64 @@ def test_robust_isam2_with_10_percent_outliers_stays_within_1_2x_of_clean(octago
     clean, header, records = octagon_with_outliers
     robust = _ate(header, records, robust=kernel)
     assert robust <= 1.2 * clean, f"{kernel}: ATE {robust:.4f} m vs {clean:.4f} m without outliers"
+
+
+# ---------------------------------------------------------------------------- tuning knobs
+
+
+def test_update_every_k_ends_where_every_step_ends(noisy):
+    header, steps, _, _, smoother, batch = noisy
+    for kwargs in ({"update_every": 5}, {"update_every": 3, "update_on": "observations"}):
+        held = run(header, steps, **kwargs)
+        assert held.updates < len(steps)
+        pos, ang = pose_difference(held.trajectory(), smoother.trajectory())
+        assert pos <= 1e-3 and ang <= 1e-3, kwargs
+        assert abs(held.error() - batch.final_error) <= 1e-3 * batch.final_error, kwargs
+
+
+def test_current_pose_between_updates_is_last_estimate_plus_odometry():
+    header, steps, _, _ = make_loop_log(n_steps=60, seed=3)
+    smoother = Isam2Smoother(header, update_every=4, max_held_steps=4)
+    expected = None
+    for step in steps:
+        before = smoother.updates
+        smoother.step(step)
+        pose = smoother.current_pose()
+        if smoother.updates > before:  # this step ran an update: iSAM2's own estimate
+            expected = smoother._isam.calculateEstimatePose2(X(step.index))
+        else:
+            o = step.odometry
+            expected = expected.compose(gtsam.Pose2(o.dx_m, o.dy_m, o.dtheta_rad))
+        assert np.allclose(pose, (expected.x(), expected.y(), expected.theta()), atol=1e-12)
+    assert smoother.updates == 1 + (len(steps) - 1) // 4
+    # queries flush the held steps: every step is in the graph and the trajectory
+    assert smoother.trajectory().shape == (len(steps), 3)
+    assert smoother.graph().size() == len(steps) + good_observation_count(steps)
+
+
+def test_final_iterations_force_the_pending_relinearisation(noisy):
+    """force_relinearize only forces the check: variables still need a delta above the threshold."""
+    header, steps, _, _, _, batch = noisy
+    kwargs = dict(relinearize_threshold=0.01, relinearize_skip=10, final_updates=0)
+    polished = run(header, steps, final_iterations=10, **kwargs)
+    none = run(header, steps, final_iterations=0, **kwargs)
+    assert polished.final_iterations_run >= 1 and none.final_iterations_run == 0
+    assert polished.error() <= none.error() + 1e-9
+    assert abs(polished.error() - batch.final_error) <= 1e-3 * batch.final_error
+
+
+@pytest.mark.parametrize(
+    "kwargs", [{"update_every": 0}, {"max_held_steps": 0}, {"update_on": "sometimes"}, {"final_iterations": -1},
+               {"factorization": "lu"}, {"wildfire_threshold": -1.0}]
+)
+def test_bad_tuning_arguments_raise(kwargs):
+    with pytest.raises(FgslamError):
+        Isam2Smoother(make_header(), **kwargs)
+
+
+@pytest.mark.parametrize("kwargs", [{"factorization": "qr"}, {"partial_relinearization_check": True},
+                                    {"cache_linearized_factors": False}, {"wildfire_threshold": 0.0}])
+def test_isam2_params_options_keep_the_answer(noisy, kwargs):
+    header, steps, _, _, smoother, _ = noisy
+    other = run(header, steps, **kwargs)
+    assert pose_difference(other.trajectory(), smoother.trajectory())[0] <= 1e-4

@@ -1,0 +1,89 @@
+"""Benchmark: per-step cost and accuracy of EKF-SLAM vs iSAM2 as the map grows.
+
+For each N in ``--sizes`` (default 100 500 1000 2000) simulate ``fgslam sim grid
+--landmarks N`` (seed ``--seed``), run the EKF and iSAM2 (default settings) in this one
+process, and print per-step p50/p99 time, total time, ATE against the simulator's truth
+(final and online), and the ratios EKF/iSAM2 of the per-step median and of total time.
+``--laps`` overrides the scenario's lap count (``--laps 1`` keeps N >= 1000 tractable:
+the EKF is O(N^2) per step). ``--plot PATH`` writes a PNG of time per step vs N.
+
+OPENBLAS_NUM_THREADS is forced to 1 before numpy loads (shared machine).
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ["OPENBLAS_NUM_THREADS"] = "1"
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import sys  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import numpy as np  # noqa: E402
+
+from ekf import EkfSlam  # noqa: E402
+from fgslam.compare import ate_rmse_m  # noqa: E402
+from fgslam.runner import run_estimator  # noqa: E402
+from fgslam.smoother import Isam2Smoother  # noqa: E402
+from slamio.log import group_steps  # noqa: E402
+from slamio.sim import simulate  # noqa: E402
+
+
+def ms(run, q):
+    return 1e3 * float(np.percentile(run.step_times_s, q))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", type=int, nargs="+", default=[100, 500, 1000, 2000])
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--laps", type=int, default=None, help="laps of the grid (default: the scenario's)")
+    ap.add_argument("--plot", type=Path, default=None, help="write a PNG of time per step vs N here")
+    args = ap.parse_args(argv)
+
+    rows = []
+    print(f"{'N':>5} {'steps':>6} {'est':>6} {'p50 ms':>8} {'p99 ms':>8} {'total s':>8} {'ATE m':>7} {'online':>7}")
+    for n in args.sizes:
+        header, records = simulate("grid", args.seed, landmarks=n, laps=args.laps)
+        steps = group_steps(header, records)
+        truth = np.array([[s.truth.x_m, s.truth.y_m, s.truth.theta_rad] for s in steps])
+        runs = {}
+        for name, est in (("ekf", EkfSlam(header)), ("isam2", Isam2Smoother(header))):
+            run, _ = run_estimator(est, steps)
+            runs[name] = run
+            print(f"{n:5d} {len(steps):6d} {name:>6} {ms(run, 50):8.3f} {ms(run, 99):8.2f} {run.total_time_s:8.2f} "
+                  f"{ate_rmse_m(run.final, truth):7.3f} {ate_rmse_m(run.online, truth):7.3f}", flush=True)
+        e, i = runs["ekf"], runs["isam2"]
+        r50, rtot = ms(e, 50) / ms(i, 50), e.total_time_s / i.total_time_s
+        print(f"{'':5} ratios EKF/iSAM2: per-step p50 {r50:.1f}x, p99 {ms(e, 99) / ms(i, 99):.1f}x, total {rtot:.1f}x; "
+              f"online ATE iSAM2/EKF {ate_rmse_m(i.online, truth) / ate_rmse_m(e.online, truth):.2f}", flush=True)
+        rows.append((n, ms(e, 50), ms(e, 99), ms(i, 50), ms(i, 99)))
+
+    if args.plot is not None:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        a = np.array(rows)
+        fig, ax = plt.subplots(figsize=(6, 4))
+        ax.loglog(a[:, 0], a[:, 1], "o-", label="EKF p50")
+        ax.loglog(a[:, 0], a[:, 2], "o--", label="EKF p99")
+        ax.loglog(a[:, 0], a[:, 3], "s-", label="iSAM2 p50")
+        ax.loglog(a[:, 0], a[:, 4], "s--", label="iSAM2 p99")
+        ax.set_xlabel("landmarks N")
+        ax.set_ylabel("time per step (ms)")
+        ax.legend()
+        ax.grid(True, which="both", alpha=0.3)
+        fig.tight_layout()
+        fig.savefig(args.plot, dpi=120)
+        print(f"wrote {args.plot}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

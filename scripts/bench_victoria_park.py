@@ -1,0 +1,95 @@
+"""Benchmark: EKF-SLAM vs iSAM2 vs batch LM on Victoria Park, in one process.
+
+    OPENBLAS_NUM_THREADS is forced to 1 before numpy loads (a shared machine: multithreaded
+    BLAS made single iSAM2 updates ~20x slower under load).
+
+Usage::
+
+    .venv/bin/python scripts/bench_victoria_park.py [--set relinearize_threshold=0.05 ...]
+
+Prints total time, per-step p50/p99 for EKF and iSAM2, the batch solve's time, χ²/2 of
+iSAM2's final estimate and of the batch optimum (LM seeded from iSAM2), and the ratios
+iSAM2/EKF time and iSAM2 χ² / batch χ². ``--set key=value`` passes Isam2Smoother keyword
+arguments (for measuring knobs); ``--no-ekf`` skips the EKF.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ["OPENBLAS_NUM_THREADS"] = "1"
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import ast  # noqa: E402
+import sys  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import numpy as np  # noqa: E402
+
+from ekf import EkfSlam  # noqa: E402
+from fgslam.compare import ate_rmse_m  # noqa: E402
+from fgslam.runner import run_estimator  # noqa: E402
+from fgslam.smoother import Isam2Smoother, batch_solve  # noqa: E402
+from slamio.datasets.victoria_park import import_victoria_park  # noqa: E402
+from slamio.log import group_steps  # noqa: E402
+
+
+def parse_sets(items: list[str]) -> dict:
+    out = {}
+    for item in items:
+        key, _, text = item.partition("=")
+        try:
+            out[key] = ast.literal_eval(text)
+        except (ValueError, SyntaxError):
+            out[key] = text
+    return out
+
+
+def ms(run, q: float) -> float:
+    return 1e3 * float(np.percentile(run.step_times_s, q))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="Isam2Smoother keyword")
+    ap.add_argument("--no-ekf", action="store_true", help="skip the EKF (knob sweeps)")
+    args = ap.parse_args(argv)
+    kwargs = parse_sets(args.set)
+
+    header, records = import_victoria_park()
+    steps = group_steps(header, records)
+    print(f"Victoria Park: {len(steps)} steps, {sum(len(s.observations) for s in steps)} observations")
+    print(f"Isam2Smoother kwargs: {kwargs or '(defaults)'}")
+
+    ekf = None
+    if not args.no_ekf:
+        ekf, _ = run_estimator(EkfSlam(header), steps)
+    isam, smoother = run_estimator(Isam2Smoother(header, **kwargs), steps)
+    isam_chi2 = smoother.error()
+    batch = batch_solve(smoother)
+
+    rows = [("isam2", isam)] + ([("ekf", ekf)] if ekf is not None else [])
+    print(f"{'':8}{'total s':>9}{'p50 ms':>9}{'p99 ms':>9}{'max ms':>9}")
+    for name, run in rows:
+        print(f"{name:8}{run.total_time_s:9.2f}{ms(run, 50):9.3f}{ms(run, 99):9.2f}{ms(run, 100):9.1f}")
+    print(f"{'batch':8}{batch.time_s:9.2f}   ({batch.iterations} LM iterations from iSAM2's estimate)")
+    print(f"iSAM2 updates: {smoother.updates}, final full relinearisations: {smoother.final_iterations_run}, "
+          f"update failures: {smoother.update_failures}")
+    print(f"chi2/2: iSAM2 final {isam_chi2:.2f}, batch {batch.final_error:.2f}")
+    print(f"ATE vs batch: iSAM2 final {ate_rmse_m(isam.final, batch.trajectory):.3f} m, "
+          f"iSAM2 online {ate_rmse_m(isam.online, batch.trajectory):.3f} m"
+          + (f", EKF online {ate_rmse_m(ekf.online, batch.trajectory):.3f} m" if ekf is not None else ""))
+    print("ratios:")
+    print(f"  iSAM2 chi2 / batch chi2   = {isam_chi2 / batch.final_error:.4f}   (goal <= 1.01)")
+    if ekf is not None:
+        print(f"  iSAM2 time / EKF time     = {isam.total_time_s / ekf.total_time_s:.2f}   (goal <= 1.5)")
+        print(f"  batch time / EKF time     = {batch.time_s / ekf.total_time_s:.3f}")
+    print(f"  batch time / iSAM2 time   = {batch.time_s / isam.total_time_s:.3f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
