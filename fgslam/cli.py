@@ -72,7 +72,8 @@ def _summary(log: RunLog) -> str:
     ids = {o.landmark_id for o in observations if o.landmark_id is not None}
     unknown = sum(o.landmark_id is None for o in observations)
     duration = steps[-1].stamp_s - steps[0].stamp_s
-    truth = "ground truth for every pose" if log.has_full_truth() else "no full ground truth"
+    full_truth = all(s.truth is not None for s in steps)
+    truth = "ground truth for every pose" if full_truth else "no full ground truth"
     return (
         f"{len(steps)} poses over {duration:.1f} s, {len(observations)} observations of "
         f"{len(ids)} landmarks" + (f" (+{unknown} with unknown id)" if unknown else "") + f", {truth}"
@@ -84,6 +85,15 @@ def _read(path: str) -> RunLog:
     if log.truncated:
         print(f"fgslam: warning: {log.truncated}", file=sys.stderr)
     return log
+
+
+def _write(out_path: str, header, records) -> int:
+    """Write a made or imported log and say what is in it (from memory, not re-read)."""
+    out = Path(out_path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_log(out, header, records)
+    print(f"wrote {out}: {_summary(RunLog(str(out), header, tuple(records)))}")
+    return 0
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
@@ -99,22 +109,14 @@ def cmd_sim(args: argparse.Namespace) -> int:
         outliers=args.outliers,
         command=command,
     )
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    write_log(out, header, records)
-    print(f"wrote {out}: {_summary(read_log(out))}")
-    return 0
+    return _write(args.out, header, records)
 
 
 def cmd_import(args: argparse.Namespace) -> int:
     from slamio.datasets import import_victoria_park
 
     header, records = import_victoria_park(args.source)
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    write_log(out, header, records)
-    print(f"wrote {out}: {_summary(read_log(out))}")
-    return 0
+    return _write(args.out, header, records)
 
 
 def cmd_validate(args: argparse.Namespace) -> int:

@@ -119,9 +119,10 @@ def _true_id(observation) -> int | None:
 
 def truth_reference(log: RunLog) -> Reference | None:
     """The log's ground truth as a :class:`Reference`, or None unless every pose has one."""
-    if not log.has_full_truth():
+    steps = log.steps()
+    if not steps or any(s.truth is None for s in steps):
         return None
-    truth = np.array([[s.truth.x_m, s.truth.y_m, s.truth.theta_rad] for s in log.steps()])  # type: ignore[union-attr]
+    truth = np.array([[s.truth.x_m, s.truth.y_m, s.truth.theta_rad] for s in steps])  # type: ignore[union-attr]
     truth_landmarks = log.truth_landmarks()
     landmarks = {i: (t.x_m, t.y_m) for i, t in truth_landmarks.items()}
     heights = {i: t.height_m for i, t in truth_landmarks.items() if t.height_m is not None}
