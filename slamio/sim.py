@@ -86,6 +86,14 @@ uncertainty (estimator tests), ``noise_scale=2`` a log whose stated noise is too
    is drawn and the log is byte-identical to one made before outliers existed; p > 0 is
    recorded in ``header.source["outliers"]``.
 
+   With ``outlier_mode="add"`` (``fgslam sim --outlier-mode add``) nothing is replaced:
+   each observation is followed, with probability p/(1 − p), by a misdetection drawn as
+   above (same id, sigmas, height and tag yaw), so a share p of all observations are
+   outliers and the log minus its outliers is exactly the outlier-free log — the
+   comparison "ATE with outliers vs without" then measures the estimator alone, not the
+   information the replaced observations took with them. Recorded as
+   ``header.source["outlier_mode"] = "add"``.
+
 Scenarios and their numbers
 ===========================
 
@@ -739,6 +747,7 @@ def simulate(
     hide_ids: bool = False,
     command: str | None = None,
     outliers: float = 0.0,
+    outlier_mode: str = "replace",
 ) -> tuple[Header, list[Record]]:
     """Simulate one run of ``scenario`` and return its log ``(header, records)``.
 
@@ -752,7 +761,9 @@ def simulate(
     ``truth_landmark_id``, for scoring the association. ``outliers`` (0 ≤ p < 1) replaces
     each observation with probability p by a misdetection of the same landmark at a
     uniformly random range and bearing within the sensor's limits (module docstring,
-    step 6); the records do not say which.
+    step 6); the records do not say which. ``outlier_mode="add"`` keeps every observation
+    and adds the misdetections instead (each observation is followed by one with
+    probability p/(1 − p), so that a share p of all observations are outliers).
 
     Record order: a ``TruthLandmark`` per landmark (ids 0..N−1); ``TruthPose`` of pose 0
     and its observations; then per step ``Odometry``, ``TruthPose`` and the observations at
@@ -760,6 +771,8 @@ def simulate(
     argument.
     """
     _check_arguments(scenario, seed, landmarks, laps, noise_scale, outliers)
+    if outlier_mode not in ("replace", "add"):
+        raise FgslamError(f"outlier_mode must be 'replace' or 'add', got {outlier_mode!r}")
     noise_scale = float(noise_scale)
     outliers = float(outliers)
     sc = _scenario(scenario, int(landmarks))
@@ -775,6 +788,8 @@ def simulate(
         header = dataclasses.replace(header, source={**header.source, "hide_ids": True})
     if outliers > 0.0:
         header = dataclasses.replace(header, source={**header.source, "outliers": outliers})
+        if outlier_mode == "add":
+            header = dataclasses.replace(header, source={**header.source, "outlier_mode": "add"})
 
     # Odometry records: the Create's reading from the measured wheels, the arc increment,
     # and the covariance of the generative noise at the true wheel distances.
@@ -788,15 +803,21 @@ def simulate(
     sigma_range = range_sigma_m(seen.range_m, s)
     range_meas = seen.range_m + sigma_range * n[:, 0]
     bearing_meas = wrap_angle(seen.bearing_rad + s.sigma_bearing_rad * n[:, 1])
+    extra = None  # add mode: whether observation j is followed by a misdetection
     if outliers > 0.0:
         # Misdetections with a valid id (step 6); drawn for every observation so that the
         # values do not depend on p, and a larger p only adds outliers.
         count = len(seen.pose_index)
-        is_outlier = outlier_rng.random(count) < outliers
+        u = outlier_rng.random(count)
         range_out = outlier_rng.uniform(s.min_range_m, s.max_range_m, count)
         bearing_out = outlier_rng.uniform(-0.5 * s.fov_rad, 0.5 * s.fov_rad, count)
-        range_meas = np.where(is_outlier, range_out, range_meas)
-        bearing_meas = np.where(is_outlier, bearing_out, bearing_meas)
+        if outlier_mode == "replace":
+            is_outlier = u < outliers
+            range_meas = np.where(is_outlier, range_out, range_meas)
+            bearing_meas = np.where(is_outlier, bearing_out, bearing_meas)
+        else:
+            extra = (u < outliers / (1.0 - outliers)).tolist()
+            range_out, bearing_out = range_out.tolist(), bearing_out.tolist()
     height_meas = None
     if s.sigma_height_m is not None:
         height_meas = (sc.world.heights_m[seen.landmark_id] + s.sigma_height_m * n[:, 2]).tolist()
@@ -832,12 +853,16 @@ def simulate(
             ))
         records.append(TruthPose(stamp, *poses[k]))
         for j in range(bounds[k], bounds[k + 1]):
-            records.append(Observation(
-                stamp, None if hide_ids else ids[j], ranges[j], bearings[j], sigmas_r[j], sigma_b,
-                None if height_meas is None else height_meas[j],
-                sigma_h,
-                None if yaw_meas is None else yaw_meas[j],
-                sigma_yaw,
-                ids[j] if hide_ids else None,
-            ))
+            observed = [(ranges[j], bearings[j])]
+            if extra is not None and extra[j]:  # add mode: a misdetection after the real one
+                observed.append((range_out[j], bearing_out[j]))
+            for range_m, bearing_rad in observed:
+                records.append(Observation(
+                    stamp, None if hide_ids else ids[j], range_m, bearing_rad, sigmas_r[j], sigma_b,
+                    None if height_meas is None else height_meas[j],
+                    sigma_h,
+                    None if yaw_meas is None else yaw_meas[j],
+                    sigma_yaw,
+                    ids[j] if hide_ids else None,
+                ))
     return header, records

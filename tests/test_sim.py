@@ -531,3 +531,35 @@ def test_outlier_fraction_is_as_requested_and_within_the_sensor_limits(scenario,
     # the stated sigmas stay nominal (σ_r at the true range), as for an inlier
     model = header.noise["observation"]
     assert all(o.sigma_bearing_rad == model["sigma_bearing_rad"] for o in outliers)
+
+
+def test_add_mode_keeps_every_observation_and_adds_misdetections():
+    header, records = sim("arena-square", 9, laps=4)
+    header_add, records_add = sim("arena-square", 9, laps=4, outliers=0.1, outlier_mode="add")
+    assert header_add.source == {**header.source, "outliers": 0.1, "outlier_mode": "add"}
+    observations = of_type(records, Observation)
+    added = of_type(records_add, Observation)
+    # the clean log is a subsequence: each original observation, then maybe one misdetection
+    extras, i = [], 0
+    for o in added:
+        if i < len(observations) and o == observations[i]:
+            i += 1
+        else:
+            prev = observations[i - 1]  # a misdetection directly follows its observation
+            assert (o.stamp_s, o.landmark_id, o.sigma_range_m, o.tag_yaw_rad) == (
+                prev.stamp_s, prev.landmark_id, prev.sigma_range_m, prev.tag_yaw_rad)
+            extras.append(o)
+    assert i == len(observations)
+    assert [r for r in records_add if not isinstance(r, Observation)] == [
+        r for r in records if not isinstance(r, Observation)]
+    # a share p of all observations are misdetections (binomial, p/(1-p) per observation)
+    q = 0.1 / 0.9
+    n = len(observations)
+    assert abs(len(extras) - q * n) < 4 * math.sqrt(n * q * (1 - q))
+    flags, _ = _outlier_scan(header_add, records_add)
+    assert flags.sum() <= len(extras) and flags.sum() > 0.9 * len(extras)
+
+
+def test_bad_outlier_mode_raises():
+    with pytest.raises(FgslamError, match="outlier_mode"):
+        simulate("arena-square", 1, outliers=0.1, outlier_mode="swap")
