@@ -35,8 +35,11 @@ ESTIMATOR_HELP = {
     "ekf-s001": "seed 001's EKF (GoPiGo, forward/rotate moves, nearest neighbour), as written",
     "ekf-s004": "seed 004's KF over robot and AprilTag poses, as written",
     "isam2": "GTSAM iSAM2 factor-graph smoother (the batch solve starts from its result)",
+    "isam2-fast": "iSAM2 for long runs/large maps: one update per 50 steps, exact final solve",
+    "isam2-tags": "iSAM2 with AprilTags as Pose2 landmarks (relative-pose factors use the tag yaw)",
     "isam2-huber": "iSAM2 with a Huber kernel on landmark factors (robust to outliers)",
     "isam2-cauchy": "iSAM2 with a Cauchy kernel on landmark factors (robust to outliers)",
+    "isam2-tukey": "iSAM2 with a Tukey kernel on landmark factors (misdetections get zero weight)",
     "dead_reckoning": "odometry alone: the baseline",
 }
 
@@ -107,6 +110,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
         laps=args.laps,
         hide_ids=args.hide_ids,
         outliers=args.outliers,
+        outlier_mode=args.outlier_mode,
         command=command,
     )
     return _write(args.out, header, records)
@@ -206,6 +210,13 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FRACTION",
         help="share of observations replaced by misdetections: the right id at a random range "
         "and bearing inside the sensor's limits (default 0)",
+    )
+    sim.add_argument(
+        "--outlier-mode",
+        choices=("replace", "add"),
+        default="replace",
+        help="replace: misdetections take the place of observations (default); add: every "
+        "observation is kept and the misdetections come on top (still FRACTION of all)",
     )
     sim.set_defaults(func=cmd_sim)
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from ekf import DeadReckoning, EkfS000, EkfS001, EkfS004, EkfSlam
 from fgslam.compare import EstimatorRun, Reference, relabel_landmarks, score_associations
-from fgslam.smoother import Isam2Smoother, batch_solve
+from fgslam.smoother import FAST_SETTINGS, Isam2Smoother, batch_solve
 from slamio.errors import FgslamError
 from slamio.estimator import Estimator
 from slamio.log import Header, RunLog, Step
@@ -29,12 +29,20 @@ ESTIMATORS: dict[str, Callable[[Header], Estimator]] = {
     "ekf-s001": EkfS001,  # seed 001's GoPiGo EKF, as written
     "ekf-s004": EkfS004,  # seed 004's AprilTag KF, as written
     "isam2": Isam2Smoother,
+    "isam2-fast": lambda header: _named(Isam2Smoother(header, **FAST_SETTINGS), "isam2-fast"),  # batched updates
+    "isam2-tags": lambda header: Isam2Smoother(header, tags=True),  # AprilTags as Pose2 landmarks
     "isam2-huber": lambda header: Isam2Smoother(header, robust="huber"),  # robust landmark factors
     "isam2-cauchy": lambda header: Isam2Smoother(header, robust="cauchy"),
+    "isam2-tukey": lambda header: Isam2Smoother(header, robust="tukey"),
     "dead_reckoning": DeadReckoning,
 }
-ISAM2_NAMES = ("isam2", "isam2-huber", "isam2-cauchy")
+ISAM2_NAMES = ("isam2", "isam2-fast", "isam2-tags", "isam2-huber", "isam2-cauchy", "isam2-tukey")
 DEFAULT_ESTIMATORS = ("ekf", "isam2", "dead_reckoning")
+
+def _named(estimator, name: str):
+    estimator.name = name
+    return estimator
+
 
 #: Progress callback: (steps done, steps in all, what is running).
 Progress = Callable[[int, int, str], None]
@@ -162,8 +170,11 @@ def compare_log(
             landmarks=dict(batch.landmarks),
             step_times_s=None,
             total_time_s=batch.time_s,
+            landmark_heights=batch.landmark_heights,
         )
     )
     stamps_s = np.array([s.stamp_s for s in steps])
-    reference = truth_reference(log) or Reference("smoothed", batch.trajectory, dict(batch.landmarks))
+    reference = truth_reference(log) or Reference(
+        "smoothed", batch.trajectory, dict(batch.landmarks), batch.landmark_heights
+    )
     return Comparison(runs, reference, stamps_s)
