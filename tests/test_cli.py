@@ -159,3 +159,36 @@ def test_outliers_from_sim_and_robust_isam2_from_run(tmp_path, capsys):
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["isam2-cauchy"]["ate_rmse_m"] < metrics["isam2"]["ate_rmse_m"] / 3
     assert main(["run", str(log), "--out", str(out), "--no-report", "--estimators", "isam2-huber"]) == 0
+
+
+def test_victoria_park_with_the_fast_preset_ends_at_the_smoothed_reference(tmp_path, capsys):
+    log = tmp_path / "vp.jsonl"
+    assert main(["import", "victoria-park", str(log)]) == 0
+    out = tmp_path / "r"
+    assert main(["run", str(log), "--out", str(out), "--no-report", "--estimators", "ekf,isam2-fast"]) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["reference"] == "smoothed"
+    assert metrics["isam2-fast"]["ate_rmse_m"] < 0.05  # its final estimate is the batch optimum
+    assert metrics["ekf"]["ate_online_rmse_m"] > 1.0
+
+
+def test_outlier_mode_add_and_robust_tags_from_the_command_line(tmp_path, capsys):
+    log = tmp_path / "added.jsonl"
+    argv = ["sim", "arena-octagon", "--seed", "1", "--laps", "1", "--outliers", "0.1", "--outlier-mode", "add"]
+    assert main(argv + ["--out", str(log)]) == 0
+    source = json.loads(log.read_text().splitlines()[0])["source"]
+    assert source["outlier_mode"] == "add" and source["outliers"] == 0.1
+    out = tmp_path / "r"
+    assert main(["run", str(log), "--out", str(out), "--no-report", "--estimators", "isam2-tukey,isam2-tags"]) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["isam2-tukey"]["ate_rmse_m"] < metrics["isam2-tags"]["ate_rmse_m"] / 3
+
+
+def test_isam2_reports_landmark_heights(tmp_path, capsys):
+    log = tmp_path / "cyl.jsonl"
+    assert main(["sim", "cylinders", "--seed", "1", "--laps", "1", "--out", str(log)]) == 0
+    out = tmp_path / "r"
+    assert main(["run", str(log), "--out", str(out), "--no-report", "--estimators", "ekf,isam2"]) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["isam2"]["map_height_rmse_m"] == pytest.approx(metrics["ekf"]["map_height_rmse_m"], rel=1e-6)
+    assert metrics["isam2"]["map_height_rmse_m"] < 0.01
