@@ -31,8 +31,11 @@ steps and update less often) with that step's new factors and new variables. A n
 is seeded from the *current iSAM2 estimate* of the previous pose composed with the
 odometry increment (seeding from dead reckoning makes iSAM2 diverge on real data, see
 DESIGN.md); a landmark seen for the first time is seeded from that seed pose and the
-observation. After the update only the newest pose is read back
-(``calculateEstimatePose2``), which is cheap; the full estimate is computed on demand.
+observation (in robust mode only once two observations agree, see
+:meth:`Isam2Smoother._confirm_first_sightings`). After the update only the newest pose is
+read back (``calculateEstimatePose2``); the full estimate is computed on demand.
+:meth:`Isam2Smoother.finish` ends with full Gauss–Newton steps on the whole graph, so the
+final estimate is the batch optimum whatever the settings (docs/performance.md).
 
 Everything accepted into iSAM2 is also kept in one ``NonlinearFactorGraph`` plus the
 initial ``Values``, so :func:`batch_solve` can run Levenberg–Marquardt on the same
