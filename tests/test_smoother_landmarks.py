@@ -160,3 +160,20 @@ def test_heights_are_the_information_weighted_means_of_the_measured_heights():
     assert all(abs(batch.landmark_heights[i] - expected[i]) < 1e-9 for i in expected)
     truth = {r.landmark_id: r.height_m for r in records if isinstance(r, TruthLandmark)}
     assert max(abs(heights[i] - truth[i]) for i in heights) < 0.01
+
+
+def test_a_failed_update_is_recovered_with_tags_and_heights_in_the_graph(octagon):
+    """The rebuild after an indeterminate update re-seeds Pose2 tags and scalar heights too."""
+    header, steps, truth = octagon
+    steps = steps[:120]
+    bad_at = 60
+    with_height = _map_observations(steps, lambda k, j, o: dataclasses.replace(o, height_m=0.3, sigma_height_m=0.02))
+    junk = Observation(steps[bad_at].stamp_s, 99, 1e-300, 0.0, 0.02, 0.01)  # zero range: singular
+    broken = [s if s.index != bad_at else dataclasses.replace(s, observations=s.observations + (junk,))
+              for s in with_height]
+    smoother = _run(header, broken, tags=True)
+    assert smoother.update_failures == 1 and smoother.pending_observations == 1
+    clean = _run(header, with_height, tags=True)
+    assert abs(smoother.error() - clean.error()) <= 1e-9 * clean.error()
+    assert smoother.landmark_heights() == pytest.approx(clean.landmark_heights(), abs=1e-12)
+    assert smoother.landmark_yaws() == pytest.approx(clean.landmark_yaws(), abs=1e-9)
