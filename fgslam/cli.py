@@ -40,6 +40,7 @@ ESTIMATOR_HELP = {
     "isam2-huber": "iSAM2 with a Huber kernel on landmark factors (robust to outliers)",
     "isam2-cauchy": "iSAM2 with a Cauchy kernel on landmark factors (robust to outliers)",
     "isam2-tukey": "iSAM2 with a Tukey kernel on landmark factors (misdetections get zero weight)",
+    "isam2-dcs": "iSAM2 with dynamic covariance scaling: least squares within 3.7 sigma, outliers fade",
     "dead_reckoning": "odometry alone: the baseline",
 }
 

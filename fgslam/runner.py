@@ -34,9 +34,10 @@ ESTIMATORS: dict[str, Callable[[Header], Estimator]] = {
     "isam2-huber": lambda header: Isam2Smoother(header, robust="huber"),  # robust landmark factors
     "isam2-cauchy": lambda header: Isam2Smoother(header, robust="cauchy"),
     "isam2-tukey": lambda header: Isam2Smoother(header, robust="tukey"),
+    "isam2-dcs": lambda header: Isam2Smoother(header, robust="dcs"),
     "dead_reckoning": DeadReckoning,
 }
-ISAM2_NAMES = ("isam2", "isam2-fast", "isam2-tags", "isam2-huber", "isam2-cauchy", "isam2-tukey")
+ISAM2_NAMES = ("isam2", "isam2-fast", "isam2-tags", "isam2-huber", "isam2-cauchy", "isam2-tukey", "isam2-dcs")
 DEFAULT_ESTIMATORS = ("ekf", "isam2", "dead_reckoning")
 
 def _named(estimator, name: str):

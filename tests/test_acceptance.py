@@ -116,3 +116,28 @@ def test_jcbb_associates_hidden_ids_at_least_99_percent_and_nn_no_better(scenari
         assert m["map_rmse_m"] is not None  # landmarks re-keyed by true id
     assert rates["ekf"] >= 0.99, rates
     assert rates["ekf-nn"] <= rates["ekf"], rates
+
+
+# --------------------------------------------------------------------------- issue 4: outliers on the grid
+
+
+def test_dcs_isam2_with_10_percent_outliers_on_grid_200_stays_within_1_2x_of_clean():
+    """The outlier goal where it is hardest: the 200-landmark grid, whose weakly observed
+    large-scale bend moves when a kernel re-weights *good* observations (Huber, Cauchy and
+    Tukey already miss 1.2x on the clean log there; docs/performance.md). DCS keeps good
+    observations at weight 1. Measured (seed 1): clean 0.1936 m, DCS with the outliers added
+    0.2024 m (1.05x); least squares 2.09 m."""
+    import numpy as np
+
+    from fgslam.compare import ate_rmse_m
+    from fgslam.runner import run_estimator
+    from fgslam.smoother import Isam2Smoother
+    from slamio.log import group_steps
+
+    header, records = simulate("grid", 1, landmarks=200)
+    clean_steps = group_steps(header, records)
+    truth = np.array([[s.truth.x_m, s.truth.y_m, s.truth.theta_rad] for s in clean_steps])
+    clean = ate_rmse_m(run_estimator(Isam2Smoother(header), clean_steps)[0].final, truth)
+    header_out, records_out = simulate("grid", 1, landmarks=200, outliers=0.1, outlier_mode="add")
+    run, smoother = run_estimator(Isam2Smoother(header_out, robust="dcs"), group_steps(header_out, records_out))
+    assert ate_rmse_m(run.final, truth) <= 1.2 * clean
