@@ -139,14 +139,17 @@ DEFAULT_ROBUST_K = {
 
 
 #: The ``isam2-fast`` preset: settings tuned on Victoria Park (docs/performance.md), for long
-#: runs and large maps where one update per step costs too much. Steps are held and go to
+#: runs and large maps where one update per step costs too much. Only steps with
+#: observations become iSAM2 variables (keyframes; the odometry between them is folded into
+#: one factor, and the poses in between are rebuilt on demand); steps are held and go to
 #: iSAM2 in one update at the first step with observations once 50 are waiting; iSAM2
 #: relinearises every 20th update, a variable whose step exceeds 1 m or 0.05 rad; the
 #: online pose is read back with a loose wildfire threshold. ``finish()`` then runs full
-#: Gauss–Newton steps, so the final estimate is the batch optimum (Victoria Park: χ²/2
-#: equal to batch LM's to 1e-6). The price is the online estimate between updates
-#: (dead-reckoned from the last update), not the final one.
+#: Gauss–Newton steps. On Victoria Park the final χ²/2 of the whole graph is 0.08 % above
+#: the batch optimum; the price is the online estimate between updates (dead-reckoned from
+#: the last update), not the final one.
 FAST_SETTINGS = {
+    "keyframes": True,
     "relinearize_threshold": (1.0, 0.05),
     "relinearize_skip": 20,
     "update_every": 50,
@@ -269,6 +272,70 @@ class _PendingObservation:
     landmark_guess: np.ndarray | gtsam.Pose2  # the landmark implied by the observation and its seed pose
     seed_pose: gtsam.Pose2  # the robot pose the observation was made from, as seeded then
     attempts: int = 0  # failed updates it took part in
+
+
+def _add_links(graph: gtsam.NonlinearFactorGraph, chain: "_Chain") -> None:
+    """One ``BetweenFactorPose2`` per odometry link of ``chain``."""
+    for j, (z, cov) in enumerate(chain.links):
+        a = chain.start + j
+        graph.add(gtsam.BetweenFactorPose2(X(a), X(a + 1), z, gtsam.noiseModel.Gaussian.Covariance(cov)))
+
+
+class _Chain:
+    """Odometry links folded into one compound factor (``Isam2Smoother(keyframes=True)``).
+
+    Each link is an increment z_j with covariance Σ_j in GTSAM's convention (the error
+    Log(z_j⁻¹ · T_{j−1}⁻¹ T_j) lives in the frame at the link's end). The compound
+    z = z_1 ⋯ z_m carries Σ = Σ_j A_j Σ_j A_jᵀ with A_j = Ad((z_{j+1} ⋯ z_m)⁻¹), which moves
+    link j's error to the frame at the chain's end: the first-order marginal of the poses
+    in between, which only the chain constrains.
+    """
+
+    def __init__(self, start: int):
+        self.start = start  # pose index the chain starts from (a keyframe)
+        self.links: list[tuple[gtsam.Pose2, np.ndarray]] = []
+        self.compound = gtsam.Pose2()
+        self._cov = np.zeros((3, 3))
+
+    def append(self, increment: gtsam.Pose2, covariance: np.ndarray) -> None:
+        A = increment.inverse().AdjointMap()
+        self._cov = A @ self._cov @ A.T + covariance
+        self.compound = self.compound.compose(increment)
+        self.links.append((increment, covariance))
+
+    def covariance(self) -> np.ndarray:
+        return 0.5 * (self._cov + self._cov.T)
+
+    def dead_reckoned(self, start: gtsam.Pose2) -> np.ndarray:
+        """(m, 3): the poses after ``start``, composed link by link."""
+        out, pose = np.empty((len(self.links), 3)), start
+        for j, (z, _) in enumerate(self.links):
+            pose = pose.compose(z)
+            out[j] = (pose.x(), pose.y(), pose.theta())
+        return out
+
+    def poses(self, start: gtsam.Pose2, end: gtsam.Pose2) -> np.ndarray:
+        """(m − 1, 3): the interior poses, given the estimates of both ends.
+
+        The chain's residual ξ = Log(z⁻¹ · start⁻¹ · end) is split over the links by least
+        squares: ε_j = Σ_j A_jᵀ Σ⁻¹ ξ (the most probable link errors that add up to ξ), and
+        pose i = start · z_1 Exp(ε_1) ⋯ z_i Exp(ε_i). With ε_j so chosen the links' cost
+        Σ ε_jᵀ Σ_j⁻¹ ε_j equals ξᵀ Σ⁻¹ ξ, the compound factor's.
+        """
+        xi = gtsam.Pose2.Logmap(self.compound.between(start.between(end)))
+        weight = np.linalg.solve(self.covariance(), xi)  # Σ⁻¹ ξ
+        suffix = gtsam.Pose2()  # z_{j+1} ⋯ z_m, built from the end
+        eps = [None] * len(self.links)
+        for j in range(len(self.links) - 1, -1, -1):
+            z, cov = self.links[j]
+            A = suffix.inverse().AdjointMap()
+            eps[j] = cov @ (A.T @ weight)
+            suffix = z.compose(suffix)
+        out, pose = np.empty((len(self.links) - 1, 3)), start
+        for j in range(len(self.links) - 1):
+            pose = pose.compose(self.links[j][0]).compose(gtsam.Pose2.Expmap(eps[j]))
+            out[j] = (pose.x(), pose.y(), pose.theta())
+        return out
 
 
 _NEAR_VARIABLE = re.compile(r"near variable\s+(\d+)")
@@ -407,6 +474,8 @@ class Isam2Smoother:
         robust: str | None = None,
         robust_k: float | None = None,
         tags: bool = False,
+        keyframes: bool = False,
+        max_keyframe_gap: int = 50,
     ):
         threshold = _relinearize_threshold(relinearize_threshold)
         if relinearize_skip < 1 or final_updates < 0 or max_retries < 0:
@@ -442,6 +511,10 @@ class Isam2Smoother:
         else:
             self._robust = robust_estimator(robust, robust_k)
         self.tags = bool(tags)
+        if max_keyframe_gap < 1:
+            raise FgslamError("Isam2Smoother: need max_keyframe_gap >= 1")
+        self.keyframes = bool(keyframes)
+        self.max_keyframe_gap = int(max_keyframe_gap)
         self.name = "-".join(["isam2"] + (["tags"] if self.tags else []) + ([robust] if robust else []))
         self.robust = robust
         self.robust_k = None if robust is None else (DEFAULT_ROBUST_K[robust] if robust_k is None else float(robust_k))
@@ -478,6 +551,12 @@ class Isam2Smoother:
         self._held_entries: list[_PendingObservation] = []
         self._held_steps = 0
         self._held_observed = False
+        # Keyframes (see ``keyframes``): pose indices with a variable X(k), the odometry
+        # chain folded into each keyframe's compound factor, and the open chain since the
+        # last keyframe.
+        self._key_indices: list[int] = []
+        self._chains: dict[int, _Chain] = {}  # keyframe b → the chain from the keyframe before
+        self._open = _Chain(0)
 
     # ------------------------------------------------------------------ Estimator protocol
 
@@ -502,11 +581,29 @@ class Isam2Smoother:
             if odo is None:
                 raise FgslamError(f"Isam2Smoother: step {k} has no odometry; every step after 0 starts with one")
             increment = gtsam.Pose2(odo.dx_m, odo.dy_m, odo.dtheta_rad)
-            self._held_core.add(gtsam.BetweenFactorPose2(X(k - 1), X(k), increment, self._odometry_noise(odo)))
             assert self._pose is not None
             # latest iSAM2 estimate ⊕ the increments since, not dead reckoning from the start
             seed = self._pose.compose(increment)
+            if self.keyframes:
+                self._open.append(increment, odometry_noise_covariance(odo))
+                observed = any(o.landmark_id is not None for o in step.observations)
+                if not observed and len(self._open.links) < self.max_keyframe_gap:
+                    self.skipped_unknown_observations += len(step.observations)
+                    self._held_steps += 1
+                    self._num_poses = k + 1
+                    self._pose = seed
+                    if self._due(k):
+                        self._flush()
+                    return
+                # a keyframe: the chain since the last one becomes one compound factor
+                chain, self._open = self._open, _Chain(k)
+                self._chains[k] = chain
+                noise = gtsam.noiseModel.Gaussian.Covariance(chain.covariance())
+                self._held_core.add(gtsam.BetweenFactorPose2(X(chain.start), X(k), chain.compound, noise))
+            else:
+                self._held_core.add(gtsam.BetweenFactorPose2(X(k - 1), X(k), increment, self._odometry_noise(odo)))
         self._held_values.insert(X(k), seed)
+        self._key_indices.append(k)
 
         for obs in step.observations:
             if obs.landmark_id is None:
@@ -521,6 +618,29 @@ class Isam2Smoother:
         self._pose = seed
         if self._due(k):
             self._flush()
+
+    def _folded_chain(self, factor) -> "_Chain | None":
+        """The chain a compound odometry factor of iSAM2's graph stands for (None otherwise)."""
+        if not isinstance(factor, gtsam.BetweenFactorPose2):
+            return None
+        a, b = (gtsam.Symbol(key) for key in factor.keys())
+        if chr(a.chr()) != "x" or chr(b.chr()) != "x":
+            return None
+        chain = self._chains.get(int(b.index()))
+        if chain is None or chain.start != int(a.index()) or len(chain.links) < 2:
+            return None
+        return chain
+
+    def _insert_open_chain(self, values: gtsam.Values) -> None:
+        """Add the poses after the last keyframe: its value ⊕ the odometry since."""
+        if self._open.links:
+            last = self._key_indices[-1]
+            for j, pose in enumerate(self._open.dead_reckoned(values.atPose2(X(last)))):
+                values.insert(X(last + 1 + j), gtsam.Pose2(*pose))
+
+    def _latest_pose(self, last_key_pose: gtsam.Pose2) -> gtsam.Pose2:
+        """The newest pose from its keyframe's estimate (⊕ the open chain, with keyframes)."""
+        return last_key_pose.compose(self._open.compound) if self._open.links else last_key_pose
 
     def _due(self, k: int) -> bool:
         """Whether the held steps go to iSAM2 now (see ``update_every`` / ``update_on``)."""
@@ -541,7 +661,7 @@ class Isam2Smoother:
         entries = self._screen_pending(fresh) + fresh
         self._update_with_recovery(core, core_values, entries)
         self.updates += 1
-        self._pose = self._isam.calculateEstimatePose2(X(self._num_poses - 1))
+        self._pose = self._latest_pose(self._isam.calculateEstimatePose2(X(self._key_indices[-1])))
 
     def current_pose(self) -> tuple[float, float, float]:
         """The online estimate of the latest pose (x_m, y_m, theta_rad).
@@ -587,11 +707,35 @@ class Isam2Smoother:
         # The full back-substitution: calculateEstimate() skips delta changes below the
         # wildfire threshold, which on Victoria Park left χ²/2 25 % above the optimum.
         self._estimate_cache = self._isam.calculateBestEstimate()
-        self._pose = self._estimate_cache.atPose2(X(self._num_poses - 1))
+        self._pose = self._latest_pose(self._estimate_cache.atPose2(X(self._key_indices[-1])))
 
     def trajectory(self) -> np.ndarray:
         """(n, 3) array of every pose (x_m, y_m, theta_rad) as estimated now."""
-        return _poses_of(self._estimate(), self._num_poses)
+        return self.trajectory_of(self._estimate())
+
+    def trajectory_of(self, values: gtsam.Values) -> np.ndarray:
+        """(n, 3) array of every pose for the keyframe (or all-pose) estimate ``values``.
+
+        Without keyframes, the poses in ``values``. With them, each pose between two
+        keyframes a and b is rebuilt from the odometry folded into their compound factor
+        and its least-squares share of that factor's residual (:meth:`_Chain.poses`); poses
+        after the last keyframe are its estimate ⊕ the odometry since (nothing else
+        constrains them).
+        """
+        if not self.keyframes:
+            return _poses_of(values, self._num_poses)
+        out = np.empty((self._num_poses, 3))
+        for k in self._key_indices:
+            p = values.atPose2(X(k))
+            out[k] = (p.x(), p.y(), p.theta())
+        for b, chain in self._chains.items():
+            if len(chain.links) > 1:
+                start, end = values.atPose2(X(chain.start)), values.atPose2(X(b))
+                out[chain.start + 1 : b] = chain.poses(start, end)
+        if self._open.links:
+            last = self._key_indices[-1]
+            out[last + 1 :] = self._open.dead_reckoned(values.atPose2(X(last)))
+        return out
 
     def landmarks(self) -> dict[int, tuple[float, float]]:
         """Landmark id → estimated world (x_m, y_m), for landmarks accepted into iSAM2
@@ -626,32 +770,67 @@ class Isam2Smoother:
         if frame not in ("world", "body"):
             raise FgslamError(f"current_covariance: frame must be 'world' or 'body', got {frame!r}")
         self._flush()
-        cov = np.asarray(self._isam.marginalCovariance(X(self._num_poses - 1)), dtype=float)
+        last = self._key_indices[-1]
+        cov = np.asarray(self._isam.marginalCovariance(X(last)), dtype=float)
+        if self._open.links:  # keyframes: carry the last keyframe's marginal through the open chain
+            A = self._open.compound.inverse().AdjointMap()
+            cov = A @ cov @ A.T + self._open.covariance()
         if frame == "world":
-            th = self._isam.calculateEstimatePose2(X(self._num_poses - 1)).theta()
+            th = self._pose.theta()
             c, s = math.cos(th), math.sin(th)
             J = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
             cov = J @ cov @ J.T
         return 0.5 * (cov + cov.T)
 
     def graph(self) -> gtsam.NonlinearFactorGraph:
-        """A copy of every factor accepted into iSAM2 (pending observations excluded).
+        """The whole problem: every factor accepted into iSAM2 (pending observations
+        excluded), with a variable for every pose.
 
-        Held steps are given to iSAM2 first, so the graph covers every step taken."""
+        Held steps are given to iSAM2 first, so the graph covers every step taken. With
+        keyframes, each compound odometry factor iSAM2 holds is expanded back into its
+        per-step factors, so this is the same graph as without keyframes."""
         self._flush()
-        return gtsam.NonlinearFactorGraph(self._graph)
+        if not self.keyframes:
+            return gtsam.NonlinearFactorGraph(self._graph)
+        out = gtsam.NonlinearFactorGraph()
+        for i in range(self._graph.size()):
+            factor = self._graph.at(i)
+            chain = self._folded_chain(factor)
+            if chain is None:
+                out.add(factor)
+                continue
+            _add_links(out, chain)
+        _add_links(out, self._open)  # the steps after the last keyframe (not in iSAM2 yet)
+        return out
 
     def initial_values(self) -> gtsam.Values:
-        """A copy of the initial guess each variable entered iSAM2 with (held steps flushed first)."""
+        """A copy of the initial guess of every variable of :meth:`graph` (held steps flushed
+        first; with keyframes, poses between keyframes dead-reckoned from the keyframe's)."""
         self._flush()
-        return gtsam.Values(self._initial)
+        values = gtsam.Values(self._initial)
+        if self.keyframes:
+            for b, chain in self._chains.items():
+                for j, pose in enumerate(chain.dead_reckoned(values.atPose2(X(chain.start)))[:-1]):
+                    values.insert(X(chain.start + 1 + j), gtsam.Pose2(*pose))
+            self._insert_open_chain(values)
+        return values
 
     def estimate(self) -> gtsam.Values:
-        """A copy of iSAM2's current estimate of every variable (one ``calculateEstimate``)."""
-        return gtsam.Values(self._estimate())
+        """A copy of iSAM2's current estimate of every variable of :meth:`graph` (one
+        ``calculateEstimate``; with keyframes, the poses between them as in :meth:`trajectory`)."""
+        values = gtsam.Values(self._estimate())
+        if self.keyframes:
+            trajectory = self.trajectory_of(values)
+            for b, chain in self._chains.items():
+                for i in range(chain.start + 1, b):
+                    values.insert(X(i), gtsam.Pose2(*trajectory[i]))
+            self._insert_open_chain(values)
+        return values
 
     def error(self) -> float:
-        """The graph's error at iSAM2's current estimate (χ²/2, like ``graph.error``)."""
+        """:meth:`graph`'s error at :meth:`estimate` (χ²/2, like ``graph.error``)."""
+        if self.keyframes:
+            return float(self.graph().error(self.estimate()))
         return float(self._graph.error(self._estimate()))
 
     @property
