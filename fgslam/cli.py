@@ -35,7 +35,7 @@ ESTIMATOR_HELP = {
     "ekf-s001": "seed 001's EKF (GoPiGo, forward/rotate moves, nearest neighbour), as written",
     "ekf-s004": "seed 004's KF over robot and AprilTag poses, as written",
     "isam2": "GTSAM iSAM2 factor-graph smoother (the batch solve starts from its result)",
-    "isam2-fast": "iSAM2 for long runs/large maps: one update per 50 steps, exact final solve",
+    "isam2-fast": "iSAM2 for long runs/large maps: keyframes, one update per 50 steps",
     "isam2-tags": "iSAM2 with AprilTags as Pose2 landmarks (relative-pose factors use the tag yaw)",
     "isam2-huber": "iSAM2 with a Huber kernel on landmark factors (robust to outliers)",
     "isam2-cauchy": "iSAM2 with a Cauchy kernel on landmark factors (robust to outliers)",

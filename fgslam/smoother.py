@@ -35,7 +35,9 @@ observation (in robust mode only once two observations agree, see
 :meth:`Isam2Smoother._confirm_first_sightings`). After the update only the newest pose is
 read back (``calculateEstimatePose2``); the full estimate is computed on demand.
 :meth:`Isam2Smoother.finish` ends with full Gauss–Newton steps on the whole graph, so the
-final estimate is the batch optimum whatever the settings (docs/performance.md).
+final estimate is the batch optimum whatever the settings (docs/performance.md) — to
+first order with ``keyframes``, where the poses between keyframes are rebuilt
+(:class:`_Chain`).
 
 Everything accepted into iSAM2 is also kept in one ``NonlinearFactorGraph`` plus the
 initial ``Values``, so :func:`batch_solve` can run Levenberg–Marquardt on the same
