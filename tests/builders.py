@@ -15,3 +15,14 @@ def minimal_header(start_pose=(0.0, 0.0, 0.0), start_sigma=(1e-3, 1e-3, 1e-3), s
         sensor={"kind": "test"},
         noise={"odometry": {}, "observation": {}},
     )
+
+
+def run_smoother(header: Header, steps, **kwargs):
+    """An ``Isam2Smoother(header, **kwargs)`` fed every step, then finished."""
+    from fgslam.smoother import Isam2Smoother
+
+    smoother = Isam2Smoother(header, **kwargs)
+    for step in steps:
+        smoother.step(step)
+    smoother.finish()
+    return smoother

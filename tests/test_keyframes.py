@@ -18,6 +18,7 @@ from gtsam.symbol_shorthand import X
 
 from fgslam.smoother import FAST_SETTINGS, Isam2Smoother, _Chain, batch_solve
 from slamio.log import group_steps
+from builders import run_smoother
 from slamio.sim import simulate
 
 
@@ -112,18 +113,10 @@ def sparse_octagon():
     return header, steps
 
 
-def _run(header, steps, **kwargs) -> Isam2Smoother:
-    smoother = Isam2Smoother(header, **kwargs)
-    for step in steps:
-        smoother.step(step)
-    smoother.finish()
-    return smoother
-
-
 def test_keyframes_solve_the_same_problem(sparse_octagon):
     header, steps = sparse_octagon
-    full = _run(header, steps)
-    keyed = _run(header, steps, keyframes=True)
+    full = run_smoother(header, steps)
+    keyed = run_smoother(header, steps, keyframes=True)
     assert len(keyed._key_indices) < len(steps) / 3
     # graph() is the whole problem in both cases: same factors, same error at the same values
     graph, keyed_graph = full.graph(), keyed.graph()
@@ -153,8 +146,8 @@ def test_keyframed_online_pose_and_covariance_between_keyframes(sparse_octagon):
 def test_a_log_without_observations_is_dead_reckoning(sparse_octagon):
     header, steps = sparse_octagon
     blind = [dataclasses.replace(s, observations=()) for s in steps[:40]]
-    keyed = _run(header, blind, keyframes=True, max_keyframe_gap=15)
-    full = _run(header, blind)
+    keyed = run_smoother(header, blind, keyframes=True, max_keyframe_gap=15)
+    full = run_smoother(header, blind)
     assert keyed._key_indices == [0, 15, 30]
     assert np.allclose(keyed.trajectory(), full.trajectory(), atol=1e-9)
     assert keyed.error() == pytest.approx(0.0, abs=1e-12)

@@ -18,7 +18,7 @@ from fgslam.compare import ate_rmse_m
 from fgslam.smoother import DEFAULT_ROBUST_K, FAST_SETTINGS, BatchResult, Isam2Smoother, batch_solve
 from slamio.errors import FgslamError
 from slamio.geometry import arc_increment, between_pose, compose_pose, wrap_angle
-from builders import minimal_header
+from builders import minimal_header, run_smoother
 from slamio.log import Header, Observation, Odometry, Step, TruthPose, as_matrix3, group_steps
 
 SIGMA_ODO = (0.02, 0.01, 0.01)  # dx_m, dy_m, dtheta_rad — anisotropic on purpose
@@ -99,12 +99,7 @@ def make_log(increments, seed=None, unknown_every=0):
     return header, steps, np.array(poses), dict(LANDMARKS)
 
 
-def run(header, steps, **kwargs) -> Isam2Smoother:
-    smoother = Isam2Smoother(header, **kwargs)
-    for step in steps:
-        smoother.step(step)
-    smoother.finish()
-    return smoother
+run = run_smoother
 
 
 def pose_difference(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:

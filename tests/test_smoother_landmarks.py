@@ -15,9 +15,10 @@ import numpy as np
 import pytest
 from gtsam.symbol_shorthand import L, T
 
-from fgslam.smoother import Isam2Smoother, batch_solve, tag_noise_covariance, tag_relative_pose
+from fgslam.smoother import batch_solve, tag_noise_covariance, tag_relative_pose
 from slamio.geometry import wrap_angle
 from slamio.log import Observation, Step, TruthLandmark, group_steps
+from builders import run_smoother
 from slamio.sim import simulate
 
 
@@ -26,14 +27,6 @@ def octagon():
     header, records = simulate("arena-octagon", 1)
     truth = {r.landmark_id: r for r in records if isinstance(r, TruthLandmark)}
     return header, group_steps(header, records), truth
-
-
-def _run(header, steps, **kwargs) -> Isam2Smoother:
-    smoother = Isam2Smoother(header, **kwargs)
-    for step in steps:
-        smoother.step(step)
-    smoother.finish()
-    return smoother
 
 
 def _map_observations(steps, change) -> list[Step]:
@@ -67,7 +60,7 @@ def test_tag_noise_covariance_matches_the_numerical_jacobian_of_gtsams_error(ran
 
 def test_tags_are_pose2_landmarks_whose_yaw_is_estimated(octagon):
     header, steps, truth = octagon
-    smoother = _run(header, steps, tags=True)
+    smoother = run_smoother(header, steps, tags=True)
     assert smoother.name == "isam2-tags"
     yaws = smoother.landmark_yaws()
     assert yaws and set(yaws) == set(smoother.landmarks())
@@ -86,7 +79,7 @@ def test_tags_are_pose2_landmarks_whose_yaw_is_estimated(octagon):
 
 def test_without_tags_the_same_log_has_point_landmarks(octagon):
     header, steps, _ = octagon
-    smoother = _run(header, steps[:200])
+    smoother = run_smoother(header, steps[:200])
     assert smoother.name == "isam2" and smoother.landmark_yaws() == {}
     values = smoother.estimate()
     assert all(values.exists(L(i)) for i in smoother.landmarks())
@@ -103,7 +96,7 @@ def test_tag_seen_without_its_yaw_adds_bearing_and_range_to_its_centre(octagon):
         return obs if (k + j) % 2 else dataclasses.replace(obs, tag_yaw_rad=None, sigma_tag_yaw_rad=None)
 
     mixed = _map_observations(steps, drop_every_other_yaw)
-    smoother = _run(header, mixed, tags=True)
+    smoother = run_smoother(header, mixed, tags=True)
     kinds = {type(smoother.graph().at(i)).__name__ for i in range(smoother.graph().size())}
     assert {"BetweenFactorPose2", "BearingRangeFactorPose2"} <= kinds
     yaws = smoother.landmark_yaws()
@@ -127,14 +120,14 @@ def test_a_landmark_first_seen_without_a_yaw_stays_a_point(octagon):
         return obs
 
     changed = _map_observations(steps[:300], strip_first_sighting_of_one)
-    smoother = _run(header, changed, tags=True)
+    smoother = run_smoother(header, changed, tags=True)
     assert point_id in smoother.landmarks() and point_id not in smoother.landmark_yaws()
     assert smoother.estimate().exists(L(point_id))
 
 
-def test_robust_tags_name_and_run(octagon):
+def test_robust_tags_name_andrun_smoother(octagon):
     header, steps, _ = octagon
-    smoother = _run(header, steps[:200], tags=True, robust="huber")
+    smoother = run_smoother(header, steps[:200], tags=True, robust="huber")
     assert smoother.name == "isam2-tags-huber" and smoother.landmark_yaws()
 
 
@@ -152,7 +145,7 @@ def test_heights_are_the_information_weighted_means_of_the_measured_heights():
     assert information, "the cylinders scenario observes heights"
     expected = {i: weighted[i] / information[i] for i in information}
 
-    smoother = _run(header, steps)
+    smoother = run_smoother(header, steps)
     heights = smoother.landmark_heights()
     assert set(heights) == set(expected)
     assert all(abs(heights[i] - expected[i]) < 1e-9 for i in expected)
@@ -171,9 +164,9 @@ def test_a_failed_update_is_recovered_with_tags_and_heights_in_the_graph(octagon
     junk = Observation(steps[bad_at].stamp_s, 99, 1e-300, 0.0, 0.02, 0.01)  # zero range: singular
     broken = [s if s.index != bad_at else dataclasses.replace(s, observations=s.observations + (junk,))
               for s in with_height]
-    smoother = _run(header, broken, tags=True)
+    smoother = run_smoother(header, broken, tags=True)
     assert smoother.update_failures == 1 and smoother.pending_observations == 1
-    clean = _run(header, with_height, tags=True)
+    clean = run_smoother(header, with_height, tags=True)
     assert abs(smoother.error() - clean.error()) <= 1e-9 * clean.error()
     assert smoother.landmark_heights() == pytest.approx(clean.landmark_heights(), abs=1e-12)
     assert smoother.landmark_yaws() == pytest.approx(clean.landmark_yaws(), abs=1e-9)
