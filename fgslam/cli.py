@@ -151,7 +151,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         write_tum(out / f"{run.name}.tum", result.stamps_s, run.final)
         if run.online is not None:
             write_tum(out / f"{run.name}_online.tum", result.stamps_s, run.online)
-    written = ["metrics.json", "*.tum"]
+    (out / "graph.g2o").write_text(result.g2o, encoding="utf-8")
+    written = ["metrics.json", "*.tum", "graph.g2o"]
     if not args.no_report:
         from fgslam.report import write_report
 

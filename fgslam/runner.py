@@ -16,6 +16,7 @@ import numpy as np
 
 from ekf import DeadReckoning, EkfS000, EkfS001, EkfS004, EkfSlam
 from fgslam.compare import EstimatorRun, Reference, relabel_landmarks, score_associations
+from fgslam.export import format_g2o
 from fgslam.smoother import FAST_SETTINGS, Isam2Smoother, batch_solve
 from slamio.errors import FgslamError
 from slamio.estimator import Estimator
@@ -56,6 +57,7 @@ class Comparison:
     runs: list[EstimatorRun]
     reference: Reference
     stamps_s: np.ndarray
+    g2o: str = ""  # the batch-solved graph in g2o format, vertices at iSAM2's final estimate
 
 
 def parse_estimator_names(text: str) -> list[str]:
@@ -178,4 +180,5 @@ def compare_log(
     reference = truth_reference(log) or Reference(
         "smoothed", batch.trajectory, dict(batch.landmarks), batch.landmark_heights
     )
-    return Comparison(runs, reference, stamps_s)
+    g2o = format_g2o(smoother.graph(), smoother.estimate(), smoother.num_poses)
+    return Comparison(runs, reference, stamps_s, g2o)
