@@ -60,6 +60,8 @@ __all__ = [
     "heading_errors_rad",
     "ate_rmse_m",
     "final_pose_error_m",
+    "relative_pose_errors",
+    "rpe_delta_frames",
     "map_errors_m",
     "map_rmse_m",
     "AssociationScore",
@@ -323,6 +325,51 @@ def ate_rmse_m(estimate, reference, *, align: bool | None = None) -> float:
     return _rmse(position_errors_m(e, reference))
 
 
+def relative_pose_errors(estimate, reference, delta_frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """Relative pose errors over ``delta_frames`` (RPE, Sturm et al. 2012), for every pair
+    (i, i + Δ): the error pose E = (Qᵢ⁻¹ Qᵢ₊Δ)⁻¹ (Pᵢ⁻¹ Pᵢ₊Δ) of the estimate P against the
+    reference Q. Returns ``(‖translation of E‖ in metres, |rotation of E| in radians)``.
+
+    Alignment does not matter: a rigid transform of the whole estimate cancels in Pᵢ⁻¹ Pᵢ₊Δ.
+    This is what evo's ``evo_rpe --delta Δ --delta_unit f --all_pairs`` computes (a test
+    checks it to 1e-9).
+    """
+    e = _as_poses(estimate, "estimate")
+    r = _as_poses(reference, "reference")
+    if e.shape != r.shape:
+        raise ComparisonError(f"estimate has {len(e)} poses but reference has {len(r)}")
+    if int(delta_frames) < 1:
+        raise ComparisonError(f"delta_frames must be >= 1, got {delta_frames!r}")
+    d = int(delta_frames)
+    if len(e) <= d:
+        return np.zeros(0), np.zeros(0)
+
+    def relative(poses):  # Pᵢ⁻¹ Pᵢ₊Δ as (x, y, θ) in frame i
+        a, b = poses[:-d], poses[d:]
+        c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
+        dx, dy = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
+        return c * dx + s * dy, -s * dx + c * dy, b[:, 2] - a[:, 2]
+
+    ex, ey, eth = relative(e)
+    rx, ry, rth = relative(r)
+    # E = R⁻¹ P with R = (rx, ry, rth), P = (ex, ey, eth)
+    c, s = np.cos(rth), np.sin(rth)
+    tx, ty = c * (ex - rx) + s * (ey - ry), -s * (ex - rx) + c * (ey - ry)
+    return np.hypot(tx, ty), np.abs(wrap_angle(eth - rth))
+
+
+def rpe_delta_frames(reference, distance_m: float = 1.0) -> int:
+    """The frame delta over which the reference travels ``distance_m`` on average (≥ 1)."""
+    r = _as_poses(reference, "reference")
+    if len(r) < 2:
+        return 1
+    steps = np.hypot(np.diff(r[:, 0]), np.diff(r[:, 1]))
+    mean_step = float(np.mean(steps))
+    if not mean_step > 0.0:
+        return 1
+    return max(1, min(len(r) - 1, int(round(distance_m / mean_step))))
+
+
 def final_pose_error_m(estimate, reference, *, align: bool | None = False) -> float:
     """Distance between the last estimated and the last reference position, metres.
 
@@ -442,11 +489,13 @@ def relabel_landmarks(landmarks: Mapping[int, object], score: AssociationScore) 
 
 # --------------------------------------------------------------------------- metrics dict
 
-TOP_LEVEL_KEYS = ("reference", "log", "poses")
+TOP_LEVEL_KEYS = ("reference", "log", "poses", "rpe_delta_frames")
 METRIC_KEYS = (
     "ate_rmse_m",
     "ate_online_rmse_m",
     "final_pose_error_m",
+    "rpe_trans_rmse_m",
+    "rpe_heading_rmse_rad",
     "map_rmse_m",
     "map_height_rmse_m",
     "landmarks_estimated",
@@ -489,10 +538,13 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
     Shape::
 
         {"reference": "ground_truth" | "smoothed", "log": log_path, "poses": n,
+         "rpe_delta_frames": int,            # Δ of the RPE: the reference's frames per ~1 m
          "<estimator name>": {
              "ate_rmse_m": float,            # final trajectory vs reference
              "ate_online_rmse_m": float|None,# online trajectory; None for batch
              "final_pose_error_m": float,    # last pose position error
+             "rpe_trans_rmse_m": float|None, # RPE over rpe_delta_frames, final trajectory
+             "rpe_heading_rmse_rad": float|None,
              "map_rmse_m": float|None,       # None when no landmark id in common
              "map_height_rmse_m": float|None,# 3-D maps against true heights, else None
              "landmarks_estimated": int,
@@ -513,7 +565,9 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
     if reference.kind not in REFERENCE_KINDS:
         raise ComparisonError(f"reference kind {reference.kind!r}; expected one of {REFERENCE_KINDS}")
     ref = _as_poses(reference.trajectory, "reference.trajectory")
-    metrics: dict = {"reference": reference.kind, "log": str(log_path), "poses": int(len(ref))}
+    delta = rpe_delta_frames(ref)
+    metrics: dict = {"reference": reference.kind, "log": str(log_path), "poses": int(len(ref)),
+                     "rpe_delta_frames": delta}
     for run in runs:
         if run.name in TOP_LEVEL_KEYS or run.name in metrics:
             raise ComparisonError(
@@ -542,10 +596,13 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
             if len(times):
                 p50, p99 = np.percentile(times, [50.0, 99.0])
 
+        rpe_trans, rpe_heading = relative_pose_errors(final, ref[:m], delta)
         metrics[run.name] = {
             "ate_rmse_m": _json_float(_rmse(position_errors_m(final_a, ref[:m]))),
             "ate_online_rmse_m": _json_float(ate_online),
             "final_pose_error_m": _json_float(final_pose_error_m(final_a, ref[:m])),
+            "rpe_trans_rmse_m": _json_float(_rmse(rpe_trans)),
+            "rpe_heading_rmse_rad": _json_float(_rmse(rpe_heading)),
             "map_rmse_m": _json_float(map_rmse_m(run.landmarks, reference.landmarks, rot, trans)),
             "map_height_rmse_m": _json_float(_height_rmse_m(run.landmark_heights, reference.landmark_heights)),
             "landmarks_estimated": int(len(run.landmarks)),

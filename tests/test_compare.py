@@ -37,6 +37,8 @@ from fgslam.compare import (
     resolve_alignment,
     shares_first_pose,
     write_tum,
+    relative_pose_errors,
+    rpe_delta_frames,
 )
 
 
@@ -223,7 +225,7 @@ def test_compute_metrics_values_keys_and_json():
 
     text = json.dumps(metrics, allow_nan=False)  # plain types, no NaN
     assert json.loads(text) == metrics
-    assert set(metrics) == {"reference", "log", "poses", "ekf", "batch"}
+    assert set(metrics) == {"reference", "log", "poses", "rpe_delta_frames", "ekf", "batch"}
     assert metrics["reference"] == "ground_truth"
     assert metrics["log"] == "data/run.jsonl"
     assert metrics["poses"] == 100
@@ -387,3 +389,39 @@ def test_metrics_report_association_and_heights():
         "landmarks_created": 1, "duplicate_landmarks": 0,
     }
     assert m["map_height_rmse_m"] == pytest.approx(0.1)
+
+
+def _se2_matrix(pose):
+    x, y, th = pose
+    return np.array([[math.cos(th), -math.sin(th), x], [math.sin(th), math.cos(th), y], [0.0, 0.0, 1.0]])
+
+
+@pytest.mark.parametrize("delta", [1, 3, 10])
+def test_relative_pose_errors_match_homogeneous_matrices(delta):
+    rng = np.random.default_rng(delta)
+    reference = random_trajectory(rng, 60)
+    estimate = reference + rng.normal(0.0, [0.05, 0.05, 0.02], size=reference.shape)
+    trans, heading = relative_pose_errors(estimate, reference, delta)
+    assert len(trans) == len(heading) == 60 - delta
+    for i in range(60 - delta):
+        Q = np.linalg.inv(_se2_matrix(reference[i])) @ _se2_matrix(reference[i + delta])
+        P = np.linalg.inv(_se2_matrix(estimate[i])) @ _se2_matrix(estimate[i + delta])
+        E = np.linalg.inv(Q) @ P
+        assert trans[i] == pytest.approx(math.hypot(E[0, 2], E[1, 2]), abs=1e-12)
+        assert heading[i] == pytest.approx(abs(math.atan2(E[1, 0], E[0, 0])), abs=1e-12)
+
+
+def test_relative_pose_errors_ignore_a_rigid_transform_and_need_a_positive_delta():
+    rng = np.random.default_rng(5)
+    reference = random_trajectory(rng, 30)
+    moved = np.column_stack([
+        math.cos(0.7) * reference[:, 0] - math.sin(0.7) * reference[:, 1] + 3.0,
+        math.sin(0.7) * reference[:, 0] + math.cos(0.7) * reference[:, 1] - 1.0,
+        reference[:, 2] + 0.7,
+    ])
+    trans, heading = relative_pose_errors(moved, reference, 4)
+    assert trans.max() < 1e-12 and heading.max() < 1e-12
+    with pytest.raises(ComparisonError, match="delta_frames"):
+        relative_pose_errors(moved, reference, 0)
+    straight = np.column_stack([np.arange(11.0), np.zeros(11), np.zeros(11)])  # 1 m per frame
+    assert rpe_delta_frames(straight, 3.0) == 3

@@ -59,3 +59,17 @@ def test_evo_ape_command_line_reads_our_files(run_dir):
     rmse = float(re.search(r"rmse\s+([0-9.eE+-]+)", done.stdout).group(1))
     metrics = json.loads((run_dir / "metrics.json").read_text())
     assert rmse == pytest.approx(metrics["isam2"]["ate_rmse_m"], abs=1e-6)
+
+
+@pytest.mark.parametrize("name", ["ekf", "isam2"])
+def test_our_rpe_equals_evo_rpe(run_dir, name):
+    metrics = json.loads((run_dir / "metrics.json").read_text())
+    delta = metrics["rpe_delta_frames"]
+    ref = file_interface.read_tum_trajectory_file(str(run_dir / "reference.tum"))
+    est = file_interface.read_tum_trajectory_file(str(run_dir / f"{name}.tum"))
+    ref, est = sync.associate_trajectories(ref, est)
+    for relation, key in ((evo_metrics.PoseRelation.translation_part, "rpe_trans_rmse_m"),
+                          (evo_metrics.PoseRelation.rotation_angle_rad, "rpe_heading_rmse_rad")):
+        rpe = evo_metrics.RPE(relation, delta=delta, delta_unit=evo_metrics.Unit.frames, all_pairs=True)
+        rpe.process_data((ref, est))
+        assert rpe.get_statistic(evo_metrics.StatisticsType.rmse) == pytest.approx(metrics[name][key], abs=1e-6)
