@@ -559,6 +559,10 @@ class Isam2Smoother:
         self._key_indices: list[int] = []
         self._chains: dict[int, _Chain] = {}  # keyframe b → the chain from the keyframe before
         self._open = _Chain(0)
+        # odometry records since the newest pose in iSAM2 (X(_since_isam_start)), for the
+        # online covariance; kept raw, so a step costs one list append
+        self._since_isam_start = 0
+        self._since_isam: list[tuple[gtsam.Pose2, Odometry]] = []
 
     # ------------------------------------------------------------------ Estimator protocol
 
@@ -586,6 +590,7 @@ class Isam2Smoother:
             assert self._pose is not None
             # latest iSAM2 estimate ⊕ the increments since, not dead reckoning from the start
             seed = self._pose.compose(increment)
+            self._since_isam.append((increment, odo))
             if self.keyframes:
                 self._open.append(increment, odometry_noise_covariance(odo))
                 observed = any(o.landmark_id is not None for o in step.observations)
@@ -664,6 +669,9 @@ class Isam2Smoother:
         self._update_with_recovery(core, core_values, entries)
         self.updates += 1
         self._pose = self._latest_pose(self._isam.calculateEstimatePose2(X(self._key_indices[-1])))
+        # the newest pose in iSAM2 is the last keyframe; only the open chain's steps follow it
+        self._since_isam_start = self._key_indices[-1]
+        self._since_isam = self._since_isam[len(self._since_isam) - len(self._open.links) :] if self._open.links else []
 
     def current_pose(self) -> tuple[float, float, float]:
         """The online estimate of the latest pose (x_m, y_m, theta_rad).
@@ -759,24 +767,28 @@ class Isam2Smoother:
         return self._num_poses
 
     def current_covariance(self, frame: str = "world") -> np.ndarray:
-        """3×3 marginal covariance of the latest pose (from ``isam.marginalCovariance``).
+        """3×3 covariance of :meth:`current_pose`, the online estimate.
 
-        GTSAM expresses a Pose2's uncertainty in the robot's own frame (a perturbation
-        ``pose ⊕ δ``). With ``frame="world"`` (the default) it is rotated into world
-        (x, y, theta) coordinates, the same coordinates as the EKF's covariance and as a
-        world-frame pose error, which is what NEES needs; ``frame="body"`` returns GTSAM's
-        own. Costs more than an update: call it when needed, not every step by default.
+        iSAM2's marginal of the newest pose it holds (``isam.marginalCovariance``, which
+        uses the Bayes tree and does not recompute the whole graph's marginals), carried
+        through the odometry of any steps held since (first order: Σ ← Ad(z⁻¹) Σ Ad(z⁻¹)ᵀ + Σ_z
+        per increment z), so asking does not change when iSAM2 updates. GTSAM expresses a
+        Pose2's uncertainty in the robot's own frame (a perturbation ``pose ⊕ δ``). With
+        ``frame="world"`` (the default) it is rotated into world (x, y, theta) coordinates,
+        the same coordinates as the EKF's covariance and as a world-frame pose error, which
+        is what NEES needs; ``frame="body"`` returns GTSAM's own.
         """
         if self._num_poses == 0:
             raise FgslamError("Isam2Smoother: no step yet")
         if frame not in ("world", "body"):
             raise FgslamError(f"current_covariance: frame must be 'world' or 'body', got {frame!r}")
-        self._flush()
-        last = self._key_indices[-1]
-        cov = np.asarray(self._isam.marginalCovariance(X(last)), dtype=float)
-        if self._open.links:  # keyframes: carry the last keyframe's marginal through the open chain
-            A = self._open.compound.inverse().AdjointMap()
-            cov = A @ cov @ A.T + self._open.covariance()
+        chain = _Chain(self._since_isam_start)
+        for increment, odo in self._since_isam:
+            chain.append(increment, odometry_noise_covariance(odo))
+        cov = np.asarray(self._isam.marginalCovariance(X(chain.start)), dtype=float)
+        if chain.links:
+            A = chain.compound.inverse().AdjointMap()
+            cov = A @ cov @ A.T + chain.covariance()
         if frame == "world":
             th = self._pose.theta()
             c, s = math.cos(th), math.sin(th)

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from gtsam.symbol_shorthand import X
 
-from fgslam.smoother import FAST_SETTINGS, Isam2Smoother, _Chain, batch_solve
+from fgslam.smoother import FAST_SETTINGS, Isam2Smoother, _Chain, batch_solve, odometry_noise_covariance
 from slamio.log import group_steps
 from builders import run_smoother
 from slamio.sim import simulate
@@ -158,3 +158,35 @@ def test_fast_preset_uses_keyframes():
     with pytest.raises(Exception, match="max_keyframe_gap"):
         Isam2Smoother(simulate("arena-square", 1)[0], keyframes=True, max_keyframe_gap=0)
     assert math.isfinite(FAST_SETTINGS["update_every"])
+
+
+@pytest.mark.parametrize("keyframes", [False, True])
+def test_covariance_of_the_online_pose_does_not_flush_held_steps(sparse_octagon, keyframes):
+    """current_covariance() is the last iSAM2 marginal carried through the held odometry:
+    asking for it must not change when iSAM2 updates (NEES is taken at every step)."""
+    header, steps = sparse_octagon
+    held = Isam2Smoother(header, update_every=40, update_on="observations", keyframes=keyframes)
+    for step in steps[:203]:
+        held.step(step)
+    assert held._held_steps > 0
+    updates = held.updates
+    cov = held.current_covariance()
+    assert held.updates == updates and held._held_steps > 0  # nothing was flushed
+    # Held steps 201, 202: the marginal of the newest pose in iSAM2 carried through their
+    # odometry, Σ ← A Σ Aᵀ + Σ_z with A = Ad(z⁻¹), written out here step by step.
+    smoother = Isam2Smoother(header, update_every=40, update_on="observations", keyframes=keyframes)
+    for step in steps[:201]:
+        smoother.step(step)
+    smoother._flush()
+    last = smoother._key_indices[-1]
+    assert last == 200  # step 200 has observations: a keyframe in both modes
+    sigma = np.asarray(smoother._isam.marginalCovariance(X(last)))
+    for step in steps[last + 1 : 203]:
+        o = step.odometry
+        z = gtsam.Pose2(o.dx_m, o.dy_m, o.dtheta_rad)
+        A = z.inverse().AdjointMap()
+        sigma = A @ sigma @ A.T + odometry_noise_covariance(o)
+    for step in steps[201:203]:
+        smoother.step(step)
+    assert np.allclose(smoother.current_covariance(frame="body"), sigma, rtol=1e-9, atol=1e-18)
+    assert np.all(np.linalg.eigvalsh(cov) > 0)
