@@ -62,6 +62,8 @@ __all__ = [
     "final_pose_error_m",
     "relative_pose_errors",
     "rpe_delta_frames",
+    "nees",
+    "nees_band",
     "map_errors_m",
     "map_rmse_m",
     "AssociationScore",
@@ -112,6 +114,8 @@ class EstimatorRun:
             When present, ``landmarks`` are already keyed by true id.
         landmark_heights: landmark id → estimated height above the floor (m), for
             estimators with a 3-D map; ``None`` otherwise.
+        online_covariances: ``(n, 3, 3)`` covariance of each online pose over world
+            (x, y, θ), as the estimator stated it at that step (for NEES), or ``None``.
     """
 
     name: str
@@ -122,6 +126,7 @@ class EstimatorRun:
     total_time_s: float
     association: "AssociationScore | None" = None
     landmark_heights: dict[int, float] | None = None
+    online_covariances: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -358,6 +363,39 @@ def relative_pose_errors(estimate, reference, delta_frames: int) -> tuple[np.nda
     return np.hypot(tx, ty), np.abs(wrap_angle(eth - rth))
 
 
+def nees(estimate, covariances, reference) -> np.ndarray:
+    """``(n,)`` normalised estimation error squared of each pose: eᵀ P⁻¹ e with
+    e = (x − x_ref, y − y_ref, wrap(θ − θ_ref)) and P the pose's stated covariance over world
+    (x, y, θ). For a consistent estimator each value is χ²-distributed with 3 degrees of
+    freedom (mean 3). A covariance that is not positive definite gives NaN.
+    """
+    e = _as_poses(estimate, "estimate")
+    r = _as_poses(reference, "reference")
+    P = np.asarray(covariances, dtype=float)
+    if e.shape != r.shape or P.shape != (len(e), 3, 3):
+        raise ComparisonError(f"nees: {len(e)} poses, {len(r)} reference poses, covariances {P.shape}")
+    err = np.column_stack([e[:, 0] - r[:, 0], e[:, 1] - r[:, 1], wrap_angle(e[:, 2] - r[:, 2])])
+    out = np.full(len(e), np.nan)
+    for k in range(len(e)):
+        try:
+            L = np.linalg.cholesky(0.5 * (P[k] + P[k].T))
+        except np.linalg.LinAlgError:
+            continue
+        w = np.linalg.solve(L, err[k])
+        out[k] = float(w @ w)
+    return out
+
+
+def nees_band(dof: int = 3, runs: int = 1, probability: float = 0.95) -> tuple[float, float]:
+    """Two-sided χ² band for the NEES averaged over ``runs`` runs (Bar-Shalom et al.): the
+    average of N independent χ²(dof) values times N is χ²(N·dof), so the band is
+    [χ²⁻¹(α/2; N·dof), χ²⁻¹(1 − α/2; N·dof)] / N. From scipy.stats, not a table."""
+    from scipy.stats import chi2
+
+    alpha = 1.0 - probability
+    return (float(chi2.ppf(alpha / 2, dof * runs)) / runs, float(chi2.ppf(1 - alpha / 2, dof * runs)) / runs)
+
+
 def rpe_delta_frames(reference, distance_m: float = 1.0) -> int:
     """The frame delta over which the reference travels ``distance_m`` on average (≥ 1)."""
     r = _as_poses(reference, "reference")
@@ -496,6 +534,8 @@ METRIC_KEYS = (
     "final_pose_error_m",
     "rpe_trans_rmse_m",
     "rpe_heading_rmse_rad",
+    "nees_mean",
+    "nees_inside_95",
     "map_rmse_m",
     "map_height_rmse_m",
     "landmarks_estimated",
@@ -545,6 +585,11 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
              "final_pose_error_m": float,    # last pose position error
              "rpe_trans_rmse_m": float|None, # RPE over rpe_delta_frames, final trajectory
              "rpe_heading_rmse_rad": float|None,
+             "nees_mean": float|None,        # mean NEES of the online poses (3-DoF; 3 if
+                                             # consistent); None without covariances, against
+                                             # a smoothed reference, or when aligned
+             "nees_inside_95": float|None,   # share of steps whose NEES is inside the 95 %
+                                             # χ²(3) band [0.216, 9.35]
              "map_rmse_m": float|None,       # None when no landmark id in common
              "map_height_rmse_m": float|None,# 3-D maps against true heights, else None
              "landmarks_estimated": int,
@@ -597,12 +642,23 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
                 p50, p99 = np.percentile(times, [50.0, 99.0])
 
         rpe_trans, rpe_heading = relative_pose_errors(final, ref[:m], delta)
+        nees_mean = nees_inside = None
+        if (run.online_covariances is not None and run.online is not None and not aligned
+                and reference.kind == "ground_truth"):
+            values = nees(run.online, run.online_covariances, ref[: len(run.online)])
+            values = values[np.isfinite(values)]
+            if len(values):
+                low, high = nees_band()
+                nees_mean = float(np.mean(values))
+                nees_inside = float(np.mean((values >= low) & (values <= high)))
         metrics[run.name] = {
             "ate_rmse_m": _json_float(_rmse(position_errors_m(final_a, ref[:m]))),
             "ate_online_rmse_m": _json_float(ate_online),
             "final_pose_error_m": _json_float(final_pose_error_m(final_a, ref[:m])),
             "rpe_trans_rmse_m": _json_float(_rmse(rpe_trans)),
             "rpe_heading_rmse_rad": _json_float(_rmse(rpe_heading)),
+            "nees_mean": _json_float(nees_mean),
+            "nees_inside_95": _json_float(nees_inside),
             "map_rmse_m": _json_float(map_rmse_m(run.landmarks, reference.landmarks, rot, trans)),
             "map_height_rmse_m": _json_float(_height_rmse_m(run.landmark_heights, reference.landmark_heights)),
             "landmarks_estimated": int(len(run.landmarks)),

@@ -82,6 +82,8 @@ def run_estimator(
     """Feed ``steps`` to ``estimator`` in order, timing each step and ``finish()``."""
     online = np.empty((len(steps), 3))
     step_times_s = np.empty(len(steps))
+    with_covariance = hasattr(estimator, "current_covariance")
+    covariances = np.empty((len(steps), 3, 3)) if with_covariance else None
     every = max(1, len(steps) // 200)
     associating = hasattr(estimator, "step_associations")
     true_ids: list[int | None] = []
@@ -91,6 +93,8 @@ def run_estimator(
         estimator.step(step)
         online[i] = estimator.current_pose()
         step_times_s[i] = time.perf_counter() - start
+        if covariances is not None:  # for NEES; outside the timed region
+            covariances[i] = estimator.current_covariance()  # type: ignore[attr-defined]
         if associating:  # bookkeeping for the score, outside the timed region
             keys.extend(estimator.step_associations())  # type: ignore[attr-defined]
             true_ids.extend(_true_id(o) for o in step.observations)
@@ -117,6 +121,7 @@ def run_estimator(
         total_time_s=float(step_times_s.sum() + finish_s),
         association=association,
         landmark_heights=heights or None,
+        online_covariances=covariances,
     )
     return run, estimator
 

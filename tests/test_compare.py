@@ -37,6 +37,8 @@ from fgslam.compare import (
     resolve_alignment,
     shares_first_pose,
     write_tum,
+    nees,
+    nees_band,
     relative_pose_errors,
     rpe_delta_frames,
 )
@@ -425,3 +427,33 @@ def test_relative_pose_errors_ignore_a_rigid_transform_and_need_a_positive_delta
         relative_pose_errors(moved, reference, 0)
     straight = np.column_stack([np.arange(11.0), np.zeros(11), np.zeros(11)])  # 1 m per frame
     assert rpe_delta_frames(straight, 3.0) == 3
+
+
+def test_nees_is_the_mahalanobis_distance_of_the_pose_error():
+    reference = np.array([[0.0, 0.0, 3.1], [1.0, 2.0, -0.5]])
+    estimate = reference + np.array([[0.1, -0.2, 0.1], [0.0, 0.3, 0.02]])
+    estimate[0, 2] = -3.1  # 0.083 rad from 3.1 across the wrap, not 6.2
+    P = np.array([np.diag([0.01, 0.04, 0.01]), np.diag([1.0, 0.09, 0.0004])])
+    expected = [0.1**2 / 0.01 + 0.2**2 / 0.04 + (2 * math.pi - 6.2) ** 2 / 0.01, 0.3**2 / 0.09 + 0.02**2 / 0.0004]
+    assert nees(estimate, P, reference) == pytest.approx(expected, rel=1e-12)
+    bad = P.copy()
+    bad[1] = -np.eye(3)  # not positive definite: NaN, not a crash
+    assert math.isnan(nees(estimate, bad, reference)[1])
+
+
+def test_nees_of_a_consistent_estimator_is_chi2_with_3_dof():
+    rng = np.random.default_rng(2006)
+    n = 4000
+    A = rng.normal(size=(n, 3, 3)) * 0.1
+    P = A @ np.transpose(A, (0, 2, 1)) + 1e-3 * np.eye(3)
+    errors = np.array([rng.multivariate_normal(np.zeros(3), p) for p in P])
+    reference = np.zeros((n, 3))
+    values = nees(errors, P, reference)
+    low, high = nees_band()
+    assert np.mean(values) == pytest.approx(3.0, abs=4 * math.sqrt(6 / n))
+    assert np.mean((values >= low) & (values <= high)) == pytest.approx(0.95, abs=4 * math.sqrt(0.95 * 0.05 / n))
+
+
+def test_nees_band_from_scipy():
+    assert nees_band() == pytest.approx((0.2158, 9.3484), abs=1e-4)
+    assert nees_band(3, 50) == pytest.approx((2.36, 3.72), abs=0.005)  # the N = 50 Monte Carlo band
