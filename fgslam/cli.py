@@ -124,6 +124,21 @@ def cmd_import(args: argparse.Namespace) -> int:
     return _write(args.out, header, records)
 
 
+def cmd_check(args: argparse.Namespace) -> int:
+    from fgslam.check import check_estimator
+
+    result = check_estimator(
+        args.log,
+        estimator=args.estimator,
+        against=args.against,
+        max_ate_m=args.max_ate,
+        max_nees_outside=args.max_nees_outside,
+        tolerances_file=args.tolerances,
+    )
+    print(result.verdict)
+    return 0 if result.passed else 1
+
+
 def cmd_validate(args: argparse.Namespace) -> int:
     log = _read(args.log)
     odometry = sum(isinstance(r, Odometry) for r in log.records)
@@ -278,6 +293,35 @@ def build_parser() -> argparse.ArgumentParser:
     )
     validate.add_argument("log", metavar="LOG", help="run log (.jsonl)")
     validate.set_defaults(func=cmd_validate)
+
+    check = verbs.add_parser(
+        "check",
+        help="regression check: one estimator against the smoothed solution or the truth (exit 0/1)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=(
+            "Run one estimator on LOG and compare it with the smoothed solution (batch LM from\n"
+            "iSAM2) or with the log's ground truth. Prints one line, PASS or FAIL, and exits 0 or 1.\n"
+            "Fails when the ATE exceeds --max-ate, or when the share of steps whose NEES is outside\n"
+            "the 95 % chi-square band (above it, against the smoothed solution) exceeds\n"
+            "--max-nees-outside. Tolerances not given here come from LOG.check.toml (or --tolerances),\n"
+            "else the defaults 0.5 m and 0.1."
+        ),
+        epilog=(
+            "tolerance file (TOML):\n"
+            "  [defaults]\n  max_ate_m = 0.5\n  max_nees_outside = 0.1\n\n"
+            "  [ekf-nn]              # per estimator, overrides [defaults]\n  max_ate_m = 0.8"
+        ),
+    )
+    check.add_argument("log", metavar="LOG", help="run log (.jsonl)")
+    check.add_argument("--estimator", default="ekf", choices=list(ESTIMATOR_HELP), help="estimator to check (default ekf)")
+    check.add_argument("--against", default="smoothed", choices=["smoothed", "truth"],
+                       help="reference: the smoothed solution (default) or the log's ground truth")
+    check.add_argument("--max-ate", type=float, default=None, metavar="M", help="largest ATE allowed, metres")
+    check.add_argument("--max-nees-outside", type=float, default=None, metavar="F",
+                       help="largest share of steps with the NEES outside the 95 %% band (0..1)")
+    check.add_argument("--tolerances", default=None, metavar="FILE",
+                       help="TOML file with tolerances (default: LOG.check.toml when it exists)")
+    check.set_defaults(func=cmd_check)
     return parser
 
 
