@@ -13,6 +13,8 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
+import numpy as np
+
 from slamio.errors import FgslamError
 from slamio.log import LogFormatError, Observation, Odometry, RunLog, read_log, write_log
 
@@ -137,6 +139,49 @@ def cmd_check(args: argparse.Namespace) -> int:
     )
     print(result.verdict)
     return 0 if result.passed else 1
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from fgslam.montecarlo import dask_executor, monte_carlo
+
+    estimators = tuple(n.strip() for n in args.estimators.split(",") if n.strip())
+    executor = dask_executor(args.dask) if args.dask else None
+    result = monte_carlo(
+        args.scenario, args.runs, estimators=estimators, first_seed=args.seed, jobs=args.jobs,
+        landmarks=args.landmarks, laps=args.laps, executor=executor, progress=ProgressBar(),
+    )
+    low, high = result.band
+    steps = len(next(iter(result.average_nees.values())))
+    print(f"Monte Carlo: {args.scenario}, {args.runs} runs (seeds {args.seed}-{args.seed + args.runs - 1}), "
+          f"{steps} steps; 95 % band of the average NEES over {args.runs} runs: [{low:.3f}, {high:.3f}]")
+    header = f"{'estimator':<14}{'inside band':>12}{'above band':>12}{'mean NEES':>11}" \
+             f"{'ATE final m (median, max)':>28}{'time s (mean)':>15}"
+    print(header)
+    summary = {"scenario": args.scenario, "runs": args.runs, "first_seed": args.seed, "steps": steps,
+               "band": [low, high], "estimators": {}}
+    for name in estimators:
+        finals = np.array([r.ate_final_m[name] for r in result.runs])
+        times = np.array([r.time_s[name] for r in result.runs])
+        print(f"{name:<14}{100 * result.share_inside(name):11.1f}%{100 * result.share_above(name):11.1f}%"
+              f"{np.mean(result.average_nees[name]):11.2f}"
+              f"{np.median(finals):14.4f}, {np.max(finals):.4f}{'':>4}{np.mean(times):13.3f}")
+        summary["estimators"][name] = {
+            "share_inside_band": result.share_inside(name),
+            "share_above_band": result.share_above(name),
+            "average_nees": [float(v) for v in result.average_nees[name]],
+            "ate_final_m": [float(v) for v in finals],
+            "ate_online_m": [float(r.ate_online_m[name]) for r in result.runs],
+            "time_s": [float(v) for v in times],
+        }
+    if args.out is not None:
+        from fgslam.report import write_monte_carlo_figures
+
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "montecarlo.json").write_text(json.dumps(summary, indent=1) + "\n")
+        written = ["montecarlo.json"] + write_monte_carlo_figures(out, result)
+        print(f"\nwrote {', '.join(written)} to {out}/")
+    return 0
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
@@ -322,6 +367,29 @@ def build_parser() -> argparse.ArgumentParser:
     check.add_argument("--tolerances", default=None, metavar="FILE",
                        help="TOML file with tolerances (default: LOG.check.toml when it exists)")
     check.set_defaults(func=cmd_check)
+
+    bench = verbs.add_parser(
+        "bench",
+        help="Monte Carlo: many seeded simulations, average NEES per step against its chi-square band",
+        description=(
+            "Simulate SCENARIO with seeds SEED..SEED+RUNS-1, run the estimators on each (in a process\n"
+            "pool, or on a Dask cluster), and report for each estimator the share of steps at which\n"
+            "the NEES averaged over the runs lies inside its 95 % chi-square band (N = 50: [2.36, 3.72]),\n"
+            "the ATE over the runs and the time."
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    bench.add_argument("scenario", choices=SCENARIOS, metavar="SCENARIO", help=", ".join(SCENARIOS))
+    bench.add_argument("--runs", type=int, default=50, help="number of runs (default 50)")
+    bench.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
+    bench.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
+    bench.add_argument("--estimators", default="ekf,isam2", help="comma-separated (default ekf,isam2)")
+    bench.add_argument("--landmarks", type=int, default=200, help="landmarks of the grid scenario")
+    bench.add_argument("--laps", type=int, default=None, help="laps (default: the scenario's)")
+    bench.add_argument("--out", default=None, metavar="DIR", help="write montecarlo.json, nees.png, ate.png here")
+    bench.add_argument("--dask", default=None, metavar="ADDRESS",
+                       help="run on the Dask cluster at ADDRESS (needs the optional dask extra)")
+    bench.set_defaults(func=cmd_bench)
     return parser
 
 

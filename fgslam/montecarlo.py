@@ -1,0 +1,124 @@
+"""Monte Carlo consistency: many seeded simulations, average NEES per step against its band.
+
+One run is one draw. The classic consistency test (Bar-Shalom et al.; Bailey et al. 2006
+for EKF-SLAM) averages the NEES of N independent runs at each step: for a consistent
+estimator N·(average) is χ²(3N), so the average lies in :func:`fgslam.compare.nees_band`
+``(3, N)`` (for N = 50: [2.36, 3.72]) at about 95 % of the steps. An EKF whose heading
+uncertainty grows becomes optimistic (its average NEES climbs above the band).
+
+The runs go through any :class:`concurrent.futures.Executor`: a process pool by default,
+or a Dask cluster's executor (``dask.distributed.Client(address).get_executor()``), since
+each run is an independent, picklable task (:func:`run_one`).
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+from dataclasses import dataclass
+
+import numpy as np
+
+from fgslam.compare import ate_rmse_m, nees, nees_band
+from fgslam.runner import ESTIMATORS, run_estimator
+from slamio.errors import FgslamError
+from slamio.log import group_steps
+from slamio.sim import simulate
+
+__all__ = ["RunResult", "MonteCarloResult", "run_one", "monte_carlo", "dask_executor"]
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """One seeded run: per estimator, the NEES of each online pose, the ATEs and the time."""
+
+    seed: int
+    nees: dict[str, np.ndarray]
+    ate_final_m: dict[str, float]
+    ate_online_m: dict[str, float]
+    time_s: dict[str, float]
+
+
+@dataclass(frozen=True)
+class MonteCarloResult:
+    """All runs, and the per-step average NEES of each estimator with its band."""
+
+    scenario: str
+    runs: list[RunResult]
+    average_nees: dict[str, np.ndarray]  # (steps,) over the runs (truncated to the shortest run)
+    band: tuple[float, float]
+
+    def share_inside(self, estimator: str) -> float:
+        """Share of steps whose average NEES lies inside the band."""
+        a = self.average_nees[estimator]
+        return float(np.mean((a >= self.band[0]) & (a <= self.band[1])))
+
+    def share_above(self, estimator: str) -> float:
+        """Share of steps whose average NEES lies above the band (optimistic covariance)."""
+        return float(np.mean(self.average_nees[estimator] > self.band[1]))
+
+
+def run_one(scenario: str, seed: int, estimators: tuple[str, ...], landmarks: int = 200,
+            laps: int | None = None) -> RunResult:
+    """Simulate ``scenario`` with ``seed`` and run each estimator on it (a picklable task)."""
+    header, records = simulate(scenario, seed, landmarks=landmarks, laps=laps)
+    steps = group_steps(header, records)
+    truth = np.array([[s.truth.x_m, s.truth.y_m, s.truth.theta_rad] for s in steps])
+    out_nees, final, online, times = {}, {}, {}, {}
+    for name in estimators:
+        run, _ = run_estimator(ESTIMATORS[name](header), steps)
+        if run.online_covariances is None:
+            raise FgslamError(f"estimator {name!r} states no covariance: no NEES to average")
+        out_nees[name] = nees(run.online, run.online_covariances, truth)
+        final[name] = ate_rmse_m(run.final, truth)
+        online[name] = ate_rmse_m(run.online, truth)
+        times[name] = run.total_time_s
+    return RunResult(int(seed), out_nees, final, online, times)
+
+
+def dask_executor(address: str):
+    """The executor of a Dask distributed cluster at ``address`` (the optional ``dask`` extra)."""
+    try:
+        from dask.distributed import Client
+    except ImportError:
+        raise FgslamError(
+            "--dask needs the optional dask extra: pip install 'fgslam[dask]' (or dask[distributed])"
+        ) from None
+    return Client(address).get_executor()
+
+
+def monte_carlo(
+    scenario: str,
+    runs: int,
+    *,
+    estimators: tuple[str, ...] = ("ekf", "isam2"),
+    first_seed: int = 0,
+    jobs: int = 2,
+    landmarks: int = 200,
+    laps: int | None = None,
+    executor: concurrent.futures.Executor | None = None,
+    progress=None,
+) -> MonteCarloResult:
+    """Run seeds ``first_seed .. first_seed + runs − 1`` through ``executor`` (default: a
+    process pool with ``jobs`` workers) and average each estimator's NEES per step."""
+    if runs < 1:
+        raise FgslamError(f"runs must be >= 1, got {runs}")
+    unknown = [e for e in estimators if e not in ESTIMATORS]
+    if unknown:
+        raise FgslamError(f"unknown estimator(s) {', '.join(unknown)}; choose from {', '.join(ESTIMATORS)}")
+    seeds = range(first_seed, first_seed + runs)
+    own = executor is None
+    pool = concurrent.futures.ProcessPoolExecutor(max_workers=max(1, jobs)) if own else executor
+    try:
+        futures = [pool.submit(run_one, scenario, s, tuple(estimators), landmarks, laps) for s in seeds]
+        results = []
+        for i, future in enumerate(concurrent.futures.as_completed(futures)):
+            results.append(future.result())
+            if progress is not None:
+                progress(i + 1, runs, "monte carlo")
+    finally:
+        if own:
+            pool.shutdown()
+    results.sort(key=lambda r: r.seed)
+    n = min(len(r.nees[estimators[0]]) for r in results)
+    average = {e: np.mean([r.nees[e][:n] for r in results], axis=0) for e in estimators}
+    return MonteCarloResult(scenario, results, average, nees_band(3, runs))
