@@ -39,15 +39,19 @@ from fgslam.compare import (
     Reference,
     apply_se2,
     estimator_alignment,
+    nees,
+    nees_band,
     position_errors_m,
     table_rows,
 )
 
-__all__ = ["write_report", "plot_trajectories", "plot_position_errors"]
+__all__ = ["write_report", "plot_trajectories", "plot_position_errors", "plot_nees", "plot_step_times"]
 
 TRAJECTORIES_PNG = "trajectories.png"
 POSITION_ERROR_PNG = "position_error.png"
 REPORT_HTML = "report.html"
+NEES_PNG = "nees.png"
+STEP_TIME_PNG = "step_time.png"
 
 _FIGSIZE_IN = (9.0, 6.0)
 _DPI = 100
@@ -216,6 +220,69 @@ def plot_position_errors(
     return out
 
 
+def plot_nees(path, runs: list[EstimatorRun], reference: Reference, stamps_s) -> Path | None:
+    """NEES of each estimator's online pose against time, with the 95 % χ²(3) band; a PNG.
+
+    Only estimators that stated a covariance, and only against ground truth (returns None
+    otherwise: NEES against a smoothed solution that shares the measurements means little).
+    """
+    if reference.kind != "ground_truth":
+        return None
+    ref = np.asarray(reference.trajectory, dtype=float).reshape(-1, 3)
+    t = np.asarray(stamps_s, dtype=float) - float(stamps_s[0])
+    fig = _new_figure()
+    ax = fig.add_subplot()
+    drawn = False
+    for i, run in enumerate(runs):
+        if run.online is None or run.online_covariances is None:
+            continue
+        k = len(run.online)
+        values = nees(run.online, run.online_covariances, ref[:k])
+        ax.plot(t[:k], values, color=_style(i)[0], lw=0.8, label=run.name)
+        drawn = True
+    if not drawn:
+        return None
+    low, high = nees_band()
+    ax.axhline(low, color="k", ls="--", lw=0.8, label=f"95 % band [{low:.2f}, {high:.2f}]")
+    ax.axhline(high, color="k", ls="--", lw=0.8)
+    ax.set_yscale("log")
+    ax.set_xlabel("time since start [s]")
+    ax.set_ylabel("NEES of the online pose (3 DoF)")
+    ax.set_title("Consistency: NEES against time (inside the band about 95 % of the time if consistent)",
+                 fontsize=11)
+    ax.grid(True, which="both", lw=0.5, alpha=0.5)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
+    out = Path(path)
+    fig.savefig(out, dpi=_DPI, metadata={"Software": None}, pil_kwargs={"optimize": True})
+    return out
+
+
+def plot_step_times(path, runs: list[EstimatorRun]) -> Path | None:
+    """Wall-clock time of each step against the step number, log scale; a PNG (None when no
+    estimator has per-step times). An EKF's growth with the map shows as a rising band."""
+    fig = _new_figure()
+    ax = fig.add_subplot()
+    drawn = False
+    for i, run in enumerate(runs):
+        if run.step_times_s is None or not len(run.step_times_s):
+            continue
+        times_ms = 1e3 * np.asarray(run.step_times_s, dtype=float)
+        ax.plot(np.arange(len(times_ms)), np.maximum(times_ms, 1e-4), ".", ms=1.5, color=_style(i)[0],
+                label=f"{run.name} (median {np.median(times_ms):.3f} ms)")
+        drawn = True
+    if not drawn:
+        return None
+    ax.set_yscale("log")
+    ax.set_xlabel("step")
+    ax.set_ylabel("time per step [ms]")
+    ax.set_title("Cost: wall-clock time of every step", fontsize=11)
+    ax.grid(True, which="both", lw=0.5, alpha=0.5)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False, markerscale=6)
+    out = Path(path)
+    fig.savefig(out, dpi=_DPI, metadata={"Software": None}, pil_kwargs={"optimize": True})
+    return out
+
+
 _CSS = """
 body { font-family: system-ui, -apple-system, "Segoe UI", Roboto, sans-serif; margin: 2em auto;
        max-width: 1000px; padding: 0 1em; color: #222; line-height: 1.45; }
@@ -262,7 +329,8 @@ def write_report(
     truth_landmarks: dict | None = None,
     title: str = "fgslam: estimator comparison",
 ) -> Path:
-    """Write ``trajectories.png``, ``position_error.png`` and ``report.html`` into ``out_dir``.
+    """Write ``trajectories.png``, ``position_error.png``, ``nees.png`` (with ground truth),
+    ``step_time.png`` and ``report.html`` into ``out_dir``.
 
     Args:
         out_dir: directory to write into (created if missing; files are overwritten).
@@ -281,6 +349,19 @@ def write_report(
     traj_png = plot_trajectories(out / TRAJECTORIES_PNG, runs, reference, truth_landmarks=truth_landmarks,
                                  title=title)
     err_png = plot_position_errors(out / POSITION_ERROR_PNG, runs, reference, stamps_s)
+    nees_png = plot_nees(out / NEES_PNG, runs, reference, stamps_s)
+    time_png = plot_step_times(out / STEP_TIME_PNG, runs)
+    nees_section = (
+        f'<img src="{_data_uri(nees_png)}"\n alt="NEES of each estimator\'s online pose against time, '
+        f'log scale, with the 95 % chi-square band">'
+        if nees_png is not None
+        else '<p class="note">No NEES: it needs the ground truth and an estimator that states a covariance.</p>'
+    )
+    time_section = (
+        f'<img src="{_data_uri(time_png)}"\n alt="Wall-clock time of every step in milliseconds, log scale">'
+        if time_png is not None
+        else '<p class="note">No per-step times.</p>'
+    )
 
     e = html.escape
     kind = metrics.get("reference")
@@ -322,6 +403,12 @@ solve has no online estimate and no per-step time).</p>
 <h2>Position error over time</h2>
 <img src="{_data_uri(err_png)}"
  alt="Position error in metres against time since start in seconds, final solid and online dashed">
+
+<h2>Consistency (NEES)</h2>
+{nees_section}
+
+<h2>Time per step</h2>
+{time_section}
 
 <h2>metrics.json</h2>
 <pre>{e(metrics_json)}</pre>

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import base64
 from html.parser import HTMLParser
 
@@ -89,7 +91,7 @@ def test_returns_the_html_path(report):
 def test_images_are_embedded_pngs(report):
     _, _, _, parser = report
     images = [attrs for tag, attrs in parser.tags if tag == "img"]
-    assert len(images) == 2
+    assert len(images) == 3  # trajectories, position error, time per step (no covariances: no NEES)
     prefix = "data:image/png;base64,"
     for attrs in images:
         src = attrs["src"]
@@ -113,7 +115,8 @@ def test_page_has_no_external_links_or_scripts(report):
 
 def test_png_files_exist_and_are_reasonable(report):
     out_dir, _, _, _ = report
-    for name in ("trajectories.png", "position_error.png"):
+    assert not (out_dir / "nees.png").exists()
+    for name in ("trajectories.png", "position_error.png", "step_time.png"):
         data = (out_dir / name).read_bytes()
         assert data.startswith(PNG_SIGNATURE)
         assert 10_000 < len(data) < 400_000
@@ -148,3 +151,18 @@ def test_smoothed_reference_aligned_run_and_truth_landmarks(tmp_path):
     assert "smoothed solution" in text
     assert "imported" in text
     assert (tmp_path / "trajectories.png").stat().st_size > 10_000
+
+
+def test_nees_figure_with_covariances_and_ground_truth(tmp_path):
+    runs, reference, stamps_s, _ = synthetic_runs()
+    n = len(stamps_s)
+    covariance = np.broadcast_to(np.diag([0.01, 0.01, 0.001]), (n, 3, 3)).copy()
+    runs = [dataclasses.replace(r, online_covariances=covariance) if r.online is not None else r for r in runs]
+    metrics = compute_metrics(runs, reference, log_path="data/circle.jsonl")
+    html_path = write_report(tmp_path, metrics, runs, reference, stamps_s)
+    parser = PageParser()
+    parser.feed(html_path.read_text(encoding="utf-8"))
+    images = [attrs for tag, attrs in parser.tags if tag == "img"]
+    assert len(images) == 4 and any("NEES" in a["alt"] for a in images)
+    assert (tmp_path / "nees.png").read_bytes().startswith(PNG_SIGNATURE)
+    assert metrics["ekf"]["nees_mean"] is not None
