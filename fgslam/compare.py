@@ -539,11 +539,14 @@ METRIC_KEYS = (
     "map_rmse_m",
     "map_height_rmse_m",
     "landmarks_estimated",
+    "landmarks_found",
+    "landmarks_missed",
     "association",
     "aligned",
     "time_total_s",
     "time_step_p50_s",
     "time_step_p99_s",
+    "time_step_max_s",
     "steps",
 )
 
@@ -593,6 +596,8 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
              "map_rmse_m": float|None,       # None when no landmark id in common
              "map_height_rmse_m": float|None,# 3-D maps against true heights, else None
              "landmarks_estimated": int,
+             "landmarks_found": int,         # reference landmarks it estimated
+             "landmarks_missed": int,        # reference landmarks it never put in its map
              "association": dict|None,       # only for estimators that associate themselves:
                                              # observations, correct, rate, rejected,
                                              # landmarks_created, duplicate_landmarks
@@ -600,6 +605,7 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
              "time_total_s": float,
              "time_step_p50_s": float|None,  # median step time; None for batch
              "time_step_p99_s": float|None,  # 99th percentile step time; None for batch
+             "time_step_max_s": float|None,  # slowest step; None for batch
              "steps": int},                  # poses this estimator estimated
          ...}
 
@@ -635,11 +641,13 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
                 online_a = apply_se2(online, rot, trans)
                 ate_online = _rmse(position_errors_m(online_a, ref[: len(online)]))
 
-        p50 = p99 = None
+        p50 = p99 = tmax = None
         if run.step_times_s is not None:
             times = np.asarray(run.step_times_s, dtype=float).reshape(-1)
             if len(times):
                 p50, p99 = np.percentile(times, [50.0, 99.0])
+                tmax = float(np.max(times))
+        found = len(set(run.landmarks) & set(reference.landmarks))
 
         rpe_trans, rpe_heading = relative_pose_errors(final, ref[:m], delta)
         nees_mean = nees_inside = None
@@ -662,11 +670,14 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
             "map_rmse_m": _json_float(map_rmse_m(run.landmarks, reference.landmarks, rot, trans)),
             "map_height_rmse_m": _json_float(_height_rmse_m(run.landmark_heights, reference.landmark_heights)),
             "landmarks_estimated": int(len(run.landmarks)),
+            "landmarks_found": int(found),
+            "landmarks_missed": int(len(reference.landmarks) - found),
             "association": _association_dict(run.association),
             "aligned": bool(aligned),
             "time_total_s": _json_float(run.total_time_s),
             "time_step_p50_s": _json_float(p50),
             "time_step_p99_s": _json_float(p99),
+            "time_step_max_s": _json_float(tmax),
             "steps": int(m),
         }
     return metrics

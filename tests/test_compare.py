@@ -243,11 +243,13 @@ def test_compute_metrics_values_keys_and_json():
     assert ekf["final_pose_error_m"] == pytest.approx(0.5)
     assert ekf["map_rmse_m"] == pytest.approx(math.sqrt(4.0 / 6))
     assert ekf["landmarks_estimated"] == 6
+    assert ekf["landmarks_found"] == 6 and ekf["landmarks_missed"] == 0
     assert ekf["aligned"] is False
     assert ekf["time_total_s"] == 0.25
     # Hand-worked linear-interpolation percentiles of 1..100 ms.
     assert ekf["time_step_p50_s"] == pytest.approx(50.5e-3)
     assert ekf["time_step_p99_s"] == pytest.approx(99.01e-3)
+    assert ekf["time_step_max_s"] == pytest.approx(100e-3)
     assert ekf["steps"] == 100
 
     batch = metrics["batch"]
@@ -284,6 +286,10 @@ def test_compute_metrics_nulls_and_short_runs():
     assert metrics["live"]["steps"] == 30
     assert metrics["live"]["map_rmse_m"] is None  # no landmark in common
     assert metrics["live"]["landmarks_estimated"] == 0
+    assert metrics["live"]["landmarks_found"] == 0
+    assert metrics["live"]["landmarks_missed"] == len(reference.landmarks)
+    assert metrics["diverged"]["landmarks_found"] == 1  # landmark 0
+    assert metrics["diverged"]["landmarks_missed"] == len(reference.landmarks) - 1
     assert metrics["diverged"]["ate_rmse_m"] is None
     assert "live estimated 30 of 50 poses" in format_table(metrics)
 
