@@ -563,6 +563,10 @@ class Isam2Smoother:
         # online covariance; kept raw, so a step costs one list append
         self._since_isam_start = 0
         self._since_isam: list[tuple[gtsam.Pose2, Odometry]] = []
+        # current_covariance() is asked at every step (NEES): the marginal is kept until
+        # iSAM2 changes, and the held odometry is propagated only once per record
+        self._marginal: np.ndarray | None = None
+        self._since_chain = _Chain(0)
 
     # ------------------------------------------------------------------ Estimator protocol
 
@@ -594,25 +598,29 @@ class Isam2Smoother:
             if self.keyframes:
                 self._open.append(increment, odometry_noise_covariance(odo))
                 observed = any(o.landmark_id is not None for o in step.observations)
-                if not observed and len(self._open.links) < self.max_keyframe_gap:
-                    self.skipped_unknown_observations += len(step.observations)
-                    self._held_steps += 1
-                    self._num_poses = k + 1
-                    self._pose = seed
-                    if self._due(k):
-                        self._flush()
-                    return
-                # a keyframe: the chain since the last one becomes one compound factor
-                chain, self._open = self._open, _Chain(k)
-                self._chains[k] = chain
-                noise = gtsam.noiseModel.Gaussian.Covariance(chain.covariance())
-                self._held_core.add(gtsam.BetweenFactorPose2(X(chain.start), X(k), chain.compound, noise))
+                if observed or len(self._open.links) >= self.max_keyframe_gap:
+                    # a keyframe: the chain since the last one becomes one compound factor
+                    chain, self._open = self._open, _Chain(k)
+                    self._chains[k] = chain
+                    noise = gtsam.noiseModel.Gaussian.Covariance(chain.covariance())
+                    self._held_core.add(gtsam.BetweenFactorPose2(X(chain.start), X(k), chain.compound, noise))
             else:
                 self._held_core.add(gtsam.BetweenFactorPose2(X(k - 1), X(k), increment, self._odometry_noise(odo)))
-        self._held_values.insert(X(k), seed)
-        self._key_indices.append(k)
+        if not self._open.links:  # a variable of its own (always, without keyframes)
+            self._held_values.insert(X(k), seed)
+            self._key_indices.append(k)
+            self._add_observations(k, seed, step.observations)
+        else:  # folded into the open chain; it saw no landmark id
+            self.skipped_unknown_observations += len(step.observations)
+        self._held_steps += 1
+        self._num_poses = k + 1
+        self._pose = seed
+        if self._due(k):
+            self._flush()
 
-        for obs in step.observations:
+    def _add_observations(self, k: int, seed: gtsam.Pose2, observations) -> None:
+        """Hold the factors of pose ``k``'s observations (and their heights)."""
+        for obs in observations:
             if obs.landmark_id is None:
                 self.skipped_unknown_observations += 1
                 continue
@@ -620,11 +628,6 @@ class Isam2Smoother:
                 self._add_height(obs)
             self._held_entries.append(self._observation_entry(k, seed, obs))
             self._held_observed = True
-        self._held_steps += 1
-        self._num_poses = k + 1
-        self._pose = seed
-        if self._due(k):
-            self._flush()
 
     def _folded_chain(self, factor) -> "_Chain | None":
         """The chain a compound odometry factor of iSAM2's graph stands for (None otherwise)."""
@@ -672,6 +675,8 @@ class Isam2Smoother:
         # the newest pose in iSAM2 is the last keyframe; only the open chain's steps follow it
         self._since_isam_start = self._key_indices[-1]
         self._since_isam = self._since_isam[len(self._since_isam) - len(self._open.links) :] if self._open.links else []
+        self._since_chain = _Chain(self._since_isam_start)
+        self._marginal = None
 
     def current_pose(self) -> tuple[float, float, float]:
         """The online estimate of the latest pose (x_m, y_m, theta_rad).
@@ -691,6 +696,7 @@ class Isam2Smoother:
             return
         self._flush()
         self._estimate_cache = None
+        self._marginal = None  # the final updates below change iSAM2
         for _ in range(self.final_updates):
             try:
                 self._isam.update()
@@ -782,10 +788,12 @@ class Isam2Smoother:
             raise FgslamError("Isam2Smoother: no step yet")
         if frame not in ("world", "body"):
             raise FgslamError(f"current_covariance: frame must be 'world' or 'body', got {frame!r}")
-        chain = _Chain(self._since_isam_start)
-        for increment, odo in self._since_isam:
+        chain = self._since_chain
+        for increment, odo in self._since_isam[len(chain.links) :]:  # records held since the last call
             chain.append(increment, odometry_noise_covariance(odo))
-        cov = np.asarray(self._isam.marginalCovariance(X(chain.start)), dtype=float)
+        if self._marginal is None:
+            self._marginal = np.asarray(self._isam.marginalCovariance(X(chain.start)), dtype=float)
+        cov = self._marginal
         if chain.links:
             A = chain.compound.inverse().AdjointMap()
             cov = A @ cov @ A.T + chain.covariance()
