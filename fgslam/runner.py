@@ -77,12 +77,17 @@ def parse_estimator_names(text: str) -> list[str]:
 
 
 def run_estimator(
-    estimator: Estimator, steps: Sequence[Step], progress: Progress | None = None
+    estimator: Estimator, steps: Sequence[Step], progress: Progress | None = None, *, covariances: bool = True
 ) -> tuple[EstimatorRun, Estimator]:
-    """Feed ``steps`` to ``estimator`` in order, timing each step and ``finish()``."""
+    """Feed ``steps`` to ``estimator`` in order, timing each step and ``finish()``.
+
+    With ``covariances`` (default) the covariance the estimator states for its online pose
+    is recorded after every step, outside the timed region, for NEES; a run that only
+    serves as a reference can skip that work.
+    """
     online = np.empty((len(steps), 3))
     step_times_s = np.empty(len(steps))
-    with_covariance = hasattr(estimator, "current_covariance")
+    with_covariance = covariances and hasattr(estimator, "current_covariance")
     covariances = np.empty((len(steps), 3, 3)) if with_covariance else None
     every = max(1, len(steps) // 200)
     associating = hasattr(estimator, "step_associations")

@@ -78,7 +78,7 @@ def ms(run, q: float) -> float:
 def _run_isam2(kwargs: dict):
     """One iSAM2 run on Victoria Park, in a fresh process (see :func:`sweep`)."""
     header, records = import_victoria_park()
-    run, smoother = run_estimator(Isam2Smoother(header, **kwargs), group_steps(header, records))
+    run, smoother = run_estimator(Isam2Smoother(header, **kwargs), group_steps(header, records), covariances=False)
     return run, smoother.updates, smoother.error()
 
 
@@ -91,7 +91,7 @@ def sweep(header, steps, ekf) -> None:
     print(f"\nEKF: {ekf.total_time_s:.2f} s total, p50 {ms(ekf, 50):.3f} ms, p99 {ms(ekf, 99):.2f} ms\n")
     print("| settings | total s | × EKF | p50 / p99 ms | updates | χ²/2 final | × batch | online ATE m |")
     print("|---|---|---|---|---|---|---|---|")
-    batch = batch_solve(run_estimator(Isam2Smoother(header), steps)[1])  # the optimum, once
+    batch = batch_solve(run_estimator(Isam2Smoother(header), steps, covariances=False)[1])  # the optimum, once
     context = multiprocessing.get_context("spawn")
     for label, kwargs in SWEEP:
         with ProcessPoolExecutor(max_workers=1, mp_context=context) as pool:
@@ -119,7 +119,7 @@ def main(argv=None) -> int:
 
     ekf = None
     if not args.no_ekf:
-        ekf, _ = run_estimator(EkfSlam(header), steps)
+        ekf, _ = run_estimator(EkfSlam(header), steps, covariances=False)
     if args.sweep:
         if ekf is None:
             ap.error("--sweep needs the EKF (drop --no-ekf)")
@@ -127,7 +127,7 @@ def main(argv=None) -> int:
         return 0
 
     print(f"Isam2Smoother kwargs: {kwargs or '(defaults)'}")
-    isam, smoother = run_estimator(Isam2Smoother(header, **kwargs), steps)
+    isam, smoother = run_estimator(Isam2Smoother(header, **kwargs), steps, covariances=False)
     isam_chi2 = smoother.error()
     batch = batch_solve(smoother)
 

@@ -62,7 +62,7 @@ def measure(log_path: Path) -> dict[str, dict]:
     steps = log.steps()
     out = {}
     for label, cls, keywords in SETTINGS:
-        run, _ = run_estimator(cls(log.header, **keywords), steps)
+        run, _ = run_estimator(cls(log.header, **keywords), steps, covariances=False)
         out[label] = compute_metrics([run], reference, log_path=str(log_path))[run.name]
     return out
 
