@@ -193,6 +193,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 def cmd_run(args: argparse.Namespace) -> int:
     from fgslam.compare import compute_metrics, format_table, write_tum
+    from fgslam.export import write_g2o
     from fgslam.runner import compare_log, parse_estimator_names
 
     names = parse_estimator_names(args.estimators)
@@ -211,7 +212,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         write_tum(out / f"{run.name}.tum", result.stamps_s, run.final)
         if run.online is not None:
             write_tum(out / f"{run.name}_online.tum", result.stamps_s, run.online)
-    (out / "graph.g2o").write_text(result.g2o, encoding="utf-8")
+    smoother = result.smoother  # its graph, vertices at iSAM2's final estimate
+    write_g2o(out / "graph.g2o", smoother.graph(), smoother.estimate(), smoother.num_poses)
     written = ["metrics.json", "*.tum", "graph.g2o"]
     if not args.no_report:
         from fgslam.report import write_report

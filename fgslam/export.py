@@ -91,25 +91,24 @@ def format_g2o(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, num_pose
         if isinstance(factor, gtsam.BetweenFactorPose2):
             cov, kernel = _gaussian_covariance(factor.noiseModel())
             z = factor.measured()
-            i, j = vertex(keys[0]), vertex(keys[1])
-            edges.append(f"EDGE_SE2 {i} {j} {z.x():.17g} {z.y():.17g} {z.theta():.17g} {_upper(np.linalg.inv(cov))}")
+            edge = f"EDGE_SE2 {vertex(keys[0])} {vertex(keys[1])}"
+            edges.append(f"{edge} {z.x():.17g} {z.y():.17g} {z.theta():.17g} {_upper(np.linalg.inv(cov))}")
         elif isinstance(factor, gtsam.BearingRangeFactor2D):
             cov, kernel = _gaussian_covariance(factor.noiseModel())  # (bearing, range) order
             m = factor.measured()
             b, r = m.bearing().theta(), m.range()
             J = np.array([[-r * math.sin(b), math.cos(b)], [r * math.cos(b), math.sin(b)]])  # ∂(x, y)/∂(b, r)
             xy_cov = J @ cov @ J.T
-            i, v = vertex(keys[0]), vertex(keys[1])
+            edge = f"EDGE_SE2_XY {vertex(keys[0])} {vertex(keys[1])}"
             edges.append(
-                f"EDGE_SE2_XY {i} {v} {r * math.cos(b):.17g} {r * math.sin(b):.17g} {_upper(np.linalg.inv(xy_cov))}"
+                f"{edge} {r * math.cos(b):.17g} {r * math.sin(b):.17g} {_upper(np.linalg.inv(xy_cov))}"
             )
         else:
             kinds = ", ".join(f"{k}{i}" for k, i in map(_symbol, keys))
             notes.append(f"# not in g2o: {type(factor).__name__} on {kinds}")
             continue
         if kernel is not None:
-            notes.append(f"# robust kernel {kernel} on the edge {edges[-1].split()[0]} {edges[-1].split()[1]} "
-                         f"{edges[-1].split()[2]} (written with its Gaussian part)")
+            notes.append(f"# robust kernel {kernel} on the edge {edge} (written with its Gaussian part)")
     header = [
         "# fgslam factor graph (g2o 2-D). Pose vertices 0..{} are the log's poses; landmark "
         "vertex = {} + landmark id.".format(num_poses - 1, num_poses)

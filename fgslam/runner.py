@@ -16,7 +16,6 @@ import numpy as np
 
 from ekf import DeadReckoning, EkfS000, EkfS001, EkfS004, EkfSlam
 from fgslam.compare import EstimatorRun, Reference, relabel_landmarks, score_associations
-from fgslam.export import format_g2o
 from fgslam.smoother import FAST_SETTINGS, Isam2Smoother, batch_solve
 from slamio.errors import FgslamError
 from slamio.estimator import Estimator
@@ -57,7 +56,7 @@ class Comparison:
     runs: list[EstimatorRun]
     reference: Reference
     stamps_s: np.ndarray
-    g2o: str = ""  # the batch-solved graph in g2o format, vertices at iSAM2's final estimate
+    smoother: Isam2Smoother | None = None  # the iSAM2 run the batch solve started from (its graph)
 
 
 def parse_estimator_names(text: str) -> list[str]:
@@ -190,5 +189,4 @@ def compare_log(
     reference = truth_reference(log) or Reference(
         "smoothed", batch.trajectory, dict(batch.landmarks), batch.landmark_heights
     )
-    g2o = format_g2o(smoother.graph(), smoother.estimate(), smoother.num_poses)
-    return Comparison(runs, reference, stamps_s, g2o)
+    return Comparison(runs, reference, stamps_s, smoother)
