@@ -87,6 +87,7 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import H, L, T, X
 
+from ekf.slam import has_height  # the same rule as the EKF's for a usable height
 from slamio.errors import FgslamError
 from slamio.log import Header, Observation, Odometry, Step
 
@@ -239,11 +240,6 @@ def has_tag_yaw(observation: Observation) -> bool:
         and observation.sigma_tag_yaw_rad is not None
         and observation.sigma_tag_yaw_rad > 0.0
     )
-
-
-def has_height(observation: Observation) -> bool:
-    """True when the observation carries a usable height (a value and a positive σ)."""
-    return observation.height_m is not None and observation.sigma_height_m is not None and observation.sigma_height_m > 0.0
 
 
 def start_prior_covariance(header: Header) -> np.ndarray:
@@ -843,10 +839,10 @@ class Isam2Smoother:
         values = gtsam.Values(self._estimate())
         if self.keyframes:
             trajectory = self.trajectory_of(values)
-            for b, chain in self._chains.items():
-                for i in range(chain.start + 1, b):
+            keyframes = set(self._key_indices)
+            for i in range(self._num_poses):
+                if i not in keyframes:
                     values.insert(X(i), gtsam.Pose2(*trajectory[i]))
-            self._insert_open_chain(values)
         return values
 
     def error(self) -> float:
