@@ -46,6 +46,7 @@ __all__ = [
     "range_bearing_jacobians",
     "landmark_from_range_bearing",
     "landmark_init_jacobians",
+    "range_bearing_nis",
 ]
 
 
@@ -155,3 +156,29 @@ def landmark_init_jacobians(pose, range_m: float, bearing_rad: float) -> tuple[n
     G_pose = np.array([[1.0, 0.0, -range_m * s], [0.0, 1.0, range_m * c]])
     G_measurement = np.array([[c, -range_m * s], [s, range_m * c]])
     return G_pose, G_measurement
+
+
+# --------------------------------------------------------------------------- consistency
+
+
+def range_bearing_nis(pose, landmark_xy, joint_covariance, range_m: float, bearing_rad: float, R) -> float:
+    """Normalised innovation squared of one range-bearing observation: ``νᵀ S⁻¹ ν``.
+
+    ``ν = z − h(pose, landmark)`` (bearing wrapped) and ``S = H Σ Hᵀ + R``, where
+    ``H = [H_pose | H_landmark]`` (2×5) and ``joint_covariance`` Σ is the 5×5 covariance of
+    ``(x, y, θ, lx, ly)`` *before* the observation is used — the prior of the step that
+    makes it, cross-covariance included. ``R`` is the 2×2 measurement covariance. For a
+    consistent estimator the value is χ²-distributed with 2 degrees of freedom (mean 2).
+    Returns NaN when S is not positive definite.
+    """
+    predicted_range, predicted_bearing = range_bearing(pose, landmark_xy)
+    nu = np.array([range_m - predicted_range, wrap_angle(bearing_rad - predicted_bearing)])
+    H_pose, H_landmark = range_bearing_jacobians(pose, landmark_xy)
+    H = np.hstack([H_pose, H_landmark])
+    S = H @ np.asarray(joint_covariance, dtype=float) @ H.T + np.asarray(R, dtype=float)
+    try:
+        L = np.linalg.cholesky(0.5 * (S + S.T))
+    except np.linalg.LinAlgError:
+        return float("nan")
+    w = np.linalg.solve(L, nu)
+    return float(w @ w)

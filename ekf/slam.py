@@ -65,6 +65,7 @@ from ekf.models import (
     predict_pose,
     range_bearing,
     range_bearing_jacobians,
+    range_bearing_nis,
 )
 from slamio.geometry import wrap_angle
 from slamio.log import Header, Observation, Step
@@ -456,6 +457,49 @@ class EkfSlam:
         i = self._slot[landmark_id]
         k = self._landmark_dim(landmark_id)
         return self._cov[i : i + k, i : i + k].copy()
+
+    def landmark_covariances(self) -> dict[int, np.ndarray]:
+        """Landmark key → 2×2 covariance of its (x, y) (copies; for the report's ellipses)."""
+        return {k: self._cov[i : i + 2, i : i + 2].copy() for k, i in self._slot.items()}
+
+    def predicted_nis(self, step: Step) -> list[float | None]:
+        """NIS of each observation of ``step`` against the filter's prediction, before the
+        step is applied (nothing is changed).
+
+        The pose is predicted with ``step.odometry`` (its covariance blocks with it:
+        ``P_rr ← F P_rr Fᵀ + Q``, ``P_rl ← F P_rl``); each observation of a landmark already
+        in the map then gets :func:`ekf.models.range_bearing_nis` over (range, bearing)
+        with the joint pose-landmark covariance. Every estimator answers this question the
+        same way, so their NIS compare. None for an observation without an id or of a
+        landmark not in the map yet.
+        """
+        pose = self._mean[:ROBOT_DIM].copy()
+        P_rr = self._cov[:ROBOT_DIM, :ROBOT_DIM].copy()
+        F = np.eye(ROBOT_DIM)
+        if step.odometry is not None:
+            odo = step.odometry
+            increment = (odo.dx_m, odo.dy_m, odo.dtheta_rad)
+            F, F_increment = motion_jacobians(pose, increment)
+            P_rr = F @ P_rr @ F.T + F_increment @ np.asarray(odo.covariance, dtype=float) @ F_increment.T
+            pose = predict_pose(pose, increment)
+        out: list[float | None] = []
+        for observation in step.observations:
+            i = self._slot.get(observation.landmark_id) if observation.landmark_id is not None else None
+            if i is None:
+                out.append(None)
+                continue
+            joint = np.empty((5, 5))
+            joint[:3, :3] = P_rr
+            joint[:3, 3:] = F @ self._cov[:ROBOT_DIM, i : i + 2]
+            joint[3:, :3] = joint[:3, 3:].T
+            joint[3:, 3:] = self._cov[i : i + 2, i : i + 2]
+            out.append(
+                range_bearing_nis(
+                    pose, self._mean[i : i + 2], joint, observation.range_m, observation.bearing_rad,
+                    measurement_covariance(observation),
+                )
+            )
+        return out
 
     def state_mean(self) -> np.ndarray:
         """The full state vector ``[x, y, θ, l1x, l1y, (l1h,) ...]`` (a copy)."""

@@ -64,6 +64,8 @@ __all__ = [
     "rpe_delta_frames",
     "nees",
     "nees_band",
+    "nis_summary",
+    "NIS_DOF",
     "map_errors_m",
     "map_rmse_m",
     "AssociationScore",
@@ -116,6 +118,14 @@ class EstimatorRun:
             estimators with a 3-D map; ``None`` otherwise.
         online_covariances: ``(n, 3, 3)`` covariance of each online pose over world
             (x, y, θ), as the estimator stated it at that step (for NEES), or ``None``.
+        nis: ``(m,)`` NIS of every observation the estimator could predict (a landmark it
+            already held), against its prediction before the observation's step; ``None``
+            when the estimator does not offer it.
+        nis_steps: ``(m,)`` the step of each NIS value.
+        peak_memory_bytes: how far the process's resident memory rose above where it
+            started during the run (:class:`fgslam.memory.PeakMemory`), or ``None``.
+        landmark_covariances: landmark id → 2×2 covariance of its final (x, y) estimate
+            (world frame), or ``None``; drawn as 95 % ellipses in the report.
     """
 
     name: str
@@ -127,6 +137,10 @@ class EstimatorRun:
     association: "AssociationScore | None" = None
     landmark_heights: dict[int, float] | None = None
     online_covariances: np.ndarray | None = None
+    nis: np.ndarray | None = None
+    nis_steps: np.ndarray | None = None
+    peak_memory_bytes: int | None = None
+    landmark_covariances: dict[int, np.ndarray] | None = None
 
 
 @dataclass(frozen=True)
@@ -396,6 +410,23 @@ def nees_band(dof: int = 3, runs: int = 1, probability: float = 0.95) -> tuple[f
     return (float(chi2.ppf(alpha / 2, dof * runs)) / runs, float(chi2.ppf(1 - alpha / 2, dof * runs)) / runs)
 
 
+#: Degrees of freedom of an observation's NIS (range and bearing).
+NIS_DOF = 2
+
+
+def nis_summary(values) -> tuple[float | None, float | None, int | None]:
+    """``(mean, share inside the 95 % χ²(2) band, count)`` of per-observation NIS values
+    (NaNs dropped); all None when there are none to summarise (``values`` None)."""
+    if values is None:
+        return None, None, None
+    v = np.asarray(values, dtype=float).reshape(-1)
+    v = v[np.isfinite(v)]
+    if not len(v):
+        return None, None, 0
+    low, high = nees_band(NIS_DOF)
+    return float(np.mean(v)), float(np.mean((v >= low) & (v <= high))), int(len(v))
+
+
 def rpe_delta_frames(reference, distance_m: float = 1.0) -> int:
     """The frame delta over which the reference travels ``distance_m`` on average (≥ 1)."""
     r = _as_poses(reference, "reference")
@@ -536,6 +567,9 @@ METRIC_KEYS = (
     "rpe_heading_rmse_rad",
     "nees_mean",
     "nees_inside_95",
+    "nis_mean",
+    "nis_inside_95",
+    "nis_count",
     "map_rmse_m",
     "map_height_rmse_m",
     "landmarks_estimated",
@@ -547,6 +581,7 @@ METRIC_KEYS = (
     "time_step_p50_s",
     "time_step_p99_s",
     "time_step_max_s",
+    "peak_memory_mb",
     "steps",
 )
 
@@ -593,6 +628,12 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
                                              # a smoothed reference, or when aligned
              "nees_inside_95": float|None,   # share of steps whose NEES is inside the 95 %
                                              # χ²(3) band [0.216, 9.35]
+             "nis_mean": float|None,         # mean NIS of the observations of landmarks
+                                             # already mapped, against the prediction before
+                                             # their step (2-DoF range-bearing; 2 if
+                                             # consistent); needs no reference
+             "nis_inside_95": float|None,    # share of them inside the χ²(2) band [0.0506, 7.38]
+             "nis_count": int|None,          # how many observations have a NIS
              "map_rmse_m": float|None,       # None when no landmark id in common
              "map_height_rmse_m": float|None,# 3-D maps against true heights, else None
              "landmarks_estimated": int,
@@ -606,6 +647,8 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
              "time_step_p50_s": float|None,  # median step time; None for batch
              "time_step_p99_s": float|None,  # 99th percentile step time; None for batch
              "time_step_max_s": float|None,  # slowest step; None for batch
+             "peak_memory_mb": float|None,   # resident memory the run added at its peak, MB
+                                             # (10⁶ bytes; fgslam.memory); None if unmeasured
              "steps": int},                  # poses this estimator estimated
          ...}
 
@@ -659,6 +702,7 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
                 low, high = nees_band()
                 nees_mean = float(np.mean(values))
                 nees_inside = float(np.mean((values >= low) & (values <= high)))
+        nis_mean, nis_inside, nis_count = nis_summary(run.nis)
         metrics[run.name] = {
             "ate_rmse_m": _json_float(_rmse(position_errors_m(final_a, ref[:m]))),
             "ate_online_rmse_m": _json_float(ate_online),
@@ -667,6 +711,9 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
             "rpe_heading_rmse_rad": _json_float(_rmse(rpe_heading)),
             "nees_mean": _json_float(nees_mean),
             "nees_inside_95": _json_float(nees_inside),
+            "nis_mean": _json_float(nis_mean),
+            "nis_inside_95": _json_float(nis_inside),
+            "nis_count": nis_count,
             "map_rmse_m": _json_float(map_rmse_m(run.landmarks, reference.landmarks, rot, trans)),
             "map_height_rmse_m": _json_float(_height_rmse_m(run.landmark_heights, reference.landmark_heights)),
             "landmarks_estimated": int(len(run.landmarks)),
@@ -678,6 +725,7 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
             "time_step_p50_s": _json_float(p50),
             "time_step_p99_s": _json_float(p99),
             "time_step_max_s": _json_float(tmax),
+            "peak_memory_mb": None if run.peak_memory_bytes is None else round(run.peak_memory_bytes / 1e6, 3),
             "steps": int(m),
         }
     return metrics
@@ -732,6 +780,9 @@ def _association_cell(m: dict) -> str:
 OPTIONAL_COLUMNS = (
     ("height RMSE m", "map_height_rmse_m", lambda m: _fmt(m.get("map_height_rmse_m"))),
     ("assoc %", "association", _association_cell),
+    ("NEES in %", "nees_inside_95", lambda m: _fmt(m.get("nees_inside_95"), 100.0, 1)),
+    ("NIS in %", "nis_inside_95", lambda m: _fmt(m.get("nis_inside_95"), 100.0, 1)),
+    ("peak MB", "peak_memory_mb", lambda m: _fmt(m.get("peak_memory_mb"), 1.0, 1)),
 )
 
 COLUMN_MEANINGS = {
@@ -749,6 +800,13 @@ COLUMN_MEANINGS = {
     "height RMSE m": "RMS error of the landmark heights, metres, for estimators with a 3-D map",
     "assoc %": "share of observations associated with the right landmark, for estimators that "
     "associate observations themselves (rejected ones count as wrong)",
+    "NEES in %": "share of steps whose NEES (online pose error against ground truth, weighted by "
+    "the covariance the estimator stated) lies inside the 95 % chi-square(3) band; about 95 for "
+    "a consistent estimator, less when it is over-confident (only with ground truth)",
+    "NIS in %": "share of observations of already mapped landmarks whose NIS (innovation against "
+    "the estimator's prediction, weighted by its predicted covariance) lies inside the 95 % "
+    "chi-square(2) band; about 95 when consistent; needs no ground truth",
+    "peak MB": "how far the process's resident memory rose during the run, megabytes (10^6 bytes)",
 }
 
 REFERENCE_DESCRIPTIONS = {

@@ -16,6 +16,7 @@ import numpy as np
 
 from ekf import DeadReckoning, EkfS000, EkfS001, EkfS004, EkfSlam
 from fgslam.compare import EstimatorRun, Reference, relabel_landmarks, score_associations
+from fgslam.memory import PeakMemory
 from fgslam.smoother import FAST_SETTINGS, Isam2Smoother, batch_solve
 from slamio.errors import FgslamError
 from slamio.estimator import Estimator
@@ -80,42 +81,60 @@ def run_estimator(
 ) -> tuple[EstimatorRun, Estimator]:
     """Feed ``steps`` to ``estimator`` in order, timing each step and ``finish()``.
 
-    With ``covariances`` (default) the covariance the estimator states for its online pose
-    is recorded after every step, outside the timed region, for NEES; a run that only
-    serves as a reference can skip that work.
+    With ``covariances`` (default) two consistency measurements are taken outside the
+    timed region: before each step, the NIS of its observations against the estimator's
+    prediction (``predicted_nis``, where the estimator offers it); after it, the covariance
+    the estimator states for its online pose (for NEES). A run that only serves as a
+    reference or a timing can skip that work. The peak memory of the whole run is measured
+    too (:class:`fgslam.memory.PeakMemory`; the consistency work is included in it).
     """
     online = np.empty((len(steps), 3))
     step_times_s = np.empty(len(steps))
     with_covariance = covariances and hasattr(estimator, "current_covariance")
-    covariances = np.empty((len(steps), 3, 3)) if with_covariance else None
+    with_nis = covariances and hasattr(estimator, "predicted_nis")
+    pose_covariances = np.empty((len(steps), 3, 3)) if with_covariance else None
+    nis_values: list[float] = []
+    nis_steps: list[int] = []
     every = max(1, len(steps) // 200)
     associating = hasattr(estimator, "step_associations")
     true_ids: list[int | None] = []
     keys: list[int | None] = []
-    for i, step in enumerate(steps):
+    with PeakMemory() as memory:
+        for i, step in enumerate(steps):
+            if with_nis:  # against the prediction, so before the step; outside the timed region
+                for value in estimator.predicted_nis(step):  # type: ignore[attr-defined]
+                    if value is not None:
+                        nis_values.append(value)
+                        nis_steps.append(i)
+            start = time.perf_counter()
+            estimator.step(step)
+            online[i] = estimator.current_pose()
+            step_times_s[i] = time.perf_counter() - start
+            if pose_covariances is not None:  # for NEES; outside the timed region
+                pose_covariances[i] = estimator.current_covariance()  # type: ignore[attr-defined]
+            if associating:  # bookkeeping for the score, outside the timed region
+                keys.extend(estimator.step_associations())  # type: ignore[attr-defined]
+                true_ids.extend(_true_id(o) for o in step.observations)
+            if progress is not None and (i % every == 0 or i == len(steps) - 1):
+                progress(i + 1, len(steps), estimator.name)
         start = time.perf_counter()
-        estimator.step(step)
-        online[i] = estimator.current_pose()
-        step_times_s[i] = time.perf_counter() - start
-        if covariances is not None:  # for NEES; outside the timed region
-            covariances[i] = estimator.current_covariance()  # type: ignore[attr-defined]
-        if associating:  # bookkeeping for the score, outside the timed region
-            keys.extend(estimator.step_associations())  # type: ignore[attr-defined]
-            true_ids.extend(_true_id(o) for o in step.observations)
-        if progress is not None and (i % every == 0 or i == len(steps) - 1):
-            progress(i + 1, len(steps), estimator.name)
-    start = time.perf_counter()
-    estimator.finish()
-    final = np.asarray(estimator.trajectory(), dtype=float)
-    finish_s = time.perf_counter() - start
+        estimator.finish()
+        final = np.asarray(estimator.trajectory(), dtype=float)
+        finish_s = time.perf_counter() - start
 
     landmarks = dict(estimator.landmarks())
     heights = dict(estimator.landmark_heights()) if hasattr(estimator, "landmark_heights") else None
+    landmark_covariances = (
+        dict(estimator.landmark_covariances())  # type: ignore[attr-defined]
+        if covariances and hasattr(estimator, "landmark_covariances") else None
+    )
     association = None
     if any(k is not None and k < 0 for k in keys):  # it created landmarks itself: score it
         association = score_associations(true_ids, keys)
         landmarks = relabel_landmarks(landmarks, association)
         heights = relabel_landmarks(heights, association) if heights else heights
+        if landmark_covariances:
+            landmark_covariances = relabel_landmarks(landmark_covariances, association)
     run = EstimatorRun(
         name=estimator.name,
         online=online,
@@ -125,7 +144,11 @@ def run_estimator(
         total_time_s=float(step_times_s.sum() + finish_s),
         association=association,
         landmark_heights=heights or None,
-        online_covariances=covariances,
+        online_covariances=pose_covariances,
+        nis=np.array(nis_values) if with_nis else None,
+        nis_steps=np.array(nis_steps, dtype=int) if with_nis else None,
+        peak_memory_bytes=memory.peak_bytes,
+        landmark_covariances=landmark_covariances or None,
     )
     return run, estimator
 

@@ -87,6 +87,7 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import H, L, T, X
 
+from ekf.models import range_bearing_nis
 from ekf.slam import has_height  # the same rule as the EKF's for a usable height
 from slamio.errors import FgslamError
 from slamio.log import Header, Observation, Odometry, Step
@@ -799,6 +800,74 @@ class Isam2Smoother:
             J = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
             cov = J @ cov @ J.T
         return 0.5 * (cov + cov.T)
+
+    def landmark_covariances(self) -> dict[int, np.ndarray]:
+        """Landmark id → 2×2 marginal covariance of its (x, y) in the world frame
+        (``isam.marginalCovariance``; for a tag, the position block of its Pose2 marginal
+        rotated from the tag's frame). Flushes held steps."""
+        self._flush()
+        out = {}
+        for lid in self._landmark_ids:
+            if lid in self._tag_ids:
+                cov = np.asarray(self._isam.marginalCovariance(T(lid)), dtype=float)[:2, :2]
+                th = self._isam.calculateEstimatePose2(T(lid)).theta()
+                c, s = math.cos(th), math.sin(th)
+                rot = np.array([[c, -s], [s, c]])
+                out[lid] = rot @ cov @ rot.T
+            else:
+                out[lid] = np.asarray(self._isam.marginalCovariance(L(lid)), dtype=float)
+        return out
+
+    def predicted_nis(self, step: Step) -> list[float | None]:
+        """NIS of each observation of ``step`` against the smoother's prediction, before
+        the step is added (nothing is changed; call it before :meth:`step`).
+
+        The same question the EKF answers (:meth:`ekf.EkfSlam.predicted_nis`): the joint
+        marginal of the newest iSAM2 pose and the observed landmarks
+        (``isam.jointMarginalCovariance``), the pose carried through the odometry held since
+        and this step's (Σ ← A Σ Aᵀ + Σ_z, cross-covariance ← A Σ_pl, A = Ad(z⁻¹)), rotated
+        into world (x, y, θ), then :func:`ekf.models.range_bearing_nis`. None for an
+        observation without an id, of a landmark iSAM2 does not hold yet, or of a tag.
+        """
+        out: list[float | None] = [None] * len(step.observations)
+        if self._pose is None or step.odometry is None:
+            return out
+        wanted = [
+            (j, o) for j, o in enumerate(step.observations)
+            if o.landmark_id is not None and o.landmark_id not in self._tag_ids
+            and self._isam.valueExists(L(o.landmark_id))
+        ]
+        if not wanted:
+            return out
+        chain = self._since_chain
+        for increment, odo in self._since_isam[len(chain.links) :]:
+            chain.append(increment, odometry_noise_covariance(odo))
+        odo = step.odometry
+        increment = gtsam.Pose2(odo.dx_m, odo.dy_m, odo.dtheta_rad)
+        A_step = increment.inverse().AdjointMap()
+        moved_cov = A_step @ chain.covariance() @ A_step.T + odometry_noise_covariance(odo)
+        A = chain.compound.compose(increment).inverse().AdjointMap()
+        pose = self._pose.compose(increment)
+        c, s = math.cos(pose.theta()), math.sin(pose.theta())
+        to_world = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])  # body → world at the new pose
+        J = to_world @ A  # perturbation of the newest iSAM2 pose → world perturbation of the new pose
+        x_key = X(chain.start)
+        ids = list(dict.fromkeys(o.landmark_id for _, o in wanted))
+        joint = self._isam.jointMarginalCovariance(gtsam.KeyVector([x_key] + [L(i) for i in ids]))
+        pose_cov = J @ joint.at(x_key, x_key) @ J.T + to_world @ moved_cov @ to_world.T
+        mean = np.array([pose.x(), pose.y(), pose.theta()])
+        for j, o in wanted:
+            key = L(o.landmark_id)
+            cov = np.empty((5, 5))
+            cov[:3, :3] = pose_cov
+            cov[:3, 3:] = J @ joint.at(x_key, key)
+            cov[3:, :3] = cov[:3, 3:].T
+            cov[3:, 3:] = joint.at(key, key)
+            landmark = self._isam.calculateEstimatePoint2(key)
+            out[j] = range_bearing_nis(
+                mean, landmark, cov, o.range_m, o.bearing_rad, np.diag([o.sigma_range_m**2, o.sigma_bearing_rad**2])
+            )
+        return out
 
     def graph(self) -> gtsam.NonlinearFactorGraph:
         """The whole problem: every factor accepted into iSAM2 (pending observations
