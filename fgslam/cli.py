@@ -7,6 +7,7 @@ Every verb explains itself with ``--help``. Errors a user can cause print one li
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import shlex
 import sys
@@ -145,11 +146,11 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from fgslam.montecarlo import dask_executor, monte_carlo
 
     estimators = tuple(n.strip() for n in args.estimators.split(",") if n.strip())
-    executor = dask_executor(args.dask) if args.dask else None
-    result = monte_carlo(
-        args.scenario, args.runs, estimators=estimators, first_seed=args.seed, jobs=args.jobs,
-        landmarks=args.landmarks, laps=args.laps, executor=executor, progress=ProgressBar(),
-    )
+    with dask_executor(args.dask) if args.dask else contextlib.nullcontext() as executor:
+        result = monte_carlo(
+            args.scenario, args.runs, estimators=estimators, first_seed=args.seed, jobs=args.jobs,
+            landmarks=args.landmarks, laps=args.laps, executor=executor, progress=ProgressBar(),
+        )
     low, high = result.band
     steps = len(next(iter(result.average_nees.values())))
     print(f"Monte Carlo: {args.scenario}, {args.runs} runs (seeds {args.seed}-{args.seed + args.runs - 1}), "
@@ -199,7 +200,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     names = parse_estimator_names(args.estimators)
     log = _read(args.log)
     print(f"{args.log}: {_summary(log)}")
-    result = compare_log(log, names, progress=ProgressBar())
+    result = compare_log(log, names, progress=ProgressBar(), consistency=not args.no_consistency)
     metrics = compute_metrics(result.runs, result.reference, log_path=str(args.log))
     if log.truncated:
         metrics["log_truncated"] = log.truncated
@@ -308,6 +309,9 @@ def build_parser() -> argparse.ArgumentParser:
         "names below); the batch solve always runs from isam2's result",
     )
     run.add_argument("--no-report", action="store_true", help="skip report.html and the PNG figures")
+    run.add_argument("--no-consistency", action="store_true",
+                     help="skip NEES, NIS and covariance ellipses (their work runs between the timed steps "
+                          "but can leave iSAM2 with cached marginals; use this for timings)")
     run.set_defaults(func=cmd_run)
 
     imp = verbs.add_parser(

@@ -14,6 +14,7 @@ each run is an independent, picklable task (:func:`run_one`).
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -75,15 +76,28 @@ def run_one(scenario: str, seed: int, estimators: tuple[str, ...], landmarks: in
     return RunResult(int(seed), out_nees, final, online, times)
 
 
-def dask_executor(address: str):
-    """The executor of a Dask distributed cluster at ``address`` (the optional ``dask`` extra)."""
+@contextlib.contextmanager
+def dask_executor(address: str, timeout_s: float = 20.0):
+    """``with dask_executor(address) as executor:`` the ``concurrent.futures`` executor of
+    the Dask distributed cluster at ``address`` (the optional ``dask`` extra); the client
+    is closed on the way out."""
     try:
         from dask.distributed import Client
     except ImportError:
         raise FgslamError(
             "--dask needs the optional dask extra: pip install 'fgslam[dask]' (or dask[distributed])"
         ) from None
-    return Client(address).get_executor()
+    try:
+        client = Client(address, timeout=timeout_s)
+    except OSError as error:
+        raise FgslamError(
+            f"cannot reach the Dask scheduler at {address} ({error}); start one with "
+            "`dask scheduler` and `dask worker ADDRESS`, or leave out --dask for a local process pool"
+        ) from None
+    try:
+        yield client.get_executor()
+    finally:
+        client.close()
 
 
 def monte_carlo(

@@ -1,4 +1,4 @@
-"""The per-run report: two figures and one self-contained HTML page.
+"""The per-run report: six figures and one self-contained HTML page.
 
 This is the only module of the project that imports matplotlib. It uses matplotlib's
 object-oriented API with the Agg canvas (``Figure`` + ``FigureCanvasAgg``) instead of
@@ -8,11 +8,17 @@ they are freed when the function returns).
 
 :func:`write_report` writes into a directory:
 
-* ``trajectories.png`` — each estimator's final trajectory and landmarks over the reference;
-* ``position_error.png`` — position error against time (final solid, online dashed);
-* ``report.html`` — one file that opens offline: inline CSS, the two PNGs embedded as
-  ``data:`` URIs, the metrics table (the same strings as :func:`fgslam.compare.format_table`)
-  and what every column means. It contains no links, scripts or external resources.
+* ``trajectories.png`` — each estimator's final trajectory and landmarks over the reference,
+  with 95 % covariance ellipses;
+* ``position_error.png`` and ``heading_error.png`` — errors against time (final solid,
+  online dashed);
+* ``nees.png`` — NEES of the online pose with its χ² band (ground truth only);
+* ``nis.png`` — NIS of every observation with its χ² band;
+* ``step_time.png`` — time per step, log scale;
+* ``report.html`` — one file that opens offline: inline CSS, the PNGs embedded as ``data:``
+  URIs, a table of the figures, the metrics table (the same strings as
+  :func:`fgslam.compare.format_table`) and what every column means. Its only links point
+  inside the page; it has no scripts or external resources.
 
 What is drawn is what was measured: each estimate is moved by the same SE(2) alignment
 :func:`fgslam.compare.compute_metrics` used (the identity when it shares its first pose
@@ -25,6 +31,7 @@ import base64
 import html
 import json
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -33,25 +40,53 @@ from matplotlib.figure import Figure
 
 from fgslam.compare import (
     COLUMN_MEANINGS,
+    NIS_DOF,
     REFERENCE_DESCRIPTIONS,
     ComparisonError,
     EstimatorRun,
     Reference,
     apply_se2,
     estimator_alignment,
+    heading_errors_rad,
     nees,
     nees_band,
+    nis_summary,
     position_errors_m,
     table_rows,
 )
 
-__all__ = ["write_report", "plot_trajectories", "plot_position_errors", "plot_nees", "plot_step_times"]
+__all__ = [
+    "write_report",
+    "plot_trajectories",
+    "plot_position_errors",
+    "plot_heading_errors",
+    "plot_nees",
+    "plot_nis",
+    "plot_step_times",
+    "ellipse_xy",
+    "write_monte_carlo_figures",
+]
 
 TRAJECTORIES_PNG = "trajectories.png"
 POSITION_ERROR_PNG = "position_error.png"
 REPORT_HTML = "report.html"
 NEES_PNG = "nees.png"
+NIS_PNG = "nis.png"
+HEADING_ERROR_PNG = "heading_error.png"
 STEP_TIME_PNG = "step_time.png"
+
+
+@dataclass(frozen=True)
+class _Figure:
+    """One figure of the report: its anchor, title, PNG name, one-line description, the
+    written file (None when there was nothing to draw) and what to say then."""
+
+    anchor: str
+    title: str
+    file: str
+    what: str
+    path: Path | None
+    missing: str
 
 _FIGSIZE_IN = (9.0, 6.0)
 _DPI = 100
@@ -79,6 +114,35 @@ def _aligned_final(run: EstimatorRun, reference: Reference) -> tuple[np.ndarray,
     return (apply_se2(final, rot, trans) if len(final) else final), aligned, rot, trans
 
 
+#: Poses per estimator that get a covariance ellipse on the trajectory plot.
+_ELLIPSES_PER_RUN = 12
+
+
+def ellipse_xy(centre_xy, covariance_xy, probability: float = 0.95, points: int = 64) -> np.ndarray:
+    """``(points, 2)`` outline of the ellipse that holds ``probability`` of a 2-D Gaussian.
+
+    The boundary is ``{x : (x − c)ᵀ Σ⁻¹ (x − c) = χ²⁻¹(probability; 2)}`` (5.99 for 95 %):
+    the unit circle scaled by ``√(χ² λᵢ)`` along the eigenvectors of Σ.
+    """
+    from scipy.stats import chi2
+
+    values, vectors = np.linalg.eigh(0.5 * (np.asarray(covariance_xy, dtype=float) + np.asarray(covariance_xy).T))
+    radii = np.sqrt(chi2.ppf(probability, 2) * np.clip(values, 0.0, None))
+    angle = np.linspace(0.0, 2.0 * np.pi, points)
+    circle = np.stack([np.cos(angle), np.sin(angle)])
+    return (vectors @ (radii[:, None] * circle)).T + np.asarray(centre_xy, dtype=float)[:2]
+
+
+def _draw_ellipses(ax, centres, covariances, rot: float, colour: str, label: str | None) -> None:
+    """Draw 95 % ellipses (covariances rotated by the run's alignment ``rot``)."""
+    c, s = np.cos(rot), np.sin(rot)
+    R = np.array([[c, -s], [s, c]])
+    for j, (centre, cov) in enumerate(zip(centres, covariances)):
+        outline = ellipse_xy(centre, R @ np.asarray(cov)[:2, :2] @ R.T)
+        ax.plot(outline[:, 0], outline[:, 1], color=colour, lw=0.8, alpha=0.8,
+                label=label if j == 0 else None, zorder=2)
+
+
 def _landmark_array(landmarks: dict | None) -> np.ndarray:
     if not landmarks:
         return np.zeros((0, 2))
@@ -95,7 +159,9 @@ def plot_trajectories(
 ) -> Path:
     """Draw every estimator's final trajectory and map over the reference; save a PNG.
 
-    Equal axis scale in metres. The reference is the thick grey line with black ``×``
+    Equal axis scale in metres. Where the run stated covariances, 95 % ellipses (χ²(2)
+    contour of the x–y block) are drawn around 12 evenly spaced online poses and around
+    every landmark (its final marginal). The reference is the thick grey line with black ``×``
     landmarks; each estimator has its own colour and landmark marker (hollow). The start is
     a gold star, every trajectory's end a square in its colour. ``truth_landmarks``
     (e.g. the simulator's true map while the reference is the smoothed solution) are drawn
@@ -127,6 +193,15 @@ def plot_trajectories(
             lm = apply_se2(lm, rot, trans)
             ax.scatter(lm[:, 0], lm[:, 1], marker=marker, s=36, facecolors="none", edgecolors=colour,
                        lw=1.1, label=f"{run.name} landmarks", zorder=3)
+        if run.online_covariances is not None and run.online is not None and len(run.online):
+            online = apply_se2(np.asarray(run.online, dtype=float).reshape(-1, 3), rot, trans)
+            picks = np.unique(np.linspace(0, len(online) - 1, _ELLIPSES_PER_RUN).round().astype(int))
+            _draw_ellipses(ax, online[picks, :2], np.asarray(run.online_covariances)[picks], rot, colour,
+                           f"{run.name} 95 % pose ellipse (online)")
+        if run.landmark_covariances:
+            ids = [k for k in sorted(run.landmarks) if k in run.landmark_covariances]
+            centres = apply_se2(np.array([run.landmarks[k] for k in ids], dtype=float).reshape(-1, 2), rot, trans)
+            _draw_ellipses(ax, centres, [run.landmark_covariances[k] for k in ids], rot, colour, None)
 
     if len(ref):
         ax.plot(ref[0, 0], ref[0, 1], marker="*", ms=16, color="gold", mec="black", ls="none",
@@ -220,6 +295,74 @@ def plot_position_errors(
     return out
 
 
+def plot_heading_errors(path, runs: list[EstimatorRun], reference: Reference, stamps_s) -> Path:
+    """Heading error (degrees, wrapped) against time since the start; save a PNG.
+
+    The same alignment and line styles as :func:`plot_position_errors`: final solid,
+    online dashed (when it differs from the final estimate).
+    """
+    ref = np.asarray(reference.trajectory, dtype=float).reshape(-1, 3)
+    t = np.asarray(stamps_s, dtype=float) - float(stamps_s[0])
+    fig = _new_figure()
+    ax = fig.add_subplot()
+    for i, run in enumerate(runs):
+        colour, _ = _style(i)
+        final, _, rot, trans = _aligned_final(run, reference)
+        m = len(final)
+        if not m:
+            continue
+        err = np.degrees(heading_errors_rad(final, ref[:m]))
+        rms = float(np.sqrt(np.mean(err**2)))
+        ax.plot(t[:m], err, color=colour, lw=1.2, label=f"{run.name} final (RMS {rms:.2f}°)")
+        if run.online is not None and len(run.online):
+            online = apply_se2(np.asarray(run.online, dtype=float).reshape(-1, 3), rot, trans)
+            if not (online.shape == final.shape and np.allclose(online, final)):
+                k = len(online)
+                ax.plot(t[:k], np.degrees(heading_errors_rad(online, ref[:k])), color=colour, ls="--", lw=1.0,
+                        label=f"{run.name} online")
+    ax.axhline(0.0, color="0.3", lw=0.6)
+    ax.set_xlabel("time since start [s]")
+    ax.set_ylabel("heading error [deg]  (estimate − reference, wrapped)")
+    ax.set_title("Heading error against the reference\n(solid: final estimate, dashed: online estimate)",
+                 fontsize=11)
+    ax.grid(True, lw=0.5, alpha=0.5)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
+    out = Path(path)
+    fig.savefig(out, dpi=_DPI, metadata={"Software": None}, pil_kwargs={"optimize": True})
+    return out
+
+
+def plot_nis(path, runs: list[EstimatorRun], stamps_s) -> Path | None:
+    """NIS of every observation against time, with the 95 % χ²(2) band; a PNG (None when
+    no estimator recorded NIS). Needs no reference: it is the estimator's own surprise."""
+    t = np.asarray(stamps_s, dtype=float) - float(stamps_s[0])
+    fig = _new_figure()
+    ax = fig.add_subplot()
+    drawn = False
+    for i, run in enumerate(runs):
+        if run.nis is None or run.nis_steps is None or not len(run.nis):
+            continue
+        mean, inside, count = nis_summary(run.nis)
+        ax.plot(t[np.asarray(run.nis_steps, dtype=int)], np.maximum(run.nis, 1e-6), ".", ms=2.0,
+                color=_style(i)[0], label=f"{run.name}: {count} obs., mean {mean:.2f}, {100 * inside:.1f} % inside")
+        drawn = True
+    if not drawn:
+        return None
+    low, high = nees_band(NIS_DOF)
+    ax.axhline(low, color="k", ls="--", lw=0.8, label=f"95 % band [{low:.3f}, {high:.2f}]")
+    ax.axhline(high, color="k", ls="--", lw=0.8)
+    ax.axhline(NIS_DOF, color="0.5", ls=":", lw=0.8, label="expected mean 2")
+    ax.set_yscale("log")
+    ax.set_xlabel("time since start [s]")
+    ax.set_ylabel("NIS of the observation (range, bearing: 2 DoF)")
+    ax.set_title("Consistency: NIS of each observation against the prediction before its step", fontsize=11)
+    ax.grid(True, which="both", lw=0.5, alpha=0.5)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False, markerscale=4)
+    out = Path(path)
+    fig.savefig(out, dpi=_DPI, metadata={"Software": None}, pil_kwargs={"optimize": True})
+    return out
+
+
 def plot_nees(path, runs: list[EstimatorRun], reference: Reference, stamps_s) -> Path | None:
     """NEES of each estimator's online pose against time, with the 95 % χ²(3) band; a PNG.
 
@@ -293,6 +436,7 @@ table.metrics th, table.metrics td { border: 1px solid #ccc; padding: 0.3em 0.6e
 table.metrics th { background: #f2f2f2; }
 table.metrics td { text-align: right; font-family: ui-monospace, Menlo, Consolas, monospace; }
 table.metrics td:first-child { text-align: left; font-weight: 600; }
+table.figures td { text-align: left; font-family: inherit; }
 dl dt { font-weight: 600; font-family: ui-monospace, Menlo, Consolas, monospace; }
 dl dd { margin: 0 0 0.5em 1.5em; }
 img { max-width: 100%; height: auto; border: 1px solid #eee; }
@@ -329,8 +473,9 @@ def write_report(
     truth_landmarks: dict | None = None,
     title: str = "fgslam: estimator comparison",
 ) -> Path:
-    """Write ``trajectories.png``, ``position_error.png``, ``nees.png`` (with ground truth),
-    ``step_time.png`` and ``report.html`` into ``out_dir``.
+    """Write the figures (see the module docstring; ``nees.png`` only with ground truth,
+    ``nis.png`` only when an estimator predicted its observations) and ``report.html``
+    into ``out_dir``.
 
     Args:
         out_dir: directory to write into (created if missing; files are overwritten).
@@ -346,22 +491,30 @@ def write_report(
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    traj_png = plot_trajectories(out / TRAJECTORIES_PNG, runs, reference, truth_landmarks=truth_landmarks,
-                                 title=title)
-    err_png = plot_position_errors(out / POSITION_ERROR_PNG, runs, reference, stamps_s)
-    nees_png = plot_nees(out / NEES_PNG, runs, reference, stamps_s)
-    time_png = plot_step_times(out / STEP_TIME_PNG, runs)
-    nees_section = (
-        f'<img src="{_data_uri(nees_png)}"\n alt="NEES of each estimator\'s online pose against time, '
-        f'log scale, with the 95 % chi-square band">'
-        if nees_png is not None
-        else '<p class="note">No NEES: it needs the ground truth and an estimator that states a covariance.</p>'
-    )
-    time_section = (
-        f'<img src="{_data_uri(time_png)}"\n alt="Wall-clock time of every step in milliseconds, log scale">'
-        if time_png is not None
-        else '<p class="note">No per-step times.</p>'
-    )
+    figures = [
+        _Figure("fig-trajectories", "Trajectories and maps", TRAJECTORIES_PNG,
+                "every estimator's final trajectory and landmarks over the reference, with 95 % "
+                "covariance ellipses (online poses, final landmarks)",
+                plot_trajectories(out / TRAJECTORIES_PNG, runs, reference, truth_landmarks=truth_landmarks,
+                                  title=title), ""),
+        _Figure("fig-position-error", "Position error over time", POSITION_ERROR_PNG,
+                "position error in metres against time: final estimate solid, online dashed",
+                plot_position_errors(out / POSITION_ERROR_PNG, runs, reference, stamps_s), ""),
+        _Figure("fig-heading-error", "Heading error over time", HEADING_ERROR_PNG,
+                "heading error in degrees against time: final estimate solid, online dashed",
+                plot_heading_errors(out / HEADING_ERROR_PNG, runs, reference, stamps_s), ""),
+        _Figure("fig-nees", "Consistency: NEES", NEES_PNG,
+                "NEES of the online pose against time with the 95 % chi-square(3) band",
+                plot_nees(out / NEES_PNG, runs, reference, stamps_s),
+                "No NEES: it needs the ground truth and an estimator that states a covariance."),
+        _Figure("fig-nis", "Consistency: NIS", NIS_PNG,
+                "NIS of each observation against time with the 95 % chi-square(2) band",
+                plot_nis(out / NIS_PNG, runs, stamps_s),
+                "No NIS: no estimator predicted its observations."),
+        _Figure("fig-step-time", "Time per step", STEP_TIME_PNG,
+                "wall-clock time of every step in milliseconds, log scale",
+                plot_step_times(out / STEP_TIME_PNG, runs), "No per-step times."),
+    ]
 
     e = html.escape
     kind = metrics.get("reference")
@@ -369,6 +522,17 @@ def write_report(
     shown, _, _ = table_rows(metrics)
     columns = "\n".join(f"<dt>{e(k)}</dt><dd>{e(v)}</dd>" for k, v in COLUMN_MEANINGS.items() if k in shown)
     metrics_json = json.dumps(metrics, indent=2)
+    figure_rows = "\n".join(
+        f'<tr><td><a href="#{f.anchor}">{e(f.title)}</a></td><td><code>{e(f.file)}</code></td>'
+        f"<td>{e(f.what) if f.path is not None else e(f.missing)}</td></tr>"
+        for f in figures
+    )
+    sections = "\n\n".join(
+        f'<h2 id="{f.anchor}">{e(f.title)}</h2>\n'
+        + (f'<img src="{_data_uri(f.path)}"\n alt="{e(f.what)}">' if f.path is not None
+           else f'<p class="note">{e(f.missing)}</p>')
+        for f in figures
+    )
     page = f"""<!DOCTYPE html>
 <html lang="en">
 <head>
@@ -396,21 +560,18 @@ transform (rotation and translation, never a reflection); its ATE is marked with
 wall-clock on the machine that ran the comparison. - means not applicable (a one-shot batch
 solve has no online estimate and no per-step time).</p>
 
-<h2>Trajectories and maps</h2>
-<img src="{_data_uri(traj_png)}"
- alt="Final trajectories and landmark estimates of each estimator over the reference, x and y in metres">
+<h2>Figures</h2>
+<table class="metrics figures">
+<thead><tr><th>figure</th><th>file</th><th>what it shows</th></tr></thead>
+<tbody>
+{figure_rows}
+</tbody>
+</table>
+<p class="note">Each figure is embedded in this page and also written as a PNG next to it.</p>
 
-<h2>Position error over time</h2>
-<img src="{_data_uri(err_png)}"
- alt="Position error in metres against time since start in seconds, final solid and online dashed">
+{sections}
 
-<h2>Consistency (NEES)</h2>
-{nees_section}
-
-<h2>Time per step</h2>
-{time_section}
-
-<h2>metrics.json</h2>
+<h2 id="metrics-json">metrics.json</h2>
 <pre>{e(metrics_json)}</pre>
 </body>
 </html>

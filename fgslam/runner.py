@@ -173,20 +173,25 @@ def truth_reference(log: RunLog) -> Reference | None:
 
 
 def compare_log(
-    log: RunLog, estimator_names: Sequence[str] = DEFAULT_ESTIMATORS, progress: Progress | None = None
+    log: RunLog,
+    estimator_names: Sequence[str] = DEFAULT_ESTIMATORS,
+    progress: Progress | None = None,
+    *,
+    consistency: bool = True,
 ) -> Comparison:
     """Run the named estimators and the batch solve on ``log``; choose the reference.
 
     The reference is the log's ground truth when every pose has one, otherwise the batch
     Levenberg–Marquardt solution started from iSAM2's result (the "smoothed ground truth"):
     from plain ``isam2`` when it ran, else from the first robust iSAM2 (whose graph, and so
-    whose batch solve, is robust too).
+    whose batch solve, is robust too). ``consistency`` is :func:`run_estimator`'s
+    ``covariances`` (NEES, NIS and covariance ellipses).
     """
     steps = log.steps()
     runs: list[EstimatorRun] = []
     smoother: Isam2Smoother | None = None
     for name in estimator_names:
-        run, estimator = run_estimator(ESTIMATORS[name](log.header), steps, progress)
+        run, estimator = run_estimator(ESTIMATORS[name](log.header), steps, progress, covariances=consistency)
         runs.append(run)
         if isinstance(estimator, Isam2Smoother) and (smoother is None or name == "isam2"):
             smoother = estimator

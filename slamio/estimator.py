@@ -53,3 +53,23 @@ class AssociatingEstimator(Estimator, Protocol):
         """For each observation of the last step, in order: the landmark key it was used
         as (a new landmark's key when it created one), or None when it was not used
         (rejected by a gate, or ignored)."""
+
+
+class ConsistencyReporting(Estimator, Protocol):
+    """Optional: an estimator that states its uncertainty, for the consistency checks.
+
+    The runner calls these outside the timed region when the estimator has them; each
+    method is optional on its own (``hasattr``).
+    """
+
+    def current_covariance(self) -> np.ndarray:
+        """3×3 covariance of :meth:`current_pose` over world (x_m, y_m, theta_rad), for NEES."""
+
+    def predicted_nis(self, step: Step) -> list[float | None]:
+        """Called *before* ``step(step)``, changing nothing: for each observation of
+        ``step``, its NIS ``νᵀ S⁻¹ ν`` over (range, bearing) against the prediction from the
+        estimate so far moved by ``step.odometry`` (S includes the pose-landmark
+        cross-covariance), or None when the landmark is not in the map yet."""
+
+    def landmark_covariances(self) -> dict[int, np.ndarray]:
+        """Landmark key → 2×2 covariance of its final (x_m, y_m), for the report's ellipses."""

@@ -192,3 +192,15 @@ def test_isam2_reports_landmark_heights(tmp_path, capsys):
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["isam2"]["map_height_rmse_m"] == pytest.approx(metrics["ekf"]["map_height_rmse_m"], rel=1e-6)
     assert metrics["isam2"]["map_height_rmse_m"] < 0.01
+
+
+def test_run_without_consistency_has_no_nees_nis_or_covariance(tmp_path, capsys):
+    from fgslam.cli import main as cli_main
+
+    out = tmp_path / "plain"
+    assert cli_main(["run", "data/arena_square.jsonl", "--out", str(out), "--no-consistency", "--no-report"]) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    for name in ("ekf", "isam2"):
+        assert metrics[name]["nees_mean"] is None and metrics[name]["nis_mean"] is None
+        assert metrics[name]["peak_memory_mb"] is not None
+    assert "NIS in %" not in capsys.readouterr().out

@@ -54,9 +54,36 @@ def test_dask_without_the_extra_says_how_to_install_it(monkeypatch):
 
     monkeypatch.setattr(builtins, "__import__", no_dask)
     with pytest.raises(FgslamError, match=r"fgslam\[dask\]"):
-        dask_executor("tcp://127.0.0.1:8786")
+        with dask_executor("tcp://127.0.0.1:8786"):
+            pass
 
 
 def test_an_estimator_without_covariance_is_refused():
     with pytest.raises(FgslamError, match="no covariance|unknown"):
         monte_carlo("arena-square", 1, estimators=("batch",), laps=1, jobs=1)
+
+
+def test_fgslam_bench_on_a_real_dask_cluster(tmp_path, capsys):
+    """``--dask ADDRESS`` through a real scheduler and worker on loopback TCP (a
+    LocalCluster in this process); seeded runs give the same figures as the process pool."""
+    distributed = pytest.importorskip("distributed", reason="the dask extra (in the dev extras) is missing")
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=2, processes=False, protocol="tcp", dashboard_address=None
+    ) as cluster:
+        address = cluster.scheduler_address
+        assert address.startswith("tcp://")
+        out = tmp_path / "mc"
+        code = main(["bench", "arena-square", "--runs", "2", "--laps", "1", "--seed", "5", "--dask", address,
+                     "--out", str(out)])
+    assert code == 0
+    assert "2 runs (seeds 5-6)" in capsys.readouterr().out
+    summary = json.loads((out / "montecarlo.json").read_text())
+    for seed, ate in zip((5, 6), summary["estimators"]["ekf"]["ate_final_m"]):
+        assert ate == pytest.approx(run_one("arena-square", seed, ("ekf",), laps=1).ate_final_m["ekf"], rel=1e-12)
+
+
+def test_dask_scheduler_that_is_not_there_is_a_clear_error():
+    pytest.importorskip("distributed", reason="the dask extra (in the dev extras) is missing")
+    with pytest.raises(FgslamError, match="cannot reach the Dask scheduler at tcp://127.0.0.1:9"):
+        with dask_executor("tcp://127.0.0.1:9", timeout_s=1.0):
+            pass
