@@ -47,7 +47,7 @@ class DeadReckoning:
         for observation in step.observations:
             if observation.landmark_id is None:
                 self.skipped_unknown_id += 1
-            elif observation.landmark_id not in self._landmarks:
+            elif observation.landmark_id not in self._landmarks and not observation.range_only:
                 self._landmarks[observation.landmark_id] = landmark_from_range_bearing(
                     self._pose, observation.range_m, observation.bearing_rad
                 )

@@ -433,7 +433,7 @@ class EkfS000:
         self._associations = []
         for observation in step.observations:
             lid = observation.landmark_id
-            if lid is None or lid in used:
+            if lid is None or lid in used or observation.range_only:  # the paper has no range-only landmarks
                 self._associations.append(None)
             else:
                 used[lid] = observation

@@ -401,8 +401,9 @@ class EkfS001:
         if step.odometry is not None:
             self._predict(step.odometry)
         self._associations = []
-        for observation in step.observations:
-            self._associations.append(self._observe(observation) if self.correction else None)
+        for observation in step.observations:  # the paper has no range-only landmarks: skip them
+            use = self.correction and not observation.range_only
+            self._associations.append(self._observe(observation) if use else None)
         self._trajectory.append(self.current_pose())
 
     def current_pose(self) -> tuple[float, float, float]:

@@ -29,6 +29,14 @@ One step (:meth:`EkfSlam.step`)
        become new landmarks keyed −1, −2, …, and the rest are rejected and counted.
        With ``association=None`` they are skipped and counted instead.
 
+Range-only observations (no bearing: ranging radios, Plaza)
+    A landmark in the state gets a scalar update with ``H = [−e/r, 0 | e/r]``. A landmark
+    not yet in it waits: its ranges are buffered with the robot position estimated at each,
+    until :func:`ekf.range_only.try_initialise` (enough ranges, a small and unambiguous
+    trilateration) places it; it then enters with the trilateration's covariance plus the
+    robot's position covariance and no cross-covariance (an approximation, see
+    :meth:`EkfSlam._buffer_range`).
+
 Observation model with a height
     ``z = (range, bearing, height)``, ``height = h + n_h``: a direct measurement of the
     landmark's h, so ``H`` has one more row ``[0 0 0 | 0 0 1]`` and up to 6 non-zero
@@ -67,6 +75,7 @@ from ekf.models import (
     range_bearing_jacobians,
     range_bearing_nis,
 )
+from ekf.range_only import DelayedInitRule, try_initialise
 from slamio.geometry import wrap_angle
 from slamio.log import Header, Observation, Step
 
@@ -390,6 +399,11 @@ class EkfSlam:
         self.rejected_observations = 0
         self.jcbb_nodes_max = 0
         self.jcbb_truncated = 0
+        # range-only landmarks waiting for delayed initialisation (see ekf.range_only)
+        self.range_rule = DelayedInitRule()
+        self._range_buffer: dict[int, list[tuple[float, float, float, float]]] = {}  # id → (x, y, r, σ)
+        self.range_updates = 0
+        self.range_landmarks_initialised = 0
 
     # ------------------------------------------------------------------ protocol
 
@@ -401,7 +415,15 @@ class EkfSlam:
         associations: list[int | None] = [None] * len(step.observations)
         unknown: list[int] = []
         for k, observation in enumerate(step.observations):
-            if observation.landmark_id is None:
+            if observation.range_only:
+                if observation.landmark_id is None:  # a range alone cannot be associated
+                    self.skipped_unknown_id += 1
+                elif observation.landmark_id in self._slot:
+                    self._update_range(observation.landmark_id, observation)
+                    associations[k] = observation.landmark_id
+                elif self._buffer_range(observation.landmark_id, observation):
+                    associations[k] = observation.landmark_id
+            elif observation.landmark_id is None:
                 if self.association is None:
                     self.skipped_unknown_id += 1
                 else:
@@ -485,7 +507,7 @@ class EkfSlam:
         out: list[float | None] = []
         for observation in step.observations:
             i = self._slot.get(observation.landmark_id) if observation.landmark_id is not None else None
-            if i is None:
+            if i is None or observation.range_only:
                 out.append(None)
                 continue
             joint = np.empty((5, 5))
@@ -592,6 +614,57 @@ class EkfSlam:
         mean[2] = wrap_angle(float(mean[2]))
         add_low_rank_in_place(self._cov, n, *joseph_factors(P, cols, H_cols, K, R))
         self.updates += 1
+
+    def _update_range(self, key: int, observation: Observation) -> None:
+        """One scalar EKF update with a range: ``H = [−e/r, 0 | e/r]`` over (x, y, θ, lx, ly)."""
+        n = self._dim
+        i = self._slot[key]
+        mean = self._mean[:n]
+        P = self._cov[:n, :n]
+        pose, landmark = mean[:ROBOT_DIM], mean[i : i + 2]
+        predicted_range, _ = range_bearing(pose, landmark)
+        H_pose, H_landmark = range_bearing_jacobians(pose, landmark)
+        cols = np.array([0, 1, 2, i, i + 1])
+        H_cols = np.hstack([H_pose[:1], H_landmark[:1]])
+        R = np.array([[observation.sigma_range_m**2]])
+        K, _, _ = kalman_gain(P, cols, H_cols, R)
+        mean += K @ np.array([observation.range_m - predicted_range])
+        mean[2] = wrap_angle(float(mean[2]))
+        add_low_rank_in_place(self._cov, n, *joseph_factors(P, cols, H_cols, K, R))
+        self.range_updates += 1
+
+    def _buffer_range(self, key: int, observation: Observation) -> bool:
+        """Keep a range to a landmark not in the state; add the landmark once its ranges pin
+        it down (:func:`ekf.range_only.try_initialise`). True when it was added.
+
+        The new landmark's mean is the trilateration from the robot positions estimated at
+        the time of each range; its covariance is the trilateration's plus the current robot
+        position covariance, with no cross-covariance (an approximation: the buffered
+        ranges' link to the robot's past is not tracked). The buffered ranges are not
+        applied again: their information is in that covariance.
+        """
+        buffer = self._range_buffer.setdefault(key, [])
+        buffer.append((float(self._mean[0]), float(self._mean[1]), observation.range_m, observation.sigma_range_m))
+        del buffer[: -self.range_rule.max_buffer]
+        data = np.array(buffer)
+        fit = try_initialise(data[:, :2], data[:, 2], data[:, 3], self.range_rule)
+        if fit is None:
+            return False
+        n = self._dim
+        self._reserve(n + LANDMARK_DIM)
+        self._mean[n : n + 2] = fit.xy
+        covariance = fit.covariance + self._cov[:2, :2]
+        augment_covariance(self._cov, n, np.zeros((LANDMARK_DIM, ROBOT_DIM)), np.eye(LANDMARK_DIM), covariance)
+        self._slot[key] = n
+        self._has_height[key] = False
+        self._keys.append(key)
+        self._x_index.append(n)
+        self._h_index.append(-1)
+        self._dim = n + LANDMARK_DIM
+        del self._range_buffer[key]
+        self.landmarks_added += 1
+        self.range_landmarks_initialised += 1
+        return True
 
     def _reserve(self, needed: int) -> None:
         """Make room for a state of size ``needed``, doubling the capacity when it is full."""

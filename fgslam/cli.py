@@ -121,10 +121,21 @@ def cmd_sim(args: argparse.Namespace) -> int:
 
 
 def cmd_import(args: argparse.Namespace) -> int:
-    from slamio.datasets import import_victoria_park
+    if len(args.paths) > 2:
+        raise FgslamError(f"import takes [SOURCE] OUT, got {len(args.paths)} paths: {' '.join(args.paths)}")
+    source = args.paths[0] if len(args.paths) == 2 else args.source
+    out = args.paths[-1]
+    if args.dataset == "victoria-park":
+        from slamio.datasets import import_victoria_park
 
-    header, records = import_victoria_park(args.source)
-    return _write(args.out, header, records)
+        header, records = import_victoria_park(source)
+    else:  # plaza1, plaza2
+        from slamio.datasets.plaza import import_plaza
+
+        header, records = import_plaza(
+            args.dataset, source, range_sigma_m=args.range_sigma, range_bias_m=args.range_bias
+        )
+    return _write(out, header, records)
 
 
 def cmd_check(args: argparse.Namespace) -> int:
@@ -323,17 +334,27 @@ def build_parser() -> argparse.ArgumentParser:
             "datasets:\n"
             "  victoria-park  the Victoria Park car run shipped inside the gtsam wheel (6 969 poses,\n"
             "                 151 trees; no ground truth, so `fgslam run` compares against the\n"
-            "                 smoothed solution). See docs/datasets.md for what is converted and how."
+            "                 smoothed solution).\n"
+            "  plaza1, plaza2 CMU's ranging-radio runs shipped inside the gtsam wheel: range-only\n"
+            "                 beacons, GPS ground truth (`fgslam run` reports ATE against it).\n"
+            "See docs/datasets.md for what is converted and how.\n\n"
+            "usage: fgslam import DATASET [SOURCE] OUT   (SOURCE defaults to the gtsam wheel's copy)"
         ),
     )
-    imp.add_argument("dataset", choices=["victoria-park"], metavar="DATASET", help="victoria-park")
-    imp.add_argument("out", metavar="OUT", help="run log to write (.jsonl)")
+    imp.add_argument("dataset", choices=["victoria-park", "plaza1", "plaza2"], metavar="DATASET",
+                     help="victoria-park, plaza1 or plaza2")
+    imp.add_argument("paths", nargs="+", metavar="[SOURCE] OUT",
+                     help="the dataset file or folder (optional), then the run log to write (.jsonl)")
     imp.add_argument(
         "--source",
         default=None,
-        metavar="FILE",
-        help="the dataset file (default: victoria_park.txt from the installed gtsam wheel)",
+        metavar="PATH",
+        help="the dataset file (Victoria Park) or folder (Plaza); default: the installed gtsam wheel's copy",
     )
+    imp.add_argument("--range-sigma", type=float, default=1.5, metavar="M",
+                     help="Plaza: standard deviation given to every range (default 1.5 m)")
+    imp.add_argument("--range-bias", type=float, default=0.0, metavar="M",
+                     help="Plaza: subtract this from every range (default 0; GPS says the radios read ~2.8 m long)")
     imp.set_defaults(func=cmd_import)
 
     validate = verbs.add_parser(

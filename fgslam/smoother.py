@@ -88,6 +88,7 @@ import numpy as np
 from gtsam.symbol_shorthand import H, L, T, X
 
 from ekf.models import range_bearing_nis
+from ekf.range_only import DelayedInitRule, try_initialise
 from ekf.slam import has_height  # the same rule as the EKF's for a usable height
 from slamio.errors import FgslamError
 from slamio.log import Header, Observation, Odometry, Step
@@ -548,6 +549,12 @@ class Isam2Smoother:
         self._held_core = gtsam.NonlinearFactorGraph()
         self._held_values = gtsam.Values()
         self._held_entries: list[_PendingObservation] = []
+        self._held_ranges: list[_PendingObservation] = []  # range factors of initialised landmarks
+        # range-only landmarks (see ekf.range_only): buffered ranges until they pin the landmark
+        # down, then every one becomes a RangeFactor2D with the trilateration as the seed
+        self.range_rule = DelayedInitRule()
+        self._range_buffer: dict[int, list[tuple[int, gtsam.Pose2, Observation]]] = {}
+        self._range_seed: dict[int, np.ndarray] = {}  # initialised range-only landmark → trilateration
         self._held_steps = 0
         self._held_observed = False
         # Keyframes (see ``keyframes``): pose indices with a variable X(k), the odometry
@@ -621,10 +628,45 @@ class Isam2Smoother:
             if obs.landmark_id is None:
                 self.skipped_unknown_observations += 1
                 continue
+            if obs.range_only:
+                self._add_range(k, seed, obs)
+                self._held_observed = True
+                continue
             if has_height(obs):
                 self._add_height(obs)
             self._held_entries.append(self._observation_entry(k, seed, obs))
             self._held_observed = True
+
+    def _range_entry(self, k: int, seed: gtsam.Pose2, obs: Observation, guess: np.ndarray) -> _PendingObservation:
+        noise = self._noise_cache.get(("r", obs.sigma_range_m))
+        if noise is None:
+            noise = self._noise_cache[("r", obs.sigma_range_m)] = gtsam.noiseModel.Isotropic.Sigma(1, obs.sigma_range_m)
+        factor = gtsam.RangeFactor2D(X(k), L(obs.landmark_id), obs.range_m, noise)
+        return _PendingObservation(obs.landmark_id, L(obs.landmark_id), k, factor, factor, guess, seed)
+
+    def _add_range(self, k: int, seed: gtsam.Pose2, obs: Observation) -> None:
+        """A range-only observation: a ``RangeFactor2D`` once its landmark is placed;
+        before that it is buffered until :func:`ekf.range_only.try_initialise` (the EKF's
+        rule, on the robot positions estimated online at each range) places the landmark,
+        and then all buffered ranges become factors, seeded at the trilateration."""
+        lid = obs.landmark_id
+        self._is_tag_landmark.setdefault(lid, False)
+        if lid in self._range_seed:
+            self._held_ranges.append(self._range_entry(k, seed, obs, self._range_seed[lid]))
+            return
+        buffer = self._range_buffer.setdefault(lid, [])
+        buffer.append((k, seed, obs))
+        del buffer[: -self.range_rule.max_buffer]
+        positions = np.array([[pose.x(), pose.y()] for _, pose, _ in buffer])
+        ranges = np.array([o.range_m for _, _, o in buffer])
+        sigmas = np.array([o.sigma_range_m for _, _, o in buffer])
+        fit = try_initialise(positions, ranges, sigmas, self.range_rule)
+        if fit is None:
+            return
+        for j, pose, o in buffer:
+            self._held_ranges.append(self._range_entry(j, pose, o, fit.xy))
+        del self._range_buffer[lid]
+        self._range_seed[lid] = fit.xy
 
     def _folded_chain(self, factor) -> "_Chain | None":
         """The chain a compound odometry factor of iSAM2's graph stands for (None otherwise)."""
@@ -663,9 +705,10 @@ class Isam2Smoother:
             return
         core, core_values, fresh = self._held_core, self._held_values, self._held_entries
         self._held_core, self._held_values, self._held_entries = gtsam.NonlinearFactorGraph(), gtsam.Values(), []
+        ranges, self._held_ranges = self._held_ranges, []
         self._held_steps, self._held_observed = 0, False
         fresh = self._confirm_first_sightings(fresh)
-        entries = self._screen_pending(fresh) + fresh
+        entries = self._screen_pending(fresh) + fresh + ranges
         self._update_with_recovery(core, core_values, entries)
         self.updates += 1
         self._pose = self._latest_pose(self._isam.calculateEstimatePose2(X(self._key_indices[-1])))
@@ -834,7 +877,7 @@ class Isam2Smoother:
             return out
         wanted = [
             (j, o) for j, o in enumerate(step.observations)
-            if o.landmark_id is not None and o.landmark_id not in self._tag_ids
+            if o.landmark_id is not None and not o.range_only and o.landmark_id not in self._tag_ids
             and self._isam.valueExists(L(o.landmark_id))
         ]
         if not wanted:

@@ -106,6 +106,10 @@ class Observation:
     tag's face points to, relative to the robot's x axis (seed 004). Each measured value
     carries its standard deviation.
 
+    A **range-only** observation (a ranging radio, Plaza) has ``bearing_rad`` and
+    ``sigma_bearing_rad`` None (:attr:`range_only`); it needs a ``landmark_id``-aware
+    estimator that can place a landmark from ranges alone (delayed initialisation).
+
     ``truth_landmark_id`` is ground truth, not a measurement: which landmark this really
     is, kept when ``landmark_id`` is hidden (``fgslam sim --hide-ids``) so that data
     association can be scored. Estimators must never read it.
@@ -114,14 +118,19 @@ class Observation:
     stamp_s: float
     landmark_id: int | None
     range_m: float
-    bearing_rad: float
+    bearing_rad: float | None
     sigma_range_m: float
-    sigma_bearing_rad: float
+    sigma_bearing_rad: float | None
     height_m: float | None = None
     sigma_height_m: float | None = None
     tag_yaw_rad: float | None = None
     sigma_tag_yaw_rad: float | None = None
     truth_landmark_id: int | None = None
+
+    @property
+    def range_only(self) -> bool:
+        """True for a range-only observation (no bearing)."""
+        return self.bearing_rad is None
 
 
 @dataclass(frozen=True)
@@ -444,13 +453,16 @@ def parse_record(d: dict) -> Record:
             raise _BadLine("missing field 'landmark_id' (an integer, or null when unknown)")
         height, sigma_height = _paired(d, "height_m", "sigma_height_m")
         yaw, sigma_yaw = _paired(d, "tag_yaw_rad", "sigma_tag_yaw_rad")
+        bearing, sigma_bearing = _paired(d, "bearing_rad", "sigma_bearing_rad")
+        if bearing is None and yaw is not None:
+            raise _BadLine("a range-only observation (no 'bearing_rad') cannot have a tag yaw")
         return Observation(
             stamp_s=_finite(d, "stamp_s"),
             landmark_id=_integer(d, "landmark_id", optional=True),
             range_m=_finite(d, "range_m", positive=True),
-            bearing_rad=_finite(d, "bearing_rad"),
+            bearing_rad=bearing,
             sigma_range_m=_finite(d, "sigma_range_m", positive=True),
-            sigma_bearing_rad=_finite(d, "sigma_bearing_rad", positive=True),
+            sigma_bearing_rad=sigma_bearing,
             height_m=height,
             sigma_height_m=sigma_height,
             tag_yaw_rad=yaw,

@@ -1,0 +1,278 @@
+"""Plaza1 / Plaza2 (CMU, "navigating with ranging radios") → run-log records.
+
+The data
+--------
+Djugash, Singh et al. drove a robot on a plaza and ranged to four radio beacons; RTK GPS
+gave ground truth. The gtsam wheel ships both runs in its ``Data`` folder:
+
+* ``PlazaN_DR.txt`` — dead reckoning, one line per interval:
+  ``time_s  delta_distance_m  delta_heading_rad`` (0.2 s apart in Plaza1, 0.1 s in Plaza2);
+* ``PlazaN_TD.txt`` — ranges: ``time_s  sender_id  receiver_id  range_m`` (the robot's radio
+  is the sender; the receiver is the beacon);
+* ``PlazaN_.mat`` — MATLAB file with ``GT`` (``time_s x_m y_m theta_rad``, GPS ground truth,
+  one row at the start and one at each DR time) and ``TL`` (``beacon_id x_m y_m``, the
+  surveyed beacon positions).
+
+The conversion
+--------------
+* **Start**: pose 0 is the first ``GT`` row (time, position, heading), pinned with σ = 1e-3:
+  the world frame is the GPS frame and ATE is measured against GPS without alignment.
+* **Odometry**: each DR interval ``(Δs, Δθ)`` becomes the arc increment of
+  :func:`slamio.geometry.arc_increment` (within 1 % of other integrations' ATE against GPS:
+  arc 1.93 m, heading-first 1.90 m, move-first 1.97 m over Plaza1). A range that arrives
+  inside an interval splits it at the range's time (the motion shared in proportion to
+  time), so every range belongs to a pose at its own time, as the log format asks.
+* **Odometry noise** (chosen, not calibrated: GPS gives no independent heading in Plaza1,
+  whose GT heading equals the DR heading): per piece of duration Δt,
+  ``var(Δs) = (0.05·Δs)² + 0.02² m²/s·Δt``, ``var(Δθ) = (0.05·Δθ)² + 0.005² rad²/s·Δt``,
+  mapped through the arc Jacobian, plus ``0.02² m²/s·Δt`` on x and y (sideways slip)
+  (:class:`OdometryNoise`; docs/datasets.md shows how the ATE moves with looser and
+  tighter settings). The time-proportional parts keep a standing robot's covariance
+  positive definite and make the total independent of how an interval is split.
+* **Ranges** (sorted by time: the shipped TD files have blocks out of order): range-only observations (no bearing) of landmark ``receiver_id``, with
+  ``range_m − range_bias_m`` and ``sigma_range_m`` (defaults 0 and 1.5 m). Measured against
+  GPS truth (GT interpolated at each range time): the ranges read long by a median of
+  2.84 m (Plaza1) and 2.80 m (Plaza2) with a robust spread (1.4826·MAD) of 1.22 m and
+  1.77 m. Pass ``range_bias_m=2.8`` to remove the bias; the defaults do not use the truth.
+  A range before the first DR time belongs to pose 0; ranges after the last are dropped.
+* **Heading of the truth**: Plaza2's ``GT`` heading points backwards — the direction of
+  travel is 3.08 rad (median) from it, against −0.016 rad in Plaza1 — so it is turned by π
+  whenever that median exceeds π/2 (:func:`gt_heading_offset_rad`; the header's source
+  says ``gt_heading_turned_by_pi``). GTSAM's Plaza2 example starts at ``π − 2.021``, the
+  same correction.
+* **Truth**: a ``truth_pose`` at every pose (GT interpolated linearly in time, heading
+  wrapped) and a ``truth_landmark`` per beacon (``TL``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from slamio.datasets.victoria_park import DatasetFormatError
+from slamio.errors import FgslamError
+from slamio.geometry import arc_increment, arc_increment_jacobian, wrap_angle
+from slamio.log import Header, Observation, Odometry, Record, TruthLandmark, TruthPose
+
+__all__ = ["import_plaza", "plaza_files", "PLAZA_RUNS", "odometry_covariance", "OdometryNoise"]
+
+PLAZA_RUNS = ("plaza1", "plaza2")
+START_SIGMA = (1e-3, 1e-3, 1e-3)
+DEFAULT_RANGE_SIGMA_M = 1.5
+
+
+@dataclass(frozen=True)
+class OdometryNoise:
+    """Per-interval odometry noise (see the module docstring): proportional parts ``k_*``
+    and random-walk densities ``*_per_s`` (variance per second)."""
+
+    k_distance: float = 0.05
+    k_heading: float = 0.05
+    distance_m2_per_s: float = 0.02**2
+    heading_rad2_per_s: float = 0.005**2
+    sideways_m2_per_s: float = 0.02**2
+
+
+def plaza_files(run: str, folder: str | os.PathLike[str] | None = None) -> tuple[Path, Path, Path]:
+    """``(DR, TD, mat)`` paths of ``run`` (``plaza1`` / ``plaza2``) in ``folder``, or in the
+    installed gtsam wheel's Data folder."""
+    name = run.lower()
+    if name not in PLAZA_RUNS:
+        raise FgslamError(f"unknown Plaza run {run!r}; choose plaza1 or plaza2")
+    stem = "Plaza1" if name == "plaza1" else "Plaza2"
+    if folder is None:
+        try:
+            import gtsam  # lazy: only to find the files it ships
+        except ImportError as exc:  # pragma: no cover - gtsam is a dependency
+            raise FgslamError(f"cannot find {stem}_DR.txt: gtsam is not importable ({exc}); give --source") from None
+        try:
+            folder = Path(gtsam.findExampleDataFile(f"{stem}_DR.txt")).parent
+        except (RuntimeError, ValueError) as exc:
+            raise FgslamError(f"gtsam does not ship {stem}_DR.txt here ({exc}); give --source FOLDER") from None
+    folder = Path(folder)
+    files = (folder / f"{stem}_DR.txt", folder / f"{stem}_TD.txt", folder / f"{stem}_.mat")
+    for f in files:
+        if not f.is_file():
+            raise FgslamError(f"{f}: not found; a Plaza folder holds {stem}_DR.txt, {stem}_TD.txt and {stem}_.mat")
+    return files
+
+
+def _read_table(path: Path, columns: tuple[str, ...], *, ordered: bool = True) -> np.ndarray:
+    """Whitespace-separated numbers, ``len(columns)`` per line; file:line errors. With
+    ``ordered`` the first column (time) must not go back; otherwise rows are sorted by it
+    (stable)."""
+    rows = []
+    with open(path, encoding="ascii", errors="replace") as f:
+        for number, line in enumerate(f, start=1):
+            tokens = line.split()
+            if not tokens:
+                continue
+            if len(tokens) != len(columns):
+                raise DatasetFormatError(
+                    str(path), number,
+                    f"{len(tokens)} numbers; expected {len(columns)}: {' '.join(columns)}",
+                )
+            try:
+                values = [float(t) for t in tokens]
+            except ValueError:
+                raise DatasetFormatError(
+                    str(path), number, f"not a number in {line.strip()!r}; expected {' '.join(columns)}"
+                ) from None
+            if not all(math.isfinite(v) for v in values):
+                raise DatasetFormatError(str(path), number, "a value is not finite")
+            if ordered and rows and values[0] < rows[-1][0]:
+                raise DatasetFormatError(str(path), number, f"time {values[0]} goes back (previous {rows[-1][0]})")
+            rows.append(values)
+    if not rows:
+        raise DatasetFormatError(str(path), 1, f"no data; expected lines of {' '.join(columns)}")
+    table = np.array(rows)
+    return table if ordered else table[np.argsort(table[:, 0], kind="stable")]
+
+
+def _read_mat(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    from scipy.io import loadmat
+
+    try:
+        mat = loadmat(str(path))
+    except (ValueError, OSError, TypeError) as exc:
+        raise DatasetFormatError(str(path), 1, f"not a MATLAB file scipy can read ({exc})") from None
+    for name, cols in (("GT", 4), ("TL", 3)):
+        if name not in mat or np.ndim(mat[name]) != 2 or np.shape(mat[name])[1] != cols:
+            raise DatasetFormatError(
+                str(path), 1, f"needs a variable {name} with {cols} columns (GT: t x y theta; TL: id x y)"
+            )
+    return np.asarray(mat["GT"], dtype=float), np.asarray(mat["TL"], dtype=float)
+
+
+def odometry_covariance(
+    distance_m: float, angle_rad: float, duration_s: float, noise: OdometryNoise = OdometryNoise()
+) -> np.ndarray:
+    """3×3 covariance of one arc increment over (dx, dy, dθ) (see the module docstring)."""
+    dt = max(float(duration_s), 1e-3)
+    var = np.diag([(noise.k_distance * distance_m) ** 2 + noise.distance_m2_per_s * dt,
+                   (noise.k_heading * angle_rad) ** 2 + noise.heading_rad2_per_s * dt])
+    J = arc_increment_jacobian(distance_m, angle_rad)
+    cov = J @ var @ J.T + np.diag([noise.sideways_m2_per_s * dt, noise.sideways_m2_per_s * dt, 0.0])
+    return 0.5 * (cov + cov.T)
+
+
+def gt_heading_offset_rad(gt: np.ndarray, min_step_m: float = 0.05) -> float:
+    """Median of wrap(direction of travel − GT heading) over GT steps longer than
+    ``min_step_m``: ≈ 0 when the GT heading is the robot's heading (Plaza1: −0.016 rad),
+    ≈ π when it points backwards (Plaza2: 3.08 rad)."""
+    step = np.diff(gt[:, 1:3], axis=0)
+    moving = np.hypot(step[:, 0], step[:, 1]) > min_step_m
+    if not np.any(moving):
+        return 0.0
+    travel = np.arctan2(step[moving, 1], step[moving, 0])
+    return float(np.median(wrap_angle(travel - gt[1:, 3][moving])))
+
+
+def _truth_at(gt: np.ndarray, t: float) -> tuple[float, float, float]:
+    times = gt[:, 0]
+    x = float(np.interp(t, times, gt[:, 1]))
+    y = float(np.interp(t, times, gt[:, 2]))
+    i = int(np.clip(np.searchsorted(times, t), 1, len(times) - 1))
+    t0, t1 = times[i - 1], times[i]
+    f = 0.0 if t1 <= t0 else min(max((t - t0) / (t1 - t0), 0.0), 1.0)
+    theta = gt[i - 1, 3] + f * wrap_angle(gt[i, 3] - gt[i - 1, 3])
+    return x, y, wrap_angle(float(theta))
+
+
+def import_plaza(
+    run: str = "plaza1",
+    folder: str | os.PathLike[str] | None = None,
+    *,
+    range_sigma_m: float = DEFAULT_RANGE_SIGMA_M,
+    range_bias_m: float = 0.0,
+    odometry_noise: OdometryNoise = OdometryNoise(),
+) -> tuple[Header, list[Record]]:
+    """Convert Plaza1 or Plaza2 into ``(header, records)`` (see the module docstring)."""
+    if not (range_sigma_m > 0 and math.isfinite(range_sigma_m)):
+        raise FgslamError(f"range sigma must be > 0 m, got {range_sigma_m}")
+    dr_path, td_path, mat_path = plaza_files(run, folder)
+    dr = _read_table(dr_path, ("time_s", "delta_distance_m", "delta_heading_rad"))
+    # the shipped TD files have blocks out of time order (Plaza1 line 1989 goes back 64 s): sort
+    td = _read_table(td_path, ("time_s", "sender_id", "receiver_id", "range_m"), ordered=False)
+    gt, tl = _read_mat(mat_path)
+    flipped = abs(gt_heading_offset_rad(gt)) > math.pi / 2
+    if flipped:  # Plaza2's GT heading points backwards (as GTSAM's example's start pose, pi - 2.021, says)
+        gt = gt.copy()
+        gt[:, 3] = wrap_angle(gt[:, 3] + math.pi)
+    t_start = float(gt[0, 0])
+    start_pose = (float(gt[0, 1]), float(gt[0, 2]), wrap_angle(float(gt[0, 3])))
+
+    records: list[Record] = [
+        TruthLandmark(landmark_id=int(b[0]), x_m=float(b[1]), y_m=float(b[2])) for b in tl
+    ]
+    records.append(TruthPose(t_start, *start_pose))
+    ranges = [(max(float(t), t_start), int(recv), float(r)) for t, _, recv, r in td]
+    dropped_late = sum(1 for t, _, _ in ranges if t > dr[-1, 0])
+    skipped_short = 0
+    j = 0  # next range
+
+    def observe(t: float, receiver: int, range_m: float) -> None:
+        nonlocal skipped_short
+        value = range_m - range_bias_m
+        if value <= 0:
+            skipped_short += 1
+            return
+        records.append(Observation(t, receiver, value, None, range_sigma_m, None))
+
+    while j < len(ranges) and ranges[j][0] <= t_start:  # ranges before the first motion: pose 0
+        observe(*ranges[j])
+        j += 1
+    previous_t = t_start
+    for t_end, distance, angle in dr:
+        interval = t_end - previous_t
+        # split points: the distinct range times inside (previous_t, t_end]
+        cuts = []
+        while j < len(ranges) and ranges[j][0] <= t_end:
+            if not cuts or ranges[j][0] > cuts[-1][0]:
+                cuts.append((ranges[j][0], []))
+            cuts[-1][1].append(ranges[j])
+            j += 1
+        if not cuts or cuts[-1][0] < t_end:
+            cuts.append((t_end, []))
+        done = 0.0
+        for t_cut, batch in cuts:
+            share = 1.0 if interval <= 0 else (t_cut - previous_t) / interval
+            part = max(share - done, 0.0)
+            d, a = distance * part, angle * part
+            dx, dy, dth = arc_increment(d, a)
+            cov = odometry_covariance(d, a, part * interval, odometry_noise)
+            records.append(Odometry(t_cut, dx, dy, dth, tuple(map(tuple, cov)), d, a))
+            records.append(TruthPose(t_cut, *_truth_at(gt, t_cut)))
+            for t_obs, receiver, range_m in batch:
+                observe(t_obs, receiver, range_m)
+            done = share
+        previous_t = t_end
+
+    digest = hashlib.sha256(dr_path.read_bytes() + td_path.read_bytes()).hexdigest()
+    header = Header(
+        stamp_s=t_start,
+        start_pose=start_pose,
+        start_sigma=START_SIGMA,
+        robot={"name": f"CMU {run.capitalize()} robot (Djugash & Singh, ranging radios)", "drive": "differential",
+               "note": "dead reckoning given as (time, delta distance, delta heading) per interval"},
+        sensor={"kind": "range-only", "landmark_kind": "radio beacon",
+                "beacons": [int(b[0]) for b in tl], "range_bias_removed_m": range_bias_m},
+        noise={
+            "odometry": {"model": "arc increment; var(ds) = (k_distance ds)^2 + distance_m2_per_s dt, "
+                                  "var(dtheta) = (k_heading dtheta)^2 + heading_rad2_per_s dt through the arc "
+                                  "Jacobian, plus sideways_m2_per_s dt on x and y", **asdict(odometry_noise)},
+            "observation": {"model": "range-only, constant sigma", "sigma_range_m": range_sigma_m,
+                            "range_bias_removed_m": range_bias_m,
+                            "measured_against_gps": "median bias 2.84 m / 2.80 m, spread 1.22 m / 1.77 m "
+                                                    "(Plaza1 / Plaza2)"},
+        },
+        source={"dataset": run, "files": [str(dr_path), str(td_path), str(mat_path)], "sha256": digest,
+                "converted_by": "fgslam import " + run, "gt_heading_turned_by_pi": flipped, "ranges_after_last_odometry_dropped": dropped_late,
+                "ranges_not_positive_after_bias_dropped": skipped_short},
+    )
+    return header, records
