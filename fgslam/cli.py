@@ -125,10 +125,24 @@ def cmd_import(args: argparse.Namespace) -> int:
         raise FgslamError(f"import takes [SOURCE] OUT, got {len(args.paths)} paths: {' '.join(args.paths)}")
     source = args.paths[0] if len(args.paths) == 2 else args.source
     out = args.paths[-1]
+    needs_source = ("mrclam", "rosbag")
+    if args.dataset in needs_source and source is None:
+        raise FgslamError(f"import {args.dataset} needs SOURCE: fgslam import {args.dataset} SOURCE OUT")
     if args.dataset == "victoria-park":
         from slamio.datasets import import_victoria_park
 
         header, records = import_victoria_park(source)
+    elif args.dataset == "mrclam":
+        from slamio.datasets.mrclam import import_mrclam
+
+        header, records = import_mrclam(source, args.robot)
+    elif args.dataset == "rosbag":
+        from slamio.datasets.rosbag import import_rosbag
+
+        header, records = import_rosbag(
+            source, odom_topic=args.odom_topic, detections_topic=args.detections_topic,
+            tag_pose_topic=args.tag_pose_topic, truth_topic=args.truth_topic,
+        )
     else:  # plaza1, plaza2
         from slamio.datasets.plaza import import_plaza
 
@@ -136,6 +150,16 @@ def cmd_import(args: argparse.Namespace) -> int:
             args.dataset, source, range_sigma_m=args.range_sigma, range_bias_m=args.range_bias
         )
     return _write(out, header, records)
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from slamio.datasets.rosbag import export_rosbag
+
+    log = _read(args.log)
+    counts = export_rosbag(log, args.out)
+    topics = ", ".join(f"{topic} {n}" for topic, n in counts.items() if topic.startswith("/"))
+    print(f"wrote {args.out}: ROS 2 bag ({topics})")
+    return 0
 
 
 def cmd_check(args: argparse.Namespace) -> int:
@@ -337,12 +361,17 @@ def build_parser() -> argparse.ArgumentParser:
             "                 smoothed solution).\n"
             "  plaza1, plaza2 CMU's ranging-radio runs shipped inside the gtsam wheel: range-only\n"
             "                 beacons, GPS ground truth (`fgslam run` reports ATE against it).\n"
+            "  mrclam         one robot of a UTIAS MRCLAM dataset folder (SOURCE; --robot N): Creates\n"
+            "                 with cameras reading barcoded landmarks, Vicon ground truth.\n"
+            "  rosbag         a ROS 1 .bag or ROS 2 bag folder (SOURCE) through the rosbags package:\n"
+            "                 --odom-topic, --detections-topic or --tag-pose-topic, --truth-topic;\n"
+            "                 a bag from `fgslam export rosbag` needs no topics.\n"
             "See docs/datasets.md for what is converted and how.\n\n"
             "usage: fgslam import DATASET [SOURCE] OUT   (SOURCE defaults to the gtsam wheel's copy)"
         ),
     )
-    imp.add_argument("dataset", choices=["victoria-park", "plaza1", "plaza2"], metavar="DATASET",
-                     help="victoria-park, plaza1 or plaza2")
+    imp.add_argument("dataset", choices=["victoria-park", "plaza1", "plaza2", "mrclam", "rosbag"],
+                     metavar="DATASET", help="victoria-park, plaza1, plaza2, mrclam or rosbag")
     imp.add_argument("paths", nargs="+", metavar="[SOURCE] OUT",
                      help="the dataset file or folder (optional), then the run log to write (.jsonl)")
     imp.add_argument(
@@ -355,7 +384,27 @@ def build_parser() -> argparse.ArgumentParser:
                      help="Plaza: standard deviation given to every range (default 1.5 m)")
     imp.add_argument("--range-bias", type=float, default=0.0, metavar="M",
                      help="Plaza: subtract this from every range (default 0; GPS says the radios read ~2.8 m long)")
+    imp.add_argument("--robot", type=int, default=1, metavar="N", help="MRCLAM: which robot, 1-5 (default 1)")
+    imp.add_argument("--odom-topic", default=None, help="rosbag: nav_msgs/Odometry topic")
+    imp.add_argument("--detections-topic", default=None,
+                     help="rosbag: apriltag_ros/AprilTagDetectionArray topic")
+    imp.add_argument("--tag-pose-topic", default=None,
+                     help="rosbag: prefix of one geometry_msgs/PoseStamped topic per tag, e.g. /tags/tag_")
+    imp.add_argument("--truth-topic", default=None, help="rosbag: ground-truth pose topic (optional)")
     imp.set_defaults(func=cmd_import)
+
+    export = verbs.add_parser(
+        "export",
+        help="write a run log in another format (a ROS 2 bag)",
+        description="Write a run log as a ROS 2 bag (sqlite3): odometry as nav_msgs/Odometry, ground truth as "
+                    "geometry_msgs/PoseStamped, detections as apriltag_ros arrays, plus the exact log on "
+                    "/fgslam/run_log so `fgslam import rosbag BAG OUT` gives it back unchanged. See "
+                    "docs/datasets-mrclam-rosbag.md.",
+    )
+    export.add_argument("format", choices=["rosbag"], metavar="FORMAT", help="rosbag")
+    export.add_argument("log", metavar="LOG", help="run log to export")
+    export.add_argument("out", metavar="OUT", help="bag folder to create (must not exist)")
+    export.set_defaults(func=cmd_export)
 
     validate = verbs.add_parser(
         "validate",

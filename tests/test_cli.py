@@ -204,3 +204,21 @@ def test_run_without_consistency_has_no_nees_nis_or_covariance(tmp_path, capsys)
         assert metrics[name]["nees_mean"] is None and metrics[name]["nis_mean"] is None
         assert metrics[name]["peak_memory_mb"] is not None
     assert "NIS in %" not in capsys.readouterr().out
+
+
+def test_export_rosbag_and_import_it_back_byte_for_byte(tmp_path, capsys):
+    bag = tmp_path / "square_bag"
+    assert main(["export", "rosbag", "data/arena_square.jsonl", str(bag)]) == 0
+    assert "/fgslam/odometry" in capsys.readouterr().out
+    back = tmp_path / "back.jsonl"
+    assert main(["import", "rosbag", str(bag), str(back)]) == 0
+    assert back.read_bytes() == open("data/arena_square.jsonl", "rb").read()
+
+
+def test_import_mrclam_fixture_and_run_it(tmp_path, capsys):
+    log = tmp_path / "mrclam.jsonl"
+    assert main(["import", "mrclam", "tests/fixtures/mrclam", str(log), "--robot", "1"]) == 0
+    assert main(["run", str(log), "--out", str(tmp_path / "r"), "--no-report", "--estimators", "ekf,isam2"]) == 0
+    assert "ekf" in capsys.readouterr().out
+    assert main(["import", "mrclam", str(log)]) == 1  # no SOURCE: says how
+    assert "needs SOURCE" in capsys.readouterr().err
