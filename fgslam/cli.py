@@ -466,6 +466,13 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--dask", default=None, metavar="ADDRESS",
                        help="run on the Dask cluster at ADDRESS (needs the optional dask extra)")
     bench.set_defaults(func=cmd_bench)
+
+    from fgslam.detect_cli import add_detect_parser
+    from fgslam.record_cli import add_calibrate_parser, add_record_parser
+
+    add_detect_parser(verbs)
+    add_record_parser(verbs)
+    add_calibrate_parser(verbs)
     return parser
 
 

@@ -1,0 +1,418 @@
+"""AprilTag detection and tag pose → range, bearing and tag yaw in the robot frame.
+
+Detector
+========
+
+The default back-end is the AprilTag 3 library through ``pupil-apriltags``, chosen by
+measurement on the real photos in ``shared/data/apriltag-photos`` (``scripts/bench_apriltag.py``,
+docs/camera.md): with ``quad_decimate=1.0`` and ``refine_edges`` off it finds 46 of the 47
+listed tags in the NASA photos with no false detection and a corner error of at most
+0.14 px against the listed corners; ``cv2.aruco``'s AprilTag dictionary finds far fewer.
+``backend="aruco"`` keeps OpenCV's detector for comparison.
+
+Corners
+=======
+
+:class:`TagDetection.corners_px` are always in **OpenCV's order and pixel convention**: the
+upright tag's top-left, top-right, bottom-right, bottom-left corner (the order
+``SOLVEPNP_IPPE_SQUARE`` wants), with the centre of the top-left pixel at (0, 0). The AprilTag
+library reports them counter-clockwise starting at the upright tag's top-right corner, with
+the top-left pixel's *corner* at (0, 0): :func:`apriltag_to_opencv_corners` converts
+(measured on rendered tags: an edge between pixels 119 and 120 is reported at 120.0).
+
+Pose
+====
+
+``cv2.solvePnPGeneric(..., SOLVEPNP_IPPE_SQUARE)`` returns both IPPE solutions of the
+planar pose; a small or far tag has two poses with nearly the same reprojection error
+(the "flip"). :func:`estimate_tag_pose` keeps both; :func:`choose_tag_pose` takes the one
+with the smaller error unless the two are ambiguous (error ratio below ``ambiguity_ratio``),
+in which case, for tags mounted upright (every landmark tag of this project hangs on a
+wall), it takes the solution whose face normal is closer to horizontal in the robot frame.
+
+Tag frame (OpenCV's IPPE square): x to the right and y up on the upright tag, z out of the
+printed face towards a viewer. **Tag yaw** is the direction of +z projected on the floor,
+counter-clockwise from the robot's x axis: a tag seen head-on has tag yaw π.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from slamio.camera.model import CameraModel, floor_range_bearing, transform_points
+from slamio.errors import FgslamError
+
+#: AprilTag family name → OpenCV aruco dictionary name (for the aruco back-end and the renderer).
+ARUCO_DICTIONARIES = {
+    "tag36h11": "DICT_APRILTAG_36h11",
+    "tag36h10": "DICT_APRILTAG_36h10",
+    "tag25h9": "DICT_APRILTAG_25h9",
+    "tag16h5": "DICT_APRILTAG_16h5",
+}
+
+BACKENDS = ("apriltag3", "aruco")
+
+
+class TagDetectorError(FgslamError):
+    """The AprilTag detector cannot be built (unknown family, missing library)."""
+
+
+@dataclass(frozen=True, eq=False)
+class TagDetection:
+    """One decoded tag in an image (corners in OpenCV order and pixel convention)."""
+
+    tag_id: int
+    family: str
+    corners_px: np.ndarray  # (4, 2): top-left, top-right, bottom-right, bottom-left
+    hamming: int = 0
+    decision_margin: float = float("nan")
+
+    @property
+    def centre_px(self) -> np.ndarray:
+        return self.corners_px.mean(axis=0)
+
+    @property
+    def side_px(self) -> float:
+        """Mean side length in pixels."""
+        c = self.corners_px
+        return float(np.mean(np.linalg.norm(c - np.roll(c, -1, axis=0), axis=1)))
+
+
+@dataclass(frozen=True, eq=False)
+class TagPose:
+    """A tag pose in the camera frame: ``p_camera = R_camera_tag @ p_tag + t_camera_tag_m``."""
+
+    R_camera_tag: np.ndarray
+    t_camera_tag_m: np.ndarray
+    reprojection_error_px: float
+
+
+@dataclass(frozen=True)
+class TagGeometry:
+    """A tag seen from the robot: what goes into an observation record."""
+
+    range_m: float
+    bearing_rad: float
+    tag_yaw_rad: float
+    height_m: float  # tag centre above the floor (the mount's z is the camera height)
+    normal_tilt_rad: float  # angle between the face normal and the floor plane
+
+
+# --------------------------------------------------------------------------- pure maths
+
+
+def apriltag_to_opencv_corners(corners_px: np.ndarray) -> np.ndarray:
+    """AprilTag library corners (CCW from the upright tag's top-right, pixel-corner origin)
+    → OpenCV order (TL, TR, BR, BL) and convention (pixel-centre origin)."""
+    c = np.asarray(corners_px, dtype=float).reshape(4, 2)
+    return c[[1, 0, 3, 2]] - 0.5
+
+
+def _fit_line(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Total-least-squares line through (N, 2) points: (a point on it, unit direction)."""
+    centre = points.mean(axis=0)
+    _, _, vt = np.linalg.svd(points - centre)
+    return centre, vt[0]
+
+
+def _intersect(line_a, line_b) -> np.ndarray | None:
+    (pa, da), (pb, db) = line_a, line_b
+    m = np.column_stack([da, -db])
+    if abs(np.linalg.det(m)) < 1e-9:
+        return None
+    s = np.linalg.solve(m, pb - pa)
+    return pa + s[0] * da
+
+
+def edge_crossings(grey: np.ndarray, p0: np.ndarray, p1: np.ndarray, outward: np.ndarray, half_px: float,
+                   *, min_contrast: float = 15.0) -> np.ndarray:
+    """Sub-pixel points of a dark-inside/bright-outside edge between two rough corners.
+
+    Samples intensity profiles (bicubic, 0.25 px steps, ± ``half_px``) across the edge at points spread
+    over its middle 70 %, and returns where each crosses the mid level between its dark
+    (inner) and bright (outer) halves — the upward crossing nearest the rough edge, so a
+    white data cell inside the border or clutter beyond the margin does not capture it.
+    Profiles with too little contrast are skipped.
+    """
+    import cv2
+
+    edge = p1 - p0
+    length = float(np.linalg.norm(edge))
+    count = int(np.clip(round(0.7 * length), 4, 60))
+    along = p0 + np.linspace(0.15, 0.85, count)[:, None] * edge
+    offsets = np.arange(-half_px, half_px + 1e-9, 0.25)
+    pts = along[:, None, :] + offsets[None, :, None] * outward  # (count, m, 2)
+    mapx = pts[..., 0].astype(np.float32)
+    mapy = pts[..., 1].astype(np.float32)
+    values = cv2.remap(grey, mapx, mapy, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE).astype(float)
+    middle = len(offsets) // 2  # offset 0: the rough edge
+    dark = values[:, : middle + 1].min(axis=1)
+    bright = values[:, middle:].max(axis=1)
+    level = 0.5 * (dark + bright)[:, None]
+    v0, v1 = values[:, :-1], values[:, 1:]
+    up = (v0 < level) & (v1 >= level)  # dark → bright going outward
+    with np.errstate(divide="ignore", invalid="ignore"):
+        crossing = offsets[:-1] + (level - v0) / (v1 - v0) * (offsets[1:] - offsets[:-1])
+    crossing = np.where(up, crossing, np.inf)
+    nearest = np.argmin(np.abs(crossing), axis=1)  # the crossing nearest the rough edge
+    offset = crossing[np.arange(count), nearest]
+    keep = np.isfinite(offset) & (bright - dark >= min_contrast)
+    out = along[keep] + offset[keep, None] * outward
+    return np.array(out).reshape(-1, 2)
+
+
+def refine_tag_corners(grey: np.ndarray, corners_px: np.ndarray, camera: CameraModel | None = None,
+                       *, max_shift_px: float = 1.5) -> np.ndarray | None:
+    """Sub-pixel tag corners from the four black-border edges, or None when they cannot be refined.
+
+    The detector's corners (``refine_edges`` off: the setting that finds the most tags on
+    real photos) sit on the binarised boundary, up to half a pixel off each edge — up to
+    5 % of the range of a 20-pixel tag. This fits a line to sub-pixel crossings of each
+    edge (:func:`edge_crossings`, profiles reaching one cell — the smallest nearby, for
+    perspective — into the black border and the white margin) and intersects neighbouring
+    lines. Returns None for tags under 12 px, too few edge points, or corners that would move
+    more than ``max_shift_px`` (the detector's corners are then the better guess). With a distorted ``camera`` the lines
+    are fitted in undistorted coordinates (straight edges stay straight there).
+    """
+    c = np.asarray(corners_px, dtype=float).reshape(4, 2)
+    grey = np.ascontiguousarray(grey, dtype=np.uint8)
+    sides = np.linalg.norm(np.roll(c, -1, axis=0) - c, axis=1)  # side i: corner i → i+1
+    if np.min(sides) / 8.0 < 1.5:
+        return None
+    centre = c.mean(axis=0)
+    distorted = camera is not None and (camera.has_distortion or camera.distortion_model == "equidistant")
+    lines = []
+    for i in range(4):
+        p0, p1 = c[i], c[(i + 1) % 4]
+        t = (p1 - p0) / np.linalg.norm(p1 - p0)
+        n = np.array([t[1], -t[0]])
+        if np.dot(0.5 * (p0 + p1) - centre, n) < 0:
+            n = -n
+        cell = min(sides[i - 1], sides[i], sides[(i + 1) % 4]) / 8.0  # perspective: the smallest nearby
+        pts = edge_crossings(grey, p0, p1, n, max(1.5, cell))
+        if len(pts) < 3:
+            return None
+        if distorted:
+            pts = camera.normalized(pts)
+        lines.append(_fit_line(pts))
+    refined = []
+    for i in range(4):
+        p = _intersect(lines[i - 1], lines[i])
+        if p is None:
+            return None
+        refined.append(p)
+    refined = np.array(refined)
+    if distorted:
+        refined = camera.project(np.column_stack([refined, np.ones(4)]))
+    if not np.all(np.isfinite(refined)) or np.max(np.linalg.norm(refined - c, axis=1)) > max_shift_px:
+        return None
+    return refined
+
+
+def tag_object_points(tag_size_m: float) -> np.ndarray:
+    """The IPPE-square object points: TL, TR, BR, BL in the tag frame (x right, y up)."""
+    h = 0.5 * tag_size_m
+    return np.array([[-h, h, 0.0], [h, h, 0.0], [h, -h, 0.0], [-h, -h, 0.0]])
+
+
+def rodrigues(rvec: np.ndarray) -> np.ndarray:
+    import cv2
+
+    return cv2.Rodrigues(np.asarray(rvec, dtype=float).reshape(3, 1))[0]
+
+
+def _reprojection_rms(object_points: np.ndarray, xy: np.ndarray, R: np.ndarray, t: np.ndarray) -> float:
+    """RMS distance between normalized image points and the projected object points."""
+    p = object_points @ R.T + t
+    if np.any(p[:, 2] <= 0):
+        return float("inf")
+    return float(np.sqrt(np.mean(np.sum((p[:, :2] / p[:, 2:3] - xy) ** 2, axis=1))))
+
+
+def estimate_tag_pose(corners_px: np.ndarray, tag_size_m: float, camera: CameraModel,
+                      *, fallback_error_px: float = 1.0) -> list[TagPose]:
+    """Both IPPE solutions of a square tag's pose, best (smallest reprojection error) first.
+
+    The corners are undistorted to normalized coordinates first, so any supported lens model
+    works; errors are recomputed here and reported in pixels (normalized RMS error × mean
+    focal length). When even the best IPPE solution reprojects worse than
+    ``fallback_error_px`` — OpenCV 5.0's IPPE returns a wrong rotation for an exactly
+    fronto-parallel square — an SQPnP solution refined by Levenberg–Marquardt joins the
+    candidates. Returns an empty list when nothing is found.
+    """
+    import cv2
+
+    xy = camera.normalized(np.asarray(corners_px, dtype=float).reshape(4, 2))
+    object_points = tag_object_points(tag_size_m)
+    image_points = xy.reshape(4, 1, 2)
+    focal = 0.5 * (camera.fx + camera.fy)
+    candidates: list[tuple[np.ndarray, np.ndarray]] = []
+    try:
+        count, rvecs, tvecs, _ = cv2.solvePnPGeneric(
+            object_points, image_points, np.eye(3), None, flags=cv2.SOLVEPNP_IPPE_SQUARE
+        )
+        candidates += [(np.asarray(rvecs[i], float).ravel(), np.asarray(tvecs[i], float).ravel()) for i in range(int(count))]
+    except cv2.error:
+        pass
+
+    def score(c):
+        return _reprojection_rms(object_points, xy, rodrigues(c[0]), c[1]) * focal
+
+    if not candidates or min(score(c) for c in candidates) > fallback_error_px:
+        try:
+            ok, rvec, tvec = cv2.solvePnP(object_points, image_points, np.eye(3), None, flags=cv2.SOLVEPNP_SQPNP)
+            if ok:
+                rvec, tvec = cv2.solvePnPRefineLM(object_points, image_points, np.eye(3), None, rvec, tvec)
+                candidates.append((rvec.ravel(), tvec.ravel()))
+        except cv2.error:
+            pass
+    poses = [TagPose(rodrigues(r), t, score((r, t))) for r, t in candidates]
+    poses = [p for p in poses if math.isfinite(p.reprojection_error_px)]
+    poses.sort(key=lambda p: p.reprojection_error_px)
+    return poses
+
+
+def tag_geometry(pose: TagPose, T_robot_camera: np.ndarray) -> TagGeometry:
+    """Range, bearing, tag yaw, centre height and normal tilt of a tag pose, robot frame."""
+    p_robot = transform_points(T_robot_camera, pose.t_camera_tag_m)
+    normal_robot = T_robot_camera[:3, :3] @ pose.R_camera_tag[:, 2]
+    range_m, bearing_rad = floor_range_bearing(p_robot)
+    yaw = math.atan2(normal_robot[1], normal_robot[0])
+    tilt = math.asin(max(-1.0, min(1.0, float(normal_robot[2]))))
+    return TagGeometry(range_m, bearing_rad, yaw, float(p_robot[2]), tilt)
+
+
+def choose_tag_pose(
+    poses: list[TagPose], T_robot_camera: np.ndarray, *, ambiguity_ratio: float = 2.0, upright: bool = True
+) -> tuple[TagPose, bool]:
+    """Pick one IPPE solution; returns (pose, ambiguous).
+
+    ``ambiguous`` is true when the second solution's reprojection error is within
+    ``ambiguity_ratio`` of the best one's. Then, if ``upright``, the solution whose face
+    normal is closer to the floor plane wins (a flip tilts the normal up or down).
+    """
+    if not poses:
+        raise ValueError("no pose to choose from")
+    best = poses[0]
+    if len(poses) < 2:
+        return best, False
+    second = poses[1]
+    ambiguous = second.reprojection_error_px <= ambiguity_ratio * max(best.reprojection_error_px, 1e-9)
+    if ambiguous and upright:
+        tilts = [abs(tag_geometry(p, T_robot_camera).normal_tilt_rad) for p in (best, second)]
+        if tilts[1] < tilts[0]:
+            best = second
+    return best, ambiguous
+
+
+# --------------------------------------------------------------------------- detector
+
+
+def _pupil_detector_class():
+    """pupil_apriltags.Detector whose destructor frees the detector before its tag families.
+
+    pupil-apriltags 1.0.4 frees the families first, and the library's detector destructor
+    then touches them (use after free): the heap is corrupted and a later allocation aborts
+    ("malloc(): mismatching next->prev_size") as soon as a second detector is dropped
+    (pupil-labs/apriltags#46, fix proposed in #65). This order is the library's own example's.
+    """
+    import pupil_apriltags
+
+    class _Detector(pupil_apriltags.Detector):
+        def __del__(self):
+            ptr = getattr(self, "tag_detector_ptr", None)
+            if ptr is None:
+                return
+            self.libc.apriltag_detector_destroy.restype = None
+            self.libc.apriltag_detector_destroy(ptr)
+            self.tag_detector_ptr = None
+            for family, tf in self.tag_families.items():
+                destroy = getattr(self.libc, f"{family}_destroy", None)
+                if destroy is not None:
+                    destroy.restype = None
+                    destroy(tf)
+            self.tag_families = {}
+
+    return _Detector
+
+
+class AprilTagDetector:
+    """Finds tags of one family in grey images.
+
+    ``backend="apriltag3"`` (default) uses pupil-apriltags with ``quad_decimate``,
+    ``refine_edges``, ``decode_sharpening``, ``quad_sigma`` and ``nthreads`` passed through;
+    ``max_hamming`` drops decodes with more corrected bits. ``backend="aruco"`` uses
+    ``cv2.aruco`` with the AprilTag dictionary of the family and its AprilTag corner
+    refinement.
+    """
+
+    def __init__(
+        self,
+        family: str = "tag36h11",
+        *,
+        backend: str = "apriltag3",
+        quad_decimate: float = 1.0,
+        refine_edges: bool = False,
+        decode_sharpening: float = 0.25,
+        quad_sigma: float = 0.0,
+        nthreads: int = 1,
+        max_hamming: int = 2,
+        aruco_refinement: str = "apriltag",
+    ):
+        if backend not in BACKENDS:
+            raise TagDetectorError(f"unknown AprilTag backend {backend!r}; use one of {', '.join(BACKENDS)}")
+        self.family = family
+        self.backend = backend
+        self.max_hamming = max_hamming
+        self.settings = dict(quad_decimate=quad_decimate, refine_edges=refine_edges,
+                             decode_sharpening=decode_sharpening, quad_sigma=quad_sigma, nthreads=nthreads)
+        if backend == "apriltag3":
+            try:
+                detector_class = _pupil_detector_class()
+            except ImportError:
+                raise TagDetectorError(
+                    "AprilTag detection needs the 'pupil-apriltags' package: pip install pupil-apriltags"
+                ) from None
+            try:
+                self._detector = detector_class(
+                    families=family, nthreads=nthreads, quad_decimate=quad_decimate, quad_sigma=quad_sigma,
+                    refine_edges=int(bool(refine_edges)), decode_sharpening=decode_sharpening,
+                )
+            except Exception as exc:  # the binding raises a bare RuntimeError for an unknown family
+                raise TagDetectorError(f"cannot build an AprilTag detector for family {family!r}: {exc}") from None
+        else:
+            import cv2
+
+            if family not in ARUCO_DICTIONARIES:
+                raise TagDetectorError(
+                    f"the aruco backend knows families {', '.join(ARUCO_DICTIONARIES)}, not {family!r}"
+                )
+            dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, ARUCO_DICTIONARIES[family]))
+            params = cv2.aruco.DetectorParameters()
+            methods = {"none": cv2.aruco.CORNER_REFINE_NONE, "subpix": cv2.aruco.CORNER_REFINE_SUBPIX,
+                       "contour": cv2.aruco.CORNER_REFINE_CONTOUR, "apriltag": cv2.aruco.CORNER_REFINE_APRILTAG}
+            if aruco_refinement not in methods:
+                raise TagDetectorError(f"aruco_refinement must be one of {', '.join(methods)}")
+            params.cornerRefinementMethod = methods[aruco_refinement]
+            self._detector = cv2.aruco.ArucoDetector(dictionary, params)
+
+    def detect(self, grey: np.ndarray) -> list[TagDetection]:
+        """Tags in a 2-D uint8 image, sorted by id."""
+        grey = np.ascontiguousarray(grey, dtype=np.uint8)
+        out: list[TagDetection] = []
+        if self.backend == "apriltag3":
+            for d in self._detector.detect(grey):
+                if d.hamming > self.max_hamming:
+                    continue
+                out.append(TagDetection(int(d.tag_id), self.family, apriltag_to_opencv_corners(d.corners),
+                                        int(d.hamming), float(d.decision_margin)))
+        else:
+            corners, ids, _ = self._detector.detectMarkers(grey)
+            if ids is not None:
+                for c, i in zip(corners, ids.ravel()):
+                    out.append(TagDetection(int(i), self.family, np.asarray(c, dtype=float).reshape(4, 2)))
+        out.sort(key=lambda t: (t.tag_id, float(t.centre_px[0])))
+        return out

@@ -1,0 +1,284 @@
+"""Frame sources: where camera frames come from.
+
+Every source yields :class:`Frame` objects: a time stamp, a BGR image (OpenCV's channel
+order) and, for RGB-D sources, a registered depth image in metres (NaN = no reading). A file
+that cannot be decoded does **not** raise: its frame carries ``error`` (or ``depth_error``)
+and no image, so a run counts it (``corrupt_image``) and goes on. Problems with the source
+itself (a missing folder, a malformed ``rgb.txt`` line, a camera that cannot be opened, the
+``freenect`` package missing) raise :class:`FrameSourceError` saying how to fix them.
+
+- :func:`tum_frames` — a TUM RGB-D folder: ``rgb/`` and ``depth/`` PNGs listed with their
+  stamps in ``rgb.txt`` and ``depth.txt`` (``# comment`` lines; ``stamp path`` per line);
+  depth is 16-bit with 5000 units per metre (0 = missing). Each colour image is paired with
+  the depth image nearest in time, within ``max_dt_s`` (0.02 s, as TUM's ``associate.py``),
+  each depth image used once. Without the two lists, the stamps come from the file names
+  (TUM names files by their stamp).
+- :func:`folder_frames` — a folder of plain images (png, jpg, bmp, pgm, ppm, tif), in name
+  order; a file name that is a number (``1305031102.175304.png``) is its stamp in seconds,
+  otherwise frame k is stamped ``start_s + k/fps``.
+- :func:`video_frames` — ``cv2.VideoCapture`` on a device number or a video file/URL; a
+  device's frames are stamped with the wall clock, a file's with its position.
+- :func:`kinect_frames` — a live Kinect v1 through libfreenect's Python binding
+  (``freenect``, an optional extra imported only here): RGB plus DEPTH_REGISTERED depth
+  in millimetres.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterator
+
+import numpy as np
+
+from slamio.camera.colour import depth_from_mm, depth_from_scaled
+from slamio.errors import FgslamError
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".pgm", ".ppm", ".tif", ".tiff")
+TUM_DEPTH_SCALE_PER_M = 5000.0
+
+
+class FrameSourceError(FgslamError):
+    """A frame source that cannot be used at all (as opposed to one bad frame)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Frame:
+    stamp_s: float
+    index: int
+    name: str  # file name (or "video:N", "kinect:N") for messages and --show
+    bgr: np.ndarray | None  # (H, W, 3) uint8; None when the image could not be read
+    depth_m: np.ndarray | None = None  # (H, W) float32 metres, NaN = missing
+    error: str | None = None  # why bgr is None
+    depth_error: str | None = None  # why a listed depth image is missing
+
+
+# --------------------------------------------------------------------------- reading files
+
+
+def read_image(path: str | os.PathLike[str]) -> tuple[np.ndarray | None, str | None]:
+    """(BGR image, None) or (None, why it cannot be read). Grey images become 3-channel."""
+    import cv2
+
+    path = os.fspath(path)
+    try:
+        data = np.fromfile(path, dtype=np.uint8)
+    except OSError as exc:
+        return None, f"{path}: cannot read ({exc.strerror})"
+    if data.size == 0:
+        return None, f"{path}: empty file"
+    image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    if image is None:
+        return None, f"{path}: not a decodable image (corrupt or truncated?)"
+    if image.dtype != np.uint8:
+        image = cv2.convertScaleAbs(image, alpha=255.0 / max(1.0, float(np.iinfo(image.dtype).max)))
+    if image.ndim == 2:
+        image = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
+    elif image.shape[2] == 4:
+        image = cv2.cvtColor(image, cv2.COLOR_BGRA2BGR)
+    return image, None
+
+
+def read_depth_png(path: str | os.PathLike[str], scale_per_m: float = TUM_DEPTH_SCALE_PER_M
+                   ) -> tuple[np.ndarray | None, str | None]:
+    """(depth in metres, None) or (None, why). The PNG must be 16-bit single-channel."""
+    import cv2
+
+    path = os.fspath(path)
+    try:
+        data = np.fromfile(path, dtype=np.uint8)
+    except OSError as exc:
+        return None, f"{path}: cannot read ({exc.strerror})"
+    raw = cv2.imdecode(data, cv2.IMREAD_ANYDEPTH) if data.size else None
+    if raw is None:
+        return None, f"{path}: not a decodable depth image"
+    if raw.ndim != 2 or raw.dtype != np.uint16:
+        return None, f"{path}: depth must be a 16-bit single-channel PNG, got {raw.dtype} with shape {raw.shape}"
+    return depth_from_scaled(raw, scale_per_m), None
+
+
+def _stamp_from_name(path: Path) -> float | None:
+    try:
+        value = float(path.stem)
+    except ValueError:
+        return None
+    return value if math.isfinite(value) else None
+
+
+def _image_files(folder: Path) -> list[Path]:
+    return sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+
+
+def read_stamp_list(path: Path) -> list[tuple[float, str]]:
+    """A TUM ``rgb.txt``/``depth.txt``: (stamp, relative path) per line; ``#`` comments."""
+    out = []
+    with open(path, encoding="utf-8") as f:
+        for number, line in enumerate(f, start=1):
+            text = line.strip()
+            if not text or text.startswith("#"):
+                continue
+            parts = text.split()
+            try:
+                stamp = float(parts[0])
+                if len(parts) < 2 or not math.isfinite(stamp):
+                    raise ValueError
+            except ValueError:
+                raise FrameSourceError(
+                    f"{path}:{number}: expected 'STAMP_S PATH' (e.g. '1305031102.175304 rgb/1305031102.175304.png'), "
+                    f"got {text!r}"
+                ) from None
+            out.append((stamp, parts[1]))
+    return out
+
+
+def associate(first: list[float], second: list[float], max_dt_s: float = 0.02) -> dict[int, int]:
+    """Pair stamps of two lists one-to-one, nearest first, within ``max_dt_s``: {i: j}."""
+    a = np.asarray(first, dtype=float)
+    b = np.asarray(second, dtype=float)
+    if len(a) == 0 or len(b) == 0:
+        return {}
+    order = np.argsort(b)
+    b_sorted = b[order]
+    candidates = []
+    for i, t in enumerate(a):  # the nearest few in the other list are enough
+        k = int(np.searchsorted(b_sorted, t))
+        for kk in range(max(0, k - 2), min(len(b), k + 3)):
+            dt = abs(b_sorted[kk] - t)
+            if dt <= max_dt_s:
+                candidates.append((dt, i, int(order[kk])))
+    candidates.sort()
+    pairs, used_a, used_b = {}, set(), set()
+    for _, i, j in candidates:
+        if i not in used_a and j not in used_b:
+            pairs[i] = j
+            used_a.add(i)
+            used_b.add(j)
+    return pairs
+
+
+# --------------------------------------------------------------------------- sources
+
+
+def is_tum_folder(folder: str | os.PathLike[str]) -> bool:
+    f = Path(folder)
+    return (f / "rgb.txt").is_file() or ((f / "rgb").is_dir() and (f / "depth").is_dir())
+
+
+def tum_frames(folder: str | os.PathLike[str], *, max_dt_s: float = 0.02,
+               depth_scale_per_m: float = TUM_DEPTH_SCALE_PER_M) -> Iterator[Frame]:
+    """Frames of a TUM RGB-D folder (see the module doc), in time order."""
+    root = Path(folder)
+    if not root.is_dir():
+        raise FrameSourceError(f"{root}: no such folder")
+    if (root / "rgb.txt").is_file():
+        rgb = read_stamp_list(root / "rgb.txt")
+    elif (root / "rgb").is_dir():
+        rgb = [(s, f"rgb/{p.name}") for p in _image_files(root / "rgb") if (s := _stamp_from_name(p)) is not None]
+    else:
+        raise FrameSourceError(f"{root}: not a TUM RGB-D folder (no rgb.txt and no rgb/ folder)")
+    if (root / "depth.txt").is_file():
+        depth = read_stamp_list(root / "depth.txt")
+    elif (root / "depth").is_dir():
+        depth = [(s, f"depth/{p.name}") for p in _image_files(root / "depth") if (s := _stamp_from_name(p)) is not None]
+    else:
+        depth = []
+    rgb.sort(key=lambda x: x[0])
+    pairs = associate([s for s, _ in rgb], [s for s, _ in depth], max_dt_s)
+    for index, (stamp, rel) in enumerate(rgb):
+        bgr, error = read_image(root / rel)
+        depth_m, depth_error = None, None
+        if index in pairs:
+            depth_m, depth_error = read_depth_png(root / depth[pairs[index]][1], depth_scale_per_m)
+        yield Frame(stamp, index, rel, bgr, depth_m, error, depth_error)
+
+
+def folder_frames(folder: str | os.PathLike[str], *, fps: float = 30.0, start_s: float = 0.0) -> Iterator[Frame]:
+    """Frames of a folder of plain images (see the module doc)."""
+    root = Path(folder)
+    if not root.is_dir():
+        raise FrameSourceError(f"{root}: no such folder")
+    files = _image_files(root)
+    if not files:
+        raise FrameSourceError(f"{root}: no images ({', '.join(IMAGE_SUFFIXES)}) in this folder")
+    stamps = [_stamp_from_name(p) for p in files]
+    if all(s is not None for s in stamps):
+        order = sorted(range(len(files)), key=lambda i: stamps[i])
+        files, stamps = [files[i] for i in order], [stamps[i] for i in order]
+    else:
+        if fps <= 0:
+            raise FrameSourceError("fps must be > 0")
+        stamps = [start_s + k / fps for k in range(len(files))]
+    for index, (path, stamp) in enumerate(zip(files, stamps)):
+        bgr, error = read_image(path)
+        yield Frame(float(stamp), index, path.name, bgr, None, error)
+
+
+def open_frames(path: str | os.PathLike[str], *, fps: float = 30.0,
+                depth_scale_per_m: float = TUM_DEPTH_SCALE_PER_M) -> Iterator[Frame]:
+    """A TUM RGB-D folder, a plain image folder, or a video file, whichever ``path`` is."""
+    p = Path(path)
+    if p.is_dir():
+        return tum_frames(p, depth_scale_per_m=depth_scale_per_m) if is_tum_folder(p) else folder_frames(p, fps=fps)
+    if p.is_file():
+        return video_frames(str(p))
+    raise FrameSourceError(f"{p}: no such folder or video file")
+
+
+def video_frames(source: int | str, *, max_frames: int | None = None, clock=time.time) -> Iterator[Frame]:
+    """Frames from ``cv2.VideoCapture`` (a device number, a video file or a stream URL)."""
+    import cv2
+
+    capture = cv2.VideoCapture(source)
+    if not capture.isOpened():
+        raise FrameSourceError(
+            f"cannot open video source {source!r} (a device number such as 0, a video file, or a URL)"
+        )
+    live = isinstance(source, int)
+    name = f"video:{source}" if live else Path(str(source)).name
+    try:
+        index = 0
+        while max_frames is None or index < max_frames:
+            ok, bgr = capture.read()
+            if not ok or bgr is None:
+                break
+            stamp = clock() if live else capture.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
+            yield Frame(float(stamp), index, f"{name}#{index}", bgr)
+            index += 1
+    finally:
+        capture.release()
+
+
+FREENECT_MISSING = (
+    "live Kinect frames need the optional 'freenect' package (the Python binding of libfreenect): "
+    "install libfreenect and its Python wrapper (github.com/OpenKinect/libfreenect, "
+    "wrappers/python; some distributions package it as python3-freenect), then run again; "
+    "or record a TUM RGB-D style folder and pass that instead"
+)
+
+
+def kinect_frames(device: int = 0, *, max_frames: int | None = None, clock=time.time) -> Iterator[Frame]:
+    """Live Kinect v1 frames: RGB and registered depth (mm → metres) through ``freenect``."""
+    try:
+        import freenect  # optional extra; imported only when a live Kinect is asked for
+    except ImportError:
+        raise FrameSourceError(FREENECT_MISSING) from None
+    import cv2
+
+    index = 0
+    try:
+        while max_frames is None or index < max_frames:
+            video = freenect.sync_get_video(device, freenect.VIDEO_RGB)
+            depth = freenect.sync_get_depth(device, freenect.DEPTH_REGISTERED)
+            if video is None or depth is None:
+                if index == 0:
+                    raise FrameSourceError(f"no Kinect answers on device {device} (plugged in? powered?)")
+                break
+            stamp = clock()
+            bgr = cv2.cvtColor(np.ascontiguousarray(video[0]), cv2.COLOR_RGB2BGR)
+            yield Frame(float(stamp), index, f"kinect:{device}#{index}", bgr, depth_from_mm(depth[0]))
+            index += 1
+    finally:
+        freenect.sync_stop()

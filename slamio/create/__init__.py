@@ -1,0 +1,20 @@
+"""slamio.create: the iRobot Create (1 and 2) over its Open Interface.
+
+Modules, from the wire up:
+
+* :mod:`slamio.create.protocol`  — pure codec: commands → bytes, bytes → sensor values,
+  and a stream-frame parser that survives damaged bytes;
+* :mod:`slamio.create.link`      — the serial port (pyserial ``serial_for_url``) with
+  timeouts, reconnect, and an exit that always stops the wheels;
+* :mod:`slamio.create.odometry`  — readings → run-log odometry records (Create 2 encoder
+  counts; Create 1 distance/angle with the 1° truncation workaround);
+* :mod:`slamio.create.safety`    — when to stop (bump, wheel drop, watchdog, Ctrl-C,
+  serial error) and why;
+* :mod:`slamio.create.sim`       — a simulated Create on a pseudo-terminal, with ground truth
+  and fault injection;
+* :mod:`slamio.create.record`    — the recorder behind ``fgslam record``;
+* :mod:`slamio.create.calibrate` — noise covariances from measured trials
+  (``fgslam calibrate``).
+
+The user's guide is ``docs/create.md``.
+"""

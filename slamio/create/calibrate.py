@@ -1,0 +1,334 @@
+"""Noise covariances from measured trials, the way seed 001 calibrated its robot.
+
+Seed 001 drove its robot forward 30 times and turned it in place 30 times, measured where it
+really ended with a tape measure, and took the covariance of the errors in x, y and θ
+(``numpy.ma.cov``) as the motion noise R; 15 range/bearing readings against tape-measured
+truth gave the measurement noise Q. The paper lists no numbers, so the bundled
+``data/calibration_trials_s001.csv`` is **simulated** (:func:`simulated_trials`); measure
+your own robot the same way.
+
+Trials file (CSV)
+=================
+
+One header line, then one trial per line; blank cells where a column does not apply; lines
+starting with ``#`` are comments::
+
+    kind,command_distance_m,command_angle_rad,x_m,y_m,theta_rad,true_range_m,true_bearing_rad,range_m,bearing_rad
+    forward,0.5,0,0.497,0.004,0.012,,,,
+    rotate,0,1.5708,0.002,-0.001,1.553,,,,
+    sensor,,,,,,1.20,0.10,1.23,0.09
+
+``forward`` / ``rotate``: what the robot was told to do (``command_distance_m``,
+``command_angle_rad``; for a Create: drive until its odometry says so, as ``fgslam record``
+does), and where it really ended (``x_m``, ``y_m``, ``theta_rad``) measured in the frame of
+its start pose (x forward, y left, θ counter-clockwise). The error is the measured pose
+minus the commanded motion's arc increment (``(d, 0, 0)`` forward, ``(0, 0, a)`` in place).
+``sensor``: the landmark's true range and bearing (tape, protractor) and what the sensor
+reported.
+
+What comes out
+==============
+
+Per kind: the mean error (bias) and the covariance of the errors (N − 1 normalised, like
+``numpy.ma.cov``), and the covariance per metre (forward) or per radian (rotate) that
+:class:`slamio.create.odometry.OdometryNoise` scales with each increment; the pooled
+covariance of all motion errors (seed 001's single R, as written); the sensor's bias,
+covariance and standard deviations. :meth:`Calibration.to_dict` is what ``fgslam calibrate
+--out`` writes and ``fgslam record --calibration`` reads.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from slamio.create.odometry import OdometryNoise, quantisation_floor
+from slamio.errors import FgslamError
+from slamio.geometry import arc_increment, wrap_angle
+from slamio.log import as_matrix3
+
+__all__ = [
+    "COLUMNS",
+    "MotionTrial",
+    "SensorTrial",
+    "read_trials",
+    "motion_errors",
+    "Calibration",
+    "calibrate",
+    "load_calibration",
+    "simulated_trials",
+]
+
+COLUMNS = ("kind", "command_distance_m", "command_angle_rad", "x_m", "y_m", "theta_rad",
+           "true_range_m", "true_bearing_rad", "range_m", "bearing_rad")
+_NEEDS = {
+    "forward": ("command_distance_m", "command_angle_rad", "x_m", "y_m", "theta_rad"),
+    "rotate": ("command_distance_m", "command_angle_rad", "x_m", "y_m", "theta_rad"),
+    "sensor": ("true_range_m", "true_bearing_rad", "range_m", "bearing_rad"),
+}
+CALIBRATION_FORMAT = "fgslam-calibration"
+
+
+@dataclass(frozen=True)
+class MotionTrial:
+    kind: str  # forward or rotate
+    command_distance_m: float
+    command_angle_rad: float
+    x_m: float
+    y_m: float
+    theta_rad: float
+    line: int
+
+
+@dataclass(frozen=True)
+class SensorTrial:
+    true_range_m: float
+    true_bearing_rad: float
+    range_m: float
+    bearing_rad: float
+    line: int
+
+
+def _number(text: str, where: str, column: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise FgslamError(f"{where}: column {column} must be a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise FgslamError(f"{where}: column {column} must be finite, got {text!r}")
+    return value
+
+
+def read_trials(path: str | os.PathLike[str]) -> tuple[list[MotionTrial], list[SensorTrial]]:
+    """Read a trials CSV (module docstring); errors name ``file:line`` and the fix."""
+    path = os.fspath(path)
+    try:
+        with open(path, encoding="utf-8", newline="") as f:
+            text = f.read()
+    except OSError as exc:
+        raise FgslamError(f"{path}: cannot read the trials file ({exc.strerror})") from None
+    numbered = [(i, line) for i, line in enumerate(text.splitlines(), start=1)
+                if line.strip() and not line.lstrip().startswith("#")]
+    if not numbered:
+        raise FgslamError(f"{path}: no trials; the first line must be the header {','.join(COLUMNS)}")
+    header_line, header_text = numbered[0]
+    header = [h.strip() for h in next(csv.reader([header_text]))]
+    missing = [c for c in ("kind",) if c not in header]
+    unknown = [h for h in header if h not in COLUMNS]
+    if missing or unknown:
+        raise FgslamError(
+            f"{path}:{header_line}: the header must name columns from {','.join(COLUMNS)} "
+            f"(missing: {', '.join(missing) or 'none'}; unknown: {', '.join(unknown) or 'none'})"
+        )
+    motion: list[MotionTrial] = []
+    sensor: list[SensorTrial] = []
+    for number, line in numbered[1:]:
+        where = f"{path}:{number}"
+        cells = [c.strip() for c in next(csv.reader([line]))]
+        if len(cells) > len(header):
+            raise FgslamError(f"{where}: {len(cells)} cells but the header has {len(header)} columns")
+        row = dict(zip(header, cells + [""] * (len(header) - len(cells))))
+        kind = row["kind"]
+        if kind not in _NEEDS:
+            raise FgslamError(f"{where}: kind {kind!r} is not one of forward, rotate, sensor")
+        values = {}
+        for column in _NEEDS[kind]:
+            if not row.get(column):
+                raise FgslamError(f"{where}: a {kind} trial needs column {column}; fill it in")
+            values[column] = _number(row[column], where, column)
+        if kind == "sensor":
+            if values["true_range_m"] <= 0 or values["range_m"] <= 0:
+                raise FgslamError(f"{where}: ranges must be > 0 m")
+            sensor.append(SensorTrial(line=number, **values))
+        else:
+            if kind == "forward" and values["command_distance_m"] == 0:
+                raise FgslamError(f"{where}: a forward trial needs command_distance_m ≠ 0")
+            if kind == "rotate" and values["command_angle_rad"] == 0:
+                raise FgslamError(f"{where}: a rotate trial needs command_angle_rad ≠ 0")
+            motion.append(MotionTrial(kind=kind, line=number, **values))
+    return motion, sensor
+
+
+def motion_errors(trials: list[MotionTrial]) -> np.ndarray:
+    """(n, 3) errors: measured end pose minus the commanded arc increment (θ wrapped)."""
+    out = np.zeros((len(trials), 3))
+    for i, t in enumerate(trials):
+        dx, dy, dtheta = arc_increment(t.command_distance_m, t.command_angle_rad)
+        out[i] = (t.x_m - dx, t.y_m - dy, wrap_angle(t.theta_rad - dtheta))
+    return out
+
+
+def _covariance(errors: np.ndarray) -> np.ndarray:
+    """N − 1 normalised covariance of the rows (as numpy.ma.cov with its defaults)."""
+    return np.atleast_2d(np.cov(errors, rowvar=False, ddof=1))
+
+
+def _listed(m: np.ndarray) -> list:
+    return np.asarray(m, dtype=float).tolist()
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """The result of :func:`calibrate` (see the module docstring)."""
+
+    source: str
+    forward: dict | None
+    rotate: dict | None
+    pooled_motion_covariance: list | None
+    observation: dict | None
+
+    def odometry_noise(self, model: str) -> OdometryNoise:
+        """The recorder's noise model: per-metre and per-radian covariances from the trials."""
+        if self.forward is None or self.rotate is None:
+            raise FgslamError(
+                f"{self.source}: needs both forward and rotate trials to make an odometry noise model"
+            )
+        return OdometryNoise(
+            forward_per_m=as_matrix3(self.forward["covariance_per_m"]),
+            rotate_per_rad=as_matrix3(self.rotate["covariance_per_rad"]),
+            floor=quantisation_floor(model),
+            source=f"fgslam calibrate {self.source}",
+        )
+
+    def to_dict(self) -> dict:
+        return {
+            "format": CALIBRATION_FORMAT,
+            "version": 1,
+            "source": self.source,
+            "forward": self.forward,
+            "rotate": self.rotate,
+            "pooled_motion_covariance": self.pooled_motion_covariance,
+            "observation": self.observation,
+        }
+
+    def summary(self) -> str:
+        lines = [f"calibration from {self.source}"]
+        for name, part, unit in (("forward", self.forward, "m"), ("rotate", self.rotate, "rad")):
+            if part is None:
+                lines.append(f"  {name}: no trials")
+                continue
+            sd = np.sqrt(np.diag(part["covariance"]))
+            bias = part["bias"]
+            lines.append(
+                f"  {name}: {part['trials']} trials of {part['mean_command']:.4g} {unit}; "
+                f"bias x {bias[0]:+.4f} m, y {bias[1]:+.4f} m, θ {bias[2]:+.4f} rad; "
+                f"σ x {sd[0]:.4f} m, y {sd[1]:.4f} m, θ {sd[2]:.4f} rad"
+            )
+        if self.observation is None:
+            lines.append("  sensor: no trials")
+        else:
+            o = self.observation
+            lines.append(
+                f"  sensor: {o['trials']} readings; bias range {o['bias'][0]:+.4f} m, bearing {o['bias'][1]:+.4f} rad; "
+                f"σ range {o['sigma_range_m']:.4f} m, bearing {o['sigma_bearing_rad']:.4f} rad"
+            )
+        return "\n".join(lines)
+
+
+def _motion_part(trials: list[MotionTrial], kind: str, where: str) -> dict | None:
+    chosen = [t for t in trials if t.kind == kind]
+    if not chosen:
+        return None
+    if len(chosen) < 2:
+        raise FgslamError(f"{where}: one {kind} trial cannot give a covariance; measure at least 2 (seed 001: 30)")
+    errors = motion_errors(chosen)
+    cov = _covariance(errors)
+    amount = [abs(t.command_distance_m) if kind == "forward" else abs(t.command_angle_rad) for t in chosen]
+    mean_command = float(np.mean(amount))
+    per = "covariance_per_m" if kind == "forward" else "covariance_per_rad"
+    return {
+        "trials": len(chosen),
+        "mean_command": mean_command,
+        "bias": _listed(errors.mean(axis=0)),
+        "covariance": _listed(cov),
+        per: _listed(cov / mean_command),
+    }
+
+
+def calibrate(motion: list[MotionTrial], sensor: list[SensorTrial], source: str = "trials") -> Calibration:
+    """Biases and covariances of the trials (module docstring)."""
+    if not motion and not sensor:
+        raise FgslamError(f"{source}: no trials to calibrate from")
+    pooled = _listed(_covariance(motion_errors(motion))) if len(motion) >= 2 else None
+    observation = None
+    if sensor:
+        if len(sensor) < 2:
+            raise FgslamError(f"{source}: one sensor reading cannot give a covariance; take at least 2 (seed 001: 15)")
+        e = np.array([(s.range_m - s.true_range_m, wrap_angle(s.bearing_rad - s.true_bearing_rad)) for s in sensor])
+        cov = _covariance(e)
+        observation = {
+            "trials": len(sensor),
+            "bias": _listed(e.mean(axis=0)),
+            "covariance": _listed(cov),
+            "sigma_range_m": float(math.sqrt(cov[0, 0])),
+            "sigma_bearing_rad": float(math.sqrt(cov[1, 1])),
+        }
+    return Calibration(
+        source=source,
+        forward=_motion_part(motion, "forward", source),
+        rotate=_motion_part(motion, "rotate", source),
+        pooled_motion_covariance=pooled,
+        observation=observation,
+    )
+
+
+def load_calibration(path: str | os.PathLike[str]) -> Calibration:
+    """Read what ``fgslam calibrate --out`` wrote."""
+    path = os.fspath(path)
+    try:
+        with open(path, encoding="utf-8") as f:
+            d = json.load(f)
+    except OSError as exc:
+        raise FgslamError(f"{path}: cannot read the calibration ({exc.strerror})") from None
+    except json.JSONDecodeError as exc:
+        raise FgslamError(f"{path}:{exc.lineno}: not JSON ({exc.msg}); write it with fgslam calibrate --out") from None
+    if not isinstance(d, dict) or d.get("format") != CALIBRATION_FORMAT:
+        raise FgslamError(f"{path}: not a calibration file (no \"format\": \"{CALIBRATION_FORMAT}\"); "
+                          "write it with fgslam calibrate TRIALS.csv --out FILE")
+    return Calibration(d.get("source", path), d.get("forward"), d.get("rotate"),
+                       d.get("pooled_motion_covariance"), d.get("observation"))
+
+
+# --------------------------------------------------------------------------- example data
+
+
+def simulated_trials(seed: int = 1) -> str:
+    """A stand-in for seed 001's trials (the paper gives none): 30 forward, 30 rotate, 15 sensor.
+
+    Forward 0.5 m: x error N(−4 mm, 5 mm), heading error N(+0.005, 0.02) rad and a sideways
+    error 0.25 m × heading error + N(0, 4 mm) (a heading error made along the way); rotate
+    90°: x, y N(0, 3 mm), θ N(−0.02, 0.03) rad; sensor at 0.5–2.5 m, ±0.5 rad: range
+    N(+1 cm, 2 cm), bearing N(0, 0.02) rad. Rounded to mm and mrad, as read off a tape.
+    """
+    rng = np.random.default_rng(seed)
+    out = io.StringIO()
+    out.write(
+        "# SIMULATED stand-in for seed 001's 30 forward + 30 rotate calibration trials and 15 sensor\n"
+        "# readings: the paper lists no numbers. Made by slamio.create.calibrate.simulated_trials"
+        f"(seed={seed}).\n"
+        "# Replace with your own robot's tape-measured trials (layout: docs/create.md).\n"
+    )
+    out.write(",".join(COLUMNS) + "\n")
+    for _ in range(30):
+        theta = 0.005 + 0.02 * rng.standard_normal()
+        x = 0.5 - 0.004 + 0.005 * rng.standard_normal()
+        y = 0.25 * theta + 0.004 * rng.standard_normal()
+        out.write(f"forward,0.5,0,{x:.3f},{y:.3f},{theta:.3f},,,,\n")
+    quarter = math.pi / 2
+    for _ in range(30):
+        x, y = 0.003 * rng.standard_normal(2)
+        theta = quarter - 0.02 + 0.03 * rng.standard_normal()
+        out.write(f"rotate,0,{quarter:.4f},{x:.3f},{y:.3f},{theta:.3f},,,,\n")
+    for _ in range(15):
+        true_range = rng.uniform(0.5, 2.5)
+        true_bearing = rng.uniform(-0.5, 0.5)
+        range_m = true_range + 0.01 + 0.02 * rng.standard_normal()
+        bearing = true_bearing + 0.02 * rng.standard_normal()
+        out.write(f"sensor,,,,,,{true_range:.3f},{true_bearing:.3f},{range_m:.3f},{bearing:.3f}\n")
+    return out.getvalue()

@@ -1,0 +1,157 @@
+"""Kinect colour landmarks: depth encodings, segmentation, seed 000/002's formulas, measurements."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from slamio.camera.colour import (
+    DEFAULT_COLOURS,
+    ColourOptions,
+    ColourRejection,
+    clean_mask,
+    colour_mask,
+    depth_from_kinect_raw,
+    depth_from_mm,
+    depth_from_scaled,
+    detect_colour_landmarks,
+    find_blobs,
+    gheight_seed002,
+    largest_blob,
+    linear_bearing_error_rad,
+    measure_blob,
+)
+from slamio.camera.model import T_robot_camera_from_mount, kinect_v1_default
+from slamio.camera.render import CYLINDER_BGR, CylinderSpec, Scene, render
+
+RED = DEFAULT_COLOURS[0]
+KINECT = kinect_v1_default(T_robot_camera_from_mount(x_m=0.1, z_m=0.3))
+
+
+def test_depth_encodings_mark_missing_readings():
+    mm = np.array([[0, 1000], [2500, 65535]], dtype=np.uint16)
+    d = depth_from_mm(mm)
+    assert np.isnan(d[0, 0]) and d[0, 1] == 1.0 and d[1, 0] == 2.5
+    tum = depth_from_scaled(np.array([[0, 5000, 10000]], dtype=np.uint16))
+    assert np.isnan(tum[0, 0]) and list(tum[0, 1:]) == [1.0, 2.0]
+    raw = depth_from_kinect_raw(np.array([2047, 600, 1083, 1100], dtype=np.uint16))
+    assert np.isnan(raw[0])  # 2047: no reading
+    assert raw[1] == pytest.approx(1.0 / (3.3309495161 - 0.0030711016 * 600), rel=1e-6)
+    assert raw[2] > 10.0 and np.isnan(raw[3])  # past the fit's pole: no reading either
+
+
+def test_seed000_linear_bearing_error_is_documented_size():
+    errors = [math.degrees(linear_bearing_error_rad(u, kinect_v1_default())) for u in np.arange(0, 640, 0.5)]
+    assert abs(errors[int(319.5 * 2)]) < 0.01  # exact at the centre
+    worst = int(np.argmax(np.abs(errors)))
+    assert 3.1 < abs(errors[worst]) < 3.3  # 57° over 640 px vs atan(x / 525)
+    assert 240 < abs(worst / 2 - 319.5) < 260  # worst about 250 px from the centre, not at the edge
+    assert 2.8 < abs(errors[0]) < 2.95
+
+
+def test_gheight_is_the_law_of_cosines():
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        d1, d2 = rng.uniform(0.5, 4.0, 2)
+        theta_deg = rng.uniform(1.0, 40.0)
+        expected = math.sqrt(d1 * d1 + d2 * d2 - 2 * d1 * d2 * math.cos(math.radians(theta_deg)))
+        # pd pixels map to pd*vfov/rows degrees: one "row" spanning theta
+        assert gheight_seed002(d1, d2, 1.0, vfov_deg=theta_deg, rows=1) == pytest.approx(expected)
+    # as written: 47° over 480 rows
+    assert gheight_seed002(2.0, 2.0, 0.0) == 0.0
+
+
+def _red_image():
+    image = np.full((120, 160, 3), 180, np.uint8)
+    image[30:90, 40:70] = (30, 30, 200)  # the cylinder
+    image[8:16, 118:126] = (30, 30, 200)  # a smaller red thing (64 px)
+    rng = np.random.default_rng(1)
+    speckle = rng.random((120, 160)) < 0.01
+    image[speckle] = (30, 30, 200)
+    return image
+
+
+def speckle_free_region():
+    """Rows and columns away from both red patches: only speckle there, which the opening removes."""
+    return np.s_[95:120, 0:160]
+
+
+def test_one_blob_per_colour_after_clean_up():
+    import cv2
+
+    hsv = cv2.cvtColor(_red_image(), cv2.COLOR_BGR2HSV)
+    raw = colour_mask(hsv, RED)
+    cleaned = clean_mask(raw)
+    blob = largest_blob(cleaned, RED)
+    # a speckle touching the edge may be merged by the closing: within a pixel
+    assert np.abs(np.array([blob.left, blob.top, blob.right, blob.bottom]) - (40, 30, 69, 89)).max() <= 1
+    assert raw[speckle_free_region()].sum() > 0  # the raw mask had speckle there
+    assert clean_mask(raw)[speckle_free_region()].sum() == 0
+    assert blob.extra_blobs == 1  # the 8×8 patch survives clean-up but is not the landmark
+    blobs, missing = find_blobs(_red_image())
+    assert [b.colour.name for b in blobs] == ["red"] and missing == ["green", "blue"]
+
+
+def test_min_area_drops_small_blobs():
+    image = np.full((60, 60, 3), 180, np.uint8)
+    image[20:25, 20:25] = (30, 30, 200)  # 25 px < 40
+    blobs, missing = find_blobs(image)
+    assert not blobs and "red" in missing
+
+
+def test_blob_without_depth_is_rejected_by_name():
+    frame = render(KINECT, (0.0, 0.0, 0.0), Scene(cylinders=(CylinderSpec(2.0, 0.0, 0.05, 0.4, CYLINDER_BGR["red"]),)),
+                   supersample=2)
+    depth = frame.depth_m.copy()
+    depth[:, :] = np.nan  # a Kinect that saw nothing (0 mm / raw 2047 everywhere)
+    measured, rejected, blobs = detect_colour_landmarks(frame.bgr, depth, KINECT)
+    assert not measured and len(blobs) == 1
+    assert isinstance(rejected[0], ColourRejection) and rejected[0].reason == "missing_depth"
+
+
+@pytest.mark.parametrize("gain", [0.6, 1.0, 1.25])
+def test_segmentation_survives_lighting_changes(gain):
+    cyl = CylinderSpec(2.0, 0.3, 0.05, 0.4, CYLINDER_BGR["green"], "green", 1)
+    frame = render(KINECT, (0.0, 0.0, 0.0), Scene(cylinders=(cyl,)), supersample=2, gain=gain)
+    measured, rejected, _ = detect_colour_landmarks(frame.bgr, frame.depth_m, KINECT)
+    assert not rejected and len(measured) == 1
+    m = measured[0]
+    assert m.colour == "green" and m.landmark_id == 1
+    assert m.range_m == pytest.approx(math.hypot(2.0, 0.3), rel=0.01)
+    assert m.bearing_rad == pytest.approx(math.atan2(0.3, 2.0), abs=math.radians(0.2))
+
+
+def test_height_notes_when_the_cylinder_is_cut_by_the_image():
+    # 0.8 m tall at 0.7 m: its top is above the view -> no height
+    tall = CylinderSpec(0.7, 0.0, 0.05, 0.8, CYLINDER_BGR["blue"], "blue", 2)
+    frame = render(KINECT, (0.0, 0.0, 0.0), Scene(cylinders=(tall,)), supersample=2)
+    (m,), _, _ = detect_colour_landmarks(frame.bgr, frame.depth_m, KINECT)
+    assert m.height_m is None and m.height_note == "height_cut_off"
+    # 0.4 m tall at 0.55 m: the foot is below the view -> top above the floor (needs the mount height)
+    short = CylinderSpec(0.55, 0.0, 0.05, 0.4, CYLINDER_BGR["red"], "red", 0)
+    frame = render(KINECT, (0.0, 0.0, 0.0), Scene(cylinders=(short,)), supersample=2)
+    (m,), _, _ = detect_colour_landmarks(frame.bgr, frame.depth_m, KINECT)
+    assert m.height_note == "top-above-floor" and m.height_m == pytest.approx(0.4, rel=0.02)
+
+
+def test_seed_options_run_and_are_worse():
+    cyl = CylinderSpec(2.0, 0.7, 0.05, 0.4, CYLINDER_BGR["red"], "red", 0)
+    frame = render(KINECT, (0.0, 0.0, 0.0), Scene(cylinders=(cyl,)), supersample=2)
+    blobs, _ = find_blobs(frame.bgr)
+    exact = measure_blob(blobs[0], frame.depth_m, KINECT)
+    seeds = measure_blob(blobs[0], frame.depth_m, KINECT, ColourOptions(bearing_method="linear", height_method="gheight"))
+    truth = math.atan2(0.7, 2.0)
+    assert abs(exact.bearing_rad - truth) < math.radians(0.1)
+    assert abs(seeds.bearing_rad - truth) > math.radians(1.5)  # the linear map is off by ~2.5° here
+    assert abs(exact.height_m - 0.4) < 0.01 and seeds.height_note == "gheight" and abs(seeds.height_m - 0.4) > 0.02
+
+
+def test_blob_cut_by_the_image_side_is_rejected():
+    # 1.5 m ahead, 0.95 m to the right: the silhouette runs off the image's right side
+    cyl = CylinderSpec(1.6, -0.95, 0.05, 0.4, CYLINDER_BGR["red"], "red", 0)
+    frame = render(KINECT, (0.0, 0.0, 0.0), Scene(cylinders=(cyl,)), supersample=2)
+    measured, rejected, blobs = detect_colour_landmarks(frame.bgr, frame.depth_m, KINECT)
+    assert blobs and blobs[0].right == 639
+    assert not measured and rejected[0].reason == "blob_at_image_border"

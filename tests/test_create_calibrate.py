@@ -1,0 +1,171 @@
+"""slamio.create.calibrate and the `fgslam calibrate` / `fgslam record` verbs (fgslam.record_cli)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fgslam.record_cli import add_calibrate_parser, add_record_parser, main
+from slamio.create.calibrate import (
+    calibrate,
+    load_calibration,
+    motion_errors,
+    read_trials,
+    simulated_trials,
+)
+from slamio.errors import FgslamError
+from slamio.log import read_log
+
+ROOT = Path(__file__).resolve().parents[1]
+BUNDLED = ROOT / "data" / "calibration_trials_s001.csv"
+HEADER = "kind,command_distance_m,command_angle_rad,x_m,y_m,theta_rad,true_range_m,true_bearing_rad,range_m,bearing_rad\n"
+
+
+def write(tmp_path, body, name="trials.csv"):
+    path = tmp_path / name
+    path.write_text(HEADER + body)
+    return path
+
+
+def test_errors_and_covariances_are_seed_001s_numpy_cov(tmp_path):
+    path = write(tmp_path, (
+        "# a comment\n"
+        "forward,0.5,0,0.49,0.01,0.02,,,,\n"
+        "forward,0.5,0,0.51,-0.01,0.00,,,,\n"
+        "forward,0.5,0,0.50,0.00,-0.02,,,,\n"
+        "rotate,0,1.5708,0.00,0.00,1.60,,,,\n"
+        "rotate,0,1.5708,0.01,0.00,1.55,,,,\n"
+        "sensor,,,,,,1.0,0.1,1.02,0.12\n"
+        "sensor,,,,,,2.0,-0.2,1.97,-0.21\n"
+    ))
+    motion, sensor = read_trials(path)
+    assert len(motion) == 5 and len(sensor) == 2
+    forward = motion_errors([t for t in motion if t.kind == "forward"])
+    assert np.allclose(forward, [[-0.01, 0.01, 0.02], [0.01, -0.01, 0.0], [0.0, 0.0, -0.02]])
+    c = calibrate(motion, sensor, source=str(path))
+    assert np.allclose(c.forward["covariance"], np.ma.cov(forward, rowvar=False))
+    assert np.allclose(c.forward["covariance_per_m"], np.array(c.forward["covariance"]) / 0.5)
+    assert np.allclose(c.rotate["bias"], [0.005, 0.0, (1.60 + 1.55) / 2 - 1.5708])
+    assert c.observation["bias"] == pytest.approx([(0.02 - 0.03) / 2, (0.02 - 0.01) / 2])
+    assert c.observation["sigma_range_m"] == pytest.approx(np.std([0.02, -0.03], ddof=1))
+    pooled = np.ma.cov(motion_errors(motion), rowvar=False)
+    assert np.allclose(c.pooled_motion_covariance, pooled)  # seed 001's single R, as written
+
+
+def test_odometry_noise_from_a_calibration_scales_per_metre_and_radian():
+    c = calibrate(*read_trials(BUNDLED), source=str(BUNDLED))
+    noise = c.odometry_noise("create2")
+    one_trial = np.array(noise.covariance(0.5, 0.0)) - np.array(noise.floor)
+    assert np.allclose(one_trial, c.forward["covariance"])  # one 0.5 m trial's covariance back
+    assert "fgslam calibrate" in noise.source
+
+
+def test_bundled_trials_are_the_labelled_simulation():
+    text = BUNDLED.read_text()
+    assert text == simulated_trials(1) and text.startswith("# SIMULATED")
+    motion, sensor = read_trials(BUNDLED)
+    kinds = [t.kind for t in motion]
+    assert kinds.count("forward") == 30 and kinds.count("rotate") == 30 and len(sensor) == 15
+
+
+@pytest.mark.parametrize(
+    "body, message",
+    [
+        ("walk,0.5,0,0.5,0,0,,,,\n", r"trials.csv:2: kind 'walk' is not one of"),
+        ("forward,0.5,0,,0,0,,,,\n", r"trials.csv:2: a forward trial needs column x_m"),
+        ("forward,0.5,0,abc,0,0,,,,\n", r"trials.csv:2: column x_m must be a number"),
+        ("forward,0,0,0.5,0,0,,,,\nforward,0,0,0.5,0,0,,,,\n", "command_distance_m ≠ 0"),
+        ("forward,0.5,0,0.5,0,0,,,,\n", "one forward trial cannot give a covariance"),
+        ("sensor,,,,,,1,0,-1,0\n", "ranges must be > 0"),
+    ],
+)
+def test_bad_trials_say_file_line_and_fix(tmp_path, body, message):
+    path = write(tmp_path, body)
+    with pytest.raises(FgslamError, match=message):
+        calibrate(*read_trials(path), source=str(path))
+
+
+def test_bad_header_and_missing_file(tmp_path):
+    path = tmp_path / "x.csv"
+    path.write_text("kind,speed\n")
+    with pytest.raises(FgslamError, match=r"x.csv:1: the header must name columns.*unknown: speed"):
+        read_trials(path)
+    with pytest.raises(FgslamError, match="cannot read the trials file"):
+        read_trials(tmp_path / "nope.csv")
+
+
+# --------------------------------------------------------------------------- the verbs
+
+
+def test_verbs_plug_into_a_parent_parser(capsys):
+    parser = argparse.ArgumentParser(prog="fgslam")
+    verbs = parser.add_subparsers(dest="verb", required=True)
+    add_record_parser(verbs)
+    add_calibrate_parser(verbs)
+    args = parser.parse_args(["record", "--port", "/dev/ttyUSB0", "--model", "create1", "--out", "x.jsonl"])
+    assert args.path == "octagon" and args.func.__name__ == "cmd_record" and args.laps == 1
+    args = parser.parse_args(["calibrate", "t.csv"])
+    assert args.func.__name__ == "cmd_calibrate"
+    for verb in ("record", "calibrate"):
+        with pytest.raises(SystemExit):
+            parser.parse_args([verb, "--help"])
+        out = capsys.readouterr().out
+        assert f"usage: fgslam {verb}" in out
+    assert "Drive Direct 0 0" in out or "TRIALS.csv" in out
+    with pytest.raises(SystemExit):
+        parser.parse_args(["record", "--port", "x", "--model", "create3", "--out", "x"])
+
+
+def test_calibrate_verb_prints_and_writes(tmp_path, capsys):
+    out = tmp_path / "cal" / "calibration.json"
+    assert main(["calibrate", str(BUNDLED), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "forward: 30 trials" in printed and "sensor: 15 readings" in printed
+    c = load_calibration(out)
+    assert c.forward["trials"] == 30 and json.loads(out.read_text())["format"] == "fgslam-calibration"
+
+
+def test_calibrate_verb_user_error_exits_1(tmp_path, capsys):
+    assert main(["calibrate", str(tmp_path / "missing.csv")]) == 1
+    assert "cannot read the trials file" in capsys.readouterr().err
+    bad = tmp_path / "bad.json"
+    bad.write_text("{}")
+    with pytest.raises(FgslamError, match="not a calibration file"):
+        load_calibration(bad)
+
+
+def test_record_verb_on_the_simulator_with_a_calibration(tmp_path, capsys):
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", str(BUNDLED), "--out", str(cal)]) == 0
+    out = tmp_path / "runs" / "square.jsonl"
+    code = main(["record", "--port", "sim", "--model", "create2", "--path", "square", "--side", "0.5",
+                 "--out", str(out), "--calibration", str(cal), "--sim-time-scale", "20", "--sim-seed", "3"])
+    printed = capsys.readouterr().out
+    assert code == 0 and "wrote" in printed and "completed" in printed
+    log = read_log(out)
+    assert "fgslam calibrate" in log.header.noise["odometry"]["source"]
+    assert log.header.noise["observation"]["sigma_range_m"] > 0
+    assert log.header.source["command"].startswith("fgslam record --port sim")
+    status = json.loads((tmp_path / "runs" / "square.status.json").read_text())
+    assert status["reason"]["kind"] == "completed" and status["records"] == len(log.records)
+    truth = status["simulator"]["true_path_length_m"]
+    assert status["distance_m"] == pytest.approx(truth, rel=0.02) and truth > 1.8  # 4 × 0.5 m
+
+
+def test_record_verb_bad_port_exits_1_and_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "x.jsonl"
+    assert main(["record", "--port", str(tmp_path / "ttyUSB0"), "--model", "create2", "--out", str(out)]) == 1
+    assert "cannot open serial port" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_record_verb_refuses_a_folder_and_too_much_speed(tmp_path, capsys):
+    assert main(["record", "--port", "sim", "--model", "create2", "--out", str(tmp_path)]) == 1
+    assert "is a folder" in capsys.readouterr().err
+    assert main(["record", "--port", "sim", "--model", "create2", "--out", str(tmp_path / "a.jsonl"),
+                 "--speed", "0.8"]) == 1
+    assert "0.5 m/s" in capsys.readouterr().err

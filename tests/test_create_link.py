@@ -1,0 +1,121 @@
+"""slamio.create.link: pyserial serial_for_url (loop:// and a real pty), the safe exit, reconnect."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+import serial
+
+from slamio.create import protocol as p
+from slamio.create.link import CreateLink, LinkError
+from slamio.create.sim import SimulatedCreate
+
+STOP_BYTES = p.pause_stream() + p.drive_direct(left_mm_s=0, right_mm_s=0) + p.passive()
+
+
+class Spy:
+    """Wraps a pyserial port and keeps every byte written, even after it is closed."""
+
+    def __init__(self, port):
+        self.port = port
+        self.written = bytearray()
+        self.fail_writes = False
+
+    def write(self, data):
+        if self.fail_writes:
+            raise serial.SerialException("write failed: [Errno 5] Input/output error")
+        self.written += data
+        return self.port.write(data)
+
+    def __getattr__(self, name):
+        return getattr(self.port, name)
+
+
+def spy_opener(spies):
+    def opener(url, **kwargs):
+        spy = Spy(serial.serial_for_url(url, **kwargs))
+        spies.append(spy)
+        return spy
+
+    return opener
+
+
+def wait_for(predicate, timeout_s=10.0):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.002)
+    return predicate()
+
+
+def test_loop_url_round_trip_and_default_baud():
+    with CreateLink("loop://", "create2", timeout_s=0.2) as link:
+        assert link.baud == 115200
+        link.write(p.sensors(7))
+        assert link.read_exactly(2, timeout_s=2.0) == bytes([142, 7])
+    assert CreateLink("loop://", "create1").baud == 57600
+
+
+def test_exit_always_stops_the_wheels_and_returns_to_passive():
+    spies = []
+    with CreateLink("loop://", "create2", opener=spy_opener(spies)) as link:
+        link.drive_direct(200, 200)
+    assert bytes(spies[0].written).endswith(STOP_BYTES)
+    assert link.last_shutdown.stopped and not link.is_open
+
+
+def test_exit_on_an_exception_stops_too_and_the_exception_goes_on():
+    spies = []
+    with pytest.raises(ZeroDivisionError):
+        with CreateLink("loop://", "create2", opener=spy_opener(spies)) as link:
+            link.drive_direct(-100, 100)
+            1 / 0
+    assert bytes(spies[0].written).endswith(STOP_BYTES)
+
+
+def test_create2_can_also_stop_the_oi():
+    spies = []
+    with CreateLink("loop://", "create2", opener=spy_opener(spies), stop_oi_on_exit=True):
+        pass
+    assert bytes(spies[0].written).endswith(STOP_BYTES + p.stop_oi())
+
+
+def test_failed_write_reconnects_and_still_stops():
+    spies = []
+    with CreateLink("loop://", "create2", opener=spy_opener(spies), reconnect_delay_s=0.0) as link:
+        link.drive_direct(200, 200)
+        spies[0].fail_writes = True
+        with pytest.raises(LinkError, match="write failed"):
+            link.drive_direct(100, 100)
+    assert len(spies) == 2 and bytes(spies[1].written) == STOP_BYTES
+    assert link.last_shutdown.stopped and link.last_shutdown.reconnected and link.reconnects == 1
+
+
+def test_open_error_names_the_port_and_the_fixes(tmp_path):
+    with pytest.raises(LinkError) as error:
+        CreateLink(str(tmp_path / "ttyUSB9"), "create1").open()
+    message = str(error.value)
+    assert "ttyUSB9" in message and "57600" in message and "dialout" in message
+
+
+def test_unknown_model_is_refused():
+    with pytest.raises(LinkError, match="create1, create2"):
+        CreateLink("loop://", "roomba")
+
+
+def test_real_pty_to_the_simulated_create_and_unplug_replug():
+    with SimulatedCreate("create2", seed=0, time_scale=5.0) as sim:
+        link = CreateLink(sim.port, "create2", timeout_s=0.05, reconnect_delay_s=0.05, reconnect_attempts=100)
+        with link:
+            link.write(p.start() + p.safe() + p.drive_direct(left_mm_s=100, right_mm_s=100))
+            assert wait_for(lambda: sim.commanded_mm_s == (100.0, 100.0))
+            sim.unplug()
+            with pytest.raises(LinkError, match="cable unplugged"):
+                for _ in range(100):
+                    link.read()
+            assert sim.commanded_mm_s == (100.0, 100.0)  # the robot keeps driving
+            sim.replug()
+        assert link.last_shutdown.stopped and link.last_shutdown.reconnected
+        assert wait_for(lambda: sim.commanded_mm_s == (0.0, 0.0) and sim.mode == p.OiMode.PASSIVE)

@@ -1,0 +1,343 @@
+"""The recorder end to end: the driver talks to the simulated Create over a real pty.
+
+What these tests show (docs/create.md, "What the tests prove"):
+
+1. the octagon driven by both models integrates to within 2 % of the simulator's true path
+   length;
+2. with 1 % of the robot's bytes damaged, no frame with a bad checksum is accepted and the
+   run completes, still within 2 %;
+3. a recorder killed with SIGKILL mid-run (a subprocess) leaves a log that ``read_log`` —
+   what ``fgslam run`` uses — reads up to the last complete record;
+4. unplugging the simulated cable ends the run with the reason; the wheels are stopped as
+   soon as the cable is back (and the report says so when it never comes back: the Create
+   has no command timeout);
+5. bumps, wheel drops, the watchdog, Ctrl-C and SIGTERM/SIGINT stop the robot and keep the log.
+
+The simulator runs 20 × faster than real time; timeouts that watch the host are generous
+so that a busy machine cannot fail a test. Nothing asserts on how long anything took.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import os
+import select
+import signal
+import subprocess
+import sys
+import termios
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from slamio.create import protocol as p
+from slamio.create.link import CreateLink
+from slamio.create.odometry import integrate_records
+from slamio.create.protocol import OiMode
+from slamio.create.record import (
+    PathController,
+    RecorderSettings,
+    TeleopController,
+    TerminalKeys,
+    path_moves,
+    record,
+)
+from slamio.create.sim import SimulatedCreate
+from slamio.errors import FgslamError
+from slamio.log import Odometry, read_log
+
+ROOT = Path(__file__).resolve().parents[1]
+FAST = 20.0
+CALM = RecorderSettings(command_timeout_s=3.0, data_timeout_s=3.0, startup_timeout_s=10.0)
+
+
+def wait_for(predicate, timeout_s=10.0):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.002)
+    return predicate()
+
+
+def drive(sim, out, moves=None, settings=CALM, reconnect_attempts=3, **kwargs):
+    link = CreateLink(sim.port, sim.model, reconnect_delay_s=0.05, reconnect_attempts=reconnect_attempts)
+    controller = kwargs.pop("controller", None) or PathController(moves or path_moves("octagon"), settings)
+    return record(link, out, controller, settings=settings, clock=sim.clock, **kwargs)
+
+
+def stopped(sim):
+    return wait_for(lambda: sim.commanded_mm_s == (0.0, 0.0) and sim.mode == OiMode.PASSIVE)
+
+
+# --------------------------------------------------------------------------- 1, 2: octagon
+
+
+@pytest.fixture(scope="module", params=["create2", "create1"])
+def octagon(request, tmp_path_factory):
+    out = tmp_path_factory.mktemp(request.param) / "octagon.jsonl"
+    with SimulatedCreate(request.param, seed=1, time_scale=FAST, arena_m=None) as sim:  # open floor
+        result = drive(sim, out)
+        assert stopped(sim)
+        truth = (sim.true_path_length_m, sim.true_turn_rad)
+    return result, read_log(out), truth
+
+
+def test_octagon_odometry_matches_the_true_path_length_within_2_percent(octagon):
+    result, log, (true_length_m, _) = octagon
+    assert result.reason.kind == "completed", result.reason
+    _, length_m = integrate_records(log.records)
+    error = abs(length_m - true_length_m) / true_length_m
+    print(f"\n{log.header.robot['model']}: odometry {length_m:.4f} m, truth {true_length_m:.4f} m, "
+          f"error {100 * error:.2f} %; {result.link_stats}")
+    assert true_length_m > 3.5  # the octagon (8 × 0.5 m) really was driven
+    assert error < 0.02
+
+
+def test_octagon_log_is_a_valid_run_log_with_the_robot_in_the_header(octagon):
+    result, log, (_, true_turn_rad) = octagon
+    odometry = [r for r in log.records if isinstance(r, Odometry)]
+    assert len(odometry) == result.records > 100 and log.truncated is None
+    stamps = [r.stamp_s for r in odometry]
+    assert stamps == sorted(stamps) and stamps[0] >= 0.0
+    assert log.header.robot["model"] in ("create1", "create2") and log.header.start_pose == (0, 0, 0)
+    assert log.header.source["generator"] == "slamio.create.record"
+    turned_rad = sum(r.angle_rad for r in odometry)
+    assert turned_rad == pytest.approx(true_turn_rad, abs=0.05)  # 2π turned, measured to 3°
+    assert true_turn_rad > 2 * math.pi - 0.3
+
+
+def test_octagon_shutdown_stopped_the_robot(octagon):
+    result, _, _ = octagon
+    assert result.shutdown.stopped and not result.shutdown.reconnected
+
+
+def test_one_percent_corrupted_bytes_never_passes_a_bad_checksum(tmp_path):
+    accepted = []
+    with SimulatedCreate("create2", seed=2, time_scale=FAST, corrupt_fraction=0.01, arena_m=None) as sim:
+        result = drive(sim, tmp_path / "noisy.jsonl", frame_tap=accepted.append)
+        true_length_m = sim.true_path_length_m
+        sent = set(sim.sent_frames)
+        corrupted = sim.bytes_corrupted
+    stats = result.link_stats
+    assert result.reason.kind == "completed", result.reason
+    assert corrupted > 100 and stats["bad_frames"] > 50
+    assert all(p.frame_checksum_ok(f.raw) for f in accepted)
+    assert all(p.decode_frame_payload(f.raw[2:-1], [7, 35, 43, 44]) == f.values for f in accepted)
+    not_sent = sum(f.raw not in sent for f in accepted)  # damaged frames that summed to 0 anyway
+    _, length_m = integrate_records(read_log(tmp_path / "noisy.jsonl").records)
+    error = abs(length_m - true_length_m) / true_length_m
+    print(f"\n1 % corrupted: {corrupted} bytes damaged, {stats['frames_ok']} frames accepted, "
+          f"{stats['bad_frames']} rejected (+{stats['bad_length']} bad lengths), "
+          f"{stats['implausible_frames']} implausible, {not_sent} accepted but not sent; "
+          f"path length error {100 * error:.2f} %")
+    assert not_sent <= 2
+    assert error < 0.02
+
+
+def test_create1_lost_answers_fall_back_on_the_prediction(tmp_path):
+    out = tmp_path / "lossy.jsonl"
+    with SimulatedCreate("create1", seed=10, time_scale=FAST, arena_m=None, drop_fraction=0.01) as sim:
+        result = drive(sim, out, moves=path_moves("square", side_m=0.3))
+        true_length_m = sim.true_path_length_m
+    stats = result.link_stats
+    assert result.reason.kind == "completed", result.reason
+    assert stats["lost_answers"] > 0 and stats["answers"] > 5 * stats["lost_answers"]
+    _, length_m = integrate_records(read_log(out).records)
+    assert abs(length_m - true_length_m) / true_length_m < 0.02
+
+
+def test_a_robot_that_never_answers_is_reported_and_the_log_has_its_header(tmp_path):
+    out = tmp_path / "silent.jsonl"
+    settings = RecorderSettings(startup_timeout_s=0.3)
+    link = CreateLink("loop://", "create2")  # hears only its own commands
+    result = record(link, out, PathController(path_moves("square"), settings), settings=settings)
+    assert result.reason.kind == "no-data" and "115200" in result.reason.message
+    log = read_log(out)
+    assert log.records == () and log.header.robot["model"] == "create2"
+
+
+# --------------------------------------------------------------------------- hazards
+
+
+def test_bump_stops_the_robot_and_keeps_the_log(tmp_path):
+    out = tmp_path / "bump.jsonl"
+    with SimulatedCreate("create2", seed=3, time_scale=FAST, start_pose=(2.3, 1.5, 0.0)) as sim:
+        result = drive(sim, out, moves=path_moves("square", side_m=1.0))
+        assert stopped(sim)
+    assert result.reason.kind == "bump" and "bumper" in result.reason.message
+    log = read_log(out)
+    assert len(log.records) == result.records > 0
+    assert integrate_records(log.records)[1] == pytest.approx(3.048 - 0.17 - 2.3, abs=0.03)
+
+
+def test_wheel_drop_stops_the_robot(tmp_path):
+    with SimulatedCreate("create2", seed=4, time_scale=FAST) as sim:
+        result = drive(sim, tmp_path / "drop.jsonl", on_record=lambda n: n == 20 and sim.lift())
+        assert stopped(sim)
+    assert result.reason.kind == "wheel-drop"
+
+
+def test_watchdog_stops_the_wheels_while_the_host_loop_hangs(tmp_path):
+    settings = RecorderSettings(command_timeout_s=0.2, data_timeout_s=30.0, startup_timeout_s=10.0)
+    seen = {}
+
+    def hang(n):
+        if n == 5:  # the control loop stops sending commands for a while
+            seen["stopped"] = wait_for(lambda: sim.commanded_mm_s == (0.0, 0.0), timeout_s=20.0)
+
+    with SimulatedCreate("create2", seed=5, time_scale=1.0, arena_m=None) as sim:
+        result = drive(sim, tmp_path / "hang.jsonl", settings=settings, on_record=hang)
+    assert seen["stopped"]  # stopped by the watchdog thread while the loop was still hung
+    assert result.reason.kind == "watchdog" and "no drive command" in result.reason.message
+
+
+def test_keyboard_interrupt_stops_the_robot(tmp_path):
+    def interrupt(n):
+        if n == 10:
+            raise KeyboardInterrupt
+
+    with SimulatedCreate("create2", seed=6, time_scale=FAST) as sim:
+        result = drive(sim, tmp_path / "ctrl-c.jsonl", on_record=interrupt)
+        assert stopped(sim)
+    assert result.reason.kind == "interrupted" and result.records >= 10
+    assert len(read_log(tmp_path / "ctrl-c.jsonl").records) == result.records
+
+
+# --------------------------------------------------------------------------- 4: the cable
+
+
+def test_unplugged_cable_ends_the_run_and_the_stop_goes_out_when_it_is_back(tmp_path):
+    out = tmp_path / "unplug.jsonl"
+    with SimulatedCreate("create2", seed=7, time_scale=FAST) as sim:
+
+        pulled = []
+
+        def unplug(n):
+            if n >= 10 and not pulled and sim.commanded_mm_s != (0.0, 0.0):  # once, while it drives
+                pulled.append(n)
+                sim.unplug()
+                threading.Timer(0.1, sim.replug).start()
+
+        # the recorder tries to reconnect for 20 × 0.05 s; the cable is back after 0.1 s
+        result = drive(sim, out, on_record=unplug, reconnect_attempts=20)
+        assert stopped(sim)
+    assert result.reason.kind == "serial-error" and "unplugged" in result.reason.message
+    assert result.shutdown.stopped and result.shutdown.reconnected
+    assert len(read_log(out).records) == result.records >= 10
+
+
+def test_cable_that_stays_out_is_reported_honestly(tmp_path):
+    out = tmp_path / "gone.jsonl"
+    with SimulatedCreate("create2", seed=8, time_scale=FAST) as sim:
+        def unplug(n):
+            if n >= 10 and sim.plugged and sim.commanded_mm_s != (0.0, 0.0):  # while it drives
+                sim.unplug()  # for good
+
+        result = drive(sim, out, on_record=unplug)
+        still_driving = sim.commanded_mm_s != (0.0, 0.0)
+    assert result.reason.kind == "serial-error"
+    assert not result.shutdown.stopped and "KEEPS EXECUTING ITS LAST" in result.shutdown.detail
+    assert still_driving  # the Create has no command timeout: nobody could stop it
+    assert len(read_log(out).records) == result.records
+
+
+# --------------------------------------------------------------------------- teleop
+
+
+class ScriptedKeys:
+    """Keys as a person would press them, at robot times."""
+
+    def __init__(self, sim, script):
+        self.sim, self.script = sim, list(script)
+
+    def read_key(self):
+        if self.script and self.sim.clock() >= self.script[0][0]:
+            return self.script.pop(0)[1]
+        return None
+
+
+def test_teleop_follows_the_keys(tmp_path):
+    with SimulatedCreate("create2", seed=9, time_scale=FAST) as sim:
+        keys = ScriptedKeys(sim, [(0.5, "w"), (0.5, "w"), (3.0, "a"), (4.0, " "), (5.0, "q")])
+        result = drive(sim, tmp_path / "teleop.jsonl", controller=TeleopController(keys, CALM))
+        assert stopped(sim)
+    assert result.reason.kind == "quit" and not result.reason.is_fault
+    pose, length = integrate_records(read_log(tmp_path / "teleop.jsonl").records)
+    assert 0.25 < length < 0.5 and pose[2] > 0.1
+
+
+def test_terminal_keys_reads_letters_and_arrows_from_a_terminal():
+    master, slave = os.openpty()
+    with os.fdopen(slave, "r") as terminal:
+        before = termios.tcgetattr(slave)
+        with TerminalKeys(terminal) as keys:
+            os.write(master, b"w\x1b[Dq")
+            assert wait_for(lambda: select.select([slave], [], [], 0)[0])
+            assert [keys.read_key() for _ in range(4)] == ["w", "left", "q", None]
+        assert termios.tcgetattr(slave) == before  # the terminal is given back as it was
+    os.close(master)
+
+
+def test_teleop_needs_a_terminal():
+    with pytest.raises(FgslamError, match="run it in a terminal"):
+        with TerminalKeys(io.StringIO()):
+            pass
+
+
+# --------------------------------------------------------------------------- 3: subprocess kills
+
+
+def _start_recorder(out: Path, *extra: str) -> subprocess.Popen:
+    cmd = [sys.executable, "-m", "fgslam.record_cli", "record", "--port", "sim", "--model", "create2",
+           "--path", "square", "--laps", "3", "--out", str(out), "--sim-time-scale", "5", *extra]
+    env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    return subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_for_lines(proc: subprocess.Popen, out: Path, lines: int) -> None:
+    def enough():
+        assert proc.poll() is None, proc.communicate()
+        return out.exists() and out.read_bytes().count(b"\n") >= lines
+
+    assert wait_for(enough, timeout_s=60.0)
+
+
+def test_sigkill_mid_run_leaves_a_log_read_up_to_the_last_complete_record(tmp_path):
+    out = tmp_path / "killed.jsonl"
+    proc = _start_recorder(out)
+    try:
+        _wait_for_lines(proc, out, 25)
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.communicate()
+    data = out.read_bytes()
+    complete = data.count(b"\n")
+    log = read_log(out)
+    assert len(log.records) == complete - 1  # every complete line after the header
+    assert (log.truncated is not None) == (not data.endswith(b"\n"))
+    # A kill in the middle of a line (possible in principle) is read the same way:
+    cut = tmp_path / "cut.jsonl"
+    cut.write_bytes(data[: data.rindex(b"\n") + 1] + data[data.index(b"\n") + 1:][:40])
+    cut_log = read_log(cut)
+    assert len(cut_log.records) == complete - 1 and "cut off" in cut_log.truncated
+
+
+def test_sigint_stops_the_robot_keeps_the_log_and_says_why(tmp_path):
+    out = tmp_path / "sigint.jsonl"
+    proc = _start_recorder(out)
+    try:
+        _wait_for_lines(proc, out, 15)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr
+    assert "interrupted" in stderr
+    status = json.loads((tmp_path / "sigint.status.json").read_text())
+    assert status["reason"]["kind"] == "interrupted" and status["shutdown"]["stopped"]
+    assert status["simulator"]["commanded_mm_s"] == [0.0, 0.0] and status["simulator"]["oi_mode"] == 1
+    assert len(read_log(out).records) == status["records"]
