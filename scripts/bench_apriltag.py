@@ -1,6 +1,6 @@
 """Benchmark: AprilTag detectors on the real photos — recall, false detections, corner error, time.
 
-For each detector configuration, on the three NASA photos of ``shared/data/apriltag-photos``
+For each detector configuration, on the three NASA photos of ``tests/data/apriltag-photos``
 (47 listed tag36h11 tags, corners listed by the AprilTag 3 reference detector), prints:
 
 - recall (listed tags found, matched by id and corner set within 3 px) and false detections
@@ -39,7 +39,7 @@ from slamio.camera.detect import FrontEnd, FrontEndConfig  # noqa: E402
 from slamio.camera.model import kinect_v1_default  # noqa: E402
 from slamio.camera.sources import Frame  # noqa: E402
 
-DEFAULT_PHOTOS = Path(__file__).resolve().parents[2] / "shared" / "data" / "apriltag-photos"
+DEFAULT_PHOTOS = Path(__file__).resolve().parents[1] / "tests" / "data" / "apriltag-photos"
 
 CONFIGS = [
     ("apriltag3 decimate 1.0, refine_edges off (chosen)", dict(backend="apriltag3", quad_decimate=1.0)),

@@ -23,7 +23,7 @@ from slamio.camera.apriltag import (
 from slamio.camera.model import CameraModel, T_robot_camera_from_mount, kinect_v1_default, rotation_y
 from slamio.camera.render import Scene, TagSpec, project_world_points, render, tag_corners_world
 
-PHOTOS = Path(__file__).resolve().parents[2] / "shared" / "data" / "apriltag-photos"
+PHOTOS = Path(__file__).resolve().parent / "data" / "apriltag-photos"
 NASA = sorted(PHOTOS.glob("nasa_*.jpg"))
 
 

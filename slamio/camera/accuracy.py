@@ -19,7 +19,7 @@ The robot stands at (1.0 m, 2.0 m, 0.3 rad) in the world, so every frame convers
 exercised. Frames get Gaussian pixel noise (σ = 2 grey levels) from a seeded generator.
 
 :func:`read_corner_list` and :func:`match_detections` score a detector against listed tag
-corners (the real photos in ``shared/data/apriltag-photos``); ``scripts/bench_apriltag.py``
+corners (the real photos in ``tests/data/apriltag-photos``); ``scripts/bench_apriltag.py``
 and ``tests/test_camera_apriltag.py`` use them.
 """
 

@@ -4,7 +4,7 @@ Detector
 ========
 
 The default back-end is the AprilTag 3 library through ``pupil-apriltags``, chosen by
-measurement on the real photos in ``shared/data/apriltag-photos`` (``scripts/bench_apriltag.py``,
+measurement on the real photos in ``tests/data/apriltag-photos`` (``scripts/bench_apriltag.py``,
 docs/camera.md): with ``quad_decimate=1.0`` and ``refine_edges`` off it finds 46 of the 47
 listed tags in the NASA photos with no false detection and a corner error of at most
 0.14 px against the listed corners; ``cv2.aruco``'s AprilTag dictionary finds far fewer.
