@@ -470,9 +470,12 @@ def build_parser() -> argparse.ArgumentParser:
     from fgslam.detect_cli import add_detect_parser
     from fgslam.record_cli import add_calibrate_parser, add_record_parser
 
+    from fgslam.live_cli import add_live_parser
+
     add_detect_parser(verbs)
     add_record_parser(verbs)
     add_calibrate_parser(verbs)
+    add_live_parser(verbs)
     return parser
 
 

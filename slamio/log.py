@@ -7,7 +7,8 @@ Line 1 is a header; every later line is one record with a ``"type"``:
 * ``observation``     — one landmark seen from the current pose: range, bearing, optional
                         height and tag yaw, and their standard deviations;
 * ``truth_pose``      — optional ground truth of the current pose;
-* ``truth_landmark``  — optional ground truth of one landmark.
+* ``truth_landmark``  — optional ground truth of one landmark;
+* ``live_step``       — written by ``fgslam live``: the smoother's wall time for one pose.
 
 Pose 0 is the header's start pose. Every odometry record starts a new pose; observations
 and truth poses belong to the latest pose (see :meth:`RunLog.steps`).
@@ -154,13 +155,27 @@ class TruthLandmark:
     yaw_rad: float | None = None
 
 
-Record = Union[Odometry, Observation, TruthPose, TruthLandmark]
+@dataclass(frozen=True)
+class LiveStep:
+    """How long the live loop's smoother took for one pose (``fgslam live``).
+
+    Written by the live loop after the smoother consumed pose ``pose_index``;
+    ``latency_s`` is the wall-clock time of that smoother step. Estimators ignore it.
+    """
+
+    stamp_s: float
+    pose_index: int
+    latency_s: float
+
+
+Record = Union[Odometry, Observation, TruthPose, TruthLandmark, LiveStep]
 
 _TYPE_OF = {
     Odometry: "odometry",
     Observation: "observation",
     TruthPose: "truth_pose",
     TruthLandmark: "truth_landmark",
+    LiveStep: "live_step",
 }
 _CLASS_OF = {name: cls for cls, name in _TYPE_OF.items()}
 
@@ -469,6 +484,12 @@ def parse_record(d: dict) -> Record:
             sigma_tag_yaw_rad=sigma_yaw,
             truth_landmark_id=_integer(d, "truth_landmark_id", optional=True),
         )  # type: ignore[arg-type]
+    if cls is LiveStep:
+        index = _integer(d, "pose_index")
+        latency = _finite(d, "latency_s")
+        if index < 0 or latency < 0:
+            raise _BadLine("'pose_index' and 'latency_s' must be >= 0")
+        return LiveStep(stamp_s=_finite(d, "stamp_s"), pose_index=index, latency_s=latency)  # type: ignore[arg-type]
     if cls is TruthPose:
         return TruthPose(
             stamp_s=_finite(d, "stamp_s"),

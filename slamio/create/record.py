@@ -70,6 +70,7 @@ __all__ = [
     "TerminalKeys",
     "make_header",
     "record",
+    "RecordHooks",
     "write_status",
     "STREAM_IDS",
     "POLL_IDS",
@@ -202,7 +203,7 @@ def stopping_speed_m_s(remaining_m: float, accel_m_s2: float, full_m_s: float, s
     return max(slowest_m_s, min(full_m_s, math.sqrt(2.0 * accel_m_s2 * abs(remaining_m))))
 
 
-class _WheelRamp:
+class WheelRamp:
     """Limits how fast the commanded wheel speeds grow: the robot can follow them exactly,
     so the commands are also a good prediction of the motion (the Create 1 workaround)."""
 
@@ -242,7 +243,7 @@ class PathController:
         self.index = 0
         self._progress = 0.0
         self._settle_until: float | None = None
-        self._ramp = _WheelRamp(settings.accel_m_s2)
+        self._ramp = WheelRamp(settings.accel_m_s2)
 
     def advance(self, distance_m: float, angle_rad: float) -> None:
         if self.index < len(self.moves):
@@ -345,7 +346,7 @@ class TeleopController:
         self.speed_m_s = 0.0
         self.turn_rad_s = 0.0
         self._quit_at: float | None = None
-        self._ramp = _WheelRamp(settings.accel_m_s2)
+        self._ramp = WheelRamp(settings.accel_m_s2)
 
     def advance(self, distance_m: float, angle_rad: float) -> None:
         pass
@@ -473,8 +474,10 @@ class _PollReader:
 
 
 def make_header(model: str, port: str, baud: int, noise: OdometryNoise, settings: RecorderSettings,
-                source: dict[str, Any] | None = None, observation_noise: dict[str, Any] | None = None) -> Header:
-    """The run-log header of a recording: start pose (0, 0, 0) defines the world frame."""
+                source: dict[str, Any] | None = None, observation_noise: dict[str, Any] | None = None,
+                *, start_pose: Sequence[float] = (0.0, 0.0, 0.0), sensor: dict[str, Any] | None = None) -> Header:
+    """The run-log header of a recording: start pose (0, 0, 0) defines the world frame unless
+    the caller knows where the robot starts in its map (the live loop)."""
     if model == "create2":
         odometry = "encoder counts (packets 43/44) streamed every 15 ms"
     else:
@@ -482,7 +485,7 @@ def make_header(model: str, port: str, baud: int, noise: OdometryNoise, settings
                     "commanded motion clamped into each reading's 1 mm / 1 deg truncation interval")
     return Header(
         stamp_s=0.0,
-        start_pose=(0.0, 0.0, 0.0),
+        start_pose=tuple(float(v) for v in start_pose),  # type: ignore[arg-type]
         start_sigma=(1e-3, 1e-3, 1e-3),
         robot={
             "name": "iRobot Create 2" if model == "create2" else "iRobot Create",
@@ -497,13 +500,26 @@ def make_header(model: str, port: str, baud: int, noise: OdometryNoise, settings
             "turn_rate_rad_s": settings.turn_rate_rad_s,
             "record_period_s": settings.record_period_s,
         },
-        sensor={"kind": "none", "note": "odometry only: this recording has no landmark sensor"},
+        sensor=sensor or {"kind": "none", "note": "odometry only: this recording has no landmark sensor"},
         noise={
             "odometry": noise.header_dict(),
             "observation": observation_noise or {"model": "none: no landmark sensor in this recording"},
         },
         source={"generator": "slamio.create.record", "recorder_version": RECORDER_VERSION, **(source or {})},
     )
+
+
+class RecordHooks(Protocol):
+    """What :func:`record` asks of a loop that rides on it (``fgslam live``)."""
+
+    def due(self, now_s: float) -> bool:
+        """Called every pass of the control loop: write an odometry record now?"""
+
+    def after_record(self, record, log: LogWriter) -> None:
+        """Called after each odometry record is written and flushed, from the control loop's
+        thread; may write more records (observations) to ``log``."""
+
+    # optional: ``started(log)``, called once the log is open, before the first record
 
 
 def record(
@@ -518,6 +534,9 @@ def record(
     observation_noise: dict[str, Any] | None = None,
     frame_tap: Callable[[Any], None] | None = None,
     on_record: Callable[[int], None] | None = None,
+    hooks: "RecordHooks | None" = None,
+    start_pose: Sequence[float] = (0.0, 0.0, 0.0),
+    sensor: dict[str, Any] | None = None,
 ) -> RecordResult:
     """Drive ``controller``'s path on the robot behind ``link`` and log the odometry.
 
@@ -525,12 +544,15 @@ def record(
     port, Ctrl-C); raises :class:`FgslamError` only when the log cannot be written.
     ``clock`` gives the robot time used for stamps and periods (the simulator passes its
     own). ``frame_tap`` sees every accepted reading (tests); ``on_record(n)`` is called
-    after the n-th record is flushed.
+    after the n-th record is flushed. ``hooks`` lets another loop ride on this one (the live
+    loop, :mod:`fgslam.live`): it decides when a record is due and writes its own records
+    after each odometry record (see :class:`RecordHooks`).
     """
     model = link.model
     noise = noise or default_noise(model)
     target_mode = OiMode.SAFE if settings.mode == "safe" else OiMode.FULL
-    header = make_header(model, link.port, link.baud, noise, settings, source, observation_noise)
+    header = make_header(model, link.port, link.baud, noise, settings, source, observation_noise,
+                         start_pose=start_pose, sensor=sensor)
     odometry = Create2Odometry(noise) if model == "create2" else Create1Odometry(noise)
     reader = _StreamReader(link, model) if model == "create2" else _PollReader(link, model, settings.poll_period_s)
     monitor = SafetyMonitor(
@@ -544,7 +566,7 @@ def record(
     t0 = clock()
     records = 0
     distance_m = angle_rad = 0.0
-    pose = (0.0, 0.0, 0.0)
+    pose = tuple(float(v) for v in start_pose)  # dead-reckoned, for RecordResult.final_pose
     stamp = 0.0
     reason: StopReason | None = None
 
@@ -558,6 +580,8 @@ def record(
         log.write(rec)
         log.flush()
         records += 1
+        if hooks is not None:
+            hooks.after_record(rec, log)
         distance_m += abs(rec.distance_m)
         angle_rad += abs(rec.angle_rad)
         pose = compose_pose(pose, (rec.dx_m, rec.dy_m, rec.dtheta_rad))
@@ -580,6 +604,8 @@ def record(
 
     started = False
     with LogWriter(out_path, header) as log, signal_guard():
+        if hooks is not None and hasattr(hooks, "started"):
+            hooks.started(log)
         try:
             with link:
                 link.write(protocol.start())
@@ -590,7 +616,7 @@ def record(
                     started = True
                     monitor.expected_mode = target_mode
                     reason = _drive(link, reader, odometry, controller, monitor, settings, now_s,
-                                    frame_tap, use, lambda: write_record(log))
+                                    frame_tap, use, lambda: write_record(log), hooks)
                 if reason.is_fault:
                     monitor.trip(reason)  # keeps an earlier reason if there is one
                 monitor.close()
@@ -644,7 +670,8 @@ def _first_reading(reader, odometry, target_mode, settings, now_s, tap) -> StopR
     return StopReason("mode", f"the robot answers but stays in OI mode {seen_mode}, not {target_mode.name.lower()}")
 
 
-def _drive(link, reader, odometry, controller, monitor, settings, now_s, tap, use, write_record) -> StopReason:
+def _drive(link, reader, odometry, controller, monitor, settings, now_s, tap, use, write_record,
+           hooks=None) -> StopReason:
     """The control loop; returns why it ended."""
     last_command: tuple[float, float] | None = None
     last_sent_wall = -math.inf
@@ -662,8 +689,9 @@ def _drive(link, reader, odometry, controller, monitor, settings, now_s, tap, us
             unread = odometry.unread(t) if isinstance(odometry, Create1Odometry) else (0.0, 0.0)
             wheels = controller.command(t, unread)
             if wheels is None:
-                done = "path driven to the end" if isinstance(controller, PathController) else "quit from the keyboard"
-                return StopReason("completed" if isinstance(controller, PathController) else "quit", done)
+                if isinstance(controller, TeleopController):
+                    return StopReason("quit", "quit from the keyboard")
+                return StopReason("completed", "path driven to the end")
             wall = time.monotonic()
             changed = wheels != last_command and (t - last_sent_s >= settings.command_interval_s or wheels == (0.0, 0.0))
             if changed or wall - last_sent_wall >= settings.command_refresh_s:
@@ -672,7 +700,10 @@ def _drive(link, reader, odometry, controller, monitor, settings, now_s, tap, us
                 if isinstance(odometry, Create1Odometry):
                     odometry.command(wheels[0], wheels[1], t)
                 last_command, last_sent_wall, last_sent_s = wheels, wall, t
-            if t >= next_record:
+            if hooks is not None:
+                if hooks.due(t):
+                    write_record()
+            elif t >= next_record:
                 write_record()
                 next_record = t + settings.record_period_s
             if settings.max_duration_s is not None and t >= settings.max_duration_s:

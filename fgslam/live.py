@@ -1,0 +1,633 @@
+"""``fgslam live``: drive the Create on the iSAM2 pose, see landmarks, smooth and record.
+
+One process, three threads, one log:
+
+* **The control loop** (the caller's thread) is the recorder's
+  (:func:`slamio.create.record.record`): it reads the Create's sensor stream, runs the safety
+  monitor and its watchdog, sends wheel commands and writes odometry records. The live loop
+  rides on it through :class:`LiveLoop` (its ``hooks``) and steers it with a
+  :class:`WaypointFollower` that closes the loop on the smoothed pose.
+* **The camera worker** grabs a frame when asked and runs the landmark front-end
+  (:class:`slamio.camera.detect.FrontEnd`) on it.
+* **The smoother worker** feeds each pose (odometry + observations) to
+  :class:`fgslam.smoother.Isam2Smoother` and publishes the pose and its covariance.
+
+How one pose is made:
+
+1. The control loop writes odometry record k (everything the wheels did since record k−1)
+   and, in the same breath, asks the camera worker for a frame: the frame belongs to pose k.
+   If the worker is still busy with an earlier frame the request is refused (``skipped``).
+2. While that frame is being processed no further odometry record is written — the wheel
+   readings keep arriving and accumulate into record k+1 (odometry is *batched*), so a slow
+   frame delays a pose but never the serial link. The observations are written to the log
+   right after record k as soon as they come back; a frame that takes longer than
+   ``frame_timeout_s`` is given up (``dropped``).
+3. Pose k goes to the smoother worker's queue. The smoother never holds up the control
+   loop: the follower steers on the newest smoothed pose composed with the odometry since
+   (:class:`PoseTracker`), whatever pose that is. Each smoother step's wall time is written
+   to the log as a ``live_step`` record.
+
+Safety is the recorder's: a bump, a wheel drop, a lost serial link, the watchdog or Ctrl-C
+stops the wheels first and the log (flushed after every record) is kept. Any exception in a
+worker is raised in the control loop, whose link exit stops the wheels before the log is
+closed. The log is an ordinary run log: ``fgslam run LOG`` replays it with every estimator.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import queue
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+
+from slamio.create.record import WheelRamp
+from slamio.create.odometry import WHEEL_BASE_M
+from slamio.errors import FgslamError
+from slamio.geometry import arc_increment, between_pose, compose_pose, wrap_angle
+from slamio.log import LiveStep, LogWriter, Observation, Odometry, Step, TruthLandmark, TruthPose
+
+__all__ = [
+    "LiveSettings",
+    "waypoint_wheel_speeds",
+    "WaypointFollower",
+    "PoseTracker",
+    "CameraWorker",
+    "SmootherWorker",
+    "LiveLoop",
+    "LiveResult",
+    "read_waypoints",
+    "polygon_waypoints",
+    "LatestFrame",
+    "run_live",
+    "simulated_camera",
+    "start_pose_facing",
+    "pose_error_m",
+]
+
+
+@dataclass(frozen=True)
+class LiveSettings:
+    """Speeds and timings of the live loop (robot time unless marked wall)."""
+
+    speed_m_s: float = 0.2  # cruising speed on a leg
+    turn_rate_rad_s: float = 0.8  # turning in place
+    accel_m_s2: float = 0.4  # wheel speed changes at most this fast
+    min_speed_m_s: float = 0.02
+    position_tolerance_m: float = 0.03  # a waypoint is reached within this
+    heading_tolerance_rad: float = 0.04  # turn in place until the heading error is below this
+    drive_heading_limit_rad: float = 0.35  # while driving: stop and turn again beyond this error
+    heading_gain_per_s: float = 2.0  # ω = gain · heading error while driving
+    settle_s: float = 0.3  # standing still between a leg and a turn (the encoders count the commanded way)
+    record_period_s: float = 0.1  # one pose per period at most
+    frame_timeout_s: float = 0.5  # give up a frame after this long (robot time)
+    wheel_base_m: float = WHEEL_BASE_M
+
+
+# --------------------------------------------------------------------------- waypoints
+
+
+def polygon_waypoints(sides: int, width_m: float, centre_xy: tuple[float, float], laps: int = 1) -> np.ndarray:
+    """Seed 004's paths: a square (4) or octagon (8) of ``width_m`` across flats, driven
+    ``laps`` times counter-clockwise and closed at the first corner."""
+    from slamio.sim import polygon_path
+
+    corners = polygon_path(sides, width_m, centre_xy)
+    loop = np.vstack([corners[1:], corners[:1]])
+    return np.vstack([loop] * max(1, int(laps)))
+
+
+def read_waypoints(path: str) -> np.ndarray:
+    """``x_m, y_m`` per line (comma or space separated, ``#`` comments); file:line errors."""
+    rows = []
+    with open(path, encoding="utf-8") as f:
+        for number, line in enumerate(f, start=1):
+            text = line.split("#", 1)[0].replace(",", " ").split()
+            if not text:
+                continue
+            try:
+                x, y = (float(v) for v in text)
+            except ValueError:
+                raise FgslamError(f"{path}:{number}: expected 'x_m, y_m', got {line.strip()!r}") from None
+            if not (math.isfinite(x) and math.isfinite(y)):
+                raise FgslamError(f"{path}:{number}: waypoint is not finite")
+            rows.append((x, y))
+    if not rows:
+        raise FgslamError(f"{path}: no waypoints; write one 'x_m, y_m' per line")
+    return np.array(rows)
+
+
+# --------------------------------------------------------------------------- follower
+
+
+def waypoint_wheel_speeds(pose, target_xy, settings: LiveSettings, turning: bool) -> tuple[str, float, float]:
+    """What to do now on the way from ``pose`` to ``target_xy``: ``(mode, v_m_s, ω_rad_s)``.
+
+    ``mode`` is ``"arrived"`` (within ``position_tolerance_m``), ``"turn"`` (turn in place:
+    the heading error is above ``heading_tolerance_rad`` while ``turning``, or above
+    ``drive_heading_limit_rad`` while driving) or ``"drive"`` (forward, ``ω`` proportional
+    to the heading error, ``v`` slowing along the stopping curve ``√(2·a·d)``). Both wheels
+    stay forward while driving (a Create 2 encoder counts the commanded direction).
+    """
+    x, y, th = pose
+    dx, dy = target_xy[0] - x, target_xy[1] - y
+    distance = math.hypot(dx, dy)
+    if distance <= settings.position_tolerance_m:
+        return "arrived", 0.0, 0.0
+    error = wrap_angle(math.atan2(dy, dx) - th)
+    limit = settings.heading_tolerance_rad if turning else settings.drive_heading_limit_rad
+    if abs(error) > limit:
+        return "turn", 0.0, math.copysign(settings.turn_rate_rad_s, error)
+    v = max(settings.min_speed_m_s, min(settings.speed_m_s, math.sqrt(2.0 * settings.accel_m_s2 * distance)))
+    omega = settings.heading_gain_per_s * error
+    half = 0.5 * settings.wheel_base_m
+    omega = max(-v / half, min(v / half, omega))  # keep both wheels forward
+    return "drive", v, omega
+
+
+class WaypointFollower:
+    """The live loop's controller (the recorder's controller protocol): turn in place
+    towards the next waypoint, settle, drive to it closing the loop on ``estimate()``
+    (the smoothed pose), settle, next. :meth:`command` returns (left, right) in mm/s, or
+    None after the last waypoint."""
+
+    def __init__(self, waypoints, estimate: Callable[[], tuple[float, float, float]],
+                 settings: LiveSettings = LiveSettings(), on_advance: Callable[[float, float], None] | None = None):
+        self.waypoints = np.asarray(waypoints, dtype=float).reshape(-1, 2)
+        self.estimate = estimate
+        self.s = settings
+        self.on_advance = on_advance
+        self.index = 0
+        self._mode = "turn"
+        self._settle_until: float | None = None
+        self._ramp = WheelRamp(settings.accel_m_s2)
+
+    def advance(self, distance_m: float, angle_rad: float) -> None:
+        if self.on_advance is not None:
+            self.on_advance(distance_m, angle_rad)
+
+    def _stop(self, now_s: float, then: str) -> tuple[float, float]:
+        self._settle_until = now_s + self.s.settle_s
+        self._mode = then
+        return self._ramp((0.0, 0.0), now_s)
+
+    def command(self, now_s: float, unread: tuple[float, float] = (0.0, 0.0)) -> tuple[float, float] | None:
+        if self._settle_until is not None:
+            if now_s < self._settle_until:
+                return self._ramp((0.0, 0.0), now_s)
+            self._settle_until = None
+        if self.index >= len(self.waypoints):
+            return None
+        mode, v, omega = waypoint_wheel_speeds(self.estimate(), self.waypoints[self.index], self.s,
+                                               turning=self._mode == "turn")
+        if mode == "arrived":
+            self.index += 1
+            return self._stop(now_s, "turn")
+        if mode != self._mode:  # from driving to turning or back: stand still first
+            return self._stop(now_s, mode)
+        half = 0.5 * self.s.wheel_base_m
+        left, right = v - omega * half, v + omega * half
+        return self._ramp((1000.0 * left, 1000.0 * right), now_s)
+
+
+# --------------------------------------------------------------------------- pose tracker
+
+
+class PoseTracker:
+    """The pose to steer on: the newest smoothed pose ⊕ the odometry since (thread-safe).
+
+    The control loop reports the wheels' motion (:meth:`advance`) and each odometry record
+    (:meth:`recorded`); the smoother worker reports each smoothed pose (:meth:`smoothed`).
+    """
+
+    def __init__(self, start_pose):
+        self._lock = threading.Lock()
+        self._base_index = 0
+        self._base = tuple(float(v) for v in start_pose)
+        self._records: dict[int, tuple[float, float, float]] = {}  # pose index → increment
+        self._since_record = (0.0, 0.0, 0.0)
+
+    def advance(self, distance_m: float, angle_rad: float) -> None:
+        with self._lock:
+            self._since_record = compose_pose(self._since_record, arc_increment(distance_m, angle_rad))
+
+    def recorded(self, index: int, odometry: Odometry) -> None:
+        with self._lock:
+            self._records[index] = (odometry.dx_m, odometry.dy_m, odometry.dtheta_rad)
+            self._since_record = (0.0, 0.0, 0.0)
+
+    def smoothed(self, index: int, pose) -> None:
+        with self._lock:
+            if index >= self._base_index:
+                self._base_index, self._base = index, tuple(float(v) for v in pose)
+                for k in [k for k in self._records if k <= index]:
+                    del self._records[k]
+
+    def current(self) -> tuple[float, float, float]:
+        with self._lock:
+            pose = self._base
+            for k in sorted(self._records):
+                if k > self._base_index:
+                    pose = compose_pose(pose, self._records[k])
+            return compose_pose(pose, self._since_record)
+
+
+# --------------------------------------------------------------------------- workers
+
+
+class CameraWorker:
+    """Grabs and processes one frame at a time in its own thread.
+
+    :meth:`request` hands it a zero-argument ``grab`` (called in the worker: it returns a
+    :class:`slamio.camera.sources.Frame`) for pose ``index``; it is refused while a frame
+    is in progress. :meth:`result` returns ``(index, observations)`` when one is ready.
+    """
+
+    def __init__(self, process: Callable[[object], Sequence[Observation]]):
+        self.process = process
+        self._requests: queue.Queue = queue.Queue(maxsize=1)
+        self._results: queue.Queue = queue.Queue()
+        self._busy = threading.Event()
+        self.error: BaseException | None = None
+        self.frame_seconds: list[float] = []
+        self._thread = threading.Thread(target=self._run, name="fgslam-camera", daemon=True)
+        self._thread.start()
+
+    def request(self, index: int, grab: Callable[[], object]) -> bool:
+        if self._busy.is_set():
+            return False
+        self._busy.set()
+        self._requests.put((index, grab))
+        return True
+
+    def result(self) -> tuple[int, list[Observation]] | None:
+        try:
+            return self._results.get_nowait()
+        except queue.Empty:
+            return None
+
+    def _run(self) -> None:
+        while True:
+            item = self._requests.get()
+            if item is None:
+                return
+            index, grab = item
+            start = time.perf_counter()
+            try:
+                observations = list(self.process(grab()))
+            except BaseException as exc:  # raised in the control loop (see LiveLoop.due)
+                self.error = exc
+                observations = []
+            self.frame_seconds.append(time.perf_counter() - start)
+            self._results.put((index, observations))
+            self._busy.clear()
+
+    def close(self) -> None:
+        self._requests.put(None)
+        self._thread.join(timeout=5.0)
+
+
+class SmootherWorker:
+    """Feeds steps to the smoother in its own thread; publishes each smoothed pose to the
+    :class:`PoseTracker` and records each step's wall time."""
+
+    def __init__(self, smoother, tracker: PoseTracker, on_step: Callable[[int, object], None] | None = None):
+        self.smoother = smoother
+        self.tracker = tracker
+        self.on_step = on_step
+        self._steps: queue.Queue = queue.Queue()
+        self._latencies: queue.Queue = queue.Queue()
+        self.latencies_s: list[float] = []
+        self.error: BaseException | None = None
+        self.max_queue = 0
+        self._thread = threading.Thread(target=self._run, name="fgslam-smoother", daemon=True)
+        self._thread.start()
+
+    def submit(self, step: Step) -> None:
+        self._steps.put(step)
+        self.max_queue = max(self.max_queue, self._steps.qsize())
+
+    def drain_latencies(self) -> list[tuple[int, float]]:
+        out = []
+        while True:
+            try:
+                out.append(self._latencies.get_nowait())
+            except queue.Empty:
+                return out
+
+    def _run(self) -> None:
+        while True:
+            step = self._steps.get()
+            if step is None:
+                return
+            if self.error is not None:
+                continue
+            start = time.perf_counter()
+            try:
+                self.smoother.step(step)
+                pose = self.smoother.current_pose()
+            except BaseException as exc:  # raised in the control loop (see LiveLoop.due)
+                self.error = exc
+                continue
+            latency = time.perf_counter() - start
+            self.latencies_s.append(latency)
+            self._latencies.put((step.index, latency))
+            self.tracker.smoothed(step.index, pose)
+            if self.on_step is not None:
+                self.on_step(step.index, self.smoother, latency)
+
+    def close(self) -> None:
+        """Wait for every submitted step to be smoothed, then stop the thread (an error of
+        the smoother stays in :attr:`error`)."""
+        self._steps.put(None)
+        self._thread.join()
+
+
+# --------------------------------------------------------------------------- the loop
+
+
+@dataclass
+class LiveResult:
+    """What a live run did (the recorder's result plus the live loop's counts)."""
+
+    record: object  # slamio.create.record.RecordResult
+    final_pose: tuple[float, float, float]  # iSAM2's estimate of the last pose, after finish()
+    poses: int
+    frames_requested: int
+    frames_used: int
+    frames_skipped: int  # the camera was still busy when a pose was made
+    frames_dropped: int  # a frame took longer than frame_timeout_s
+    observations: int
+    latencies_s: np.ndarray  # wall time of every smoother step
+    frame_seconds: np.ndarray  # wall time of every frame (grab + detection)
+    landmarks: dict[int, tuple[float, float]] = field(default_factory=dict)
+
+    @property
+    def completed(self) -> bool:
+        return self.record.completed  # type: ignore[attr-defined]
+
+
+class LiveLoop:
+    """The hooks the recorder calls (:class:`slamio.create.record.RecordHooks`).
+
+    ``grab_for(index, odometry)`` returns the zero-argument frame grabber for the pose
+    being made (for the simulator: a render at the true pose of this instant); ``truth``
+    (simulation only) gives the true pose, written as a ``truth_pose`` record.
+    """
+
+    def __init__(self, tracker: PoseTracker, camera: CameraWorker | None, smoother: SmootherWorker,
+                 grab_for: Callable[[int, Odometry], Callable[[], object]] | None,
+                 settings: LiveSettings = LiveSettings(), truth: Callable[[], tuple[float, float, float]] | None = None,
+                 truth_landmarks: Sequence[TruthLandmark] = ()):
+        self.tracker = tracker
+        self.camera = camera
+        self.smoother = smoother
+        self.grab_for = grab_for
+        self.s = settings
+        self.truth = truth
+        self.truth_landmarks = tuple(truth_landmarks)
+        self._log: LogWriter | None = None
+        self._index = 0
+        self._last_record_s = 0.0
+        self._last_stamp_s = 0.0
+        self._pending: tuple[int, Odometry, float] | None = None  # (pose, record, asked at)
+        self.frames_requested = self.frames_used = self.frames_skipped = self.frames_dropped = 0
+        self.observations = 0
+
+    # -- the recorder's hooks
+
+    def started(self, log: LogWriter) -> None:
+        """The log is open: the true start pose (simulation), so every pose has a truth."""
+        self._log = log
+        for landmark in self.truth_landmarks:
+            log.write(landmark)
+        if self.truth is not None:
+            log.write(TruthPose(0.0, *self.truth()))
+        log.flush()
+
+    def due(self, now_s: float) -> bool:
+        for worker in (self.camera, self.smoother):
+            if worker is not None and worker.error is not None:
+                raise FgslamError(f"live loop: {type(worker.error).__name__}: {worker.error}") from worker.error
+        if self._pending is not None:
+            index, odometry, asked = self._pending
+            result = self.camera.result() if self.camera is not None else None
+            if result is not None:
+                got, observations = result
+                if got == index:
+                    self._write_observations(observations)
+                    self.frames_used += 1
+                    self._finish_pose(index, odometry, tuple(observations))
+                else:  # a late answer to a frame already given up
+                    return False
+            elif now_s - asked > self.s.frame_timeout_s:
+                self.frames_dropped += 1
+                self._finish_pose(index, odometry, ())
+            else:
+                return False
+        return now_s - self._last_record_s >= self.s.record_period_s
+
+    def after_record(self, record, log: LogWriter) -> None:
+        self._log = log
+        if self._pending is not None:  # the recorder's last record comes whether or not we are ready
+            index, odometry, _ = self._pending
+            self.frames_dropped += 1
+            self._finish_pose(index, odometry, ())
+        self._index += 1
+        index = self._index
+        self._last_record_s = self._last_stamp_s = record.stamp_s
+        self.tracker.recorded(index, record)
+        if self.truth is not None:
+            log.write(TruthPose(record.stamp_s, *self.truth()))
+        self._write_latencies()
+        log.flush()
+        if self.camera is not None and self.grab_for is not None:
+            self.frames_requested += 1
+            if self.camera.request(index, self.grab_for(index, record)):
+                self._pending = (index, record, record.stamp_s)
+                return
+            self.frames_skipped += 1
+        self._finish_pose(index, record, ())
+
+    # -- helpers
+
+    def _finish_pose(self, index: int, odometry: Odometry, observations: tuple[Observation, ...]) -> None:
+        self._pending = None
+        self.smoother.submit(Step(index, odometry.stamp_s, odometry, observations, None))
+
+    def _write_observations(self, observations) -> None:
+        assert self._log is not None
+        for o in observations:
+            self._log.write(o)
+        self.observations += len(observations)
+        self._log.flush()
+
+    def _write_latencies(self) -> None:
+        for index, latency in self.smoother.drain_latencies():
+            self._log.write(LiveStep(self._last_stamp_s, index, latency))
+
+    def close(self, log_path: str | None = None) -> None:
+        """After the recorder returned: give the last pose to the smoother (a frame still in
+        progress is dropped: the log is closed) and wait for it."""
+        if self._pending is not None:
+            index, odometry, _ = self._pending
+            self.frames_dropped += 1
+            self._finish_pose(index, odometry, ())
+        if self.camera is not None:
+            self.camera.close()
+        self.smoother.close()
+
+    @property
+    def poses(self) -> int:
+        return self._index + 1
+
+
+class LatestFrame:
+    """Reads a live frame source in a background thread and keeps only the newest frame, so
+    grabbing never waits for the camera; the frame is stamped with the pose it is used for
+    (at most one camera period off)."""
+
+    def __init__(self, frames):
+        self._latest = None
+        self._lock = threading.Lock()
+        self.error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, args=(frames,), name="fgslam-frames", daemon=True)
+        self._thread.start()
+
+    def _run(self, frames) -> None:
+        try:
+            for frame in frames:
+                with self._lock:
+                    self._latest = frame
+        except BaseException as exc:  # reported by grab
+            self.error = exc
+
+    def grab_for(self, index: int, odometry: Odometry):
+        with self._lock:
+            frame = self._latest
+
+        def grab():
+            if frame is None:
+                if self.error is not None:
+                    raise FgslamError(f"camera: {self.error}")
+                from slamio.camera.sources import Frame
+
+                return Frame(odometry.stamp_s, index, "none", None, None, error="no frame from the camera yet")
+            return dataclasses.replace(frame, stamp_s=odometry.stamp_s, index=index)
+
+        return grab
+
+
+def start_pose_facing(waypoints, start_xy=None) -> tuple[float, float, float]:
+    """A start pose on ``start_xy`` (default: the path's last waypoint, where a closed path
+    starts) facing the first waypoint."""
+    w = np.asarray(waypoints, dtype=float).reshape(-1, 2)
+    start = w[-1] if start_xy is None else np.asarray(start_xy, dtype=float)
+    return float(start[0]), float(start[1]), math.atan2(w[0, 1] - start[1], w[0, 0] - start[0])
+
+
+def pose_error_m(a, b) -> float:
+    """Distance between the positions of two poses."""
+    return math.hypot(*between_pose(a, b)[:2])
+
+
+# --------------------------------------------------------------------------- assembling a run
+
+
+def simulated_camera(sim, *, supersample: int = 1, pixel_noise: float = 2.0, seed: int = 0,
+                     tag_size_m: float = 0.16, mount_height_m: float = 0.2):
+    """The camera of a hardware-in-the-loop run: seed 004's eight arena tags rendered from
+    the simulated Create's true pose at the instant each pose is made.
+
+    Returns ``(grab_for, front_end, truth_landmarks)``: ``grab_for(index, odometry)``
+    snapshots the true pose now (in the control loop) and returns the grabber that renders
+    it (run in the camera worker); ``truth_landmarks`` are the tags as log records.
+    """
+    from slamio.camera.detect import FrontEnd, FrontEndConfig
+    from slamio.camera.model import T_robot_camera_from_mount, kinect_v1_default
+    from slamio.camera.render import Scene, TagSpec, render
+    from slamio.camera.sources import Frame
+    from slamio.sim import TAG_HEIGHT_M, arena_tags
+
+    world = arena_tags()
+    scene = Scene(tags=tuple(
+        TagSpec(i, float(x), float(y), TAG_HEIGHT_M, float(yaw), size_m=tag_size_m)
+        for i, ((x, y), yaw) in enumerate(zip(world.landmarks_xy, world.yaws_rad))
+    ))
+    camera = kinect_v1_default(T_robot_camera_from_mount(0.0, 0.0, mount_height_m))
+    front_end = FrontEnd(camera, FrontEndConfig(tag_size_m=tag_size_m))
+    rng = np.random.default_rng(seed)  # used only in the camera worker
+
+    def grab_for(index: int, odometry: Odometry):
+        pose = sim.true_pose  # a property
+
+        def grab():
+            frame = render(camera, pose, scene, supersample=supersample, noise_sigma=pixel_noise, rng=rng)
+            return Frame(odometry.stamp_s, index, f"sim:{index}", frame.bgr, frame.depth_m)
+
+        return grab
+
+    truth_landmarks = [TruthLandmark(t.tag_id, t.x_m, t.y_m, t.z_m, t.yaw_rad) for t in scene.tags]
+    return grab_for, front_end, truth_landmarks
+
+
+def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front_end=None,
+             settings: LiveSettings = LiveSettings(), smoother=None, truth=None, truth_landmarks=(),
+             clock: Callable[[], float] = time.monotonic, sensor: dict | None = None,
+             observation_noise: dict | None = None, on_step=None) -> LiveResult:
+    """Drive ``waypoints`` on the robot behind ``link`` with iSAM2 in the loop; log to
+    ``out_path``. ``grab_for``/``front_end`` give the camera (None: odometry only);
+    ``smoother`` defaults to :class:`fgslam.smoother.Isam2Smoother` (one update per pose).
+    ``on_step(index, smoother, latency_s, loop)`` is called in the smoother worker after
+    each pose (the CLI's status line and map; ``loop`` is the :class:`LiveLoop` with its
+    frame counts)."""
+    from fgslam.smoother import Isam2Smoother
+    from slamio.create.record import RecorderSettings, record
+    from slamio.log import Header
+
+    start_pose = tuple(float(v) for v in start_pose)
+    if smoother is None:
+        header = Header(stamp_s=0.0, start_pose=start_pose, start_sigma=(1e-3, 1e-3, 1e-3),  # as the recorder's
+                        robot={"name": "live"}, sensor={"kind": "live"}, noise={"odometry": {}, "observation": {}})
+        smoother = Isam2Smoother(header)
+    tracker = PoseTracker(start_pose)
+    camera = None
+    if grab_for is not None and front_end is not None:
+        camera = CameraWorker(lambda frame: front_end.process(frame).observations)
+    def step_hook(index, smoother_, latency):
+        on_step(index, smoother_, latency, loop)
+
+    worker = SmootherWorker(smoother, tracker, step_hook if on_step is not None else None)
+    worker.submit(Step(0, 0.0, None, (), None))  # pose 0: the start pose
+    loop = LiveLoop(tracker, camera, worker, grab_for, settings, truth, truth_landmarks)
+    follower = WaypointFollower(waypoints, tracker.current, settings, on_advance=tracker.advance)
+    recorder = RecorderSettings(speed_m_s=settings.speed_m_s, turn_rate_rad_s=settings.turn_rate_rad_s,
+                                accel_m_s2=settings.accel_m_s2, record_period_s=settings.record_period_s)
+    sensor = sensor or {"kind": "range-bearing", "landmark_kind": "apriltag" if camera else "none",
+                        "source": "fgslam live"}
+    try:
+        result = record(link, out_path, follower, settings=recorder, clock=clock, hooks=loop,
+                        start_pose=start_pose, sensor=sensor, observation_noise=observation_noise,
+                        source={"generator": "fgslam.live", "waypoints": np.asarray(waypoints).tolist()})
+    finally:
+        loop.close()
+    if worker.error is not None:  # after the last record: the recorder did not see it
+        raise FgslamError(f"live loop: {type(worker.error).__name__}: {worker.error}") from worker.error
+    smoother.finish()
+    return LiveResult(
+        record=result,
+        final_pose=tuple(float(v) for v in smoother.current_pose()),  # type: ignore[arg-type]
+        poses=loop.poses,
+        frames_requested=loop.frames_requested,
+        frames_used=loop.frames_used,
+        frames_skipped=loop.frames_skipped,
+        frames_dropped=loop.frames_dropped,
+        observations=loop.observations,
+        latencies_s=np.array(worker.latencies_s),
+        frame_seconds=np.array(camera.frame_seconds if camera else []),
+        landmarks=dict(smoother.landmarks()),
+    )

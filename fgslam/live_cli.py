@@ -1,0 +1,220 @@
+"""The ``fgslam live`` verb (wired into ``fgslam.cli``): iSAM2 in the loop on the robot.
+
+Exit status: 0 when the path was driven to its end, 2 when the robot was stopped early (bump,
+wheel drop, watchdog, no data, lost serial link; the log is kept and the reason printed),
+130 on Ctrl-C/SIGTERM, 1 on a user error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import threading
+import time
+
+import numpy as np
+
+from slamio.errors import FgslamError
+
+__all__ = ["add_live_parser", "cmd_live"]
+
+EXIT_STOPPED_EARLY = 2
+EXIT_INTERRUPTED = 130
+
+DESCRIPTION = """\
+Drive an iRobot Create along waypoints, closing the loop on the iSAM2 pose, while the camera
+front-end turns frames into landmark observations and iSAM2 smooths them; record every input
+to a run log as it arrives, so `fgslam run LOG` replays the run with every estimator.
+
+paths: square or octagon (seed 004's, in its 10 ft arena: --side across flats, default
+1.83 m, centred at --centre, default 1.524,1.524), or a file of 'x_m, y_m' lines. The robot
+starts on the path's last corner facing the first (or at --start-pose): place it there.
+
+A terminal status line shows the pose, landmarks, iSAM2 latency and frames; --map-png
+rewrites a picture of the map every 2 s. Stop with Ctrl-C: the wheels stop first, then the
+log is closed. Bumps, wheel drops, a lost serial link and a hung loop stop the robot too.
+
+--port sim runs it all in simulation: the simulated Create on a pseudo-terminal and a
+camera rendered from its true pose (the hardware-in-the-loop test); the log then has the
+ground truth too.
+"""
+
+
+def _floats(count: int):
+    def parse(text: str):
+        try:
+            values = tuple(float(v) for v in text.split(","))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {count} comma-separated numbers, got {text!r}") from None
+        if len(values) != count:
+            raise argparse.ArgumentTypeError(f"expected {count} comma-separated numbers, got {text!r}")
+        return values
+
+    return parse
+
+
+def add_live_parser(verbs) -> argparse.ArgumentParser:
+    from slamio.sim import ARENA_PATH_WIDTH_M, ARENA_SIDE_M
+
+    live = verbs.add_parser("live", help="drive the Create on the iSAM2 pose with the camera in the loop; record it all",
+                            description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    live.add_argument("--port", required=True, help="serial port (e.g. /dev/ttyUSB0) or 'sim'")
+    live.add_argument("--model", choices=("create1", "create2"), default="create2")
+    live.add_argument("--path", default="octagon", help="square, octagon or a waypoint file (default octagon)")
+    live.add_argument("--laps", type=int, default=1)
+    live.add_argument("--side", type=float, default=ARENA_PATH_WIDTH_M, metavar="M",
+                      help=f"square/octagon width across flats (default {ARENA_PATH_WIDTH_M} m)")
+    live.add_argument("--centre", type=_floats(2), default=(0.5 * ARENA_SIDE_M, 0.5 * ARENA_SIDE_M), metavar="X,Y")
+    live.add_argument("--start-pose", type=_floats(3), default=None, metavar="X,Y,THETA",
+                      help="where the robot starts in the map frame (default: last corner, facing the first)")
+    live.add_argument("--speed", type=float, default=0.2, metavar="M_S", help="cruising speed (default 0.2)")
+    live.add_argument("--camera", default=None, metavar="CAM.yaml", help="camera_info YAML (real camera)")
+    live.add_argument("--frames", default="camera:0", help="frame source: camera:N or kinect:N (default camera:0)")
+    live.add_argument("--tag-size", type=float, default=0.16, metavar="M", help="AprilTag size (default 0.16 m)")
+    live.add_argument("--out", required=True, metavar="LOG", help="run log to write")
+    live.add_argument("--map-png", default=None, metavar="PNG", help="rewrite a map picture here every 2 s")
+    live.add_argument("--baud", type=int, default=None)
+    live.add_argument("--sim-time-scale", type=float, default=1.0, help="simulation: robot seconds per wall second")
+    live.add_argument("--sim-seed", type=int, default=1)
+    live.add_argument("--sim-unplug-after", type=float, default=None, metavar="S",
+                      help="simulation: pull the simulated cable after S robot seconds (fault test)")
+    live.set_defaults(func=cmd_live)
+    return live
+
+
+def _waypoints(args) -> np.ndarray:
+    from fgslam.live import polygon_waypoints, read_waypoints
+
+    if args.path in ("square", "octagon"):
+        return polygon_waypoints(4 if args.path == "square" else 8, args.side, tuple(args.centre), args.laps)
+    return np.vstack([read_waypoints(args.path)] * max(1, args.laps))
+
+
+class StatusLine:
+    """One status line on stderr, at most twice a second (a new line each time when stderr
+    is not a terminal, every 5 s)."""
+
+    def __init__(self, stream=None):
+        self.stream = stream = sys.stderr if stream is None else stream
+        self.tty = stream.isatty()
+        self.period_s = 0.5 if self.tty else 5.0
+        self._last = 0.0
+        self._lock = threading.Lock()
+
+    def __call__(self, text: str, force: bool = False) -> None:
+        now = time.monotonic()
+        with self._lock:
+            if not force and now - self._last < self.period_s:
+                return
+            self._last = now
+            self.stream.write(("\r" + text + "\033[K") if self.tty else text + "\n")
+            self.stream.flush()
+
+    def end(self) -> None:
+        if self.tty:
+            self.stream.write("\n")
+
+
+def cmd_live(args: argparse.Namespace) -> int:
+    from fgslam.live import LiveSettings, run_live, simulated_camera, start_pose_facing
+    from slamio.create.link import CreateLink
+
+    waypoints = _waypoints(args)
+    start_pose = tuple(args.start_pose) if args.start_pose else start_pose_facing(waypoints)
+    settings = LiveSettings(speed_m_s=args.speed)
+    status = StatusLine()
+    last_map = [0.0]
+
+    worst_ms = [0.0]
+
+    def on_step(index, smoother, latency_s, loop):
+        x, y, th = smoother.current_pose()
+        worst_ms[0] = max(worst_ms[0], 1e3 * latency_s)
+        status(f"pose {index:5d}  x {x:6.3f} m  y {y:6.3f} m  θ {math.degrees(th):7.1f}°  "
+               f"landmarks {len(smoother.landmarks()):2d}  iSAM2 {1e3 * latency_s:5.2f} ms (max {worst_ms[0]:5.2f})  "
+               f"frames {loop.frames_used} used, {loop.frames_skipped + loop.frames_dropped} dropped")
+        if args.map_png and time.monotonic() - last_map[0] > 2.0:
+            from fgslam.report import plot_live_map
+
+            last_map[0] = time.monotonic()
+            plot_live_map(args.map_png, smoother.trajectory(), smoother.landmarks(), waypoints)
+
+    sim = None
+    unplug_timer = None
+    try:
+        if args.port == "sim":
+            from slamio.create.sim import SimulatedCreate
+
+            sim = SimulatedCreate(args.model, seed=args.sim_seed, time_scale=args.sim_time_scale,
+                                  start_pose=start_pose).start()
+            grab_for, front_end, truth_landmarks = simulated_camera(sim, seed=args.sim_seed, tag_size_m=args.tag_size)
+            port, clock, truth = sim.port, sim.clock, (lambda: sim.true_pose)
+            if args.sim_unplug_after is not None:
+                def unplug_when_due():
+                    while sim.clock() < args.sim_unplug_after and sim.plugged:
+                        time.sleep(0.01)
+                    sim.unplug()
+
+                unplug_timer = threading.Thread(target=unplug_when_due, daemon=True)
+                unplug_timer.start()
+        else:
+            grab_for, front_end = _real_camera(args)
+            port, clock, truth, truth_landmarks = args.port, time.monotonic, None, ()
+        link = CreateLink(port, args.model, baud=args.baud)
+        link.open()  # a port that does not open is a user error (exit 1), before the log exists
+        result = run_live(link, args.out, waypoints, start_pose=start_pose, grab_for=grab_for, front_end=front_end,
+                          settings=settings, truth=truth, truth_landmarks=truth_landmarks, clock=clock,
+                          on_step=on_step)
+    finally:
+        status.end()
+        if "link" in locals():
+            link.close()
+        if sim is not None:
+            true_pose = sim.true_pose
+            sim.close()
+    lat = 1e3 * result.latencies_s
+    print(f"wrote {args.out}: {result.poses} poses, {result.observations} observations from "
+          f"{result.frames_used} of {result.frames_requested} frames ({result.frames_skipped} skipped: camera busy, "
+          f"{result.frames_dropped} dropped: too late)")
+    if len(lat):
+        print(f"iSAM2 step latency: median {np.median(lat):.2f} ms, p99 {np.percentile(lat, 99):.2f} ms, "
+              f"max {lat.max():.2f} ms")
+    x, y, th = result.final_pose
+    print(f"final iSAM2 pose: x {x:.3f} m, y {y:.3f} m, θ {math.degrees(th):.1f}°; "
+          f"{len(result.landmarks)} landmarks")
+    if sim is not None:
+        from fgslam.live import pose_error_m
+
+        print(f"simulator's true pose: x {true_pose[0]:.3f} m, y {true_pose[1]:.3f} m, "
+              f"θ {math.degrees(true_pose[2]):.1f}°; position error {pose_error_m(result.final_pose, true_pose):.4f} m")
+    reason = result.record.reason
+    shutdown = result.record.shutdown
+    if shutdown is not None and not shutdown.stopped:
+        print(f"fgslam live: WARNING: {shutdown.detail}", file=sys.stderr)
+    if reason.kind == "interrupted":
+        print(f"fgslam live: {reason}", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    if reason.is_fault:
+        print(f"fgslam live: stopped early: {reason}; the log is kept ({args.out})", file=sys.stderr)
+        return EXIT_STOPPED_EARLY
+    print(f"stopped: {reason}")
+    return 0
+
+
+def _real_camera(args):
+    """(grab_for, front_end) for a real camera: the newest frame of a background reader."""
+    if args.camera is None:
+        raise FgslamError("a real robot needs --camera CAM.yaml (scripts/calibrate_camera.py writes one)")
+    from fgslam.live import LatestFrame
+    from slamio.camera.detect import FrontEnd, FrontEndConfig
+    from slamio.camera.model import load_camera
+    from slamio.camera.sources import kinect_frames, video_frames
+
+    camera = load_camera(args.camera)
+    kind, _, number = args.frames.partition(":")
+    if kind not in ("camera", "kinect") or not number.isdigit():
+        raise FgslamError(f"--frames must be camera:N or kinect:N, got {args.frames!r}")
+    frames = video_frames(int(number)) if kind == "camera" else kinect_frames(int(number))
+    latest = LatestFrame(frames)
+    return latest.grab_for, FrontEnd(camera, FrontEndConfig(tag_size_m=args.tag_size))

@@ -1,0 +1,179 @@
+"""``fgslam live``: the follower's maths, the pose tracker, and hardware-in-the-loop runs —
+the simulated Create on a real pseudo-terminal, frames rendered from its true pose, the
+camera front-end and iSAM2 in the loop."""
+
+from __future__ import annotations
+
+import json
+import math
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from fgslam.cli import main
+from fgslam.live import (
+    LiveSettings,
+    PoseTracker,
+    polygon_waypoints,
+    pose_error_m,
+    read_waypoints,
+    run_live,
+    simulated_camera,
+    start_pose_facing,
+    waypoint_wheel_speeds,
+)
+from slamio.create.link import CreateLink
+from slamio.create.sim import SimulatedCreate
+from slamio.errors import FgslamError
+from slamio.geometry import arc_increment, compose_pose
+from slamio.log import LiveStep, Odometry, read_log
+from slamio.sim import ARENA_PATH_WIDTH_M, ARENA_SIDE_M
+
+CENTRE = (0.5 * ARENA_SIDE_M, 0.5 * ARENA_SIDE_M)
+TIME_SCALE = 3.0
+
+
+def test_follower_turns_then_drives_then_arrives():
+    s = LiveSettings()
+    mode, v, w = waypoint_wheel_speeds((0.0, 0.0, 0.0), (0.0, 1.0), s, turning=True)
+    assert mode == "turn" and v == 0 and w == pytest.approx(s.turn_rate_rad_s)
+    mode, v, w = waypoint_wheel_speeds((0.0, 0.0, math.pi / 2 - 0.01), (0.0, 1.0), s, turning=True)
+    assert mode == "drive" and v == pytest.approx(s.speed_m_s) and w == pytest.approx(s.heading_gain_per_s * 0.01)
+    # driving tolerates a larger heading error before it stops to turn again
+    mode, _, _ = waypoint_wheel_speeds((0.0, 0.0, math.pi / 2 - 0.2), (0.0, 1.0), s, turning=False)
+    assert mode == "drive"
+    mode, v, _ = waypoint_wheel_speeds((0.0, 0.99, math.pi / 2), (0.0, 1.0), s, turning=False)
+    assert mode == "arrived" and v == 0
+    # slowing down along sqrt(2 a d) near the target, never a backward wheel while driving
+    mode, v, w = waypoint_wheel_speeds((0.0, 0.96, math.pi / 2 - 0.3), (0.0, 1.0), s, turning=False)
+    assert mode == "drive" and v == pytest.approx(math.sqrt(2 * s.accel_m_s2 * 0.04), rel=0.05)
+    assert v - abs(w) * 0.5 * s.wheel_base_m >= -1e-12
+
+
+def test_pose_tracker_composes_smoothed_pose_records_and_motion_since():
+    tracker = PoseTracker((1.0, 2.0, 0.5))
+    tracker.recorded(1, Odometry(0.1, 0.1, 0.0, 0.1, ((1, 0, 0), (0, 1, 0), (0, 0, 1))))
+    tracker.advance(0.05, 0.02)
+    expected = compose_pose(compose_pose((1.0, 2.0, 0.5), (0.1, 0.0, 0.1)), arc_increment(0.05, 0.02))
+    assert tracker.current() == pytest.approx(expected)
+    tracker.smoothed(1, (1.2, 2.0, 0.6))  # the smoother's pose 1 replaces the odometry up to it
+    assert tracker.current() == pytest.approx(compose_pose((1.2, 2.0, 0.6), arc_increment(0.05, 0.02)))
+
+
+def test_waypoints_from_a_file_and_seed_004_paths(tmp_path):
+    path = tmp_path / "w.txt"
+    path.write_text("# corners\n0.5, 0.5\n1.5 0.5\n\n1.5,1.5 # last\n")
+    np.testing.assert_allclose(read_waypoints(str(path)), [[0.5, 0.5], [1.5, 0.5], [1.5, 1.5]])
+    path.write_text("0.5, 0.5\n1.5\n")
+    with pytest.raises(FgslamError, match=r"w.txt:2: expected 'x_m, y_m'"):
+        read_waypoints(str(path))
+    octagon = polygon_waypoints(8, ARENA_PATH_WIDTH_M, CENTRE, laps=2)
+    assert octagon.shape == (16, 2) and np.allclose(octagon[7], octagon[15])
+    start = start_pose_facing(octagon)
+    assert start[:2] == tuple(octagon[-1]) and start[2] == pytest.approx(0.0, abs=1e-12)
+
+
+@pytest.fixture(scope="module")
+def octagon_run(tmp_path_factory):
+    """The hardware-in-the-loop run of issue 8: the octagon of seed 004's arena."""
+    out = tmp_path_factory.mktemp("live") / "live.jsonl"
+    waypoints = polygon_waypoints(8, ARENA_PATH_WIDTH_M, CENTRE)
+    start = start_pose_facing(waypoints)
+    with SimulatedCreate("create2", seed=1, time_scale=TIME_SCALE, start_pose=start) as sim:
+        grab_for, front_end, truth_landmarks = simulated_camera(sim)
+        result = run_live(CreateLink(sim.port, "create2"), str(out), waypoints, start_pose=start, grab_for=grab_for,
+                          front_end=front_end, truth=lambda: sim.true_pose, truth_landmarks=truth_landmarks,
+                          clock=sim.clock)
+        true_pose = sim.true_pose
+        commanded = sim.commanded_mm_s
+    return out, result, true_pose, commanded
+
+
+def test_hil_octagon_ends_within_10_cm_of_the_truth(octagon_run):
+    out, result, true_pose, commanded = octagon_run
+    assert result.completed and result.record.reason.kind == "completed"
+    assert commanded == (0.0, 0.0)
+    assert pose_error_m(result.final_pose, true_pose) < 0.1
+    assert set(result.landmarks) == set(range(8))
+    assert result.frames_used > 0.8 * result.frames_requested
+    assert result.observations > 100
+
+
+def test_hil_log_replays_with_every_estimator_against_its_truth(octagon_run, tmp_path, capsys):
+    out, result, _, _ = octagon_run
+    log = read_log(out)
+    steps = log.steps()
+    assert len(steps) == result.poses and all(s.truth is not None for s in steps)
+    latencies = [r for r in log.records if isinstance(r, LiveStep)]
+    assert len(latencies) >= result.poses - 3 and all(r.latency_s > 0 for r in latencies)
+    assert main(["run", str(out), "--out", str(tmp_path / "r"), "--no-report"]) == 0
+    metrics = json.loads((tmp_path / "r" / "metrics.json").read_text())
+    assert metrics["reference"] == "ground_truth"
+    assert metrics["isam2"]["ate_rmse_m"] < 0.05 and metrics["isam2"]["landmarks_found"] == 8
+    capsys.readouterr()
+
+
+def test_unplugged_cable_stops_early_keeps_the_log_and_exits_2(tmp_path, capsys):
+    out = tmp_path / "unplugged.jsonl"
+    code = main(["live", "--port", "sim", "--sim-time-scale", str(TIME_SCALE), "--sim-unplug-after", "4",
+                 "--out", str(out)])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "stopped early: serial-error" in err and "THE CREATE KEEPS EXECUTING" in err
+    log = read_log(out)  # readable, every pose but possibly the last
+    assert 10 < len(log.steps()) and log.truncated is None
+
+
+def test_cable_back_in_time_gets_the_wheels_stopped(tmp_path):
+    """A cable pulled and pushed back within the link's retry window: the stop goes out."""
+    out = tmp_path / "glitch.jsonl"
+    waypoints = polygon_waypoints(8, ARENA_PATH_WIDTH_M, CENTRE)
+    start = start_pose_facing(waypoints)
+    with SimulatedCreate("create2", seed=2, time_scale=TIME_SCALE, start_pose=start) as sim:
+        def glitch():
+            while sim.clock() < 4.0:
+                time.sleep(0.01)
+            sim.unplug()
+            time.sleep(0.1)
+            sim.replug()
+
+        threading.Thread(target=glitch, daemon=True).start()
+        result = run_live(CreateLink(sim.port, "create2"), str(out), waypoints, start_pose=start, clock=sim.clock)
+        time.sleep(0.2)
+        assert sim.commanded_mm_s == (0.0, 0.0)
+    assert result.record.reason.kind == "serial-error"
+    assert read_log(out).steps()
+
+
+class _FailingSmoother:
+    """An iSAM2 that breaks at pose 15, to check that a worker's exception stops the robot."""
+
+    def __init__(self, inner):
+        self.inner = inner
+
+    def step(self, step):
+        if step.index == 15:
+            raise RuntimeError("smoother failed on purpose")
+        self.inner.step(step)
+
+    def __getattr__(self, name):
+        return getattr(self.inner, name)
+
+
+def test_an_exception_in_the_loop_stops_the_wheels_first(tmp_path):
+    from fgslam.smoother import Isam2Smoother
+    from slamio.log import Header
+
+    out = tmp_path / "broken.jsonl"
+    waypoints = polygon_waypoints(4, ARENA_PATH_WIDTH_M, CENTRE)
+    start = start_pose_facing(waypoints)
+    header = Header(0.0, start, (1e-3, 1e-3, 1e-3), {"name": "t"}, {"kind": "t"}, {"odometry": {}, "observation": {}})
+    with SimulatedCreate("create2", seed=3, time_scale=TIME_SCALE, start_pose=start) as sim:
+        with pytest.raises(FgslamError, match="smoother failed on purpose"):
+            run_live(CreateLink(sim.port, "create2"), str(out), waypoints, start_pose=start, clock=sim.clock,
+                     smoother=_FailingSmoother(Isam2Smoother(header)))
+        time.sleep(0.2)
+        assert sim.commanded_mm_s == (0.0, 0.0)
+    assert len(read_log(out).steps()) >= 15
