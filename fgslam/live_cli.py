@@ -31,7 +31,8 @@ paths: square or octagon (seed 004's, in its 10 ft arena: --side across flats, d
 1.83 m, centred at --centre, default 1.524,1.524), or a file of 'x_m, y_m' lines. The robot
 starts on the path's last corner facing the first (or at --start-pose): place it there.
 
-A terminal status line shows the pose, landmarks, iSAM2 latency and frames; --map-png
+A terminal status line shows the pose with its standard deviations (iSAM2's marginal),
+the landmarks, iSAM2 latency and frames; --map-png
 rewrites a picture of the map every 2 s. Stop with Ctrl-C: the wheels stop first, then the
 log is closed. Bumps, wheel drops, a lost serial link and a hung loop stop the robot too.
 
@@ -130,8 +131,10 @@ def cmd_live(args: argparse.Namespace) -> int:
 
     def on_step(index, smoother, latency_s, loop):
         x, y, th = smoother.current_pose()
+        sigma = np.sqrt(np.diag(smoother.current_covariance()))  # the published covariance, as 1-sigma
         worst_ms[0] = max(worst_ms[0], 1e3 * latency_s)
-        status(f"pose {index:5d}  x {x:6.3f} m  y {y:6.3f} m  θ {math.degrees(th):7.1f}°  "
+        status(f"pose {index:5d}  x {x:6.3f} y {y:6.3f} m ±{max(sigma[:2]):.3f}  θ {math.degrees(th):6.1f}° "
+               f"±{math.degrees(sigma[2]):.1f}  "
                f"landmarks {len(smoother.landmarks()):2d}  iSAM2 {1e3 * latency_s:5.2f} ms (max {worst_ms[0]:5.2f})  "
                f"frames {loop.frames_used} used, {loop.frames_skipped + loop.frames_dropped} dropped")
         if args.map_png and time.monotonic() - last_map[0] > 2.0:
