@@ -109,6 +109,15 @@ def _style(i: int) -> tuple[str, str]:
     return _COLOURS[i % len(_COLOURS)], _MARKERS[i % len(_MARKERS)]
 
 
+def _legend_and_save(fig: Figure, ax, path, with_legend: bool = True, **legend) -> Path:
+    """Legend outside the axes on the right, then the PNG (no software tag, optimised)."""
+    if with_legend:
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False, **legend)
+    out = Path(path)
+    fig.savefig(out, dpi=_DPI, metadata={"Software": None}, pil_kwargs={"optimize": True})
+    return out
+
+
 def _aligned_final(run: EstimatorRun, reference: Reference) -> tuple[np.ndarray, bool, float, np.ndarray]:
     aligned, rot, trans = estimator_alignment(run, reference)
     final = np.asarray(run.final, dtype=float).reshape(-1, 3)
@@ -214,10 +223,7 @@ def plot_trajectories(
     ax.set_ylabel("y [m]")
     ax.set_title(title)
     ax.grid(True, lw=0.5, alpha=0.5)
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
-    out = Path(path)
-    fig.savefig(out, dpi=_DPI, metadata={"Software": None}, pil_kwargs={"optimize": True})
-    return out
+    return _legend_and_save(fig, ax, path)
 
 
 def plot_position_errors(
@@ -289,11 +295,7 @@ def plot_position_errors(
     ax.set_ylabel("position error [m]")
     ax.set_title(f"{title}\n(solid: final estimate, dashed: online estimate at its own step)", fontsize=11)
     ax.grid(True, which="both", lw=0.5, alpha=0.5)
-    if series:
-        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
-    out = Path(path)
-    fig.savefig(out, dpi=_DPI, metadata={"Software": None}, pil_kwargs={"optimize": True})
-    return out
+    return _legend_and_save(fig, ax, path, with_legend=bool(series))
 
 
 def plot_heading_errors(path, runs: list[EstimatorRun], reference: Reference, stamps_s) -> Path:
@@ -327,10 +329,7 @@ def plot_heading_errors(path, runs: list[EstimatorRun], reference: Reference, st
     ax.set_title("Heading error against the reference\n(solid: final estimate, dashed: online estimate)",
                  fontsize=11)
     ax.grid(True, lw=0.5, alpha=0.5)
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
-    out = Path(path)
-    fig.savefig(out, dpi=_DPI, metadata={"Software": None}, pil_kwargs={"optimize": True})
-    return out
+    return _legend_and_save(fig, ax, path)
 
 
 def plot_nis(path, runs: list[EstimatorRun], stamps_s) -> Path | None:
@@ -358,10 +357,7 @@ def plot_nis(path, runs: list[EstimatorRun], stamps_s) -> Path | None:
     ax.set_ylabel("NIS of the observation (range, bearing: 2 DoF)")
     ax.set_title("Consistency: NIS of each observation against the prediction before its step", fontsize=11)
     ax.grid(True, which="both", lw=0.5, alpha=0.5)
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False, markerscale=4)
-    out = Path(path)
-    fig.savefig(out, dpi=_DPI, metadata={"Software": None}, pil_kwargs={"optimize": True})
-    return out
+    return _legend_and_save(fig, ax, path, markerscale=4)
 
 
 def plot_nees(path, runs: list[EstimatorRun], reference: Reference, stamps_s) -> Path | None:
@@ -395,10 +391,7 @@ def plot_nees(path, runs: list[EstimatorRun], reference: Reference, stamps_s) ->
     ax.set_title("Consistency: NEES against time (inside the band about 95 % of the time if consistent)",
                  fontsize=11)
     ax.grid(True, which="both", lw=0.5, alpha=0.5)
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
-    out = Path(path)
-    fig.savefig(out, dpi=_DPI, metadata={"Software": None}, pil_kwargs={"optimize": True})
-    return out
+    return _legend_and_save(fig, ax, path)
 
 
 def plot_step_times(path, runs: list[EstimatorRun]) -> Path | None:
@@ -421,10 +414,7 @@ def plot_step_times(path, runs: list[EstimatorRun]) -> Path | None:
     ax.set_ylabel("time per step [ms]")
     ax.set_title("Cost: wall-clock time of every step", fontsize=11)
     ax.grid(True, which="both", lw=0.5, alpha=0.5)
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False, markerscale=6)
-    out = Path(path)
-    fig.savefig(out, dpi=_DPI, metadata={"Software": None}, pil_kwargs={"optimize": True})
-    return out
+    return _legend_and_save(fig, ax, path, markerscale=6)
 
 
 _CSS = """
