@@ -264,22 +264,11 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m fgslam.record_cli record|calibrate ...`` (the same verbs, standalone)."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    parser = argparse.ArgumentParser(prog="fgslam")
-    verbs = parser.add_subparsers(dest="verb", metavar="VERB", required=True)
-    add_record_parser(verbs)
-    add_calibrate_parser(verbs)
-    args = parser.parse_args(argv)
-    args.argv = argv
-    try:
-        return args.func(args)
-    except FgslamError as error:
-        print(f"fgslam: error: {error}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print("fgslam: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+    """``python -m fgslam.record_cli record|calibrate ...``: the ``fgslam`` command itself
+    (kept so scripts and tests that start the recorder as a module keep working)."""
+    from fgslam.cli import main as fgslam_main
+
+    return fgslam_main(argv)
 
 
 if __name__ == "__main__":
