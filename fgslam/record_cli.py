@@ -3,7 +3,7 @@
 ``add_record_parser(verbs)`` and ``add_calibrate_parser(verbs)`` take the sub-parsers
 object of ``fgslam.cli.build_parser`` and add one verb each; the handlers return the exit
 status and raise :class:`~slamio.errors.FgslamError` for mistakes the user can fix.
-``python -m fgslam.record_cli record ...`` runs them without the rest of the CLI.
+``python -m fgslam.record_cli record ...`` is the same as ``fgslam record ...``.
 
 Exit status of ``fgslam record``: 0 when the path was driven to the end (or teleop quit),
 2 when the robot was stopped early (bump, wheel drop, watchdog, no data, serial error,
