@@ -578,12 +578,16 @@ class EkfSlam:
             pose, observation.range_m, observation.bearing_rad, with_height
         )
         augment_covariance(self._cov, n, G_pose, G_measurement, R)
+        self._register_landmark(key, n, with_height)
+
+    def _register_landmark(self, key: int, n: int, with_height: bool) -> None:
+        """Book a landmark just placed at state index ``n`` (its mean and covariance are set)."""
         self._slot[key] = n
         self._has_height[key] = with_height
         self._keys.append(key)
         self._x_index.append(n)
         self._h_index.append(n + 2 if with_height else -1)
-        self._dim = n + k
+        self._dim = n + (3 if with_height else LANDMARK_DIM)
         self.landmarks_added += 1
 
     def _update(self, key: int, observation: Observation) -> None:
@@ -655,14 +659,8 @@ class EkfSlam:
         self._mean[n : n + 2] = fit.xy
         covariance = fit.covariance + self._cov[:2, :2]
         augment_covariance(self._cov, n, np.zeros((LANDMARK_DIM, ROBOT_DIM)), np.eye(LANDMARK_DIM), covariance)
-        self._slot[key] = n
-        self._has_height[key] = False
-        self._keys.append(key)
-        self._x_index.append(n)
-        self._h_index.append(-1)
-        self._dim = n + LANDMARK_DIM
+        self._register_landmark(key, n, with_height=False)
         del self._range_buffer[key]
-        self.landmarks_added += 1
         self.range_landmarks_initialised += 1
         return True
 
