@@ -297,10 +297,13 @@ class _Chain:
         self.compound = gtsam.Pose2()
         self._cov = np.zeros((3, 3))
 
-    def append(self, increment: gtsam.Pose2, covariance: np.ndarray) -> None:
+    def extended(self, increment: gtsam.Pose2, covariance: np.ndarray) -> tuple[gtsam.Pose2, np.ndarray]:
+        """(compound, covariance) of this chain with one more link, the chain unchanged."""
         A = increment.inverse().AdjointMap()
-        self._cov = A @ self._cov @ A.T + covariance
-        self.compound = self.compound.compose(increment)
+        return self.compound.compose(increment), A @ self._cov @ A.T + covariance
+
+    def append(self, increment: gtsam.Pose2, covariance: np.ndarray) -> None:
+        self.compound, self._cov = self.extended(increment, covariance)
         self.links.append((increment, covariance))
 
     def covariance(self) -> np.ndarray:
@@ -828,9 +831,7 @@ class Isam2Smoother:
             raise FgslamError("Isam2Smoother: no step yet")
         if frame not in ("world", "body"):
             raise FgslamError(f"current_covariance: frame must be 'world' or 'body', got {frame!r}")
-        chain = self._since_chain
-        for increment, odo in self._since_isam[len(chain.links) :]:  # records held since the last call
-            chain.append(increment, odometry_noise_covariance(odo))
+        chain = self._caught_up_since_chain()
         if self._marginal is None:
             self._marginal = np.asarray(self._isam.marginalCovariance(X(chain.start)), dtype=float)
         cov = self._marginal
@@ -838,11 +839,16 @@ class Isam2Smoother:
             A = chain.compound.inverse().AdjointMap()
             cov = A @ cov @ A.T + chain.covariance()
         if frame == "world":
-            th = self._pose.theta()
-            c, s = math.cos(th), math.sin(th)
-            J = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+            J = _body_to_world(self._pose.theta())
             cov = J @ cov @ J.T
         return 0.5 * (cov + cov.T)
+
+    def _caught_up_since_chain(self) -> "_Chain":
+        """The odometry since the newest iSAM2 pose, with the records held since the last call."""
+        chain = self._since_chain
+        for increment, odo in self._since_isam[len(chain.links) :]:
+            chain.append(increment, odometry_noise_covariance(odo))
+        return chain
 
     def landmark_covariances(self) -> dict[int, np.ndarray]:
         """Landmark id → 2×2 marginal covariance of its (x, y) in the world frame
@@ -882,17 +888,13 @@ class Isam2Smoother:
         ]
         if not wanted:
             return out
-        chain = self._since_chain
-        for increment, odo in self._since_isam[len(chain.links) :]:
-            chain.append(increment, odometry_noise_covariance(odo))
+        chain = self._caught_up_since_chain()
         odo = step.odometry
         increment = gtsam.Pose2(odo.dx_m, odo.dy_m, odo.dtheta_rad)
-        A_step = increment.inverse().AdjointMap()
-        moved_cov = A_step @ chain.covariance() @ A_step.T + odometry_noise_covariance(odo)
-        A = chain.compound.compose(increment).inverse().AdjointMap()
+        compound, moved_cov = chain.extended(increment, odometry_noise_covariance(odo))
+        A = compound.inverse().AdjointMap()
         pose = self._pose.compose(increment)
-        c, s = math.cos(pose.theta()), math.sin(pose.theta())
-        to_world = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])  # body → world at the new pose
+        to_world = _body_to_world(pose.theta())  # body → world at the new pose
         J = to_world @ A  # perturbation of the newest iSAM2 pose → world perturbation of the new pose
         x_key = X(chain.start)
         ids = list(dict.fromkeys(o.landmark_id for _, o in wanted))
@@ -1242,6 +1244,13 @@ class Isam2Smoother:
             f"(pose {self._num_poses}); check the odometry covariance and the start sigmas. "
             f"GTSAM said: {self.last_failure}"
         )
+
+
+def _body_to_world(theta_rad: float) -> np.ndarray:
+    """3×3 map of a Pose2 perturbation in the robot's frame (GTSAM's convention) to world
+    (x, y, θ) at heading ``theta_rad``."""
+    c, s = math.cos(theta_rad), math.sin(theta_rad)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def _relinearize_threshold(value) -> float | tuple[float, float]:
