@@ -425,18 +425,14 @@ class LiveLoop:
                 else:  # a late answer to a frame already given up
                     return False
             elif now_s - asked > self.s.frame_timeout_s:
-                self.frames_dropped += 1
-                self._finish_pose(index, odometry, ())
+                self._drop_pending()
             else:
                 return False
         return now_s - self._last_record_s >= self.s.record_period_s
 
     def after_record(self, record, log: LogWriter) -> None:
         self._log = log
-        if self._pending is not None:  # the recorder's last record comes whether or not we are ready
-            index, odometry, _ = self._pending
-            self.frames_dropped += 1
-            self._finish_pose(index, odometry, ())
+        self._drop_pending()  # the recorder's last record comes whether or not we are ready
         self._index += 1
         index = self._index
         self._last_record_s = self._last_stamp_s = record.stamp_s
@@ -454,6 +450,13 @@ class LiveLoop:
         self._finish_pose(index, record, ())
 
     # -- helpers
+
+    def _drop_pending(self) -> None:
+        """Give up the frame in progress (if any): its pose goes to the smoother without it."""
+        if self._pending is not None:
+            index, odometry, _ = self._pending
+            self.frames_dropped += 1
+            self._finish_pose(index, odometry, ())
 
     def _finish_pose(self, index: int, odometry: Odometry, observations: tuple[Observation, ...]) -> None:
         self._pending = None
@@ -473,10 +476,7 @@ class LiveLoop:
     def close(self, log_path: str | None = None) -> None:
         """After the recorder returned: give the last pose to the smoother (a frame still in
         progress is dropped: the log is closed) and wait for it."""
-        if self._pending is not None:
-            index, odometry, _ = self._pending
-            self.frames_dropped += 1
-            self._finish_pose(index, odometry, ())
+        self._drop_pending()
         if self.camera is not None:
             self.camera.close()
         self.smoother.close()

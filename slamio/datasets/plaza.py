@@ -54,6 +54,7 @@ from pathlib import Path
 
 import numpy as np
 
+from slamio.datasets.mrclam import interpolate_pose
 from slamio.datasets.victoria_park import DatasetFormatError
 from slamio.errors import FgslamError
 from slamio.geometry import arc_increment, arc_increment_jacobian, wrap_angle
@@ -173,17 +174,6 @@ def gt_heading_offset_rad(gt: np.ndarray, min_step_m: float = 0.05) -> float:
     return float(np.median(wrap_angle(travel - gt[1:, 3][moving])))
 
 
-def _truth_at(gt: np.ndarray, t: float) -> tuple[float, float, float]:
-    times = gt[:, 0]
-    x = float(np.interp(t, times, gt[:, 1]))
-    y = float(np.interp(t, times, gt[:, 2]))
-    i = int(np.clip(np.searchsorted(times, t), 1, len(times) - 1))
-    t0, t1 = times[i - 1], times[i]
-    f = 0.0 if t1 <= t0 else min(max((t - t0) / (t1 - t0), 0.0), 1.0)
-    theta = gt[i - 1, 3] + f * wrap_angle(gt[i, 3] - gt[i - 1, 3])
-    return x, y, wrap_angle(float(theta))
-
-
 def import_plaza(
     run: str = "plaza1",
     folder: str | os.PathLike[str] | None = None,
@@ -247,7 +237,7 @@ def import_plaza(
             dx, dy, dth = arc_increment(d, a)
             cov = odometry_covariance(d, a, part * interval, odometry_noise)
             records.append(Odometry(t_cut, dx, dy, dth, tuple(map(tuple, cov)), d, a))
-            records.append(TruthPose(t_cut, *_truth_at(gt, t_cut)))
+            records.append(TruthPose(t_cut, *interpolate_pose(gt[:, 0], gt[:, 1:], t_cut, math.inf)))
             for t_obs, receiver, range_m in batch:
                 observe(t_obs, receiver, range_m)
             done = share
