@@ -103,12 +103,14 @@ class StatusLine:
         self._last = 0.0
         self._lock = threading.Lock()
 
-    def __call__(self, text: str, force: bool = False) -> None:
+    def __call__(self, make_text) -> None:
+        """Show ``make_text()`` if a line is due (the text is only made then)."""
         now = time.monotonic()
         with self._lock:
-            if not force and now - self._last < self.period_s:
+            if now - self._last < self.period_s:
                 return
             self._last = now
+            text = make_text()
             self.stream.write(("\r" + text + "\033[K") if self.tty else text + "\n")
             self.stream.flush()
 
@@ -130,13 +132,17 @@ def cmd_live(args: argparse.Namespace) -> int:
     worst_ms = [0.0]
 
     def on_step(index, smoother, latency_s, loop):
-        x, y, th = smoother.current_pose()
-        sigma = np.sqrt(np.diag(smoother.current_covariance()))  # the published covariance, as 1-sigma
         worst_ms[0] = max(worst_ms[0], 1e3 * latency_s)
-        status(f"pose {index:5d}  x {x:6.3f} y {y:6.3f} m ±{max(sigma[:2]):.3f}  θ {math.degrees(th):6.1f}° "
-               f"±{math.degrees(sigma[2]):.1f}  "
-               f"landmarks {len(smoother.landmarks()):2d}  iSAM2 {1e3 * latency_s:5.2f} ms (max {worst_ms[0]:5.2f})  "
-               f"frames {loop.frames_used} used, {loop.frames_skipped + loop.frames_dropped} dropped")
+
+        def text():  # the marginal and the map only when a line is shown
+            x, y, th = smoother.current_pose()
+            sigma = np.sqrt(np.diag(smoother.current_covariance()))  # the published covariance, as 1-sigma
+            return (f"pose {index:5d}  x {x:6.3f} y {y:6.3f} m ±{max(sigma[:2]):.3f}  θ {math.degrees(th):6.1f}° "
+                    f"±{math.degrees(sigma[2]):.1f}  landmarks {len(smoother.landmarks()):2d}  "
+                    f"iSAM2 {1e3 * latency_s:5.2f} ms (max {worst_ms[0]:5.2f})  "
+                    f"frames {loop.frames_used} used, {loop.frames_skipped + loop.frames_dropped} dropped")
+
+        status(text)
         if args.map_png and time.monotonic() - last_map[0] > 2.0:
             from fgslam.report import plot_live_map
 
