@@ -21,6 +21,14 @@ class Spy:
         self.port = port
         self.written = bytearray()
         self.fail_writes = False
+        self.fail_flush = False
+
+    def flush(self):
+        if self.fail_flush:  # what pyserial's tcdrain raises when the USB device vanishes
+            import termios
+
+            raise termios.error(5, "Input/output error")
+        return self.port.flush()
 
     def write(self, data):
         if self.fail_writes:
@@ -119,3 +127,14 @@ def test_real_pty_to_the_simulated_create_and_unplug_replug():
             sim.replug()
         assert link.last_shutdown.stopped and link.last_shutdown.reconnected
         assert wait_for(lambda: sim.commanded_mm_s == (0.0, 0.0) and sim.mode == p.OiMode.PASSIVE)
+
+
+def test_a_vanishing_device_during_flush_is_a_link_error():
+    """termios.error is not an OSError: a pulled cable seen by tcdrain must still be a
+    LinkError (which the recorder turns into a serial-error stop), not a crash."""
+    spies = []
+    link = CreateLink("loop://", "create2", opener=spy_opener(spies)).open()
+    spies[0].fail_flush = True
+    with pytest.raises(LinkError, match="Input/output error"):
+        link.write(p.drive_direct(left_mm_s=100, right_mm_s=100))
+    link.close()

@@ -53,9 +53,17 @@ def _default_opener(url: str, **kwargs: Any):
 
 
 def _serial_errors() -> tuple[type[BaseException], ...]:
+    """What a failing port raises: pyserial's errors, OS errors, and on POSIX
+    ``termios.error`` (not an OSError), which ``flush()``'s tcdrain raises when the device
+    vanishes mid-write (a pulled USB cable)."""
     import serial
 
-    return (serial.SerialException, OSError, ValueError)
+    errors: tuple[type[BaseException], ...] = (serial.SerialException, OSError, ValueError)
+    try:
+        import termios
+    except ImportError:  # pragma: no cover - Windows
+        return errors
+    return errors + (termios.error,)
 
 
 class CreateLink:
