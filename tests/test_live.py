@@ -122,8 +122,10 @@ def test_unplugged_cable_stops_early_keeps_the_log_and_exits_2(tmp_path, capsys)
     assert code == 2
     err = capsys.readouterr().err
     assert "stopped early: serial-error" in err and "THE CREATE KEEPS EXECUTING" in err
-    log = read_log(out)  # readable, every pose but possibly the last
-    assert 10 < len(log.steps()) and log.truncated is None
+    # Readable to the end, every pose complete (odometry, truth). How many poses came before
+    # the unplug depends on how fast frames render here (a pose waits for its frame): 8-16.
+    log = read_log(out)
+    assert log.truncated is None and log.has_full_truth() and len(log.steps()) >= 5
 
 
 def test_cable_back_in_time_gets_the_wheels_stopped(tmp_path):
