@@ -16,6 +16,11 @@ or with the log's ground truth, and pass or fail on two tolerances:
   solution, 3.9 % outside it against the truth). Above the band is what matters in a
   regression check: an estimator more confident than its errors.
 
+Against the truth, only the poses that have ground truth are scored (real datasets have
+gaps in their motion capture): the ATE is over them and the NEES share is of them. A log
+whose truth covers fewer than half of its poses, or fewer than 10 poses, is refused
+(:func:`require_enough_truth`): check it ``--against smoothed``.
+
 Tolerances come, in this order of precedence, from the call (or the command line), from a
 TOML file next to the log (``<log>.check.toml``, or the file given), and from the defaults
 (0.5 m, 0.1)::
@@ -44,17 +49,31 @@ from pathlib import Path
 
 import numpy as np
 
-from fgslam.compare import ate_rmse_m, nees, nees_band
+from fgslam.compare import ate_rmse_m, nees_band, nees_over_truth
 from fgslam.runner import ESTIMATORS, run_estimator, truth_reference
 from fgslam.smoother import Isam2Smoother, batch_solve
 from slamio.errors import FgslamError
 from slamio.log import read_log
 
-__all__ = ["DEFAULT_TOLERANCES", "CheckResult", "check_estimator", "assert_estimator_close", "load_tolerances"]
+__all__ = [
+    "DEFAULT_TOLERANCES",
+    "MIN_TRUTH_POSES",
+    "MIN_TRUTH_SHARE",
+    "CheckResult",
+    "check_estimator",
+    "assert_estimator_close",
+    "load_tolerances",
+    "require_enough_truth",
+]
 
 #: Tolerances used when neither the call nor a TOML file sets them.
 DEFAULT_TOLERANCES = {"max_ate_m": 0.5, "max_nees_outside": 0.1}
 AGAINST = ("smoothed", "truth")
+#: ``--against truth`` needs ground truth for at least this many poses (all of them when the
+#: log is shorter) ...
+MIN_TRUTH_POSES = 10
+#: ... and for at least this share of the log's poses.
+MIN_TRUTH_SHARE = 0.5
 
 
 @dataclass(frozen=True)
@@ -66,9 +85,11 @@ class CheckResult:
     estimator: str
     against: str
     ate_m: float
-    nees_outside: float | None  # share of steps outside the 95 % band; None without covariances
+    nees_outside: float | None  # share of scored steps outside the 95 % band; None without covariances
     max_ate_m: float
     max_nees_outside: float
+    poses_scored: int | None = None  # poses compared (those with truth, against the truth)
+    poses: int | None = None  # poses of the log
 
 
 def tolerance_file_for(log_path: str | os.PathLike[str]) -> Path:
@@ -101,6 +122,20 @@ def load_tolerances(path: str | os.PathLike[str] | None, estimator: str) -> dict
     return out
 
 
+def require_enough_truth(log_path, poses_with_truth: int, poses: int) -> None:
+    """Raise a one-line :class:`FgslamError` unless enough poses have ground truth for
+    ``--against truth``: at least :data:`MIN_TRUTH_SHARE` of the ``poses`` and at least
+    :data:`MIN_TRUTH_POSES` (or all of them, for a shorter log)."""
+    needed = min(poses, max(MIN_TRUTH_POSES, math.ceil(MIN_TRUTH_SHARE * poses)))
+    if poses_with_truth == 0:
+        raise FgslamError(f"{log_path}: no pose has ground truth; use --against smoothed")
+    if poses_with_truth < needed:
+        raise FgslamError(
+            f"{log_path}: only {poses_with_truth} of {poses} poses have ground truth, too few to check against "
+            f"(at least {needed} needed: half the poses and at least {MIN_TRUTH_POSES}); use --against smoothed"
+        )
+
+
 def check_estimator(
     log_path: str | os.PathLike[str],
     *,
@@ -128,19 +163,20 @@ def check_estimator(
     steps = log.steps()
     if against == "truth":
         reference = truth_reference(log)
-        if reference is None:
-            raise FgslamError(f"{log_path}: not every pose has ground truth; use --against smoothed")
-        reference_poses = reference.trajectory
+        require_enough_truth(log_path, 0 if reference is None else reference.poses_with_truth, len(steps))
+        reference_poses, has_pose = reference.trajectory, reference.has_pose
     else:
         smoother = Isam2Smoother(log.header)
         run_estimator(smoother, steps, covariances=False)  # only its graph is needed
         reference_poses = batch_solve(smoother).trajectory
+        has_pose = np.ones(len(reference_poses), dtype=bool)
 
     run, _ = run_estimator(ESTIMATORS[estimator](log.header), steps)
-    ate = ate_rmse_m(run.final, reference_poses[: len(run.final)])
+    m = len(run.final)
+    ate = ate_rmse_m(run.final, reference_poses[:m], has_pose=has_pose[:m])
     outside = None
     if run.online_covariances is not None:
-        values = nees(run.online, run.online_covariances, reference_poses[: len(run.online)])
+        values = nees_over_truth(run.online, run.online_covariances, reference_poses, has_pose)
         low, high = nees_band()
         finite = np.isfinite(values)
         if against == "smoothed":  # only overconfidence counts (module docstring)
@@ -157,11 +193,14 @@ def check_estimator(
         else f"NEES {'above' if against == 'smoothed' else 'outside'} the 95 % band at {100 * outside:.1f} % of steps "
         f"{'<=' if nees_ok else '>'} {100 * tol['max_nees_outside']:.1f} %"
     )
+    scored = int(np.count_nonzero(has_pose[:m]))
+    coverage = "" if scored == len(steps) else f" ({scored} of {len(steps)} poses have truth; only they are scored)"
     verdict = (
         f"{'PASS' if passed else 'FAIL'} {estimator} vs {against} on {Path(log_path).name}: "
-        f"ATE {ate:.4f} m {'<=' if ate_ok else '>'} {tol['max_ate_m']:g} m, {nees_text}"
+        f"ATE {ate:.4f} m {'<=' if ate_ok else '>'} {tol['max_ate_m']:g} m, {nees_text}{coverage}"
     )
-    return CheckResult(passed, verdict, estimator, against, ate, outside, tol["max_ate_m"], tol["max_nees_outside"])
+    return CheckResult(passed, verdict, estimator, against, ate, outside, tol["max_ate_m"], tol["max_nees_outside"],
+                       scored, len(steps))
 
 
 def assert_estimator_close(log_path: str | os.PathLike[str], **kwargs) -> CheckResult:

@@ -7,9 +7,21 @@ Everything here is pure numpy (no gtsam, no matplotlib) and works on plain array
 * a *map* is a ``dict`` landmark id → ``(x_m, y_m)`` in the world frame.
 
 The runner (``fgslam.runner``) produces one :class:`EstimatorRun` per estimator and one
-:class:`Reference` (the log's ground truth when it has one, otherwise the batch-smoothed
+:class:`Reference` (the log's ground truth wherever it has some, otherwise the batch-smoothed
 solution); :func:`compute_metrics` turns them into a JSON-ready dictionary, and
 :func:`format_table` into a terminal table. ``fgslam.report`` draws the same figures.
+
+Partial ground truth
+--------------------
+Real datasets have truth for only some poses (motion capture loses the robot). A reference
+trajectory then has NaN rows where there is no truth, and :attr:`Reference.has_pose` says
+which rows hold a pose. Every pose figure is computed over the poses with truth only: ATE
+(final and online) is the RMS over them, the final error is that of the last pose with
+truth, an RPE pair counts when both its ends have truth, NEES is taken at the poses with
+truth, and an SE(2) alignment is fitted to them. The map error does not need pose truth:
+it is against the log's surveyed landmarks whenever the log has them, even when the
+trajectory reference is the smoothed solution (landmark-only truth). The pure functions
+take an optional ``has_pose`` mask; without it, the finite rows of the reference count.
 
 Alignment policy (why and when trajectories are aligned)
 --------------------------------------------------------
@@ -19,7 +31,8 @@ log's known start pose (iSAM2 and batch through a prior factor with σ = 1e-3; t
 starting its state there), and so does the reference. When both trajectories share their
 first pose (see :func:`shares_first_pose`) they are therefore already in the same frame and
 **no alignment is applied**: aligning would hide real error (for example a heading error at
-the start that rotates the whole map).
+the start that rotates the whole map). When pose 0 has no truth, the first pose that has
+truth is the one compared.
 
 Only when the first poses differ (an estimate in some other frame, e.g. an imported
 dataset) is the estimate aligned to the reference by the least-squares *rigid* SE(2)
@@ -76,6 +89,12 @@ __all__ = [
     "TOP_LEVEL_KEYS",
     "COLUMN_MEANINGS",
     "REFERENCE_DESCRIPTIONS",
+    "describe_reference",
+    "reference_description",
+    "reference_rows",
+    "rpe_pairs",
+    "last_pose_with_truth",
+    "nees_over_truth",
     "estimator_names",
     "reference_line",
     "table_rows",
@@ -147,17 +166,74 @@ class EstimatorRun:
 class Reference:
     """What the estimators are compared against.
 
+    Four kinds occur (:attr:`description` says which in words):
+
+    * **full ground truth** — ``kind="ground_truth"``, every pose has truth;
+    * **partial pose truth** — ``kind="ground_truth"`` with some rows of ``trajectory`` NaN
+      (motion capture loses the robot: Vicon gaps). Only poses with truth are scored;
+    * **landmark-only truth** — ``kind="smoothed"`` (the trajectory is the batch solution:
+      the log has no pose truth) but ``landmark_reference="ground_truth"``: the landmarks are
+      the log's surveyed ones, so the map error is against the truth;
+    * **smoothed** — trajectory and landmarks from the batch Levenberg–Marquardt solution.
+
     Attributes:
-        kind: ``"ground_truth"`` (simulation, motion capture) or ``"smoothed"`` (the batch
-            Levenberg–Marquardt solution, used when the log has no ground truth).
-        trajectory: ``(n, 3)`` reference poses, one per pose of the log.
+        kind: where the *trajectory* comes from: ``"ground_truth"`` (simulation, motion
+            capture) or ``"smoothed"`` (the batch solution, when no pose has truth).
+        trajectory: ``(n, 3)`` reference poses, one per pose of the log; rows without truth
+            are NaN (the constructor sets them so).
         landmarks: landmark id → reference ``(x_m, y_m)``.
+        landmark_heights: landmark id → reference height above the floor (m), or ``None``.
+        has_pose: ``(n,)`` booleans, True where ``trajectory`` holds a reference pose. When
+            not given, the rows whose three numbers are finite.
+        landmark_reference: where ``landmarks`` come from, ``"ground_truth"`` or
+            ``"smoothed"``; by default the same as ``kind``, and ``None`` when there are no
+            reference landmarks (no map error can be computed).
     """
 
     kind: str
     trajectory: np.ndarray
     landmarks: dict[int, tuple[float, float]]
     landmark_heights: dict[int, float] | None = None
+    has_pose: np.ndarray | None = None
+    landmark_reference: str | None = None
+
+    def __post_init__(self):
+        trajectory = _as_poses(self.trajectory, "reference.trajectory").copy()
+        if self.has_pose is None:
+            has_pose = np.all(np.isfinite(trajectory), axis=1)
+        else:
+            has_pose = np.asarray(self.has_pose, dtype=bool).reshape(-1)
+            if has_pose.shape != (len(trajectory),):
+                raise ComparisonError(
+                    f"reference.has_pose has {has_pose.size} entries for {len(trajectory)} poses"
+                )
+        trajectory[~has_pose] = np.nan
+        landmark_reference = self.landmark_reference
+        if landmark_reference is None and self.landmarks:
+            landmark_reference = self.kind
+        if landmark_reference is not None and landmark_reference not in REFERENCE_KINDS:
+            raise ComparisonError(
+                f"landmark_reference {landmark_reference!r}; expected one of {REFERENCE_KINDS}"
+            )
+        object.__setattr__(self, "trajectory", trajectory)
+        object.__setattr__(self, "has_pose", has_pose)
+        object.__setattr__(self, "landmark_reference", landmark_reference if self.landmarks else None)
+
+    @property
+    def poses_with_truth(self) -> int:
+        """How many poses have ground truth (0 when the trajectory is the smoothed solution)."""
+        return int(np.count_nonzero(self.has_pose)) if self.kind == "ground_truth" else 0
+
+    @property
+    def description(self) -> str:
+        """What the figures are measured against, in words (see :func:`describe_reference`)."""
+        return describe_reference(
+            self.kind,
+            poses=len(self.trajectory),
+            poses_with_truth=self.poses_with_truth,
+            landmark_reference=self.landmark_reference,
+            landmarks=len(self.landmarks),
+        )
 
 
 REFERENCE_KINDS = ("ground_truth", "smoothed")
@@ -280,26 +356,53 @@ def shares_first_pose(
     return distance_m <= tol_m and heading_rad <= tol_rad
 
 
-def resolve_alignment(estimate, reference, align: bool | None = None) -> tuple[bool, float, np.ndarray]:
+def reference_rows(reference, has_pose=None) -> np.ndarray:
+    """``(n,)`` booleans: the rows of ``reference`` that hold a pose to compare against.
+
+    ``has_pose`` when given (as :attr:`Reference.has_pose`), otherwise the rows whose three
+    numbers are finite (a NaN row is a pose without truth).
+    """
+    r = _as_poses(reference, "reference")
+    if has_pose is None:
+        return np.all(np.isfinite(r), axis=1)
+    mask = np.asarray(has_pose, dtype=bool).reshape(-1)
+    if mask.shape != (len(r),):
+        raise ComparisonError(f"has_pose has {mask.size} entries for {len(r)} reference poses")
+    return mask
+
+
+def resolve_alignment(
+    estimate, reference, align: bool | None = None, *, has_pose=None
+) -> tuple[bool, float, np.ndarray]:
     """Decide whether to align and with which transform.
+
+    Only poses the reference has (see :func:`reference_rows`) take part: the first-pose test
+    looks at the first of them (pose 0 unless the truth starts later), and the SE(2) fit uses
+    all of them.
 
     Args:
         estimate, reference: ``(n, 3)`` trajectories of equal length.
         align: ``True`` always aligns, ``False`` never does, ``None`` applies the automatic
             policy (align unless :func:`shares_first_pose`).
+        has_pose: optional ``(n,)`` mask of the reference poses with truth.
 
     Returns:
-        ``(aligned, rotation_rad, translation_xy)``; the identity transform when not aligned.
+        ``(aligned, rotation_rad, translation_xy)``; the identity transform when not aligned
+        (also when the reference has no pose at all: there is nothing to align on).
     """
     e = _as_poses(estimate, "estimate")
     r = _as_poses(reference, "reference")
     if e.shape != r.shape:
         raise ComparisonError(f"estimate has {len(e)} poses but reference has {len(r)}")
-    if align is None:
-        align = not shares_first_pose(e, r)
-    if not align or len(e) == 0:
+    valid = reference_rows(r, has_pose)
+    if not valid.any():
         return False, 0.0, np.zeros(2)
-    rotation_rad, translation_xy = align_se2(e, r)
+    if align is None:
+        first = int(np.argmax(valid))
+        align = not shares_first_pose(e[first:], r[first:])
+    if not align:
+        return False, 0.0, np.zeros(2)
+    rotation_rad, translation_xy = align_se2(e[valid], r[valid])
     return True, rotation_rad, translation_xy
 
 
@@ -331,27 +434,46 @@ def _rmse(errors: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(errors)))) if len(errors) else math.nan
 
 
-def ate_rmse_m(estimate, reference, *, align: bool | None = None) -> float:
-    """Absolute trajectory error: RMS of the position errors, metres.
+def ate_rmse_m(estimate, reference, *, align: bool | None = None, has_pose=None) -> float:
+    """Absolute trajectory error: RMS of the position errors over the poses with truth, metres.
 
     Args:
-        estimate, reference: ``(n, 3)`` trajectories, row ``i`` ↔ row ``i``.
+        estimate, reference: ``(n, 3)`` trajectories, row ``i`` ↔ row ``i``. Reference rows
+            of NaN (no truth there) are left out.
         align: ``None`` (default) applies the policy in the module docstring (align in SE(2)
             only when the first poses differ); ``True``/``False`` force it.
+        has_pose: optional ``(n,)`` mask of the reference poses with truth (default: the
+            finite rows).
+
+    Returns NaN when no pose has truth.
     """
-    aligned, rotation_rad, translation_xy = resolve_alignment(estimate, reference, align)
+    valid = reference_rows(reference, has_pose)
+    aligned, rotation_rad, translation_xy = resolve_alignment(estimate, reference, align, has_pose=valid)
     e = apply_se2(estimate, rotation_rad, translation_xy) if aligned else np.asarray(estimate, float)
-    return _rmse(position_errors_m(e, reference))
+    return _rmse(position_errors_m(e, reference)[valid])
 
 
-def relative_pose_errors(estimate, reference, delta_frames: int) -> tuple[np.ndarray, np.ndarray]:
+def rpe_pairs(has_pose, delta_frames: int) -> np.ndarray:
+    """``(n − Δ,)`` booleans: pair (i, i + Δ) counts in the RPE when both ends have truth."""
+    mask = np.asarray(has_pose, dtype=bool).reshape(-1)
+    d = int(delta_frames)
+    if len(mask) <= d:
+        return np.zeros(0, dtype=bool)
+    return mask[:-d] & mask[d:]
+
+
+def relative_pose_errors(
+    estimate, reference, delta_frames: int, *, has_pose=None
+) -> tuple[np.ndarray, np.ndarray]:
     """Relative pose errors over ``delta_frames`` (RPE, Sturm et al. 2012), for every pair
-    (i, i + Δ): the error pose E = (Qᵢ⁻¹ Qᵢ₊Δ)⁻¹ (Pᵢ⁻¹ Pᵢ₊Δ) of the estimate P against the
-    reference Q. Returns ``(‖translation of E‖ in metres, |rotation of E| in radians)``.
+    (i, i + Δ) whose two reference poses have truth (:func:`rpe_pairs`): the error pose
+    E = (Qᵢ⁻¹ Qᵢ₊Δ)⁻¹ (Pᵢ⁻¹ Pᵢ₊Δ) of the estimate P against the reference Q. Returns
+    ``(‖translation of E‖ in metres, |rotation of E| in radians)``, one entry per such pair
+    in order of i.
 
     Alignment does not matter: a rigid transform of the whole estimate cancels in Pᵢ⁻¹ Pᵢ₊Δ.
     This is what evo's ``evo_rpe --delta Δ --delta_unit f --all_pairs`` computes (a test
-    checks it to 1e-9).
+    checks it to 1e-9). ``has_pose`` as in :func:`ate_rmse_m`.
     """
     e = _as_poses(estimate, "estimate")
     r = _as_poses(reference, "reference")
@@ -362,6 +484,7 @@ def relative_pose_errors(estimate, reference, delta_frames: int) -> tuple[np.nda
     d = int(delta_frames)
     if len(e) <= d:
         return np.zeros(0), np.zeros(0)
+    pairs = rpe_pairs(reference_rows(r, has_pose), d)
 
     def relative(poses):  # Pᵢ⁻¹ Pᵢ₊Δ as (x, y, θ) in frame i
         a, b = poses[:-d], poses[d:]
@@ -374,7 +497,7 @@ def relative_pose_errors(estimate, reference, delta_frames: int) -> tuple[np.nda
     # E = R⁻¹ P with R = (rx, ry, rth), P = (ex, ey, eth)
     c, s = np.cos(rth), np.sin(rth)
     tx, ty = c * (ex - rx) + s * (ey - ry), -s * (ex - rx) + c * (ey - ry)
-    return np.hypot(tx, ty), np.abs(wrap_angle(eth - rth))
+    return np.hypot(tx, ty)[pairs], np.abs(wrap_angle(eth - rth))[pairs]
 
 
 def nees(estimate, covariances, reference) -> np.ndarray:
@@ -427,30 +550,46 @@ def nis_summary(values) -> tuple[float | None, float | None, int | None]:
     return float(np.mean(v)), float(np.mean((v >= low) & (v <= high))), int(len(v))
 
 
-def rpe_delta_frames(reference, distance_m: float = 1.0) -> int:
-    """The frame delta over which the reference travels ``distance_m`` on average (≥ 1)."""
+def rpe_delta_frames(reference, distance_m: float = 1.0, *, has_pose=None) -> int:
+    """The frame delta over which the reference travels ``distance_m`` on average (≥ 1).
+
+    The mean step length comes from consecutive poses that both have truth (``has_pose`` as
+    in :func:`ate_rmse_m`); 1 when there is no such pair.
+    """
     r = _as_poses(reference, "reference")
     if len(r) < 2:
         return 1
-    steps = np.hypot(np.diff(r[:, 0]), np.diff(r[:, 1]))
+    steps = np.hypot(np.diff(r[:, 0]), np.diff(r[:, 1]))[rpe_pairs(reference_rows(r, has_pose), 1)]
+    if not len(steps):
+        return 1
     mean_step = float(np.mean(steps))
     if not mean_step > 0.0:
         return 1
     return max(1, min(len(r) - 1, int(round(distance_m / mean_step))))
 
 
-def final_pose_error_m(estimate, reference, *, align: bool | None = False) -> float:
-    """Distance between the last estimated and the last reference position, metres.
+def last_pose_with_truth(has_pose) -> int | None:
+    """Index of the last True entry of a mask, or None when there is none."""
+    mask = np.asarray(has_pose, dtype=bool).reshape(-1)
+    return int(len(mask) - 1 - np.argmax(mask[::-1])) if mask.any() else None
 
-    ``align`` as in :func:`ate_rmse_m`, but defaults to ``False``: callers that aligned
-    already (like :func:`compute_metrics`) pass aligned poses.
+
+def final_pose_error_m(estimate, reference, *, align: bool | None = False, has_pose=None) -> float:
+    """Position error of the last pose that has truth, metres (NaN when none has).
+
+    That is the last pose of the run when its truth exists; with a gap in the truth at the
+    end, the last pose before the gap. ``align`` as in :func:`ate_rmse_m`, but defaults to
+    ``False``: callers that aligned already (like :func:`compute_metrics`) pass aligned
+    poses. ``has_pose`` as in :func:`ate_rmse_m`.
     """
-    aligned, rotation_rad, translation_xy = resolve_alignment(estimate, reference, align)
+    valid = reference_rows(reference, has_pose)
+    aligned, rotation_rad, translation_xy = resolve_alignment(estimate, reference, align, has_pose=valid)
     e = apply_se2(estimate, rotation_rad, translation_xy) if aligned else np.asarray(estimate, float)
     r = np.asarray(reference, float)
-    if len(e) == 0:
+    last = last_pose_with_truth(valid)
+    if len(e) == 0 or last is None:
         return math.nan
-    return float(math.hypot(e[-1, 0] - r[-1, 0], e[-1, 1] - r[-1, 1]))
+    return float(math.hypot(e[last, 0] - r[last, 0], e[last, 1] - r[last, 1]))
 
 
 def map_errors_m(
@@ -558,7 +697,15 @@ def relabel_landmarks(landmarks: Mapping[int, object], score: AssociationScore) 
 
 # --------------------------------------------------------------------------- metrics dict
 
-TOP_LEVEL_KEYS = ("reference", "log", "poses", "rpe_delta_frames")
+TOP_LEVEL_KEYS = (
+    "reference",
+    "log",
+    "poses",
+    "rpe_delta_frames",
+    "reference_poses_with_truth",
+    "landmark_reference",
+    "reference_landmarks",
+)
 METRIC_KEYS = (
     "ate_rmse_m",
     "ate_online_rmse_m",
@@ -567,6 +714,7 @@ METRIC_KEYS = (
     "rpe_heading_rmse_rad",
     "nees_mean",
     "nees_inside_95",
+    "nees_count",
     "nis_mean",
     "nis_inside_95",
     "nis_count",
@@ -597,8 +745,9 @@ def _json_float(value) -> float | None:
 def estimator_alignment(run: EstimatorRun, reference: Reference) -> tuple[bool, float, np.ndarray]:
     """The SE(2) transform :func:`compute_metrics` applies to one run (see module docstring).
 
-    Computed from the run's final trajectory against the same number of reference poses;
-    ``fgslam.report`` uses it to draw exactly what was measured.
+    Computed from the run's final trajectory against the same number of reference poses,
+    over the poses that have truth; ``fgslam.report`` uses it to draw exactly what was
+    measured.
     """
     final = _as_poses(run.final, f"{run.name}.final")
     ref = _as_poses(reference.trajectory, "reference.trajectory")
@@ -607,27 +756,76 @@ def estimator_alignment(run: EstimatorRun, reference: Reference) -> tuple[bool, 
             f"estimator {run.name!r} has {len(final)} poses but the reference only {len(ref)}; "
             "compare runs of the same log"
         )
-    return resolve_alignment(final, ref[: len(final)], None)
+    m = len(final)
+    return resolve_alignment(final, ref[:m], None, has_pose=reference.has_pose[:m])
+
+
+def nees_over_truth(online, covariances, reference, has_pose) -> np.ndarray:
+    """NEES (:func:`nees`) of the online poses that have truth, in pose order; values of a
+    covariance that is not positive definite are NaN (the caller decides what they mean)."""
+    e = _as_poses(online, "online")
+    k = len(e)
+    valid = np.asarray(has_pose, dtype=bool).reshape(-1)[:k]
+    r = _as_poses(reference, "reference")[:k]
+    P = np.asarray(covariances, dtype=float)[:k]
+    return nees(e[valid], P[valid], r[valid])
+
+
+def aligned_ate_m(estimate, reference, has_pose) -> float | None:
+    """ATE after the least-squares SE(2) alignment over the poses with truth, metres.
+
+    The gauge-free figure: a SLAM map's frame is pinned only by the prior on the start
+    pose, so a heading error made before the first landmark is seen (on a real robot,
+    start-up motion the odometry describes badly) rotates the whole map and dominates the
+    anchored ATE. The aligned ATE (the TUM benchmark's ATE, evo's ``-a``) measures the
+    shape. None with fewer than two poses with truth.
+    """
+    e = _as_poses(estimate, "estimate")
+    n = min(len(e), len(reference))
+    mask = np.asarray(has_pose[:n], bool)
+    if mask.sum() < 2:
+        return None
+    e_xy = e[:n][mask, :2]
+    r_xy = np.asarray(reference, float)[:n][mask, :2]
+    rotation, translation = align_se2(e_xy, r_xy)
+    return _rmse(position_errors_m(apply_se2(e_xy, rotation, translation), r_xy))
 
 
 def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path: str) -> dict:
     """All comparison figures as a JSON-ready dictionary (plain floats, ints, bools, None).
 
+    Every pose figure (ATE, final error, RPE, NEES) is computed over the poses that have a
+    reference (:attr:`Reference.has_pose`): with partial ground truth, poses in the gaps are
+    not scored. The map error is against ``reference.landmarks`` (the log's surveyed
+    landmarks whenever it has them, :attr:`Reference.landmark_reference`).
+
     Shape::
 
-        {"reference": "ground_truth" | "smoothed", "log": log_path, "poses": n,
+        {"reference": "ground_truth" | "smoothed",  # where the reference *trajectory* is from
+         "log": log_path, "poses": n,
          "rpe_delta_frames": int,            # Δ of the RPE: the reference's frames per ~1 m
+         "reference_poses_with_truth": int,  # poses scored against ground truth (n when all
+                                             # have it; 0 against the smoothed solution)
+         "landmark_reference": "ground_truth" | "smoothed" | None,  # where the reference
+                                             # landmarks come from (None: there are none)
+         "reference_landmarks": int,         # how many reference landmarks
          "<estimator name>": {
              "ate_rmse_m": float,            # final trajectory vs reference
              "ate_online_rmse_m": float|None,# online trajectory; None for batch
-             "final_pose_error_m": float,    # last pose position error
+             "ate_aligned_rmse_m": float,    # final, after the SE(2) fit over poses with truth
+             "ate_online_aligned_rmse_m": float|None,  # online, the same
+             "final_pose_error_m": float,    # position error of the last pose with truth
              "rpe_trans_rmse_m": float|None, # RPE over rpe_delta_frames, final trajectory
+                                             # (pairs whose both ends have truth)
              "rpe_heading_rmse_rad": float|None,
-             "nees_mean": float|None,        # mean NEES of the online poses (3-DoF; 3 if
-                                             # consistent); None without covariances, against
-                                             # a smoothed reference, or when aligned
-             "nees_inside_95": float|None,   # share of steps whose NEES is inside the 95 %
+             "nees_mean": float|None,        # mean NEES of the online poses with truth
+                                             # (3-DoF; 3 if consistent); None without
+                                             # covariances, against a smoothed reference,
+                                             # or when aligned
+             "nees_inside_95": float|None,   # share of them whose NEES is inside the 95 %
                                              # χ²(3) band [0.216, 9.35]
+             "nees_count": int|None,         # how many online poses have a NEES (those with
+                                             # truth and a positive-definite covariance)
              "nis_mean": float|None,         # mean NIS of the observations of landmarks
                                              # already mapped, against the prediction before
                                              # their step (2-DoF range-bearing; 2 if
@@ -654,14 +852,22 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
 
     An estimator that estimated fewer poses than the reference (an interrupted run) is
     compared over the poses it has: ``steps`` says how many. Any figure that is not finite
-    (e.g. a diverged filter) is ``None``.
+    (e.g. a diverged filter, or no pose with truth among the ones it estimated) is ``None``.
     """
     if reference.kind not in REFERENCE_KINDS:
         raise ComparisonError(f"reference kind {reference.kind!r}; expected one of {REFERENCE_KINDS}")
     ref = _as_poses(reference.trajectory, "reference.trajectory")
-    delta = rpe_delta_frames(ref)
-    metrics: dict = {"reference": reference.kind, "log": str(log_path), "poses": int(len(ref)),
-                     "rpe_delta_frames": delta}
+    valid = reference.has_pose
+    delta = rpe_delta_frames(ref, has_pose=valid)
+    metrics: dict = {
+        "reference": reference.kind,
+        "log": str(log_path),
+        "poses": int(len(ref)),
+        "rpe_delta_frames": delta,
+        "reference_poses_with_truth": reference.poses_with_truth,
+        "landmark_reference": reference.landmark_reference,
+        "reference_landmarks": int(len(reference.landmarks)),
+    }
     for run in runs:
         if run.name in TOP_LEVEL_KEYS or run.name in metrics:
             raise ComparisonError(
@@ -681,8 +887,9 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
                     f"reference {len(ref)}"
                 )
             if len(online):
+                k = len(online)
                 online_a = apply_se2(online, rot, trans)
-                ate_online = _rmse(position_errors_m(online_a, ref[: len(online)]))
+                ate_online = _rmse(position_errors_m(online_a, ref[:k])[valid[:k]])
 
         p50 = p99 = tmax = None
         if run.step_times_s is not None:
@@ -692,25 +899,31 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
                 tmax = float(np.max(times))
         found = len(set(run.landmarks) & set(reference.landmarks))
 
-        rpe_trans, rpe_heading = relative_pose_errors(final, ref[:m], delta)
-        nees_mean = nees_inside = None
+        rpe_trans, rpe_heading = relative_pose_errors(final, ref[:m], delta, has_pose=valid[:m])
+        nees_mean = nees_inside = nees_count = None
         if (run.online_covariances is not None and run.online is not None and not aligned
                 and reference.kind == "ground_truth"):
-            values = nees(run.online, run.online_covariances, ref[: len(run.online)])
+            values = nees_over_truth(run.online, run.online_covariances, ref, valid)
             values = values[np.isfinite(values)]
             if len(values):
                 low, high = nees_band()
                 nees_mean = float(np.mean(values))
                 nees_inside = float(np.mean((values >= low) & (values <= high)))
+            nees_count = int(len(values))
         nis_mean, nis_inside, nis_count = nis_summary(run.nis)
         metrics[run.name] = {
-            "ate_rmse_m": _json_float(_rmse(position_errors_m(final_a, ref[:m]))),
+            "ate_rmse_m": _json_float(_rmse(position_errors_m(final_a, ref[:m])[valid[:m]])),
             "ate_online_rmse_m": _json_float(ate_online),
-            "final_pose_error_m": _json_float(final_pose_error_m(final_a, ref[:m])),
+            "ate_aligned_rmse_m": _json_float(aligned_ate_m(final, ref[:m], valid[:m])),
+            "ate_online_aligned_rmse_m": _json_float(
+                aligned_ate_m(_as_poses(run.online, "online"), ref, valid) if run.online is not None else None
+            ),
+            "final_pose_error_m": _json_float(final_pose_error_m(final_a, ref[:m], has_pose=valid[:m])),
             "rpe_trans_rmse_m": _json_float(_rmse(rpe_trans)),
             "rpe_heading_rmse_rad": _json_float(_rmse(rpe_heading)),
             "nees_mean": _json_float(nees_mean),
             "nees_inside_95": _json_float(nees_inside),
+            "nees_count": nees_count,
             "nis_mean": _json_float(nis_mean),
             "nis_inside_95": _json_float(nis_inside),
             "nis_count": nis_count,
@@ -790,8 +1003,10 @@ COLUMN_MEANINGS = {
     "estimated after the last step",
     "ATE online m": "RMS position error, metres, of each pose as estimated at its own step "
     "(what the robot knew live); - for a one-shot batch solve",
-    "final err m": "position error of the last pose, metres",
-    "map RMSE m": "RMS landmark position error, metres, over the landmark ids both maps contain",
+    "final err m": "position error of the last pose (the last pose with ground truth when the "
+    "truth has gaps), metres",
+    "map RMSE m": "RMS landmark position error, metres, over the landmark ids both maps contain "
+    "(against the log's surveyed landmarks whenever it has them)",
     "landmarks": "number of landmarks the estimator mapped",
     "total ms": "wall-clock time of the whole run, milliseconds",
     "step p50 ms": "median wall-clock time per step, milliseconds; - for a one-shot batch solve",
@@ -802,7 +1017,8 @@ COLUMN_MEANINGS = {
     "associate observations themselves (rejected ones count as wrong)",
     "NEES in %": "share of steps whose NEES (online pose error against ground truth, weighted by "
     "the covariance the estimator stated) lies inside the 95 % chi-square(3) band; about 95 for "
-    "a consistent estimator, less when it is over-confident (only with ground truth)",
+    "a consistent estimator, less when it is over-confident (only with ground truth, over the "
+    "steps that have it)",
     "NIS in %": "share of observations of already mapped landmarks whose NIS (innovation against "
     "the estimator's prediction, weighted by its predicted covariance) lies inside the 95 % "
     "chi-square(2) band; about 95 when consistent; needs no ground truth",
@@ -819,11 +1035,67 @@ def _fmt(value, scale: float = 1.0, digits: int = 4) -> str:
     return "-" if value is None else f"{value * scale:.{digits}f}"
 
 
-def reference_line(metrics: dict) -> str:
-    """One sentence saying what the figures are measured against."""
+def describe_reference(
+    kind: str, *, poses: int, poses_with_truth: int, landmark_reference: str | None, landmarks: int
+) -> str:
+    """What the figures are measured against, in words (no trailing full stop).
+
+    * full ground truth: ``"ground truth recorded in the log"``;
+    * partial: ``"ground truth recorded in the log, 1981 of 2238 poses (gaps in the truth:
+      257 poses without truth are not scored)"``;
+    * landmark-only truth: the smoothed trajectory, and the map against the surveyed landmarks;
+    * smoothed: ``"smoothed solution (batch LM over the whole log; no ground truth)"``.
+
+    With pose truth but no landmark truth it adds that the map is not scored.
+    """
+    if kind == "ground_truth":
+        text = REFERENCE_DESCRIPTIONS["ground_truth"]
+        if poses_with_truth < poses:
+            missing = poses - poses_with_truth
+            text += (
+                f", {poses_with_truth} of {poses} poses (gaps in the truth: "
+                f"{missing} {'pose' if missing == 1 else 'poses'} without truth "
+                f"{'is' if missing == 1 else 'are'} not scored)"
+            )
+        if landmark_reference is None:
+            text += "; no landmark truth, so no map error"
+        return text
+    if landmark_reference == "ground_truth":
+        return (
+            "smoothed solution (batch LM over the whole log) for the trajectory, as no pose has "
+            f"ground truth; map error against the {landmarks} surveyed landmarks recorded in the log"
+        )
+    return REFERENCE_DESCRIPTIONS.get(kind, str(kind))
+
+
+def reference_description(metrics: dict) -> str:
+    """:func:`describe_reference` of a metrics dictionary (older dictionaries without the
+    truth counts read as full ground truth or the smoothed solution, as they meant)."""
     kind = metrics.get("reference")
-    what = REFERENCE_DESCRIPTIONS.get(kind, str(kind))
-    return f"Reference: {what} - {metrics.get('log')}, {metrics.get('poses')} poses"
+    poses = int(metrics.get("poses") or 0)
+    with_truth = metrics.get("reference_poses_with_truth")
+    if with_truth is None:
+        with_truth = poses if kind == "ground_truth" else 0
+    landmark_reference = metrics.get("landmark_reference", kind)
+    return describe_reference(
+        str(kind), poses=poses, poses_with_truth=int(with_truth), landmark_reference=landmark_reference,
+        landmarks=int(metrics.get("reference_landmarks") or 0),
+    )
+
+
+def reference_line(metrics: dict) -> str:
+    """One sentence saying what the figures are measured against.
+
+    ``Reference: ground truth recorded in the log - run.jsonl, 660 poses`` with full truth;
+    with gaps ``Reference: ground truth recorded in the log, 1981 of 2238 poses (gaps in the
+    truth: 257 poses without truth are not scored) - r1.jsonl``.
+    """
+    what = reference_description(metrics)
+    poses = metrics.get("poses")
+    with_truth = metrics.get("reference_poses_with_truth")
+    if metrics.get("reference") == "ground_truth" and with_truth is not None and with_truth != poses:
+        return f"Reference: {what} - {metrics.get('log')}"  # the counts are in the description
+    return f"Reference: {what} - {metrics.get('log')}, {poses} poses"
 
 
 def table_rows(metrics: dict) -> tuple[tuple[str, ...], list[tuple[str, ...]], list[str]]:

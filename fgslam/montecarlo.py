@@ -9,6 +9,10 @@ uncertainty grows becomes optimistic (its average NEES climbs above the band).
 The runs go through any :class:`concurrent.futures.Executor`: a process pool by default,
 or a Dask cluster's executor (``dask.distributed.Client(address).get_executor()``), since
 each run is an independent, picklable task (:func:`run_one`).
+
+Simulated logs have truth at every pose. Should a run lack truth at some poses, its NEES is
+NaN there, its ATE is over the poses with truth, and the per-step average (with its band for
+N runs) is only judged at the steps where every run has truth (``scored_steps``).
 """
 
 from __future__ import annotations
@@ -20,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fgslam.compare import ate_rmse_m, nees, nees_band
-from fgslam.runner import ESTIMATORS, run_estimator
+from fgslam.runner import ESTIMATORS, run_estimator, truth_trajectory
 from slamio.errors import FgslamError
 from slamio.log import group_steps
 from slamio.sim import simulate
@@ -30,13 +34,16 @@ __all__ = ["RunResult", "MonteCarloResult", "run_one", "monte_carlo", "dask_exec
 
 @dataclass(frozen=True)
 class RunResult:
-    """One seeded run: per estimator, the NEES of each online pose, the ATEs and the time."""
+    """One seeded run: per estimator, the NEES of each online pose (NaN where the pose has no
+    truth), the ATEs over the poses with truth and the time; ``has_pose`` marks the poses
+    with truth (None: all of them)."""
 
     seed: int
     nees: dict[str, np.ndarray]
     ate_final_m: dict[str, float]
     ate_online_m: dict[str, float]
     time_s: dict[str, float]
+    has_pose: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -47,15 +54,26 @@ class MonteCarloResult:
     runs: list[RunResult]
     average_nees: dict[str, np.ndarray]  # (steps,) over the runs (truncated to the shortest run)
     band: tuple[float, float]
+    scored_steps: np.ndarray | None = None  # (steps,) True where every run has truth; None: all
+
+    def _scored(self, estimator: str) -> np.ndarray:
+        a = self.average_nees[estimator]
+        return a if self.scored_steps is None else a[self.scored_steps]
 
     def share_inside(self, estimator: str) -> float:
-        """Share of steps whose average NEES lies inside the band."""
-        a = self.average_nees[estimator]
-        return float(np.mean((a >= self.band[0]) & (a <= self.band[1])))
+        """Share of the scored steps whose average NEES lies inside the band."""
+        a = self._scored(estimator)
+        return float(np.mean((a >= self.band[0]) & (a <= self.band[1]))) if len(a) else float("nan")
 
     def share_above(self, estimator: str) -> float:
-        """Share of steps whose average NEES lies above the band (optimistic covariance)."""
-        return float(np.mean(self.average_nees[estimator] > self.band[1]))
+        """Share of the scored steps whose average NEES lies above the band (optimistic covariance)."""
+        a = self._scored(estimator)
+        return float(np.mean(a > self.band[1])) if len(a) else float("nan")
+
+    def mean_nees(self, estimator: str) -> float:
+        """Mean over the scored steps of the average NEES."""
+        a = self._scored(estimator)
+        return float(np.mean(a)) if len(a) else float("nan")
 
 
 def run_one(scenario: str, seed: int, estimators: tuple[str, ...], landmarks: int = 200,
@@ -63,17 +81,21 @@ def run_one(scenario: str, seed: int, estimators: tuple[str, ...], landmarks: in
     """Simulate ``scenario`` with ``seed`` and run each estimator on it (a picklable task)."""
     header, records = simulate(scenario, seed, landmarks=landmarks, laps=laps)
     steps = group_steps(header, records)
-    truth = np.array([[s.truth.x_m, s.truth.y_m, s.truth.theta_rad] for s in steps])
+    truth, has_pose = truth_trajectory(steps)
+    if not has_pose.any():
+        raise FgslamError(f"{scenario} seed {seed}: the simulation recorded no ground truth; nothing to score")
     out_nees, final, online, times = {}, {}, {}, {}
     for name in estimators:
         run, _ = run_estimator(ESTIMATORS[name](header), steps)
         if run.online_covariances is None:
             raise FgslamError(f"estimator {name!r} states no covariance: no NEES to average")
-        out_nees[name] = nees(run.online, run.online_covariances, truth)
-        final[name] = ate_rmse_m(run.final, truth)
-        online[name] = ate_rmse_m(run.online, truth)
+        values = np.full(len(steps), np.nan)
+        values[has_pose] = nees(run.online[has_pose], run.online_covariances[has_pose], truth[has_pose])
+        out_nees[name] = values
+        final[name] = ate_rmse_m(run.final, truth, has_pose=has_pose)
+        online[name] = ate_rmse_m(run.online, truth, has_pose=has_pose)
         times[name] = run.total_time_s
-    return RunResult(int(seed), out_nees, final, online, times)
+    return RunResult(int(seed), out_nees, final, online, times, None if has_pose.all() else has_pose)
 
 
 @contextlib.contextmanager
@@ -135,4 +157,7 @@ def monte_carlo(
     results.sort(key=lambda r: r.seed)
     n = min(len(r.nees[estimators[0]]) for r in results)
     average = {e: np.mean([r.nees[e][:n] for r in results], axis=0) for e in estimators}
-    return MonteCarloResult(scenario, results, average, nees_band(3, runs))
+    scored = None
+    if any(r.has_pose is not None for r in results):  # judge only steps where every run has truth
+        scored = np.all([np.ones(n, bool) if r.has_pose is None else r.has_pose[:n] for r in results], axis=0)
+    return MonteCarloResult(scenario, results, average, nees_band(3, runs), scored)

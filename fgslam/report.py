@@ -22,7 +22,9 @@ they are freed when the function returns).
 
 What is drawn is what was measured: each estimate is moved by the same SE(2) alignment
 :func:`fgslam.compare.compute_metrics` used (the identity when it shares its first pose
-with the reference).
+with the reference). Where the reference has no pose (gaps in the ground truth), the
+reference line and every error curve break: those poses are not scored, so nothing is drawn
+for them; the page says which reference was used and how many poses it covers.
 """
 
 from __future__ import annotations
@@ -41,7 +43,6 @@ from matplotlib.figure import Figure
 from fgslam.compare import (
     COLUMN_MEANINGS,
     NIS_DOF,
-    REFERENCE_DESCRIPTIONS,
     ComparisonError,
     EstimatorRun,
     Reference,
@@ -52,6 +53,7 @@ from fgslam.compare import (
     nees_band,
     nis_summary,
     position_errors_m,
+    reference_description,
     table_rows,
 )
 
@@ -64,6 +66,7 @@ __all__ = [
     "plot_nis",
     "plot_step_times",
     "ellipse_xy",
+    "truth_gaps_s",
     "write_monte_carlo_figures",
     "plot_live_map",
 ]
@@ -153,6 +156,41 @@ def _draw_ellipses(ax, centres, covariances, rot: float, colour: str, label: str
                 label=label if j == 0 else None, zorder=2)
 
 
+def _reference_label(reference: Reference) -> str:
+    """Legend text of the reference trajectory: where it comes from, and its coverage."""
+    if reference.kind != "ground_truth":
+        return "reference (smoothed)"
+    n, k = len(reference.trajectory), reference.poses_with_truth
+    return "reference (ground truth)" if k == n else f"reference (ground truth, {k} of {n} poses; gaps: no truth)"
+
+
+def truth_gaps_s(times_s, has_pose) -> list[tuple[float, float]]:
+    """Time intervals ``(start_s, end_s)`` in which the reference has no pose: each run of
+    poses without truth, from the last pose with truth before it (or the run's first pose) to
+    the first one after it (or the run's last pose), which is where the curves break."""
+    t = np.asarray(times_s, dtype=float).reshape(-1)
+    mask = np.asarray(has_pose, dtype=bool).reshape(-1)[: len(t)]
+    gaps = []
+    i = 0
+    while i < len(mask):
+        if mask[i]:
+            i += 1
+            continue
+        j = i
+        while j + 1 < len(mask) and not mask[j + 1]:
+            j += 1
+        gaps.append((float(t[max(i - 1, 0)]), float(t[min(j + 1, len(t) - 1)])))
+        i = j + 1
+    return gaps
+
+
+def _shade_truth_gaps(ax, times_s, reference: Reference) -> None:
+    """Grey bands where the reference has no pose (nothing is scored there)."""
+    for j, (start_s, end_s) in enumerate(truth_gaps_s(times_s, reference.has_pose)):
+        ax.axvspan(start_s, end_s, color="0.85", alpha=0.6, lw=0, zorder=0,
+                   label="no ground truth (not scored)" if j == 0 else None)
+
+
 def _landmark_array(landmarks: dict | None) -> np.ndarray:
     if not landmarks:
         return np.zeros((0, 2))
@@ -179,13 +217,13 @@ def plot_trajectories(
     """
     fig = _new_figure()
     ax = fig.add_subplot()
-    ref = np.asarray(reference.trajectory, dtype=float).reshape(-1, 3)
-    ref_name = "ground truth" if reference.kind == "ground_truth" else "smoothed"
-    ax.plot(ref[:, 0], ref[:, 1], color="0.55", lw=3.0, alpha=0.7, label=f"reference ({ref_name})", zorder=1)
+    ref = np.asarray(reference.trajectory, dtype=float).reshape(-1, 3)  # NaN rows: gaps, drawn as breaks
+    ax.plot(ref[:, 0], ref[:, 1], color="0.55", lw=3.0, alpha=0.7, label=_reference_label(reference), zorder=1)
     ref_lm = _landmark_array(reference.landmarks)
     if len(ref_lm):
+        source = "surveyed" if reference.landmark_reference == "ground_truth" else "smoothed"
         ax.scatter(ref_lm[:, 0], ref_lm[:, 1], marker="x", s=40, c="black", lw=1.2,
-                   label="reference landmarks", zorder=3)
+                   label=f"reference landmarks ({source})", zorder=3)
     if truth_landmarks and truth_landmarks != reference.landmarks:
         truth_lm = _landmark_array(truth_landmarks)
         ax.scatter(truth_lm[:, 0], truth_lm[:, 1], marker="+", s=60, c="0.4", lw=1.2,
@@ -213,11 +251,14 @@ def plot_trajectories(
             centres = apply_se2(np.array([run.landmarks[k] for k in ids], dtype=float).reshape(-1, 2), rot, trans)
             _draw_ellipses(ax, centres, [run.landmark_covariances[k] for k in ids], rot, colour, None)
 
-    if len(ref):
-        ax.plot(ref[0, 0], ref[0, 1], marker="*", ms=16, color="gold", mec="black", ls="none",
-                label="start", zorder=5)
-        ax.plot(ref[-1, 0], ref[-1, 1], marker="s", ms=8, color="0.55", mec="black", ls="none",
-                label="end (square, each colour)", zorder=5)
+    valid = np.flatnonzero(reference.has_pose)
+    if len(valid):
+        first, last = int(valid[0]), int(valid[-1])
+        ax.plot(ref[first, 0], ref[first, 1], marker="*", ms=16, color="gold", mec="black", ls="none",
+                label="start" if first == 0 else "first pose with truth", zorder=5)
+        ax.plot(ref[last, 0], ref[last, 1], marker="s", ms=8, color="0.55", mec="black", ls="none",
+                label="end (square, each colour)" if last == len(ref) - 1 else "last pose with truth (square)",
+                zorder=5)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
@@ -240,7 +281,8 @@ def plot_position_errors(
     a batch solve). The y axis is logarithmic when the estimators' median errors differ by
     more than a factor of 30 (e.g. EKF metres vs smoother millimetres), linear otherwise.
     An estimator whose errors are all below 1 µm is identical to the reference and is
-    labelled as such.
+    labelled as such. Poses without a reference (gaps in the truth) are NaN: gaps in the
+    curves.
     """
     ref = np.asarray(reference.trajectory, dtype=float).reshape(-1, 3)
     stamps = np.asarray(stamps_s, dtype=float).reshape(-1)
@@ -253,8 +295,9 @@ def plot_position_errors(
         colour, _ = _style(i)
         final, aligned, rot, trans = _aligned_final(run, reference)
         m = len(final)
-        err = position_errors_m(final, ref[:m])
-        zero = bool(m) and np.nanmax(err) < _ZERO_ERROR_M
+        err = position_errors_m(final, ref[:m])  # NaN where the reference has no pose
+        finite_err = err[np.isfinite(err)]
+        zero = bool(len(finite_err)) and float(finite_err.max()) < _ZERO_ERROR_M
         if zero:
             label = f"{run.name} final (= reference, error < 1 µm)"
         else:
@@ -291,6 +334,7 @@ def plot_position_errors(
             ax.set_ylim(bottom=bottom, top=top * 2.0)
         else:
             ax.set_ylim(bottom=0.0)
+    _shade_truth_gaps(ax, t, reference)
     ax.set_xlabel("time since start [s]")
     ax.set_ylabel("position error [m]")
     ax.set_title(f"{title}\n(solid: final estimate, dashed: online estimate at its own step)", fontsize=11)
@@ -314,8 +358,9 @@ def plot_heading_errors(path, runs: list[EstimatorRun], reference: Reference, st
         m = len(final)
         if not m:
             continue
-        err = np.degrees(heading_errors_rad(final, ref[:m]))
-        rms = float(np.sqrt(np.mean(err**2)))
+        err = np.degrees(heading_errors_rad(final, ref[:m]))  # NaN where the reference has no pose
+        scored = err[np.isfinite(err)]
+        rms = float(np.sqrt(np.mean(scored**2))) if len(scored) else float("nan")
         ax.plot(t[:m], err, color=colour, lw=1.2, label=f"{run.name} final (RMS {rms:.2f}°)")
         if run.online is not None and len(run.online):
             online = apply_se2(np.asarray(run.online, dtype=float).reshape(-1, 3), rot, trans)
@@ -324,6 +369,7 @@ def plot_heading_errors(path, runs: list[EstimatorRun], reference: Reference, st
                 ax.plot(t[:k], np.degrees(heading_errors_rad(online, ref[:k])), color=colour, ls="--", lw=1.0,
                         label=f"{run.name} online")
     ax.axhline(0.0, color="0.3", lw=0.6)
+    _shade_truth_gaps(ax, t, reference)
     ax.set_xlabel("time since start [s]")
     ax.set_ylabel("heading error [deg]  (estimate − reference, wrapped)")
     ax.set_title("Heading error against the reference\n(solid: final estimate, dashed: online estimate)",
@@ -365,6 +411,7 @@ def plot_nees(path, runs: list[EstimatorRun], reference: Reference, stamps_s) ->
 
     Only estimators that stated a covariance, and only against ground truth (returns None
     otherwise: NEES against a smoothed solution that shares the measurements means little).
+    Poses without truth have no NEES: gaps in the curves.
     """
     if reference.kind != "ground_truth":
         return None
@@ -377,7 +424,9 @@ def plot_nees(path, runs: list[EstimatorRun], reference: Reference, stamps_s) ->
         if run.online is None or run.online_covariances is None:
             continue
         k = len(run.online)
-        values = nees(run.online, run.online_covariances, ref[:k])
+        values = np.full(k, np.nan)
+        valid = reference.has_pose[:k]
+        values[valid] = nees(np.asarray(run.online)[valid], np.asarray(run.online_covariances)[valid], ref[:k][valid])
         ax.plot(t[:k], values, color=_style(i)[0], lw=0.8, label=run.name)
         drawn = True
     if not drawn:
@@ -386,8 +435,10 @@ def plot_nees(path, runs: list[EstimatorRun], reference: Reference, stamps_s) ->
     ax.axhline(low, color="k", ls="--", lw=0.8, label=f"95 % band [{low:.2f}, {high:.2f}]")
     ax.axhline(high, color="k", ls="--", lw=0.8)
     ax.set_yscale("log")
+    _shade_truth_gaps(ax, t, reference)
     ax.set_xlabel("time since start [s]")
-    ax.set_ylabel("NEES of the online pose (3 DoF)")
+    n, with_truth = len(ref), reference.poses_with_truth
+    ax.set_ylabel("NEES of the online pose (3 DoF)" + ("" if with_truth == n else f"; {with_truth} of {n} poses have truth"))
     ax.set_title("Consistency: NEES against time (inside the band about 95 % of the time if consistent)",
                  fontsize=11)
     ax.grid(True, which="both", lw=0.5, alpha=0.5)
@@ -435,6 +486,14 @@ code, pre { font-family: ui-monospace, Menlo, Consolas, monospace; }
 pre { background: #f7f7f7; padding: 0.8em; overflow-x: auto; font-size: 0.85em; }
 .note { color: #555; font-size: 0.92em; }
 """
+
+
+def _gap_note(metrics: dict) -> str:
+    """The end of the page's reference sentence when the ground truth has gaps."""
+    poses, with_truth = metrics.get("poses"), metrics.get("reference_poses_with_truth")
+    if metrics.get("reference") != "ground_truth" or with_truth is None or with_truth == poses:
+        return ""
+    return "; poses without truth are not scored: the table leaves them out and the curves break there"
 
 
 def _data_uri(png_path: Path) -> str:
@@ -508,8 +567,7 @@ def write_report(
     ]
 
     e = html.escape
-    kind = metrics.get("reference")
-    reference_text = REFERENCE_DESCRIPTIONS.get(kind, str(kind))
+    reference_text = reference_description(metrics)
     shown, _, _ = table_rows(metrics)
     columns = "\n".join(f"<dt>{e(k)}</dt><dd>{e(v)}</dd>" for k, v in COLUMN_MEANINGS.items() if k in shown)
     metrics_json = json.dumps(metrics, indent=2)
@@ -535,7 +593,7 @@ def write_report(
 <body>
 <h1>{e(title)}</h1>
 <p><strong>Log:</strong> <code>{e(str(metrics.get("log")))}</code> ({e(str(metrics.get("poses")))} poses)</p>
-<p><strong>Reference:</strong> {e(reference_text)}. Every figure below is measured against it.</p>
+<p><strong>Reference:</strong> {e(reference_text)}. Every figure below is measured against it{e(_gap_note(metrics))}.</p>
 
 <h2>Metrics</h2>
 {_html_table(metrics)}

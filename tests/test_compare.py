@@ -227,8 +227,11 @@ def test_compute_metrics_values_keys_and_json():
 
     text = json.dumps(metrics, allow_nan=False)  # plain types, no NaN
     assert json.loads(text) == metrics
-    assert set(metrics) == {"reference", "log", "poses", "rpe_delta_frames", "ekf", "batch"}
+    assert set(metrics) == {"reference", "log", "poses", "rpe_delta_frames", "reference_poses_with_truth",
+                            "landmark_reference", "reference_landmarks", "ekf", "batch"}
     assert metrics["reference"] == "ground_truth"
+    assert metrics["reference_poses_with_truth"] == 100  # full truth: every pose
+    assert metrics["landmark_reference"] == "ground_truth" and metrics["reference_landmarks"] == 6
     assert metrics["log"] == "data/run.jsonl"
     assert metrics["poses"] == 100
     for name in ("ekf", "batch"):
