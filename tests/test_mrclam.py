@@ -82,7 +82,8 @@ def test_counts_and_header(imported):
     assert counts[TruthLandmark] == 15
     src = header.source
     assert src["dataset"] == "utias-mrclam" and src["robot"] == 1
-    assert src["dropped"] == {"robot_sightings": 2, "unknown_barcodes": 1, "outside_run": 2, "non_positive_range": 0}
+    assert src["dropped"] == {"robot_sightings": 2, "unknown_barcodes": 1, "outside_run": 2, "non_positive_range": 0,
+                              "uncorrectable": 0, "stale_repeats": 0}
     assert src["unknown_barcodes"] == {"99": 1}
     assert src["measurement_lines"] == len(data_lines(os.path.join(FIXTURE, "Robot1_Measurement.dat")))
     assert counts[Observation] == src["observations"] == src["measurement_lines"] - 5

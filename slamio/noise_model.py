@@ -1,0 +1,306 @@
+"""A sensor and motion model learned from data: what ``fgslam calibrate`` writes.
+
+A :class:`NoiseModel` says how a robot's odometry and its camera's range-bearing readings
+relate to the truth, in terms with a physical meaning, so that the same file can be used
+on another run of the same robot (``fgslam import mrclam --noise FILE``,
+``fgslam run --noise FILE``):
+
+Odometry (:class:`OdometryModel`)
+    ``lag_s``: the robot moves ``lag_s`` after the odometry says it did (commanded
+    velocities lead the motion: the command reaches the wheels and the motors accelerate).
+    ``forward_scale`` / ``turn_scale``: true travel and turn per odometry metre and radian
+    (wheel radius and wheel-base errors, or a robot that does not reach its commanded
+    speed). ``turn_per_m_rad``: the turn per metre driven that the odometry does not see
+    (wheels of slightly different diameter make a robot told to go straight curve), so the
+    true turn rate is ``turn_scale·ω + turn_per_m_rad·forward_scale·v``. ``noise``: the per-stretch variance rates of :class:`OdometryNoiseRates`
+    (variance per metre driven, per radian turned and per second).
+
+Observations (:class:`ObservationModel`)
+    ``range_is_depth``: the camera's "range" is the distance along its optical axis (what
+    a stereo or size-based range from a forward camera measures), ``r·cos(bearing)``,
+    not the Euclidean range. ``range_scale`` and ``range_bias_m``:
+    ``measured = range_scale · (r or r·cos b) + range_bias_m``. ``bearing_scale`` and
+    ``bearing_bias_rad``: ``measured = bearing_scale · b + bearing_bias_rad`` (a focal
+    length or principal point that is slightly off). σ_range grows with range,
+    ``√(range_sigma_m² + (range_sigma_per_m · r)²)`` (a pixel error of the landmark's image
+    size costs range in proportion to range); σ_bearing grows with the turn rate,
+    ``√(bearing_sigma_rad² + (bearing_sigma_s · ω)²)`` (motion blur and a jittery image
+    time: a picture taken δ seconds away from its stamp sees the world turned by ω·δ).
+    ``camera_latency_s``: a reading is stamped that long after its picture was taken.
+    ``outlier_rate``: the share of readings beyond the fit's 5σ gate (misread barcodes,
+    reflections); estimators should down-weight or gate them.
+
+The model is applied by :func:`correct_observation`: a reading is turned into the
+Euclidean range and bearing the estimators expect, with its own σ. All functions are pure.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+import numpy as np
+
+from slamio.errors import FgslamError
+
+__all__ = [
+    "NOISE_MODEL_FORMAT",
+    "NoiseModel",
+    "NoiseModelError",
+    "ObservationModel",
+    "OdometryModel",
+    "OdometryNoiseRates",
+    "correct_observation",
+    "load_noise_model",
+    "save_noise_model",
+]
+
+NOISE_MODEL_FORMAT = "fgslam-noise-model"
+NOISE_MODEL_VERSION = 1
+
+
+class NoiseModelError(FgslamError):
+    """A noise-model file that cannot be used (names the file and the field)."""
+
+
+def _check_finite(owner: str, name: str, value: Any, *, positive: bool = False, non_negative: bool = False) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise NoiseModelError(f"{owner}.{name} must be a finite number, got {value!r}")
+    if positive and not value > 0.0:
+        raise NoiseModelError(f"{owner}.{name} must be > 0, got {value!r}")
+    if non_negative and not value >= 0.0:
+        raise NoiseModelError(f"{owner}.{name} must be >= 0, got {value!r}")
+
+
+@dataclass(frozen=True)
+class OdometryNoiseRates:
+    """Variance rates of one stretch of odometry, in the frame at its start.
+
+    forward ``forward_m2_per_m·|Δs| + forward_m2_per_s·dt``, sideways
+    ``lateral_m2_per_m·|Δs| + lateral_m2_per_s·dt``, heading
+    ``heading_rad2_per_rad·|Δθ| + heading_rad2_per_m·|Δs| + heading_rad2_per_s·dt``.
+    The per-second terms must be > 0 (they keep a standing robot's covariance positive
+    definite). The defaults are round numbers, not fitted to any robot: σ ≈ 0.1 m forward,
+    0.05 m sideways and 0.05 rad of heading per metre driven, 0.1 rad per radian turned, and
+    1 mm / 1 mrad per second standing still.
+    """
+
+    forward_m2_per_m: float = 0.01
+    lateral_m2_per_m: float = 0.0025
+    heading_rad2_per_rad: float = 0.01
+    heading_rad2_per_m: float = 0.0025
+    forward_m2_per_s: float = 1e-6
+    lateral_m2_per_s: float = 1e-6
+    heading_rad2_per_s: float = 1e-6
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            _check_finite("odometry.noise", f.name, getattr(self, f.name), non_negative=True)
+        for name in ("forward_m2_per_s", "lateral_m2_per_s", "heading_rad2_per_s"):
+            if not getattr(self, name) > 0.0:
+                raise NoiseModelError(
+                    f"odometry.noise.{name} must be > 0: it keeps the covariance positive definite "
+                    "when the robot stands still"
+                )
+
+    def stretch_covariance(self, distance_m: float, angle_rad: float, dt_s: float) -> np.ndarray:
+        """3×3 diagonal covariance over (dx, dy, dθ) of one stretch, in the frame at its start."""
+        s, a = abs(distance_m), abs(angle_rad)
+        return np.diag(
+            [
+                self.forward_m2_per_m * s + self.forward_m2_per_s * dt_s,
+                self.lateral_m2_per_m * s + self.lateral_m2_per_s * dt_s,
+                self.heading_rad2_per_rad * a + self.heading_rad2_per_m * s + self.heading_rad2_per_s * dt_s,
+            ]
+        )
+
+
+@dataclass(frozen=True)
+class OdometryModel:
+    """How the odometry relates to the motion (see the module docstring)."""
+
+    lag_s: float = 0.0
+    forward_scale: float = 1.0
+    turn_scale: float = 1.0
+    turn_per_m_rad: float = 0.0
+    noise: OdometryNoiseRates = field(default_factory=OdometryNoiseRates)
+
+    def __post_init__(self) -> None:
+        _check_finite("odometry", "lag_s", self.lag_s)
+        if abs(self.lag_s) > 5.0:
+            raise NoiseModelError(f"odometry.lag_s must be within ±5 s, got {self.lag_s!r}")
+        for name in ("forward_scale", "turn_scale"):
+            _check_finite("odometry", name, getattr(self, name), positive=True)
+        _check_finite("odometry", "turn_per_m_rad", self.turn_per_m_rad)
+
+
+@dataclass(frozen=True)
+class ObservationModel:
+    """How the camera's range-bearing readings relate to the truth (module docstring)."""
+
+    range_is_depth: bool = False
+    range_scale: float = 1.0
+    range_bias_m: float = 0.0
+    range_sigma_m: float = 0.1
+    range_sigma_per_m: float = 0.0
+    bearing_scale: float = 1.0
+    bearing_bias_rad: float = 0.0
+    bearing_sigma_rad: float = 0.05
+    bearing_sigma_s: float = 0.0
+    camera_latency_s: float = 0.0
+    outlier_rate: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.range_is_depth, bool):
+            raise NoiseModelError(f"observation.range_is_depth must be true or false, got {self.range_is_depth!r}")
+        for name in ("range_scale", "bearing_scale", "range_sigma_m", "bearing_sigma_rad"):
+            _check_finite("observation", name, getattr(self, name), positive=True)
+        for name in ("range_sigma_per_m", "bearing_sigma_s", "outlier_rate"):
+            _check_finite("observation", name, getattr(self, name), non_negative=True)
+        for name in ("range_bias_m", "bearing_bias_rad", "camera_latency_s"):
+            _check_finite("observation", name, getattr(self, name))
+        if self.outlier_rate >= 1.0:
+            raise NoiseModelError(f"observation.outlier_rate must be below 1, got {self.outlier_rate!r}")
+        if abs(self.camera_latency_s) > 5.0:
+            raise NoiseModelError(f"observation.camera_latency_s must be within ±5 s, got {self.camera_latency_s!r}")
+
+    def sigma_range_m(self, range_m: float) -> float:
+        """σ of a range at ``range_m`` metres."""
+        return math.hypot(self.range_sigma_m, self.range_sigma_per_m * range_m)
+
+    def sigma_bearing_rad(self, turn_rate_radps: float) -> float:
+        """σ of a bearing taken while the robot turns at ``turn_rate_radps``."""
+        return math.hypot(self.bearing_sigma_rad, self.bearing_sigma_s * turn_rate_radps)
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """Odometry and observation models plus where they were fitted (``fitted_on``)."""
+
+    odometry: OdometryModel = field(default_factory=OdometryModel)
+    observation: ObservationModel = field(default_factory=ObservationModel)
+    fitted_on: tuple[str, ...] = ()
+    fit_report: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "format": NOISE_MODEL_FORMAT,
+            "version": NOISE_MODEL_VERSION,
+            "odometry": asdict(self.odometry),
+            "observation": asdict(self.observation),
+            "fitted_on": list(self.fitted_on),
+            "fit_report": self.fit_report,
+        }
+
+
+def correct_observation(
+    model: ObservationModel, range_m: float, bearing_rad: float, turn_rate_radps: float
+) -> tuple[float, float, float, float]:
+    """A raw reading as the Euclidean ``(range_m, bearing_rad, σ_range_m, σ_bearing_rad)``.
+
+    The model's σ describe the raw reading, so they are divided by the scales. Inverts
+    ``measured_bearing = bearing_scale·b + bearing_bias_rad`` and
+    ``measured_range = range_scale·(r·cos b if range_is_depth else r) + range_bias_m``.
+    A depth reading at |b| ≥ 80° cannot be turned into a range reliably and raises
+    :class:`NoiseModelError` (no forward camera sees that far aside).
+    """
+    bearing = (bearing_rad - model.bearing_bias_rad) / model.bearing_scale
+    along = (range_m - model.range_bias_m) / model.range_scale
+    if model.range_is_depth:
+        c = math.cos(bearing)
+        if c < math.cos(math.radians(80.0)):
+            raise NoiseModelError(f"a depth reading at bearing {bearing:.3f} rad cannot be turned into a range")
+        range_corrected = along / c
+    else:
+        range_corrected = along
+    if not range_corrected > 0.0:
+        raise NoiseModelError(f"reading {range_m!r} m corrects to a non-positive range {range_corrected!r} m")
+    # the model's σ are of the raw reading; the correction divides by the scales
+    sigma_b = model.sigma_bearing_rad(turn_rate_radps) / model.bearing_scale
+    sigma_r = model.sigma_range_m(range_corrected) / model.range_scale
+    if model.range_is_depth:  # the depth's σ, stretched by 1/cos b, plus the bearing's share
+        sigma_r = math.hypot(sigma_r / c, range_corrected * math.tan(bearing) * sigma_b)
+    return range_corrected, bearing, sigma_r, sigma_b
+
+
+# --------------------------------------------------------------------------- the file
+
+
+def _build(cls, data: Any, where: str, path: str, nested: dict[str, Any] | None = None):
+    if not isinstance(data, dict):
+        raise NoiseModelError(f"{path}: {where} must be a JSON object, got {type(data).__name__}")
+    names = {f.name for f in fields(cls)}
+    unknown = sorted(set(data) - names)
+    if unknown:
+        raise NoiseModelError(f"{path}: {where} has unknown field(s) {', '.join(unknown)}; known: {', '.join(sorted(names))}")
+    kwargs = dict(data)
+    for key, sub in (nested or {}).items():
+        if key in kwargs:
+            kwargs[key] = _build(sub, kwargs[key], f"{where}.{key}", path)
+    try:
+        return cls(**kwargs)
+    except NoiseModelError as exc:
+        raise NoiseModelError(f"{path}: {exc}") from None
+
+
+def noise_model_from_dict(data: Any, path: str = "<noise model>") -> NoiseModel:
+    """Parse the JSON object written by :func:`save_noise_model`; errors name the field."""
+    if not isinstance(data, dict) or data.get("format") != NOISE_MODEL_FORMAT:
+        raise NoiseModelError(
+            f"{path}: not an fgslam noise model (expected a JSON object with \"format\": "
+            f"\"{NOISE_MODEL_FORMAT}\"; make one with fgslam calibrate LOG... --out FILE)"
+        )
+    unknown = sorted(set(data) - {"format", "version", "odometry", "observation", "fitted_on", "fit_report"})
+    if unknown:
+        raise NoiseModelError(
+            f"{path}: unknown field(s) {', '.join(unknown)}; known: format, version, odometry, observation, "
+            "fitted_on, fit_report"
+        )
+    version = data.get("version")
+    if isinstance(version, bool) or not isinstance(version, int) or version != NOISE_MODEL_VERSION:
+        raise NoiseModelError(f"{path}: noise-model version {version!r}; this fgslam reads version {NOISE_MODEL_VERSION}")
+    odometry = _build(OdometryModel, data.get("odometry", {}), "odometry", path, {"noise": OdometryNoiseRates})
+    observation = _build(ObservationModel, data.get("observation", {}), "observation", path)
+    fitted_on = data.get("fitted_on", [])
+    if not isinstance(fitted_on, list) or not all(isinstance(s, str) for s in fitted_on):
+        raise NoiseModelError(f"{path}: fitted_on must be a list of strings")
+    report = data.get("fit_report", {})
+    if not isinstance(report, dict):
+        raise NoiseModelError(f"{path}: fit_report must be a JSON object")
+    return NoiseModel(odometry, observation, tuple(fitted_on), report)
+
+
+def load_noise_model(path: str | os.PathLike[str]) -> NoiseModel:
+    """Read a noise-model file; every problem is one :class:`NoiseModelError` line."""
+    path = os.fspath(path)
+    try:
+        with open(path, encoding="utf-8") as f:
+            text = f.read()
+    except FileNotFoundError:
+        raise NoiseModelError(f"{path}: no such noise-model file (make one with fgslam calibrate LOG... --out {path})") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise NoiseModelError(f"{path}: cannot read ({exc})") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise NoiseModelError(f"{path}:{exc.lineno}: not valid JSON ({exc.msg} at column {exc.colno})") from None
+    except RecursionError:
+        raise NoiseModelError(f"{path}: JSON nested too deeply") from None
+    return noise_model_from_dict(data, path)
+
+
+def save_noise_model(path: str | os.PathLike[str], model: NoiseModel, *, overwrite: bool = False) -> None:
+    """Write ``model`` as JSON; refuses to replace an existing file unless ``overwrite``."""
+    path = os.fspath(path)
+    mode = "w" if overwrite else "x"
+    try:
+        with open(path, mode, encoding="utf-8") as f:
+            json.dump(model.to_dict(), f, indent=2)
+            f.write("\n")
+    except FileExistsError:
+        raise NoiseModelError(f"{path} exists; choose another --out or delete it first") from None
+    except OSError as exc:
+        raise NoiseModelError(f"{path}: cannot write ({exc.strerror})") from None
