@@ -285,6 +285,11 @@ _NAMES = {"jcbb": "ekf", "nn": "ekf-nn", None: "ekf-ids"}
 #: gate of *every* landmark (χ²_dof at this probability; 27.6 for dof 2); between the
 #: association gate and this one it is rejected. See the class docstring.
 DEFAULT_NEW_LANDMARK_PROBABILITY = 0.999999
+#: Validation gate on observations *with* an id (χ²_dof at this probability; 18.4 for
+#: dof 2). A consistent filter rejects one good observation in 10⁴; a misread id or a
+#: reflection far outside its predicted place is rejected instead of pulling the whole
+#: state (MRCLAM's misread barcodes: docs/datasets-mrclam-rosbag.md). None: no gate.
+DEFAULT_KNOWN_ID_GATE_PROBABILITY = 0.9999
 
 
 class EkfSlam:
@@ -343,6 +348,11 @@ class EkfSlam:
     ``joint_test`` is passed to :func:`ekf.association.jcbb` ("final", or the paper's
     "prefix").
 
+    Observations with an id pass a validation gate first: an update whose innovation's
+    ``d²`` exceeds ``χ²_dof(known_id_gate_probability)`` (default 0.9999) is not applied
+    and is counted in ``gated_known_id`` (``None`` turns the gate off, the plain textbook
+    filter that trusts every id).
+
     ``landmark_capacity`` is only the initial room for landmarks; the storage doubles
     whenever it is full, so it never limits the map.
     """
@@ -359,6 +369,7 @@ class EkfSlam:
         max_jcbb_nodes: int = DEFAULT_MAX_NODES,
         joint_test: str = "final",
         landmark_capacity: int = 16,
+        known_id_gate_probability: float | None = DEFAULT_KNOWN_ID_GATE_PROBABILITY,
     ):
         if association not in ASSOCIATION_METHODS:
             raise ValueError(f"association must be one of {ASSOCIATION_METHODS}, got {association!r}")
@@ -371,6 +382,10 @@ class EkfSlam:
                 "need 0 < gate_probability ≤ new_landmark_probability < 1, got "
                 f"{gate_probability!r} and {new_landmark_probability!r}"
             )
+        if known_id_gate_probability is not None and not 0.0 < known_id_gate_probability < 1.0:
+            raise ValueError(f"known_id_gate_probability must be in (0, 1) or None, got {known_id_gate_probability!r}")
+        self.known_id_gate_probability = known_id_gate_probability
+        self.gated_known_id = 0
         self.association = association
         self.name = _NAMES[association]
         self.gate_probability = float(gate_probability)
@@ -429,8 +444,8 @@ class EkfSlam:
                 else:
                     unknown.append(k)
             elif observation.landmark_id in self._slot:
-                self._update(observation.landmark_id, observation)
-                associations[k] = observation.landmark_id
+                if self._update(observation.landmark_id, observation, gate=True):
+                    associations[k] = observation.landmark_id
             else:
                 self._add_landmark(observation.landmark_id, observation)
                 associations[k] = observation.landmark_id
@@ -590,7 +605,10 @@ class EkfSlam:
         self._dim = n + (3 if with_height else LANDMARK_DIM)
         self.landmarks_added += 1
 
-    def _update(self, key: int, observation: Observation) -> None:
+    def _update(self, key: int, observation: Observation, *, gate: bool = False) -> bool:
+        """EKF update of landmark ``key``; with ``gate``, only inside the validation gate.
+
+        Returns whether the update was applied."""
         n = self._dim
         i = self._slot[key]
         use_height = self._has_height[key] and has_height(observation)
@@ -613,11 +631,17 @@ class EkfSlam:
                 [observation.range_m - predicted_range, wrap_angle(observation.bearing_rad - predicted_bearing)]
             )
         H_cols = np.hstack([H_pose, H_landmark])
-        K, _, _ = kalman_gain(P, cols, H_cols, R)
+        K, S, _ = kalman_gain(P, cols, H_cols, R)
+        if gate and self.known_id_gate_probability is not None:
+            d2 = float(innovation @ np.linalg.solve(S, innovation))
+            if not d2 <= chi2_gate(len(innovation), self.known_id_gate_probability):
+                self.gated_known_id += 1
+                return False
         mean += K @ innovation
         mean[2] = wrap_angle(float(mean[2]))
         add_low_rank_in_place(self._cov, n, *joseph_factors(P, cols, H_cols, K, R))
         self.updates += 1
+        return True
 
     def _update_range(self, key: int, observation: Observation) -> None:
         """One scalar EKF update with a range: ``H = [−e/r, 0 | e/r]`` over (x, y, θ, lx, ly)."""

@@ -876,7 +876,9 @@ class Isam2Smoother:
         (``isam.jointMarginalCovariance``), the pose carried through the odometry held since
         and this step's (Σ ← A Σ Aᵀ + Σ_z, cross-covariance ← A Σ_pl, A = Ad(z⁻¹)), rotated
         into world (x, y, θ), then :func:`ekf.models.range_bearing_nis`. None for an
-        observation without an id, of a landmark iSAM2 does not hold yet, or of a tag.
+        observation without an id, of a landmark iSAM2 does not hold yet, or of a tag, and
+        for every observation of the step when iSAM2 cannot form the marginal (an
+        indeterminate system, which real data with gross outliers can produce).
         """
         out: list[float | None] = [None] * len(step.observations)
         if self._pose is None or step.odometry is None:
@@ -898,7 +900,10 @@ class Isam2Smoother:
         J = to_world @ A  # perturbation of the newest iSAM2 pose → world perturbation of the new pose
         x_key = X(chain.start)
         ids = list(dict.fromkeys(o.landmark_id for _, o in wanted))
-        joint = self._isam.jointMarginalCovariance(gtsam.KeyVector([x_key] + [L(i) for i in ids]))
+        try:
+            joint = self._isam.jointMarginalCovariance(gtsam.KeyVector([x_key] + [L(i) for i in ids]))
+        except RuntimeError:  # gtsam.IndeterminateSystemException: no marginal, so no NIS
+            return out
         pose_cov = J @ joint.at(x_key, x_key) @ J.T + to_world @ moved_cov @ to_world.T
         mean = np.array([pose.x(), pose.y(), pose.theta()])
         for j, o in wanted:
