@@ -948,3 +948,44 @@ def test_hidden_ids_jcbb_associates_at_least_99_percent_and_nn_no_more(scenario,
     header_ids, records_ids = simulate(scenario, seed, **kwargs)
     with_ids = run(EkfSlam(header_ids), group_steps(header_ids, records_ids))
     assert ates["jcbb"] <= 1.1 * ate_rmse_m(with_ids.trajectory(), truth) + 0.005, ates
+
+
+# ----------------------------------------------------------------------------- validation gate
+
+
+def _gate_steps(second_range_m: float):
+    """See landmark 7 at (2, 0) from the origin, stand still, then read it at ``second_range_m``."""
+    header = make_header()
+    odo = Odometry(1.0, 0.0, 0.0, 0.0, as_matrix3(np.diag([1e-6, 1e-6, 1e-6])))
+    first = Observation(0.0, 7, 2.0, 0.0, 0.05, 0.01)
+    second = Observation(1.0, 7, second_range_m, 0.0, 0.05, 0.01)
+    return header, [Step(0, 0.0, None, (first,), None), Step(1, 1.0, odo, (second,), None)]
+
+
+def test_the_gate_rejects_an_observation_far_outside_its_prediction_and_counts_it():
+    header, steps = _gate_steps(3.0)  # 1 m off with S ≈ 2·0.05² → d² ≈ 200 ≫ χ²₂(0.9999) = 18.4
+    ekf = EkfSlam(header)
+    for s in steps:
+        ekf.step(s)
+    assert ekf.gated_known_id == 1 and ekf.step_associations() == [None]
+    assert ekf.landmarks()[7] == pytest.approx((2.0, 0.0), abs=1e-9)  # the map did not move
+    plain = EkfSlam(header, known_id_gate_probability=None)  # the textbook filter trusts it
+    for s in steps:
+        plain.step(s)
+    assert plain.gated_known_id == 0 and plain.landmarks()[7][0] > 2.4
+
+
+def test_the_gate_passes_a_reading_inside_it_with_the_same_update_as_no_gate():
+    header, steps = _gate_steps(2.2)  # d² = 0.2² / (2·0.05²) = 8 < 18.4
+    gated, plain = EkfSlam(header), EkfSlam(header, known_id_gate_probability=None)
+    for s in steps:
+        gated.step(s)
+        plain.step(s)
+    assert gated.gated_known_id == 0
+    np.testing.assert_allclose(gated.state_mean(), plain.state_mean(), atol=0)
+    np.testing.assert_allclose(gated.state_covariance(), plain.state_covariance(), atol=0)
+
+
+def test_the_gate_probability_is_checked():
+    with pytest.raises(ValueError, match="known_id_gate_probability"):
+        EkfSlam(make_header(), known_id_gate_probability=1.0)

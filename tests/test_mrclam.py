@@ -370,3 +370,31 @@ def test_binary_garbage_is_a_format_error(folder):
     (folder / "Barcodes.dat").write_bytes(b"# header\n\xff\xfe\x00\n")
     with pytest.raises(DatasetFormatError, match=r"Barcodes.dat:2: not plain ASCII"):
         import_mrclam(folder)
+
+
+# ----------------------------------------------------------------------------- command blips, stale repeats
+
+
+def test_short_zero_command_blips_are_filled_and_real_stops_kept():
+    from slamio.datasets.mrclam import fill_zero_blips
+
+    t = np.array([0.0, 0.01, 0.02, 0.05, 0.06, 0.5, 1.0, 1.1])
+    v = np.array([0.1, 0.0, 0.0, 0.1, 0.0, 0.1, 0.0, 0.0])
+    w = np.array([0.3, 0.0, 0.0, 0.3, 0.0, 0.3, 0.0, 0.0])
+    # rows 1-2: a 40 ms blip (filled); row 4: a 0.44 s stop (kept); rows 6-7: the run's end (kept)
+    fv, fw, filled = fill_zero_blips(t, v, w, 0.06)
+    assert filled == 1
+    np.testing.assert_array_equal(fv, [0.1, 0.1, 0.1, 0.1, 0.0, 0.1, 0.0, 0.0])
+    np.testing.assert_array_equal(fw, [0.3, 0.3, 0.3, 0.3, 0.0, 0.3, 0.0, 0.0])
+    assert v[1] == 0.0  # the input is not changed
+
+
+def test_a_reading_repeated_to_the_digit_while_moving_is_dropped(folder):
+    path = folder / "Robot1_Measurement.dat"
+    rows = data_lines(path)
+    moving = [tokens for _, tokens in rows if float(tokens[0]) - float(rows[0][1][0]) < 3.0]  # the straight line
+    t, barcode, r, b = moving[0]
+    with open(path, "a") as f:  # the same barcode, range and bearing 0.24 s later: a stale re-report
+        f.write(f"{float(t) + 0.24:.3f}\t{barcode}\t{r}\t{b}\n")
+    header, _ = import_mrclam(folder)
+    assert header.source["dropped"]["stale_repeats"] == 1

@@ -530,7 +530,9 @@ def import_mrclam(
     latency = model.observation.camera_latency_s if model is not None else 0.0
     unknown_barcodes: dict[str, int] = {}
     kept: list[tuple[float, int, float, float]] = []  # (file time, landmark id, range, bearing)
-    for number, (t, barcode, range_m, bearing_rad) in meas_rows:
+    # in time order (stable: same-time sightings keep their file order), so "the previous
+    # reading of this barcode" means the one before in time
+    for number, (t, barcode, range_m, bearing_rad) in sorted(meas_rows, key=lambda row: row[1][0]):
         t = t - latency  # the time the picture was taken
         subject = subject_of_barcode.get(int(barcode))
         if subject is None:

@@ -1,0 +1,120 @@
+"""Real robots: the noise model fitted on two MRCLAM Creates, scored on a third, against Vicon.
+
+tests/data/mrclam_excerpt holds the first 100 s of robots 1-3 of MRCLAM Dataset 6 (real
+commands, real camera readings, Vicon truth; see its README). The full benchmark over all
+five robots is scripts/bench_mrclam.py; this is its shape on a slice a test can afford.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+from ekf import EkfSlam
+from fgslam.cli import main
+from fgslam.runner import ESTIMATORS, expected_outlier_kernel, run_estimator
+from slamio.datasets.mrclam import import_mrclam
+from slamio.log import RunLog, read_log
+from slamio.noise_fit import fit_noise_model
+
+EXCERPT = os.path.join(os.path.dirname(__file__), "data", "mrclam_excerpt")
+
+
+def _log(robot, model=None) -> RunLog:
+    header, records = import_mrclam(EXCERPT, robot, model=model)
+    return RunLog(f"excerpt robot {robot}", header, tuple(records))
+
+
+@pytest.fixture(scope="module")
+def model():
+    return fit_noise_model([_log(2), _log(3)])  # fitted on robots 2 and 3 only
+
+
+def _ate_vs_vicon(log: RunLog, trajectory) -> float:
+    steps = log.steps()
+    rows = [(i, s.truth.x_m, s.truth.y_m) for i, s in enumerate(steps) if s.truth is not None]
+    idx = np.array([r[0] for r in rows])
+    truth = np.array([[r[1], r[2]] for r in rows])
+    est = np.asarray(trajectory)[idx, :2]
+    return float(np.sqrt(np.mean(np.sum((est - truth) ** 2, axis=1))))
+
+
+def test_the_fit_finds_the_physics_of_the_real_robots(model):
+    o, z = model.odometry, model.observation
+    assert 0.1 <= o.lag_s <= 0.35  # commands lead the motion (~0.2-0.3 s, DESIGN.md)
+    assert 0.85 <= o.forward_scale <= 1.0 and 0.85 <= o.turn_scale <= 1.0
+    assert z.range_is_depth  # the camera's "range" is depth along the optical axis
+    assert 1.0 < z.range_scale < 1.08
+    assert 0.002 < z.bearing_sigma_rad < 0.02
+    assert 0.0 < z.outlier_rate < 0.1
+
+
+def test_fitted_noise_on_other_robots_beats_the_guessed_noise_on_robot_1(model):
+    raw, fitted = _log(1), _log(1, model)
+    for name in ("ekf", "isam2"):
+        ate = {}
+        for label, log in (("raw", raw), ("fitted", fitted)):
+            run, _ = run_estimator(ESTIMATORS[name](log.header), log.steps(), covariances=False)
+            ate[label] = _ate_vs_vicon(log, run.final)
+        assert ate["fitted"] < ate["raw"], (name, ate)
+        assert ate["fitted"] < 0.2, (name, ate)
+
+
+def test_dead_reckoning_with_the_fitted_odometry_is_closer_to_vicon(model):
+    from ekf import DeadReckoning
+
+    errors = {}
+    for label, log in (("raw", _log(1)), ("fitted", _log(1, model))):
+        run, _ = run_estimator(DeadReckoning(log.header), log.steps(), covariances=False)
+        errors[label] = _ate_vs_vicon(log, run.final)
+    assert errors["fitted"] < errors["raw"]
+
+
+def test_the_fitted_log_picks_a_robust_isam2_and_a_gated_ekf(model):
+    fitted = _log(1, model)
+    assert fitted.header.noise["observation"]["outlier_rate"] > 0
+    assert expected_outlier_kernel(fitted.header) == "dcs"
+    assert expected_outlier_kernel(_log(1).header) is None  # no fitted model: least squares
+    assert ESTIMATORS["isam2"](fitted.header).name == "isam2"  # the table keeps the name
+    ekf = EkfSlam(fitted.header)
+    for step in fitted.steps():
+        ekf.step(step)
+    assert ekf.gated_known_id <= 0.05 * sum(len(s.observations) for s in fitted.steps())
+
+
+def test_calibrate_then_import_then_run_from_the_command_line(tmp_path, capsys):
+    logs = []
+    for robot in (2, 3):  # options before, between and after the paths
+        out = tmp_path / f"r{robot}.jsonl"
+        args = ["import", "mrclam", EXCERPT, "--robot", str(robot), str(out)] if robot == 2 else \
+            ["import", "mrclam", "--robot", str(robot), EXCERPT, str(out)]
+        assert main(args) == 0
+        logs.append(str(out))
+    noise = tmp_path / "noise.json"
+    assert main(["calibrate", *logs, "--out", str(noise)]) == 0
+    assert "range is depth" in capsys.readouterr().out
+    assert json.loads(noise.read_text())["fitted_on"] == logs
+    assert main(["calibrate", *logs, "--out", str(noise)]) == 1  # never overwrites
+    assert "exists" in capsys.readouterr().err
+    r1 = tmp_path / "r1.jsonl"
+    assert main(["import", "mrclam", EXCERPT, str(r1), "--robot", "1", "--noise", str(noise)]) == 0
+    header = read_log(r1).header
+    assert header.noise["fitted_on"] == logs
+    assert main(["calibrate", str(r1)]) == 1  # a fitted log is not raw data to fit on
+    assert "--noise" in capsys.readouterr().err
+    assert main(["run", str(r1), "--out", str(tmp_path / "res"), "--no-report", "--estimators", "ekf,isam2"]) == 0
+    printed = capsys.readouterr().out
+    assert "ground truth recorded in the log" in printed and "of 256 poses" in printed
+    metrics = json.loads((tmp_path / "res" / "metrics.json").read_text())
+    assert metrics["reference"] == "ground_truth"
+    assert metrics["isam2"]["ate_aligned_rmse_m"] <= metrics["isam2"]["ate_rmse_m"] + 1e-12
+
+
+def test_a_missing_noise_file_is_one_clear_line(tmp_path, capsys):
+    assert main(["import", "mrclam", EXCERPT, str(tmp_path / "x.jsonl"), "--noise", str(tmp_path / "nope.json")]) == 1
+    err = capsys.readouterr().err
+    assert "nope.json: no such noise-model file" in err and "Traceback" not in err
+    assert not (tmp_path / "x.jsonl").exists()
