@@ -393,7 +393,7 @@ def test_a_reading_repeated_to_the_digit_while_moving_is_dropped(folder):
     path = folder / "Robot1_Measurement.dat"
     rows = data_lines(path)
     moving = [tokens for _, tokens in rows if float(tokens[0]) - float(rows[0][1][0]) < 3.0]  # the straight line
-    t, barcode, r, b = moving[0]
+    t, barcode, r, b = moving[4]  # inside the run, on the move
     with open(path, "a") as f:  # the same barcode, range and bearing 0.24 s later: a stale re-report
         f.write(f"{float(t) + 0.24:.3f}\t{barcode}\t{r}\t{b}\n")
     header, _ = import_mrclam(folder)
