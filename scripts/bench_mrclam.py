@@ -156,9 +156,10 @@ def main(argv=None) -> int:
     parser.add_argument("--json", default=None, metavar="FILE", help="write every figure (and the fitted models) here")
     args = parser.parse_args(argv)
     names = parse_estimator_names(args.estimators)
-    robots = [int(r) for r in args.robots.split(",")]
+    present = [k for k in ROBOT_SUBJECTS if os.path.exists(os.path.join(args.folder, f"Robot{k}_Odometry.dat"))]
+    robots = [int(r) for r in args.robots.split(",") if int(r) in present]
     raw = {}
-    for k in ROBOT_SUBJECTS:  # every robot is needed to fit the others' models
+    for k in present:  # every robot is needed to fit the others' models
         header, records = import_mrclam(args.folder, k)
         raw[k] = RunLog(f"{args.folder}/robot{k} (raw)", header, tuple(records))
     results, models = {}, {}
@@ -166,7 +167,7 @@ def main(argv=None) -> int:
         if args.no_model:
             log = raw[k]
         else:
-            model = fit_noise_model([raw[j] for j in ROBOT_SUBJECTS if j != k])
+            model = fit_noise_model([raw[j] for j in present if j != k])
             models[k] = model.to_dict()
             header, records = import_mrclam(args.folder, k, model=model)
             log = RunLog(f"{args.folder}/robot{k}", header, tuple(records))

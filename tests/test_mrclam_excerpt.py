@@ -118,3 +118,23 @@ def test_a_missing_noise_file_is_one_clear_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "nope.json: no such noise-model file" in err and "Traceback" not in err
     assert not (tmp_path / "x.jsonl").exists()
+
+
+def test_the_real_robot_benchmark_script_runs_on_the_excerpt(tmp_path, capsys):
+    """scripts/bench_mrclam.py end to end (leave-one-out over the excerpt's three robots)."""
+    import importlib.util
+
+    path = os.path.join(os.path.dirname(__file__), "..", "scripts", "bench_mrclam.py")
+    spec = importlib.util.spec_from_file_location("bench_mrclam", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    out = tmp_path / "bench.json"
+    assert bench.main([EXCERPT, "--estimators", "ekf,isam2", "--json", str(out), "--figure", str(tmp_path / "f.png")]) == 0
+    table = capsys.readouterr().out
+    assert "| median | isam2 |" in table and (tmp_path / "f.png").stat().st_size > 10_000
+    results = json.loads(out.read_text())["results"]
+    assert sorted(results) == ["1", "2", "3"]
+    for robot in results.values():
+        assert robot["isam2"]["ate_final_aligned_m"] <= robot["isam2"]["ate_final_m"] + 1e-9
+        assert robot["isam2"]["ate_final_m"] <= robot["ekf"]["ate_final_m"]  # the smoother never loses
+    assert np.median([r["isam2"]["ate_final_m"] for r in results.values()]) < 0.2
