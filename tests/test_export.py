@@ -79,17 +79,114 @@ def test_edges_carry_the_log_measurements_and_informations(octagon):
         assert np.allclose(upper_to_matrix(w[5:], 2), expected, rtol=1e-9)
 
 
-def test_gtsams_reader_sees_the_same_odometry_graph(octagon, tmp_path):
+def _prior_from_comment(text: str):
+    """The prior on pose 0 as the file's comment states it: ``(vertex, mean, covariance)``."""
+    line = next(line for line in text.splitlines() if line.startswith("# prior PriorFactorPose2"))
+    words = line.split()
+    vertex = int(words[words.index("vertex") + 1])
+    at = words.index("mean")
+    mean = [float(v) for v in words[at + 1 : at + 4]]
+    covariance = upper_to_matrix(words[words.index("covariance") + 1 :], 3)
+    return vertex, mean, covariance
+
+
+def _our_key_to_file_key(key: int, num_poses: int) -> int:
+    """X(i) -> i and L(id) -> L(num_poses + id): the keys gtsam.readG2o gives the file's vertices."""
+    s = gtsam.Symbol(key)
+    if chr(s.chr()) == "x":
+        return int(s.index())
+    return gtsam.symbol("l", landmark_vertex_id(num_poses, int(s.index())))
+
+
+def test_gtsams_reader_gets_every_factor_back(octagon, tmp_path):
+    """gtsam.readG2o on the file returns every factor of our graph but the prior (FIX 0, which
+    its reader has no line for), in our order, with our measurements and noise."""
     steps, smoother, text = octagon
     path = tmp_path / "graph.g2o"
     path.write_text(text)
-    graph, values = gtsam.readG2o(str(path), False)  # reads the SE2 part, drops EDGE_SE2_XY
+    graph, values = gtsam.readG2o(str(path), False)
     ours = smoother.graph()
-    odometry_error = sum(
-        ours.at(i).error(smoother.estimate()) for i in range(ours.size()) if isinstance(ours.at(i), gtsam.BetweenFactorPose2)
-    )
-    assert graph.size() == len(steps) - 1
-    assert graph.error(values) == pytest.approx(odometry_error, rel=1e-9)
+    n = smoother.num_poses
+    ours_kinds = [type(ours.at(i)).__name__ for i in range(ours.size())]
+    assert ours_kinds.count("PriorFactorPose2") == 1
+    ours_factors = [ours.at(i) for i in range(ours.size()) if not isinstance(ours.at(i), gtsam.PriorFactorPose2)]
+    assert graph.size() == ours.size() - 1 == len(ours_factors)
+    assert ours_kinds.count("BearingRangeFactor2D") == len([o for s in steps for o in s.observations]) > 0
+    landmarks = smoother.landmarks()
+    assert values.size() == n + len(landmarks)
+    for k, mine in enumerate(ours_factors):
+        theirs = graph.at(k)
+        assert type(theirs) is type(mine)
+        assert list(theirs.keys()) == [_our_key_to_file_key(key, n) for key in mine.keys()]
+        if isinstance(mine, gtsam.BearingRangeFactor2D):
+            a, b = mine.measured(), theirs.measured()
+            assert b.range() == a.range()
+            assert b.bearing().theta() == pytest.approx(a.bearing().theta(), abs=1e-15)  # Rot2 from its angle
+        else:
+            a, b = mine.measured(), theirs.measured()
+            assert [b.x(), b.y(), b.theta()] == pytest.approx([a.x(), a.y(), a.theta()], abs=1e-15)
+        expected = mine.noiseModel().covariance()
+        np.testing.assert_allclose(theirs.noiseModel().covariance(), expected, rtol=1e-12,
+                                   atol=1e-12 * np.abs(expected).max())  # through the information and back
+    # The same total error at the file's vertices (plus the prior, from its comment) as ours.
+    vertex, mean, covariance = _prior_from_comment(text)
+    assert vertex == 0 and mean == pytest.approx(list(smoother.header.start_pose), abs=1e-15)
+    reread = gtsam.NonlinearFactorGraph(graph)
+    reread.add(gtsam.PriorFactorPose2(0, gtsam.Pose2(*mean), gtsam.noiseModel.Gaussian.Covariance(covariance)))
+    assert reread.error(values) == pytest.approx(ours.error(smoother.estimate()), rel=1e-9)
+
+
+def test_batch_solution_of_the_reread_graph_is_ours(octagon, tmp_path):
+    """Levenberg-Marquardt on the graph gtsam.readG2o returns (plus the stated prior), started
+    from the file's vertices, lands on the batch solution of our own graph."""
+    steps, smoother, text = octagon
+    path = tmp_path / "graph.g2o"
+    path.write_text(text)
+    graph, values = gtsam.readG2o(str(path), False)
+    _, mean, covariance = _prior_from_comment(text)
+    graph.add(gtsam.PriorFactorPose2(0, gtsam.Pose2(*mean), gtsam.noiseModel.Gaussian.Covariance(covariance)))
+    params = gtsam.LevenbergMarquardtParams()
+    params.setRelativeErrorTol(1e-12)
+    params.setAbsoluteErrorTol(1e-12)
+    theirs = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
+    ours = gtsam.LevenbergMarquardtOptimizer(smoother.graph(), smoother.estimate(), params).optimize()
+    n = smoother.num_poses
+    ours_poses = np.array([[p.x(), p.y(), p.theta()] for p in (ours.atPose2(gtsam.symbol("x", i)) for i in range(n))])
+    their_poses = np.array([[p.x(), p.y(), p.theta()] for p in (theirs.atPose2(i) for i in range(n))])
+    np.testing.assert_allclose(their_poses, ours_poses, atol=1e-7)
+    for lid in smoother.landmarks():
+        np.testing.assert_allclose(
+            theirs.atPoint2(gtsam.symbol("l", landmark_vertex_id(n, lid))), ours.atPoint2(gtsam.symbol("l", lid)),
+            atol=1e-7,
+        )
+    # and the solve moved something: the iSAM2 estimate in the file is not already the optimum
+    assert graph.error(values) > graph.error(theirs)
+
+
+def test_g2o_reads_every_edge(octagon, tmp_path):
+    """g2o itself (its official Python bindings, when installed) loads every vertex and edge,
+    fixes vertex 0 and skips the BR lines; its optimum is ours to within the linearisation of
+    the bearing-range noise into an x-y information."""
+    g2o = pytest.importorskip("g2opy")
+    steps, smoother, text = octagon
+    path = tmp_path / "graph.g2o"
+    path.write_text(text)
+    optimizer = g2o.SparseOptimizer()
+    optimizer.set_algorithm(g2o.OptimizationAlgorithmLevenberg(g2o.BlockSolverX(g2o.LinearSolverEigenX())))
+    assert optimizer.load(str(path))
+    n = smoother.num_poses
+    observations = len([o for s in steps for o in s.observations])
+    assert len(optimizer.vertices()) == n + len(smoother.landmarks())
+    assert len(optimizer.edges()) == (n - 1) + observations
+    assert [v.id() for v in optimizer.vertices().values() if v.fixed()] == [0]
+    optimizer.initialize_optimization()
+    optimizer.optimize(50)
+    ours = gtsam.LevenbergMarquardtOptimizer(smoother.graph(), smoother.estimate(), gtsam.LevenbergMarquardtParams())
+    solution = ours.optimize()
+    for i in range(n):
+        p = solution.atPose2(gtsam.symbol("x", i))
+        est = optimizer.vertex(i).estimate()
+        assert math.hypot(est.translation()[0] - p.x(), est.translation()[1] - p.y()) < 5e-3
 
 
 def test_robust_kernels_heights_and_tags_are_said(tmp_path):
@@ -98,13 +195,27 @@ def test_robust_kernels_heights_and_tags_are_said(tmp_path):
     text = format_g2o(smoother.graph(), smoother.estimate(), smoother.num_poses)
     comments = "\n".join(" ".join(w) for w in parse_g2o(text)["#"])
     assert "robust kernel Cauchy" in comments and "PriorFactorDouble" in comments
+    # gtsam.readG2o still gets every odometry and bearing-range factor (their Gaussian part)
+    path = tmp_path / "robust.g2o"
+    path.write_text(text)
+    graph, _ = gtsam.readG2o(str(path), False)
+    ours = smoother.graph()
+    kinds = [type(ours.at(i)).__name__ for i in range(ours.size())]
+    assert graph.size() == kinds.count("BetweenFactorPose2") + kinds.count("BearingRangeFactor2D")
+    assert kinds.count("BearingRangeFactor2D") > 0
     header, records = simulate("arena-octagon", 1, laps=1)
     steps = group_steps(header, records)
     tags = run_smoother(header, steps, tags=True)
     g2o = parse_g2o(format_g2o(tags.graph(), tags.estimate(), tags.num_poses))
     tag_vertices = [int(w[1]) for w in g2o["VERTEX_SE2"] if int(w[1]) >= len(steps)]
     assert sorted(tag_vertices) == [landmark_vertex_id(len(steps), i) for i in sorted(tags.landmark_yaws())]
-    assert "VERTEX_XY" not in g2o and "EDGE_SE2_XY" not in g2o
+    assert "VERTEX_XY" not in g2o and "EDGE_SE2_XY" not in g2o and "BR" not in g2o
+    path = tmp_path / "tags.g2o"
+    path.write_text(format_g2o(tags.graph(), tags.estimate(), tags.num_poses))
+    graph, _ = gtsam.readG2o(str(path), False)  # pose-pose and pose-tag edges: every BetweenFactorPose2
+    ours = tags.graph()
+    between = sum(isinstance(ours.at(i), gtsam.BetweenFactorPose2) for i in range(ours.size()))
+    assert graph.size() == between > len(steps) - 1
 
 
 def test_fgslam_run_writes_the_graph(tmp_path, capsys):
@@ -114,3 +225,6 @@ def test_fgslam_run_writes_the_graph(tmp_path, capsys):
     assert "graph.g2o" in capsys.readouterr().out
     g2o = parse_g2o((tmp_path / "r" / "graph.g2o").read_text())
     assert len(g2o["EDGE_SE2_XY"]) > 0 and len(g2o["EDGE_SE2"]) == len(g2o["VERTEX_SE2"]) - 1
+    assert len(g2o["BR"]) == len(g2o["EDGE_SE2_XY"])
+    graph, _ = gtsam.readG2o(str(tmp_path / "r" / "graph.g2o"), False)
+    assert graph.size() == len(g2o["EDGE_SE2"]) + len(g2o["BR"])

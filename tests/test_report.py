@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import dataclasses
+from datetime import datetime, timezone
+from pathlib import Path
 
 import base64
 from html.parser import HTMLParser
@@ -265,3 +267,250 @@ def test_screenshot_in_headless_chromium(report, tmp_path):
         # every figure is about 600 px tall at this width: the page is rendered whole
         assert image.width == 1100 and image.height > 6 * 500
         assert len(np.unique(np.asarray(image.convert("L"))[::7, ::7])) > 20
+
+
+# --------------------------------------------------------------------------- baselines and zoom
+
+
+def runs_with_dead_reckoning(n: int = 120):
+    """The synthetic runs (the EKF with pose covariances) plus a dead reckoning that drifts
+    ~80 m away, with covariances and a map of its own far off: what must not take over the
+    figures."""
+    runs, reference, stamps_s, landmarks = synthetic_runs(n=n)
+    truth = reference.trajectory
+    drift = np.c_[np.linspace(0.0, 80.0, n), np.linspace(0.0, -35.0, n)]
+    dr = truth.copy()
+    dr[:, :2] += drift
+    dr[:, 2] += np.linspace(0.0, 0.6, n)
+    covariance = np.array([np.diag([0.01 + 0.5 * i, 0.01 + 0.5 * i, 0.001]) for i in range(n)])
+    dr_landmarks = {k: (x + 60.0, y - 30.0) for k, (x, y) in landmarks.items()}
+    runs[0] = dataclasses.replace(runs[0], online_covariances=np.broadcast_to(np.diag([0.01, 0.02, 0.001]), (n, 3, 3)))
+    runs.append(EstimatorRun("dead_reckoning", dr, dr.copy(), dr_landmarks, np.full(n, 2e-5), 0.003,
+                             online_covariances=covariance,
+                             landmark_covariances={k: np.diag([4.0, 4.0]) for k in dr_landmarks}))
+    return runs, reference, stamps_s, landmarks
+
+
+def independent_view(runs, reference, margin=0.04, min_margin=0.3):
+    """The overview's box computed here from the raw arrays (no alignment: every synthetic
+    run starts at the reference's first pose)."""
+    parts = [reference.trajectory[:, :2], np.array(list(reference.landmarks.values()))]
+    for run in runs:
+        if run.name == "dead_reckoning":
+            continue
+        parts.append(run.final[:, :2])
+        if run.landmarks:
+            parts.append(np.array(list(run.landmarks.values())))
+    xy = np.vstack(parts)
+    low, high = xy.min(axis=0), xy.max(axis=0)
+    pad = max(margin * (high - low).max(), min_margin)
+    return low[0] - pad, high[0] + pad, low[1] - pad, high[1] + pad
+
+
+def lines_of_colour(ax, colour):
+    from matplotlib.colors import same_color
+
+    return [line for line in ax.get_lines() if same_color(line.get_color(), colour)]
+
+
+DR_COLOUR = "#ff7f0e"  # dead reckoning is the 4th run: the 4th colour of the report's palette
+
+
+def test_overview_is_zoomed_to_the_estimators_and_dead_reckoning_is_faint():
+    from fgslam.report import trajectory_figure, trajectory_view
+
+    runs, reference, _, _ = runs_with_dead_reckoning()
+    expected = independent_view(runs, reference)
+    assert trajectory_view(runs, reference) == pytest.approx(expected, abs=1e-12)
+    fig = trajectory_figure(runs, reference)
+    fig.canvas.draw()
+    overview, detail = fig.axes
+    assert overview.get_xlim() == pytest.approx(expected[:2], abs=1e-9)  # the box adapts, not the limits
+    assert overview.get_ylim() == pytest.approx(expected[2:], abs=1e-9)
+    assert runs[3].final[:, 0].max() > expected[1] + 50  # dead reckoning leaves the view: it is clipped
+    dr_lines = lines_of_colour(overview, DR_COLOUR)
+    assert len(dr_lines) == 1  # its trajectory only: no end marker, no pose ellipses
+    assert dr_lines[0].get_alpha() < 0.5 and dr_lines[0].get_linewidth() < 1.0
+    assert "baseline" in dr_lines[0].get_label()
+    assert not [c for c in overview.collections if "dead_reckoning" in str(c.get_label())]  # no landmarks
+    # the EKF keeps its full strength and its 12 ellipses
+    ekf = lines_of_colour(overview, "#1f77b4")
+    assert len(ekf) == 1 + 1 + 12 and min(line.get_alpha() or 1.0 for line in ekf) >= 0.8  # ellipses: 0.8
+
+
+def test_show_and_drop_baseline():
+    from fgslam.report import trajectory_figure, trajectory_view
+
+    runs, reference, _, _ = runs_with_dead_reckoning()
+    fig = trajectory_figure(runs, reference, baseline="show")
+    fig.canvas.draw()
+    overview = fig.axes[0]
+    dr = runs[3]
+    xmin, xmax = overview.get_xlim()
+    ymin, ymax = overview.get_ylim()
+    assert xmin <= dr.final[:, 0].min() and dr.final[:, 0].max() <= xmax
+    assert ymin <= dr.final[:, 1].min() and dr.final[:, 1].max() <= ymax
+    assert trajectory_view(runs, reference, baselines=()) == pytest.approx((xmin, xmax, ymin, ymax), abs=1e-9)
+    assert len(lines_of_colour(overview, DR_COLOUR)) == 1 + 1 + 12 + 8  # line, end, pose and landmark ellipses
+    fig = trajectory_figure(runs, reference, baseline="drop")
+    assert not lines_of_colour(fig.axes[0], DR_COLOUR) and not lines_of_colour(fig.axes[1], DR_COLOUR)
+    labels = fig.axes[-1].get_legend().get_texts()
+    assert not [t for t in labels if "dead_reckoning" in t.get_text()]
+    with pytest.raises(ValueError, match="baseline"):
+        trajectory_figure(runs, reference, baseline="hide")
+
+
+def test_detail_is_where_the_estimators_error_is_largest():
+    from fgslam.report import detail_pose, trajectory_figure
+
+    runs, reference, _, _ = runs_with_dead_reckoning()
+    truth = reference.trajectory
+    errors = {r.name: np.linalg.norm(r.final[:, :2] - truth[:, :2], axis=1) for r in runs}
+    worst = np.maximum.reduce([errors["ekf"], errors["isam2"], errors["batch"]])
+    k = int(np.argmax(worst))
+    assert k > 0 and detail_pose(runs, reference) == k  # dead reckoning's far larger error is no candidate
+    fig = trajectory_figure(runs, reference)
+    fig.canvas.draw()
+    detail = fig.axes[1]
+    span = max(independent_view(runs, reference)[1] - independent_view(runs, reference)[0],
+               independent_view(runs, reference)[3] - independent_view(runs, reference)[2])
+    half = max(2.0 * worst[k], 0.02 * span, 0.02)
+    assert detail.get_xlim() == pytest.approx((truth[k, 0] - half, truth[k, 0] + half), abs=1e-9)
+    assert detail.get_ylim() == pytest.approx((truth[k, 1] - half, truth[k, 1] + half), abs=1e-9)
+    text = "\n".join(t.get_text() for t in detail.texts)
+    for name in ("ekf", "isam2", "batch"):
+        assert f"{name}: {errors[name][k]:.3f} m" in text
+    assert "dead_reckoning" not in text
+
+
+def test_error_axes_follow_the_estimators_not_the_baseline(tmp_path):
+    """Position and heading error: the y axis is scaled to the estimators, dead reckoning is
+    drawn faint and runs off it."""
+    import matplotlib.image
+
+    from fgslam.report import plot_heading_errors, plot_position_errors
+
+    runs, reference, stamps_s, _ = runs_with_dead_reckoning()
+    truth = reference.trajectory
+    figures = {}
+
+    def capture(fig, ax, path, with_legend=True, **legend):
+        figures[Path(path).name] = (fig, ax)
+        return Path(path)
+
+    import fgslam.report as report
+
+    original = report._legend_and_save
+    report._legend_and_save = capture
+    try:
+        plot_position_errors(tmp_path / "p.png", runs, reference, stamps_s)
+        plot_heading_errors(tmp_path / "h.png", runs, reference, stamps_s)
+    finally:
+        report._legend_and_save = original
+    _, ax = figures["p.png"]
+    others = [np.linalg.norm(r.final[:, :2] - truth[:, :2], axis=1) for r in runs[:3]]
+    others.append(np.linalg.norm(runs[1].online[:, :2] - truth[:, :2], axis=1))
+    top = max(float(e.max()) for e in others)
+    assert ax.get_yscale() == "linear"
+    assert ax.get_ylim() == pytest.approx((0.0, 1.08 * top), rel=1e-9)
+    dr_error = np.linalg.norm(runs[3].final[:, :2] - truth[:, :2], axis=1)
+    assert dr_error.max() > 10 * top
+    faint = lines_of_colour(ax, DR_COLOUR)
+    assert len(faint) == 1 and faint[0].get_alpha() < 0.5
+    _, ax = figures["h.png"]
+    wrap = lambda a: (a + np.pi) % (2 * np.pi) - np.pi  # noqa: E731
+    heading = np.concatenate([np.degrees(wrap(r.final[:, 2] - truth[:, 2])) for r in runs[:3]]
+                             + [np.degrees(wrap(runs[1].online[:, 2] - truth[:, 2]))])
+    low, high = min(heading.min(), 0.0), max(heading.max(), 0.0)
+    pad = 0.08 * max(high - low, 1e-3)
+    assert ax.get_ylim() == pytest.approx((low - pad, high + pad), abs=1e-9)
+    assert np.degrees(0.6) > high + pad  # dead reckoning's 34° heading error is off the axis
+
+
+# --------------------------------------------------------------------------- provenance
+
+
+def test_provenance_names_version_command_date_and_the_logs_hash(tmp_path):
+    import shlex
+    import shutil
+    import subprocess
+    import sys
+    from datetime import datetime, timezone
+    from importlib.metadata import version
+
+    from fgslam.report import provenance
+
+    log = tmp_path / "my run.jsonl"
+    log.write_bytes(b'{"type": "header"}\n' + bytes(range(256)) * 40)
+    if shutil.which("sha256sum"):  # coreutils, the reference
+        expected = subprocess.run(["sha256sum", str(log)], capture_output=True, text=True, check=True).stdout.split()[0]
+    else:
+        import hashlib
+
+        expected = hashlib.sha256(log.read_bytes()).hexdigest()
+    before = datetime.now(timezone.utc).replace(microsecond=0)
+    prov = provenance(log, ["ekf", "isam2"], command=["fgslam", "run", str(log), "--out", "o"])
+    after = datetime.now(timezone.utc)
+    assert prov["log_sha256"] == expected and prov["log_bytes"] == log.stat().st_size == 19 + 256 * 40
+    assert prov["fgslam_version"] == version("fgslam") and prov["gtsam_version"] == version("gtsam")
+    assert prov["command"] == f"fgslam run '{log}' --out o"
+    assert shlex.split(prov["command"])[2] == str(log)
+    stamp = datetime.strptime(prov["date_utc"], "%Y-%m-%dT%H:%M:%SZ").replace(tzinfo=timezone.utc)
+    assert before <= stamp <= after
+    assert prov["estimators"] == ["ekf", "isam2"] and prov["log"] == str(log)
+    assert provenance(log, [])["command"] == shlex.join(sys.argv)  # default: this process's command line
+    assert provenance(tmp_path / "missing.jsonl", [])["log_sha256"] is None
+    fixed = provenance(None, [], command="x", now=datetime(2024, 2, 29, 23, 59, 58, tzinfo=timezone.utc))
+    assert fixed["date_utc"] == "2024-02-29T23:59:58Z" and fixed["log"] is None
+
+
+def test_page_shows_the_provenance(tmp_path):
+    import hashlib
+
+    import html5lib
+
+    runs, reference, stamps_s, _ = runs_with_dead_reckoning()
+    log = tmp_path / "grid <200>.jsonl"
+    log.write_text('{"type": "header"}\n')
+    metrics = compute_metrics(runs, reference, log_path=str(log))
+    html_path = write_report(tmp_path / "out", metrics, runs, reference, stamps_s,
+                             command=["fgslam", "run", str(log), "--estimators", "ekf,isam2,dead_reckoning"])
+    text = html_path.read_text(encoding="utf-8")
+    html5lib.HTMLParser(strict=True).parse(text)
+    parser = PageParser()
+    parser.feed(text)
+    ids = {attrs.get("id") for _, attrs in parser.tags}
+    assert "provenance" in ids
+    section = text[text.index('id="provenance"'): text.index("</dl>", text.index('id="provenance"'))]
+    assert hashlib.sha256(log.read_bytes()).hexdigest() in section
+    assert "fgslam run &#x27;" in section and "grid &lt;200&gt;.jsonl" in section  # quoted and escaped
+    assert "ekf, isam2, batch, dead_reckoning" in section
+    assert "Baseline drawn faint in the figures: dead_reckoning" in text
+    # what the lead writes into metrics.json can be passed as it is, and is what the page shows
+    from fgslam.report import provenance
+
+    prov = provenance(str(log), ["ekf"], command="fgslam run x", now=None)
+    prov["date_utc"] = "2000-01-01T00:00:00Z"
+    text = write_report(tmp_path / "out2", metrics, runs, reference, stamps_s, provenance_info=prov,
+                        baseline="drop").read_text(encoding="utf-8")
+    assert "2000-01-01T00:00:00Z" in text and "fgslam run x" in text
+    assert "Baseline left out of the figures: dead_reckoning" in text
+
+
+def test_provenance_stored_in_the_metrics_is_the_one_shown(tmp_path, monkeypatch):
+    """The contract with ``fgslam run``: it puts ``provenance(...)`` under ``metrics["provenance"]``
+    (a top-level key, not an estimator) before writing metrics.json; the page shows that."""
+    import fgslam.compare as compare
+    from fgslam.report import provenance
+
+    monkeypatch.setattr(compare, "TOP_LEVEL_KEYS", tuple(compare.TOP_LEVEL_KEYS) + ("provenance",))
+    runs, reference, stamps_s, _ = synthetic_runs(n=40)
+    metrics = compute_metrics(runs, reference, log_path="data/circle.jsonl")
+    metrics["provenance"] = provenance("data/circle.jsonl", [r.name for r in runs], command="fgslam run c",
+                                       now=datetime(2030, 1, 2, 3, 4, 5, tzinfo=timezone.utc))
+    text = write_report(tmp_path, metrics, runs, reference, stamps_s, command="ignored").read_text(encoding="utf-8")
+    parser = PageParser()
+    parser.feed(text)
+    assert [r[0] for r in parser.rows[1:4]] == ["ekf", "isam2", "batch"]  # no "provenance" row
+    section = text[text.index('id="provenance"'):]
+    assert "2030-01-02T03:04:05Z" in section and "fgslam run c" in section and "ignored" not in section
