@@ -15,9 +15,16 @@ and truth poses belong to the latest pose (see :meth:`RunLog.steps`).
 
 Records are frozen dataclasses. :func:`read_log` validates every line and raises
 :class:`LogFormatError` naming ``file:line``, what is wrong and how to fix it; the error
-carries everything read before the bad line. A last line cut off mid-way (a recording that
-was interrupted) is not an error: the log is returned without it and says so in
-:attr:`RunLog.truncated`.
+carries everything read before the bad line. Numbers must lie within physical bounds (the
+constants below, explained in docs/log-format.md "Bounds"). Two things are not errors:
+
+* a last line that is not valid JSON and has no final newline (a recording that was
+  interrupted mid-line): the log is returned without it and says so in
+  :attr:`RunLog.truncated`;
+* an observation whose range the header's sensor cannot produce (outside
+  ``sensor.min_range_m``/``max_range_m`` by more than 5 of its σ, or below half the
+  minimum): it is left out of the records, so no estimator sees it, and counted in
+  :attr:`RunLog.rejected`.
 """
 
 from __future__ import annotations
@@ -25,8 +32,9 @@ from __future__ import annotations
 import json
 import math
 import os
+import sys
 from dataclasses import dataclass, field
-from typing import IO, Any, Iterable, Iterator, Union
+from typing import IO, Any, Iterable, Union
 
 import numpy as np
 
@@ -35,6 +43,34 @@ from slamio.errors import FgslamError
 FORMAT_NAME = "fgslam-run-log"
 FORMAT_VERSION = 1
 UNITS = {"length": "m", "angle": "rad", "time": "s"}
+
+# Bounds the reader enforces (docs/log-format.md, "Bounds"). Each is a physical limit with
+# a wide margin, and keeps every square and inverse the estimators compute far from float
+# overflow, underflow and singular matrices.
+
+#: Landmark ids (and pose indices) are 0 ≤ id ≤ MAX_ID: a GTSAM key is an 8-bit letter
+#: and a 56-bit index (``L(id)``, ``X(k)``).
+MAX_ID = 2**56 - 1
+#: Standard deviations of lengths (m): none finer than 1 µm (no odometer, range sensor or
+#: camera resolves it), none coarser than 1 km (it says nothing at a ground robot's scale).
+SIGMA_LENGTH_M = (1e-6, 1e3)
+#: Standard deviations of angles (rad): none finer than 1 µrad (0.2 arc seconds), none
+#: coarser than a full turn (2π says nothing about an angle).
+SIGMA_ANGLE_RAD = (1e-6, 2.0 * math.pi)
+#: Ranges (m): from 1 µm to 10 km, further than any landmark sensor on a ground robot sees.
+RANGE_M = (1e-6, 1e4)
+#: Odometry covariance: smallest eigenvalue (1 µm or 1 µrad squared) and largest variances
+#: of (dx, dy) (σ of 1 km) and of dtheta (σ of a full turn).
+MIN_COVARIANCE_EIGENVALUE = SIGMA_LENGTH_M[0] ** 2
+MAX_POSITION_VARIANCE_M2 = SIGMA_LENGTH_M[1] ** 2
+MAX_HEADING_VARIANCE_RAD2 = SIGMA_ANGLE_RAD[1] ** 2
+#: An observation is rejected when its range is further outside the sensor's
+#: [min_range_m, max_range_m] than this many of its own σ (noise puts a real one just
+#: outside now and then; 5σ happens once in 1.7 million draws) — and below the minimum,
+#: by never more than half of it (a working sensor's noise does not halve a range).
+SENSOR_LIMIT_SIGMAS = 5.0
+#: How deeply the header's free-form objects may nest (lists and objects inside each other).
+MAX_NESTING = 64
 
 
 class LogFormatError(FgslamError):
@@ -200,13 +236,51 @@ class Step:
 
 
 @dataclass(frozen=True)
+class Rejected:
+    """An observation the reader left out of :attr:`RunLog.records` (see :func:`read_log`).
+
+    ``line`` is its line in the file, ``reason`` a short key for counting (the same for
+    every observation rejected for the same reason), ``message`` the full
+    ``file:line: ...`` explanation and ``record`` the observation itself.
+    """
+
+    line: int
+    reason: str
+    message: str
+    record: Observation
+
+
+@dataclass(frozen=True)
 class RunLog:
-    """A log as read: header, records in file order, and a note if the end was cut off."""
+    """A log as read: header, records in file order, and notes on what was not used.
+
+    ``truncated`` says when the last line was cut off and dropped; ``rejected`` lists the
+    observations left out of ``records`` because the sensor cannot have made them (so no
+    estimator sees them); :meth:`rejection_summary` puts them in one line.
+    """
 
     path: str
     header: Header
     records: tuple[Record, ...]
     truncated: str | None = None
+    rejected: tuple[Rejected, ...] = ()
+
+    def rejection_summary(self) -> str | None:
+        """One line counting the rejected observations by reason, or None when there are none."""
+        if not self.rejected:
+            return None
+        by_reason: dict[str, list[int]] = {}
+        for r in self.rejected:
+            by_reason.setdefault(r.reason, []).append(r.line)
+        parts = []
+        for reason, lines in by_reason.items():
+            where = f"line {lines[0]}" if len(lines) == 1 else f"lines {lines[0]}, ..., {lines[-1]}"
+            parts.append(f"{len(lines)} {reason} ({where})")
+        n = len(self.rejected)
+        return (
+            f"{self.path}: {n} observation{'s' if n != 1 else ''} rejected and kept from the estimators: "
+            + "; ".join(parts)
+        )
 
     def steps(self) -> list[Step]:
         """Group the records into per-pose steps (see :class:`Step`)."""
@@ -328,35 +402,131 @@ class _BadLine(Exception):
     """Internal: what is wrong with one line and how to fix it."""
 
 
+class _NotJson(_BadLine):
+    """Internal: the line is not JSON at all (a cut-off last line may be one)."""
+
+
 def _reject_constant(name: str) -> float:
     raise _BadLine(f"{name} is not a number; write a finite number (or leave the optional field out)")
 
 
-def _finite(d: dict, key: str, *, optional: bool = False, positive: bool = False) -> float | None:
+def _number(d: dict, key: str, *, optional: bool = False, label: str | None = None) -> float | None:
+    """``d[key]`` as a finite float (None when optional and absent); ``label`` names it in messages."""
+    label = label or f"field '{key}'"
     if key not in d or d[key] is None:
         if optional:
             return None
         raise _BadLine(f"missing field '{key}'; add it (units are in the name)")
     value = d[key]
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise _BadLine(f"field '{key}' must be a number, got {json.dumps(value)}")
-    value = float(value)
+        raise _BadLine(f"{label} must be a number, got {_show(value)}")
+    try:
+        value = float(value)
+    except OverflowError:
+        raise _BadLine(
+            f"{label} is {_show(value)}, too large for a number; write the value in SI units "
+            "(is the line corrupted?)"
+        ) from None
     if not math.isfinite(value):
-        raise _BadLine(f"field '{key}' must be finite")
-    if positive and not value > 0.0:
+        raise _BadLine(f"{label} must be finite")
+    return value
+
+
+def _finite(d: dict, key: str, *, optional: bool = False, positive: bool = False) -> float | None:
+    value = _number(d, key, optional=optional)
+    if value is not None and positive and not value > 0.0:
         raise _BadLine(f"field '{key}' must be > 0, got {value!r}")
     return value
 
 
-def _integer(d: dict, key: str, *, optional: bool = False) -> int | None:
+def _within(key: str, value: float | None, bounds: tuple[float, float], unit: str, why: str) -> float | None:
+    """``value`` if it lies in ``bounds`` (inclusive), else a _BadLine saying why it must."""
+    if value is None:
+        return None
+    lo, hi = bounds
+    if value <= 0.0 and lo > 0.0:
+        raise _BadLine(f"field '{key}' must be > 0, got {value!r}")
+    if not lo <= value <= hi:
+        raise _BadLine(f"field '{key}' is {value!r}, outside {lo:g}..{hi:g} {unit}: {why}")
+    return value
+
+
+_WHY_SIGMA_LENGTH = (
+    "no sensor resolves less than 1 µm, and a σ above 1 km says nothing at a robot's scale; "
+    "write the measurement's real standard deviation in metres"
+)
+_WHY_SIGMA_ANGLE = (
+    "no sensor resolves less than 1 µrad, and a σ above 2π (a full turn) says nothing about an angle; "
+    "write the real standard deviation in radians (degrees written as radians?)"
+)
+_WHY_RANGE = "no landmark sensor measures a range below 1 µm or beyond 10 km; write the range in metres"
+
+
+def _sigma_length(d: dict, key: str, *, optional: bool = False) -> float | None:
+    return _within(key, _number(d, key, optional=optional), SIGMA_LENGTH_M, "m", _WHY_SIGMA_LENGTH)
+
+
+def _sigma_angle(d: dict, key: str, *, optional: bool = False) -> float | None:
+    return _within(key, _number(d, key, optional=optional), SIGMA_ANGLE_RAD, "rad", _WHY_SIGMA_ANGLE)
+
+
+def _angle(d: dict, key: str, *, optional: bool = False) -> float | None:
+    """An angle in [-π, π]."""
+    value = _number(d, key, optional=optional)
+    if value is not None and abs(value) > math.pi:
+        raise _BadLine(
+            f"field '{key}' is {value!r} rad, outside [-π, π]: degrees written as radians? "
+            "write radians and wrap the angle into [-π, π]"
+        )
+    return value
+
+
+def _integer(d: dict, key: str, *, optional: bool = False, id_range: bool = False) -> int | None:
     if key not in d or d[key] is None:
         if optional:
             return None
         raise _BadLine(f"missing field '{key}'")
     value = d[key]
     if isinstance(value, bool) or not isinstance(value, int):
-        raise _BadLine(f"field '{key}' must be an integer, got {json.dumps(value)}")
+        raise _BadLine(f"field '{key}' must be an integer, got {_show(value)}")
+    if id_range and not 0 <= value <= MAX_ID:
+        raise _BadLine(
+            f"field '{key}' is {_show(value)}, outside 0..2^56-1: ids are integers 0 ≤ id < 2^56 "
+            "(a GTSAM key holds a 56-bit index); renumber the landmarks"
+        )
     return value
+
+
+def _show(value: Any) -> str:
+    """A JSON value for a message, shortened (a 400-digit number or a long list stays readable)."""
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10**30:
+        return f"an integer of {len(str(abs(value)))} digits"
+    try:
+        text = json.dumps(value)
+    except (RecursionError, ValueError):  # nested about as deeply as json.loads allows
+        return "a deeply nested " + ("list" if isinstance(value, list) else "object")
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _free_form(value: Any, what: str) -> None:
+    """A header object's free-form content: nested at most MAX_NESTING deep, numbers finite."""
+    stack = [(value, 1)]
+    while stack:
+        v, depth = stack.pop()
+        if depth > MAX_NESTING:
+            raise _BadLine(
+                f"header field '{what}' is nested more than {MAX_NESTING} levels deep; "
+                "describe the hardware in a flat object (see docs/log-format.md)"
+            )
+        if isinstance(v, dict):
+            stack.extend((x, depth + 1) for x in v.values())
+        elif isinstance(v, list):
+            stack.extend((x, depth + 1) for x in v)
+        elif isinstance(v, float) and not math.isfinite(v):
+            raise _BadLine(
+                f"header field '{what}' holds a number too large for a float (it reads as infinity); "
+                "write a finite number"
+            )
 
 
 def _object(d: dict, key: str, required_keys: tuple[str, ...] = ()) -> dict:
@@ -366,13 +536,14 @@ def _object(d: dict, key: str, required_keys: tuple[str, ...] = ()) -> dict:
     for k in required_keys:
         if k not in value:
             raise _BadLine(f"header field '{key}' lacks '{k}'; see docs/log-format.md")
+    _free_form(value, key)
     return value
 
 
 def _vector3(value: Any, what: str) -> tuple[float, float, float]:
     if not (isinstance(value, list) and len(value) == 3):
         raise _BadLine(f"{what} must be a list of 3 numbers")
-    return tuple(_finite({"v": v}, "v") for v in value)  # type: ignore[return-value]
+    return tuple(_number({"v": v}, "v", label=f"each entry of {what}") for v in value)  # type: ignore[return-value]
 
 
 def _check_fields(d: dict, allowed: Iterable[str], kind: str) -> None:
@@ -384,21 +555,33 @@ def _check_fields(d: dict, allowed: Iterable[str], kind: str) -> None:
         )
 
 
-def _paired(d: dict, value_key: str, sigma_key: str) -> tuple[float | None, float | None]:
-    value = _finite(d, value_key, optional=True)
-    sigma = _finite(d, sigma_key, optional=True, positive=True)
+def _paired(value: float | None, sigma: float | None, value_key: str, sigma_key: str) -> None:
     if (value is None) != (sigma is None):
         raise _BadLine(f"'{value_key}' and '{sigma_key}' go together: give both or neither")
-    return value, sigma
 
 
 def _covariance(value: Any) -> Matrix3:
     if not (isinstance(value, list) and len(value) == 3):
         raise _BadLine("'covariance' must be a 3×3 list of lists over (dx, dy, dtheta)")
     rows = tuple(_vector3(row, "each covariance row") for row in value)
+    largest = max(abs(v) for row in rows for v in row)
+    if largest > MAX_POSITION_VARIANCE_M2:
+        raise _BadLine(
+            f"'covariance' holds {largest!r}, above {MAX_POSITION_VARIANCE_M2:g}: variances are at most "
+            f"{MAX_POSITION_VARIANCE_M2:g} m² for dx, dy (σ of 1 km) and {MAX_HEADING_VARIANCE_RAD2:.4g} rad² "
+            "for dtheta (σ of a full turn); write variances in m² and rad²"
+        )
     m = np.array(rows)
     if not np.allclose(m, m.T, rtol=1e-9, atol=1e-15):
         raise _BadLine("'covariance' must be symmetric")
+    for i, name, hi, unit in ((0, "dx", MAX_POSITION_VARIANCE_M2, "m²"), (1, "dy", MAX_POSITION_VARIANCE_M2, "m²"),
+                              (2, "dtheta", MAX_HEADING_VARIANCE_RAD2, "rad²")):
+        if m[i, i] > hi:
+            raise _BadLine(
+                f"'covariance' gives {name} a variance of {m[i, i]!r} {unit}, above {hi:.4g} "
+                f"(σ of {'1 km' if i < 2 else 'a full turn'}): such an increment says nothing; "
+                "write the real variance (degrees written as radians?)"
+            )
     try:
         np.linalg.cholesky(m)
     except np.linalg.LinAlgError:
@@ -406,7 +589,35 @@ def _covariance(value: Any) -> Matrix3:
             "'covariance' must be positive definite (every motion has some uncertainty; "
             "put a small variance on each diagonal entry)"
         ) from None
+    smallest = float(np.linalg.eigvalsh(m)[0])
+    if smallest < MIN_COVARIANCE_EIGENVALUE:
+        raise _BadLine(
+            f"'covariance' is nearly singular: its smallest eigenvalue {smallest:.3g} is below "
+            f"{MIN_COVARIANCE_EIGENVALUE:g} (a σ of 1 µm or 1 µrad in some direction); no odometry is that "
+            "certain and the solvers cannot invert it — put a realistic variance on each diagonal entry"
+        )
     return rows  # type: ignore[return-value]
+
+
+def _sensor_limit(sensor: dict, key: str) -> float | None:
+    if key not in sensor or sensor[key] is None:
+        return None
+    value = sensor[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+        raise _BadLine(
+            f"header field 'sensor.{key}' must be a number of metres ≥ 0, got {_show(value)}; "
+            "it bounds the ranges the sensor reports (leave it out if there is no limit)"
+        )
+    return float(value)
+
+
+def sensor_range_limits(header: Header) -> tuple[float | None, float | None]:
+    """The header sensor's ``(min_range_m, max_range_m)``; None where the header has none."""
+    sensor = header.sensor if isinstance(header.sensor, dict) else {}
+    try:
+        return _sensor_limit(sensor, "min_range_m"), _sensor_limit(sensor, "max_range_m")
+    except _BadLine as bad:
+        raise FgslamError(str(bad)) from None
 
 
 def parse_header(d: dict) -> Header:
@@ -416,9 +627,13 @@ def parse_header(d: dict) -> Header:
             "is this an fgslam run log?"
         )
     version = d.get("version")
+    if isinstance(version, bool) or not isinstance(version, int):
+        raise _BadLine(
+            f"header field 'version' must be the integer {FORMAT_VERSION}, got {_show(version)}"
+        )
     if version != FORMAT_VERSION:
         raise _BadLine(
-            f"format version {version!r} is not supported; this fgslam reads version "
+            f"format version {_show(version)} is not supported; this fgslam reads version "
             f"{FORMAT_VERSION} (upgrade fgslam to read newer logs)"
         )
     _check_fields(d, ("format", "version", "units", "start", "robot", "sensor", "noise", "source"), "header")
@@ -428,12 +643,23 @@ def parse_header(d: dict) -> Header:
     sigma = _vector3(start["sigma"], "start.sigma")
     if min(sigma) <= 0.0:
         raise _BadLine("start.sigma must be > 0 (a tiny value such as 1e-6 pins the start pose)")
+    for value, (lo, hi), unit in zip(sigma, (SIGMA_LENGTH_M, SIGMA_LENGTH_M, SIGMA_ANGLE_RAD), ("m", "m", "rad")):
+        if not lo <= value <= hi:
+            raise _BadLine(
+                f"start.sigma {list(sigma)!r} is outside {SIGMA_LENGTH_M[0]:g}..{SIGMA_LENGTH_M[1]:g} m for x, y "
+                f"and {SIGMA_ANGLE_RAD[0]:g}..{SIGMA_ANGLE_RAD[1]:.4g} rad for theta; 1e-6 pins the start pose, "
+                "a larger σ says how well it is known"
+            )
+    sensor = _object(d, "sensor", ("kind",))
+    low, high = _sensor_limit(sensor, "min_range_m"), _sensor_limit(sensor, "max_range_m")
+    if low is not None and high is not None and not low < high:
+        raise _BadLine(f"header field 'sensor.min_range_m' ({low!r}) must be below 'sensor.max_range_m' ({high!r})")
     return Header(
         stamp_s=_finite(start, "stamp_s"),  # type: ignore[arg-type]
         start_pose=_vector3(start["pose"], "start.pose"),
         start_sigma=sigma,
         robot=_object(d, "robot", ("name",)),
-        sensor=_object(d, "sensor", ("kind",)),
+        sensor=sensor,
         noise=_object(d, "noise", ("odometry", "observation")),
         source=_object(d, "source") if "source" in d else {},
         version=version,
@@ -442,10 +668,15 @@ def parse_header(d: dict) -> Header:
 
 def parse_record(d: dict) -> Record:
     kind = d.get("type")
-    cls = _CLASS_OF.get(kind)  # type: ignore[arg-type]
+    if not isinstance(kind, str):
+        raise _BadLine(
+            f"field 'type' must be a string naming the record type, got {_show(kind)}; "
+            f"expected one of {', '.join(sorted(_CLASS_OF))}"
+        )
+    cls = _CLASS_OF.get(kind)
     if cls is None:
         raise _BadLine(
-            f"unknown record type {json.dumps(kind)}; expected one of {', '.join(sorted(_CLASS_OF))}"
+            f"unknown record type {_show(kind)}; expected one of {', '.join(sorted(_CLASS_OF))}"
         )
     _check_fields(d, cls.__dataclass_fields__, kind)
     if cls is Odometry:
@@ -466,29 +697,34 @@ def parse_record(d: dict) -> Record:
     if cls is Observation:
         if "landmark_id" not in d:
             raise _BadLine("missing field 'landmark_id' (an integer, or null when unknown)")
-        height, sigma_height = _paired(d, "height_m", "sigma_height_m")
-        yaw, sigma_yaw = _paired(d, "tag_yaw_rad", "sigma_tag_yaw_rad")
-        bearing, sigma_bearing = _paired(d, "bearing_rad", "sigma_bearing_rad")
+        height, sigma_height = _finite(d, "height_m", optional=True), _sigma_length(d, "sigma_height_m", optional=True)
+        _paired(height, sigma_height, "height_m", "sigma_height_m")
+        yaw, sigma_yaw = _angle(d, "tag_yaw_rad", optional=True), _sigma_angle(d, "sigma_tag_yaw_rad", optional=True)
+        _paired(yaw, sigma_yaw, "tag_yaw_rad", "sigma_tag_yaw_rad")
+        bearing, sigma_bearing = _angle(d, "bearing_rad", optional=True), _sigma_angle(d, "sigma_bearing_rad", optional=True)
+        _paired(bearing, sigma_bearing, "bearing_rad", "sigma_bearing_rad")
         if bearing is None and yaw is not None:
             raise _BadLine("a range-only observation (no 'bearing_rad') cannot have a tag yaw")
         return Observation(
             stamp_s=_finite(d, "stamp_s"),
-            landmark_id=_integer(d, "landmark_id", optional=True),
-            range_m=_finite(d, "range_m", positive=True),
+            landmark_id=_integer(d, "landmark_id", optional=True, id_range=True),
+            range_m=_within("range_m", _number(d, "range_m"), RANGE_M, "m", _WHY_RANGE),
             bearing_rad=bearing,
-            sigma_range_m=_finite(d, "sigma_range_m", positive=True),
+            sigma_range_m=_sigma_length(d, "sigma_range_m"),
             sigma_bearing_rad=sigma_bearing,
             height_m=height,
             sigma_height_m=sigma_height,
             tag_yaw_rad=yaw,
             sigma_tag_yaw_rad=sigma_yaw,
-            truth_landmark_id=_integer(d, "truth_landmark_id", optional=True),
+            truth_landmark_id=_integer(d, "truth_landmark_id", optional=True, id_range=True),
         )  # type: ignore[arg-type]
     if cls is LiveStep:
         index = _integer(d, "pose_index")
         latency = _finite(d, "latency_s")
-        if index < 0 or latency < 0:
+        if index < 0 or latency < 0:  # type: ignore[operator]
             raise _BadLine("'pose_index' and 'latency_s' must be >= 0")
+        if index > MAX_ID:  # type: ignore[operator]
+            raise _BadLine(f"'pose_index' is {_show(index)}, above 2^56-1 (a GTSAM key holds a 56-bit index)")
         return LiveStep(stamp_s=_finite(d, "stamp_s"), pose_index=index, latency_s=latency)  # type: ignore[arg-type]
     if cls is TruthPose:
         return TruthPose(
@@ -498,7 +734,7 @@ def parse_record(d: dict) -> Record:
             theta_rad=_finite(d, "theta_rad"),
         )  # type: ignore[arg-type]
     return TruthLandmark(
-        landmark_id=_integer(d, "landmark_id"),
+        landmark_id=_integer(d, "landmark_id", id_range=True),
         x_m=_finite(d, "x_m"),
         y_m=_finite(d, "y_m"),
         height_m=_finite(d, "height_m", optional=True),
@@ -506,53 +742,116 @@ def parse_record(d: dict) -> Record:
     )  # type: ignore[arg-type]
 
 
+def _outside_sensor(obs: Observation, low: float | None, high: float | None) -> tuple[str, str] | None:
+    """(reason, message) when the sensor cannot have measured ``obs.range_m``, else None."""
+    slack = SENSOR_LIMIT_SIGMAS * obs.sigma_range_m
+    if low is not None and obs.range_m < low - min(slack, 0.5 * low):
+        return (
+            "with range_m below the sensor's min_range_m",
+            f"range_m {obs.range_m!r} is below the header's sensor.min_range_m {low!r} by more than "
+            f"{SENSOR_LIMIT_SIGMAS:g} σ ({obs.sigma_range_m!r} m) or half the minimum: the sensor cannot have "
+            "measured it; the observation is left out (fix the front-end, or the header's limit if it is wrong)",
+        )
+    if high is not None and obs.range_m > high + slack:
+        return (
+            "with range_m above the sensor's max_range_m",
+            f"range_m {obs.range_m!r} is above the header's sensor.max_range_m {high!r} by more than "
+            f"{SENSOR_LIMIT_SIGMAS:g} σ ({obs.sigma_range_m!r} m): the sensor cannot have measured it; "
+            "the observation is left out (fix the front-end, or the header's limit if it is wrong)",
+        )
+    return None
+
+
+def _decode(raw: bytes, number: int) -> str:
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        message = (
+            f"not UTF-8 text: byte 0x{raw[exc.start]:02x} at column {exc.start + 1} ({exc.reason}); "
+            "a run log is UTF-8 — was the file damaged, or is this not a run log?"
+        )
+        try:  # complete JSON apart from the bad byte: an error, never a cut-off line
+            json.loads(raw.decode("utf-8", errors="replace"))
+        except (ValueError, RecursionError):
+            raise _NotJson(message) from None
+        raise _BadLine(message) from None
+    if number == 1 and text.startswith("\ufeff"):
+        raise _BadLine("the file starts with a byte-order mark (BOM); save it as UTF-8 without BOM")
+    return text
+
+
 def _loads(text: str) -> dict:
+    if not text.strip():
+        raise _NotJson("empty line; remove it (every line must be one JSON object)")
     try:
         d = json.loads(text, parse_constant=_reject_constant)
     except json.JSONDecodeError as exc:
-        raise _BadLine(f"not valid JSON ({exc.msg} at column {exc.colno}); each line must be one JSON object") from None
+        raise _NotJson(
+            f"not valid JSON ({exc.msg} at column {exc.colno}); each line must be one JSON object"
+        ) from None
+    except RecursionError:
+        raise _BadLine(
+            "JSON nested too deeply to read (arrays or objects inside each other about a thousand levels "
+            "deep); no field of a run log nests like that — is the line corrupted?"
+        ) from None
+    except ValueError as exc:
+        if "digits" not in str(exc):
+            raise _BadLine(f"not valid JSON ({exc}); each line must be one JSON object") from None
+        raise _BadLine(  # Python's limit on the digits of an integer
+            f"an integer with more than {sys.get_int_max_str_digits()} digits, more than Python reads; "
+            "no field of a run log needs one — is the line corrupted?"
+        ) from None
     if not isinstance(d, dict):
         raise _BadLine("each line must be one JSON object {...}")
     return d
 
 
-def _lines(f: IO[str]) -> Iterator[tuple[int, str, bool]]:
-    """Yield (line number, text without newline, ended with a newline)."""
-    for number, raw in enumerate(f, start=1):
-        ended = raw.endswith("\n")
-        yield number, raw.rstrip("\r\n"), ended
+def _lines(data: bytes) -> list[tuple[int, bytes, bool]]:
+    """(line number, bytes without the line ending, whether a newline ended it)."""
+    parts = data.split(b"\n")
+    last_ended = parts[-1] == b""
+    if last_ended:
+        parts.pop()
+    count = len(parts)
+    return [
+        (number, raw[:-1] if raw.endswith(b"\r") else raw, number < count or last_ended)
+        for number, raw in enumerate(parts, start=1)
+    ]
 
 
 def read_log(path: str | os.PathLike[str]) -> RunLog:
     """Read and validate a run log.
 
     Raises :class:`LogFormatError` at the first bad line, carrying the records before it
-    in ``partial``. A last line without a newline that does not parse (a recording cut
-    off mid-line) is dropped and reported in :attr:`RunLog.truncated` instead.
+    in ``partial``. A last line without a newline that is not valid JSON (a recording cut
+    off mid-line) is dropped and reported in :attr:`RunLog.truncated` instead; a complete
+    JSON object on that line is checked like any other. Observations the header's sensor
+    cannot have made (range outside its limits by more than :data:`SENSOR_LIMIT_SIGMAS` σ,
+    or below half its minimum) are left out of the records and listed in
+    :attr:`RunLog.rejected`.
     """
     path = os.fspath(path)
     try:
-        f = open(path, encoding="utf-8")
+        with open(path, "rb") as f:
+            data = f.read()
     except OSError as exc:
         raise FgslamError(f"{path}: cannot open the log ({exc.strerror})") from None
-    header: Header | None = None
-    records: list[Record] = []
-    last_stamp = -math.inf
-    truncated: str | None = None
-    with f:
-        try:
-            lines = list(_lines(f))
-        except UnicodeDecodeError as exc:
-            raise LogFormatError(path, 1, f"not UTF-8 text ({exc.reason}); is this a run log?") from None
+    lines = _lines(data)
+    del data
     if not lines:
         raise LogFormatError(path, 1, "the file is empty; a run log starts with a header line")
-    for number, text, ended in lines:
+    header: Header | None = None
+    records: list[Record] = []
+    rejected: list[Rejected] = []
+    limits: tuple[float | None, float | None] = (None, None)
+    last_stamp = -math.inf
+    truncated: str | None = None
+    for number, raw, ended in lines:
         try:
-            if not text.strip():
-                raise _BadLine("empty line; remove it (every line must be one JSON object)")
-            d = _loads(text)
+            d = _loads(_decode(raw, number))
             if header is None:
                 header = parse_header(d)
+                limits = sensor_range_limits(header)
                 last_stamp = header.stamp_s
                 continue
             if d.get("type") == "header":
@@ -566,19 +865,24 @@ def read_log(path: str | os.PathLike[str]) -> RunLog:
                         "records must be written in time order"
                     )
                 last_stamp = stamp
+            if isinstance(record, Observation):
+                outside = _outside_sensor(record, *limits)
+                if outside is not None:
+                    reason, message = outside
+                    rejected.append(Rejected(number, reason, f"{path}:{number}: {message}", record))
+                    continue
             records.append(record)
         except _BadLine as bad:
-            is_last = number == len(lines)
-            if is_last and not ended and header is not None:
+            if isinstance(bad, _NotJson) and number == len(lines) and not ended and header is not None:
                 truncated = (
                     f"{path}:{number}: the last line is cut off (recording interrupted?); "
                     f"using the {number - 1} complete lines before it"
                 )
                 break
-            partial = None if header is None else RunLog(path, header, tuple(records))
+            partial = None if header is None else RunLog(path, header, tuple(records), None, tuple(rejected))
             raise LogFormatError(path, number, str(bad), partial) from None
     assert header is not None
-    return RunLog(path, header, tuple(records), truncated)
+    return RunLog(path, header, tuple(records), truncated, tuple(rejected))
 
 
 def as_matrix3(m: Any) -> Matrix3:

@@ -11,6 +11,10 @@ from hypothesis import strategies as st
 
 from slamio.errors import FgslamError
 from slamio.log import (
+    MAX_ID,
+    RANGE_M,
+    SIGMA_ANGLE_RAD,
+    SIGMA_LENGTH_M,
     Header,
     LogFormatError,
     Observation,
@@ -25,8 +29,13 @@ from slamio.log import (
 )
 
 finite = st.floats(allow_nan=False, allow_infinity=False, width=64)
-positive = st.floats(min_value=1e-12, max_value=1e6, allow_nan=False)
 small = st.floats(min_value=-1e3, max_value=1e3, allow_nan=False)
+# Within the reader's bounds (slamio.log, docs/log-format.md "Bounds"), edges included.
+sigma_m = st.one_of(st.floats(min_value=SIGMA_LENGTH_M[0], max_value=SIGMA_LENGTH_M[1]), st.sampled_from(SIGMA_LENGTH_M))
+sigma_rad = st.one_of(st.floats(min_value=SIGMA_ANGLE_RAD[0], max_value=SIGMA_ANGLE_RAD[1]), st.sampled_from(SIGMA_ANGLE_RAD))
+range_m = st.one_of(st.floats(min_value=RANGE_M[0], max_value=RANGE_M[1]), st.sampled_from(RANGE_M))
+angle = st.one_of(st.floats(min_value=-math.pi, max_value=math.pi), st.sampled_from([-math.pi, math.pi]))
+landmark_id = st.one_of(st.integers(0, 10**9), st.just(MAX_ID))
 json_scalar = st.one_of(st.none(), st.booleans(), st.integers(-(2**53), 2**53), finite, st.text(max_size=8))
 json_object = st.dictionaries(st.text(max_size=6), json_scalar, max_size=3)
 
@@ -36,7 +45,7 @@ def headers(draw):
     return Header(
         stamp_s=draw(small),
         start_pose=(draw(small), draw(small), draw(small)),
-        start_sigma=(draw(positive), draw(positive), draw(positive)),
+        start_sigma=(draw(sigma_m), draw(sigma_m), draw(sigma_rad)),
         robot={"name": draw(st.text(max_size=10)), **draw(json_object)},
         sensor={"kind": "range-bearing", **draw(json_object)},
         noise={"odometry": draw(json_object), "observation": draw(json_object)},
@@ -55,9 +64,9 @@ def covariances(draw):
     return as_matrix3(m)
 
 
-def optional_pair(draw):
+def optional_pair(draw, value, sigma):
     if draw(st.booleans()):
-        return draw(finite), draw(positive)
+        return draw(value), draw(sigma)
     return None, None
 
 
@@ -77,13 +86,13 @@ def records_in_time_order(draw, start_stamp_s):
                 )
             )
         elif kind == "observation":
-            height, sigma_height = optional_pair(draw)
-            yaw, sigma_yaw = optional_pair(draw)
+            height, sigma_height = optional_pair(draw, finite, sigma_m)
+            yaw, sigma_yaw = optional_pair(draw, angle, sigma_rad)
             out.append(
                 Observation(
-                    stamp, draw(st.one_of(st.none(), st.integers(0, 10**9))), draw(positive), draw(finite),
-                    draw(positive), draw(positive), height, sigma_height, yaw, sigma_yaw,
-                    draw(st.one_of(st.none(), st.integers(0, 10**9))),
+                    stamp, draw(st.one_of(st.none(), landmark_id)), draw(range_m), draw(angle),
+                    draw(sigma_m), draw(sigma_rad), height, sigma_height, yaw, sigma_yaw,
+                    draw(st.one_of(st.none(), landmark_id)),
                 )
             )
         elif kind == "truth_pose":
@@ -91,7 +100,7 @@ def records_in_time_order(draw, start_stamp_s):
         else:
             out.append(
                 TruthLandmark(
-                    draw(st.integers(0, 10**9)), draw(finite), draw(finite),
+                    draw(landmark_id), draw(finite), draw(finite),
                     draw(st.one_of(st.none(), finite)), draw(st.one_of(st.none(), finite)),
                 )
             )

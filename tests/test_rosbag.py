@@ -134,6 +134,7 @@ RANGE_ONLY = _reads_range_only()
 # hypothesis: small logs with every optional field
 finite = st.floats(min_value=-1e3, max_value=1e3, allow_nan=False, allow_infinity=False)
 positive = st.floats(min_value=1e-6, max_value=1e3, allow_nan=False)
+angle_sigma = st.floats(min_value=1e-6, max_value=2 * math.pi, allow_nan=False)  # the reader's bound
 text = st.text(alphabet=st.characters(codec="utf-8", exclude_categories=("Cs",)), max_size=8)
 scalar = st.one_of(st.none(), st.booleans(), st.integers(-(2**53), 2**53), finite, text)
 
@@ -144,7 +145,7 @@ def small_logs(draw):
     header = Header(
         stamp_s=stamp,
         start_pose=(draw(finite), draw(finite), draw(st.floats(-3.14, 3.14))),
-        start_sigma=(draw(positive), draw(positive), draw(positive)),
+        start_sigma=(draw(positive), draw(positive), draw(angle_sigma)),
         robot={"name": draw(text), **draw(st.dictionaries(text, scalar, max_size=2))},
         sensor={"kind": draw(text), "nested": draw(st.dictionaries(text, st.lists(scalar, max_size=3), max_size=2))},
         noise={"odometry": draw(st.dictionaries(text, scalar, max_size=2)), "observation": {}},
@@ -168,9 +169,9 @@ def small_logs(draw):
             records.append(Observation(
                 stamp, draw(st.one_of(st.none(), st.integers(0, 2**31 - 1))), draw(positive),
                 None if range_only else draw(st.floats(-3.14, 3.14)),
-                draw(positive), None if range_only else draw(positive),
+                draw(positive), None if range_only else draw(angle_sigma),
                 height_m=draw(finite) if height else None, sigma_height_m=draw(positive) if height else None,
-                tag_yaw_rad=draw(st.floats(-3.14, 3.14)) if yaw else None, sigma_tag_yaw_rad=draw(positive) if yaw else None,
+                tag_yaw_rad=draw(st.floats(-3.14, 3.14)) if yaw else None, sigma_tag_yaw_rad=draw(angle_sigma) if yaw else None,
                 truth_landmark_id=draw(st.one_of(st.none(), st.integers(0, 10**9))),
             ))
         elif kind == "truth_pose":
