@@ -705,10 +705,13 @@ TOP_LEVEL_KEYS = (
     "reference_poses_with_truth",
     "landmark_reference",
     "reference_landmarks",
+    "provenance",
 )
 METRIC_KEYS = (
     "ate_rmse_m",
     "ate_online_rmse_m",
+    "ate_aligned_rmse_m",
+    "ate_online_aligned_rmse_m",
     "final_pose_error_m",
     "rpe_trans_rmse_m",
     "rpe_heading_rmse_rad",

@@ -141,7 +141,7 @@ def draw_figure(results: dict[int, dict], path: str, names: list[str]) -> None:
     handles, labels = axes[0][0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=9)
     fig.suptitle("MRCLAM: final trajectories over Vicon (noise fitted on the other robots)")
-    fig.tight_layout(rect=(0, 0.05, 1, 1))
+    fig.tight_layout(rect=(0, 0.05, 1, 0.93))
     fig.savefig(path, dpi=90)
     print(f"wrote {path}")
 

@@ -14,7 +14,7 @@ import pytest
 from fgslam.cli import main
 from fgslam.compare import read_tum
 
-VERBS = ["sim", "run", "import", "validate", "detect", "record", "calibrate", "live"]
+VERBS = ["sim", "run", "import", "export", "validate", "check", "bench", "detect", "record", "calibrate", "live"]
 
 
 def test_console_script_help_lists_every_verb():

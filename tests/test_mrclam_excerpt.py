@@ -111,6 +111,14 @@ def test_calibrate_then_import_then_run_from_the_command_line(tmp_path, capsys):
     metrics = json.loads((tmp_path / "res" / "metrics.json").read_text())
     assert metrics["reference"] == "ground_truth"
     assert metrics["isam2"]["ate_aligned_rmse_m"] <= metrics["isam2"]["ate_rmse_m"] + 1e-12
+    # the same model applied at run time to a log imported without it
+    assert main(["run", logs[0], "--noise", str(noise), "--out", str(tmp_path / "res2"), "--no-report",
+                 "--estimators", "ekf,isam2"]) == 0
+    assert "applied the noise model" in capsys.readouterr().out
+    metrics = json.loads((tmp_path / "res2" / "metrics.json").read_text())
+    assert metrics["noise_model"] == str(noise) and len(metrics["provenance"]["log_sha256"]) == 64
+    assert main(["run", str(r1), "--noise", str(noise), "--out", str(tmp_path / "res3")]) == 1  # twice: refused
+    assert "already carries a fitted noise model" in capsys.readouterr().err
 
 
 def test_a_missing_noise_file_is_one_clear_line(tmp_path, capsys):

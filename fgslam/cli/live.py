@@ -1,4 +1,4 @@
-"""The ``fgslam live`` verb (wired into ``fgslam.cli``): iSAM2 in the loop on the robot.
+"""``fgslam live``: iSAM2 in the loop on the robot (or the simulated one), everything recorded.
 
 Exit status: 0 when the path was driven to its end, 2 when the robot was stopped early (bump,
 wheel drop, watchdog, no data, lost serial link; the log is kept and the reason printed),
@@ -15,9 +15,9 @@ import time
 
 import numpy as np
 
+from fgslam.cli.common import add_overwrite_option, check_new_file
+from fgslam.cli.progress import Progress
 from slamio.errors import FgslamError
-
-__all__ = ["add_live_parser", "cmd_live"]
 
 EXIT_STOPPED_EARLY = 2
 EXIT_INTERRUPTED = 130
@@ -31,7 +31,8 @@ paths: square or octagon (seed 004's, in its 10 ft arena: --side across flats, d
 1.83 m, centred at --centre, default 1.524,1.524), or a file of 'x_m, y_m' lines. The robot
 starts on the path's last corner facing the first (or at --start-pose): place it there.
 
-A terminal status line shows the pose with its standard deviations (iSAM2's marginal),
+A status line on stderr (on a terminal redrawn twice a second, else a line every 5 s) shows
+the pose with its standard deviations (iSAM2's marginal),
 the landmarks, iSAM2 latency and frames; --map-png
 rewrites a picture of the map every 2 s. Stop with Ctrl-C: the wheels stop first, then the
 log is closed. Bumps, wheel drops, a lost serial link and a hung loop stop the robot too.
@@ -55,7 +56,7 @@ def _floats(count: int):
     return parse
 
 
-def add_live_parser(verbs) -> argparse.ArgumentParser:
+def add_parser(verbs) -> argparse.ArgumentParser:
     from slamio.sim import ARENA_PATH_WIDTH_M, ARENA_SIDE_M
 
     live = verbs.add_parser("live", help="drive the Create on the iSAM2 pose with the camera in the loop; record it all",
@@ -73,7 +74,8 @@ def add_live_parser(verbs) -> argparse.ArgumentParser:
     live.add_argument("--camera", default=None, metavar="CAM.yaml", help="camera_info YAML (real camera)")
     live.add_argument("--frames", default="camera:0", help="frame source: camera:N or kinect:N (default camera:0)")
     live.add_argument("--tag-size", type=float, default=0.16, metavar="M", help="AprilTag size (default 0.16 m)")
-    live.add_argument("--out", required=True, metavar="LOG", help="run log to write")
+    live.add_argument("--out", required=True, metavar="LOG", help="run log to write; an existing one is kept")
+    add_overwrite_option(live, "an existing LOG")
     live.add_argument("--map-png", default=None, metavar="PNG", help="rewrite a map picture here every 2 s")
     live.add_argument("--baud", type=int, default=None)
     live.add_argument("--sim-time-scale", type=float, default=1.0, help="simulation: robot seconds per wall second")
@@ -92,41 +94,15 @@ def _waypoints(args) -> np.ndarray:
     return np.vstack([read_waypoints(args.path)] * max(1, args.laps))
 
 
-class StatusLine:
-    """One status line on stderr, at most twice a second (a new line each time when stderr
-    is not a terminal, every 5 s)."""
-
-    def __init__(self, stream=None):
-        self.stream = stream = sys.stderr if stream is None else stream
-        self.tty = stream.isatty()
-        self.period_s = 0.5 if self.tty else 5.0
-        self._last = 0.0
-        self._lock = threading.Lock()
-
-    def __call__(self, make_text) -> None:
-        """Show ``make_text()`` if a line is due (the text is only made then)."""
-        now = time.monotonic()
-        with self._lock:
-            if now - self._last < self.period_s:
-                return
-            self._last = now
-            text = make_text()
-            self.stream.write(("\r" + text + "\033[K") if self.tty else text + "\n")
-            self.stream.flush()
-
-    def end(self) -> None:
-        if self.tty:
-            self.stream.write("\n")
-
-
 def cmd_live(args: argparse.Namespace) -> int:
     from fgslam.live import LiveSettings, run_live, simulated_camera, start_pose_facing
     from slamio.create.link import CreateLink
 
+    check_new_file(args.out, overwrite=args.overwrite)  # before the robot moves: an existing log is kept
     waypoints = _waypoints(args)
     start_pose = tuple(args.start_pose) if args.start_pose else start_pose_facing(waypoints)
     settings = LiveSettings(speed_m_s=args.speed)
-    status = StatusLine()
+    status = Progress(unit="poses")
     last_map = [0.0]
 
     worst_ms = [0.0]
@@ -142,7 +118,7 @@ def cmd_live(args: argparse.Namespace) -> int:
                     f"iSAM2 {1e3 * latency_s:5.2f} ms (max {worst_ms[0]:5.2f})  "
                     f"frames {loop.frames_used} used, {loop.frames_skipped + loop.frames_dropped} dropped")
 
-        status(text)
+        status.status(index + 1, text)
         if args.map_png and time.monotonic() - last_map[0] > 2.0:
             from fgslam.report import plot_live_map
 
@@ -176,7 +152,7 @@ def cmd_live(args: argparse.Namespace) -> int:
                           settings=settings, truth=truth, truth_landmarks=truth_landmarks, clock=clock,
                           on_step=on_step)
     finally:
-        status.end()
+        status.close()
         if "link" in locals():
             link.close()
         if sim is not None:

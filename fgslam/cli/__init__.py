@@ -1,0 +1,88 @@
+"""The ``fgslam`` command line: one module per verb, one error path, one progress display.
+
+- ``fgslam.cli.<verb>`` (``sim``, ``run``, ``import_``, ``export``, ``validate``, ``check``,
+  ``bench``, ``record``, ``calibrate``, ``detect``, ``live``): ``add_parser(verbs)`` adds the
+  verb and its ``--help``; ``cmd_<verb>(args)`` does it and returns the exit status.
+- :mod:`fgslam.cli.common`: the one error path (:func:`~fgslam.cli.common.run_verb`: every
+  :class:`~slamio.errors.FgslamError` or :class:`OSError` becomes ``fgslam: error: <what,
+  where, how to fix it>`` and exit status 1), reading logs, and outputs that never replace
+  what the user has unless asked (``--overwrite``).
+- :mod:`fgslam.cli.progress`: the one progress display (tqdm).
+
+Verb modules import from ``common`` and ``progress`` only, never from this package's
+``__init__``: no import cycle.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Sequence
+
+from fgslam.cli import (
+    bench,
+    calibrate,
+    check,
+    detect,
+    export,
+    import_,
+    live,
+    record,
+    run,
+    sim,
+    validate,
+)
+from fgslam.cli.common import run_verb
+from fgslam.cli.estimators import ESTIMATOR_HELP
+
+__all__ = ["main", "build_parser", "ESTIMATOR_HELP", "VERBS"]
+
+DESCRIPTION = """\
+fgslam compares factor-graph smoothing (GTSAM iSAM2) against EKF-SLAM on the same
+2-D landmark run log: record or simulate a run, run every estimator on it, read the
+comparison.
+
+typical use:
+  fgslam sim arena-octagon --seed 1 --out run.jsonl
+  fgslam run run.jsonl --out results/
+"""
+
+#: The verb modules, in the order ``fgslam --help`` lists them.
+VERBS = (sim, run, import_, export, validate, check, bench, detect, record, calibrate, live)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="fgslam", description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--version", action="version", version=f"fgslam {_version()}")
+    verbs = parser.add_subparsers(dest="verb", metavar="VERB", required=True)
+    for module in VERBS:
+        module.add_parser(verbs)
+    return parser
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("fgslam")
+    except PackageNotFoundError:
+        return "unknown"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    args, extra = parser.parse_known_args(argv)
+    if extra:  # `import DATASET SOURCE --robot 2 OUT`: positionals after an option
+        if getattr(args, "takes_extra_paths", False) and not any(e.startswith("-") for e in extra):
+            args.paths.extend(extra)
+        else:
+            parser.error(f"unrecognized arguments: {' '.join(extra)}")
+    args.argv = argv
+    return run_verb(args.func, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,110 @@
+"""``fgslam bench``: Monte Carlo over seeded simulations, average NEES against its band."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+from pathlib import Path
+
+from fgslam.cli.common import ResultsFolder, add_overwrite_option, command_line
+from fgslam.cli.progress import Progress
+
+OWN_NAMES = ("montecarlo.json", "nees.png", "ate.png")
+
+
+def add_parser(verbs) -> argparse.ArgumentParser:
+    from slamio.sim import SCENARIOS
+
+    bench = verbs.add_parser(
+        "bench",
+        help="Monte Carlo: many seeded simulations, average NEES per step against its chi-square band",
+        description=(
+            "Simulate SCENARIO with seeds SEED..SEED+RUNS-1, run the estimators on each (in a process\n"
+            "pool, or on a Dask cluster), and report for each estimator the share of steps at which\n"
+            "the NEES averaged over the runs lies inside its 95 % chi-square band (N = 50: [2.36, 3.72]),\n"
+            "the ATE over the runs and the time (BLAS pinned to one thread in each worker).\n"
+            "Simulations have ground truth at every pose."
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    bench.add_argument("scenario", choices=SCENARIOS, metavar="SCENARIO", help=", ".join(SCENARIOS))
+    bench.add_argument("--runs", type=int, default=50, help="number of runs (default 50)")
+    bench.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
+    bench.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
+    bench.add_argument("--estimators", default="ekf,isam2", help="comma-separated (default ekf,isam2)")
+    bench.add_argument("--landmarks", type=int, default=200, help="landmarks of the grid scenario")
+    bench.add_argument("--laps", type=int, default=None, help="laps (default: the scenario's)")
+    bench.add_argument("--out", default=None, metavar="DIR",
+                       help="write montecarlo.json, nees.png, ate.png here (a new or empty folder, or an "
+                            "earlier bench's: its files are replaced)")
+    add_overwrite_option(bench, "fgslam's files in a --out folder that holds other files too")
+    bench.add_argument("--dask", default=None, metavar="ADDRESS",
+                       help="run on the Dask cluster at ADDRESS (needs the optional dask extra)")
+    bench.set_defaults(func=cmd_bench)
+    return bench
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from fgslam.montecarlo import dask_executor, monte_carlo
+
+    from fgslam.runner import ESTIMATORS
+    from slamio.errors import FgslamError
+
+    estimators = tuple(n.strip() for n in args.estimators.split(",") if n.strip())
+    unknown = [e for e in estimators if e not in ESTIMATORS]
+    if unknown or not estimators:
+        raise FgslamError(f"unknown estimator(s) {', '.join(unknown) or '(none given)'}; "
+                          f"choose from {', '.join(ESTIMATORS)} (comma-separated)")
+    if args.runs < 1:
+        raise FgslamError(f"--runs must be >= 1, got {args.runs}")
+    results = None
+    if args.out is not None:  # before the runs: nothing computed for nothing
+        results = ResultsFolder(args.out, overwrite=args.overwrite, verb="bench", own_names=OWN_NAMES).check()
+    with dask_executor(args.dask) if args.dask else contextlib.nullcontext() as executor, \
+            Progress(unit="runs") as progress:
+        progress(0, args.runs, "monte carlo")
+        result = monte_carlo(
+            args.scenario, args.runs, estimators=estimators, first_seed=args.seed, jobs=args.jobs,
+            landmarks=args.landmarks, laps=args.laps, executor=executor, progress=progress,
+        )
+    low, high = result.band
+    steps = len(next(iter(result.average_nees.values())))
+    scored = steps if result.scored_steps is None else int(np.count_nonzero(result.scored_steps))
+    judged = "" if scored == steps else f" ({scored} with truth in every run are judged)"
+    print(f"Monte Carlo: {args.scenario}, {args.runs} runs (seeds {args.seed}-{args.seed + args.runs - 1}), "
+          f"{steps} steps{judged}; 95 % band of the average NEES over {args.runs} runs: [{low:.3f}, {high:.3f}]")
+    header = f"{'estimator':<14}{'inside band':>12}{'above band':>12}{'mean NEES':>11}" \
+             f"{'ATE final m (median, max)':>28}{'time s (mean)':>15}"
+    print(header)
+    summary = {"scenario": args.scenario, "runs": args.runs, "first_seed": args.seed, "steps": steps,
+               "band": [low, high], "estimators": {}}
+    for name in estimators:
+        finals = np.array([r.ate_final_m[name] for r in result.runs])
+        times = np.array([r.time_s[name] for r in result.runs])
+        print(f"{name:<14}{100 * result.share_inside(name):11.1f}%{100 * result.share_above(name):11.1f}%"
+              f"{result.mean_nees(name):11.2f}"
+              f"{np.median(finals):14.4f}, {np.max(finals):.4f}{'':>4}{np.mean(times):13.3f}")
+        summary["estimators"][name] = {
+            "share_inside_band": result.share_inside(name),
+            "share_above_band": result.share_above(name),
+            "average_nees": [float(v) if np.isfinite(v) else None for v in result.average_nees[name]],
+            "ate_final_m": [float(v) for v in finals],
+            "ate_online_m": [float(r.ate_online_m[name]) for r in result.runs],
+            "time_s": [float(v) for v in times],
+        }
+    if results is not None:
+        from fgslam.report import write_monte_carlo_figures
+        from fgslam.runner import TIMING
+
+        summary["timing"] = TIMING["what"]
+        summary["blas_threads"] = TIMING["blas_threads"]
+        out = Path(args.out)
+        results.clear()
+        (out / "montecarlo.json").write_text(json.dumps(summary, indent=1) + "\n")
+        written = ["montecarlo.json"] + write_monte_carlo_figures(out, result)
+        results.finish(command=command_line(args, "bench"))
+        print(f"\nwrote {', '.join(written + ['manifest.json'])} to {out}/")
+    return 0

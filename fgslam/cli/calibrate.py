@@ -1,0 +1,120 @@
+"""``fgslam calibrate``: noise from measured trials (seed 001's method) or fitted on logs."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from fgslam.cli.common import add_overwrite_option, check_new_file, read, write_new_file
+from slamio.errors import FgslamError
+
+CALIBRATE_DESCRIPTION = """\
+Two ways to learn the noise:
+
+fgslam calibrate LOG.jsonl [LOG.jsonl ...] --out noise.json
+  Fit a noise model against the ground truth in run logs (motion capture, a simulator):
+  odometry lag, scale, turn per metre and variance rates; the camera's range model (range
+  or depth, scale, bias), bearing scale and bias, latency, sigmas that grow with range and
+  turn rate, and the outlier rate (slamio.noise_fit). Several logs are pooled. Use the file
+  on *other* runs: fgslam import mrclam SOURCE OUT --robot N --noise noise.json. Fit on logs
+  imported without --noise.
+
+fgslam calibrate TRIALS.csv [--out cal.json]
+  Compute motion and measurement noise from measured trials, the way seed 001 did: drive
+forward (and turn in place) many times, tape-measure where the robot really ended, and take
+the covariance of the errors. Prints the biases and standard deviations; --out writes the
+JSON that `fgslam record --calibration` puts in the log header and uses for the odometry
+covariances.
+
+TRIALS.csv columns (blank where a column does not apply, # starts a comment):
+  kind,command_distance_m,command_angle_rad,x_m,y_m,theta_rad,true_range_m,true_bearing_rad,range_m,bearing_rad
+  forward,0.5,0,0.497,0.004,0.012,,,,            drove 0.5 m, ended at x,y,theta (start frame)
+  rotate,0,1.5708,0.002,-0.001,1.553,,,,         turned 90 deg in place
+  sensor,,,,,,1.20,0.10,1.23,0.09                landmark truly at 1.20 m, 0.10 rad; read 1.23, 0.09
+data/calibration_trials_s001.csv is a (simulated) example.
+"""
+
+
+def add_parser(verbs) -> argparse.ArgumentParser:
+    """Add ``fgslam calibrate`` to the sub-parsers ``verbs``; returns its parser."""
+    p = verbs.add_parser(
+        "calibrate",
+        help="noise covariances from measured forward/rotate/sensor trials (seed 001's method)",
+        description=CALIBRATE_DESCRIPTION,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("trials", nargs="+", metavar="TRIALS.csv | LOG.jsonl",
+                   help="the measured trials (one .csv), or run logs with ground truth (.jsonl, one or more)")
+    p.add_argument("--out", default=None, metavar="FILE",
+                   help="write the calibration (trials) or noise model (logs) JSON here; an existing file is kept")
+    add_overwrite_option(p, "an existing --out FILE")
+    p.set_defaults(func=cmd_calibrate)
+    return p
+
+
+
+# --------------------------------------------------------------------------- handlers
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    logs = [p for p in args.trials if p.endswith(".jsonl")]
+    if logs:
+        return _calibrate_from_logs(args, logs)
+    if len(args.trials) != 1:
+        raise FgslamError(
+            f"calibrate takes one TRIALS.csv or one or more LOG.jsonl, got {' '.join(args.trials)}"
+        )
+    from slamio.create.calibrate import calibrate, read_trials
+
+    trials = args.trials[0]
+    if args.out:  # before the work: an existing file is kept unless --overwrite
+        check_new_file(args.out, overwrite=args.overwrite, example="calibration.json")
+    motion, sensor = read_trials(trials)
+    calibration = calibrate(motion, sensor, source=trials)
+    print(calibration.summary())
+    if args.out:
+        text = json.dumps(calibration.to_dict(), indent=2) + "\n"
+        write_new_file(Path(args.out), lambda tmp: Path(tmp).write_text(text, encoding="utf-8"),
+                       overwrite=args.overwrite)
+        print(f"wrote {args.out}")
+    return 0
+
+
+def _calibrate_from_logs(args: argparse.Namespace, paths: list[str]) -> int:
+    """``fgslam calibrate LOG.jsonl...``: fit a noise model against the logs' ground truth."""
+    from slamio.noise_fit import fit_noise_model
+    from slamio.noise_model import save_noise_model
+
+    others = [p for p in args.trials if not p.endswith(".jsonl")]
+    if others:
+        raise FgslamError(f"calibrate: mix of logs and other files ({' '.join(others)}); give only .jsonl logs")
+    if args.out:  # before the fit, so nothing is computed for nothing
+        check_new_file(args.out, overwrite=args.overwrite, example="noise.json")
+    model = fit_noise_model([read(p) for p in paths])
+    print(noise_model_summary(model))
+    if args.out:
+        write_new_file(Path(args.out), lambda tmp: save_noise_model(tmp, model, overwrite=True),
+                       overwrite=args.overwrite)
+        print(f"wrote {args.out}")
+    return 0
+
+
+def noise_model_summary(model) -> str:
+    """A few lines a person reads: the fitted model in the units people think in."""
+    o, z = model.odometry, model.observation
+    n = o.noise
+    return "\n".join([
+        f"noise model fitted on {len(model.fitted_on)} log(s): {', '.join(model.fitted_on)}",
+        f"odometry: lag {o.lag_s:.3f} s, forward scale {o.forward_scale:.4f}, turn scale {o.turn_scale:.4f}, "
+        f"turn per metre {o.turn_per_m_rad:+.4f} rad/m",
+        f"  sigma per sqrt(m): forward {n.forward_m2_per_m ** 0.5:.4f} m, sideways {n.lateral_m2_per_m ** 0.5:.4f} m, "
+        f"heading {n.heading_rad2_per_m ** 0.5:.4f} rad; per sqrt(rad) turned {n.heading_rad2_per_rad ** 0.5:.4f} rad; "
+        f"per sqrt(s): {n.forward_m2_per_s ** 0.5:.4f} m, {n.lateral_m2_per_s ** 0.5:.4f} m, {n.heading_rad2_per_s ** 0.5:.4f} rad",
+        f"camera: range is {'depth (r cos b)' if z.range_is_depth else 'Euclidean range'}, "
+        f"measured = {z.range_scale:.4f} x {z.range_bias_m:+.4f} m; bearing = {z.bearing_scale:.4f} b {z.bearing_bias_rad:+.4f} rad; "
+        f"latency {z.camera_latency_s:.3f} s",
+        f"  sigma range = hypot({z.range_sigma_m:.4f} m, {z.range_sigma_per_m:.4f} x range); "
+        f"sigma bearing = hypot({z.bearing_sigma_rad:.4f} rad, {z.bearing_sigma_s:.4f} s x turn rate); "
+        f"outliers {100 * z.outlier_rate:.2f} %",
+    ])

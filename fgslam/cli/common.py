@@ -1,0 +1,395 @@
+"""What every verb shares: the one error path, reading and writing logs, and outputs that
+never overwrite what the user has unless asked.
+
+Verb modules import from here (and from :mod:`fgslam.cli.progress`), never from the
+``fgslam.cli`` package itself, so there is no import cycle.
+
+Outputs
+-------
+- A single output file (a run log, a calibration, a noise model): :func:`check_new_file`
+  before any work — it refuses an existing file unless ``--overwrite``, a folder, and a
+  place that cannot be written (it tries: a probe file is created and removed) — then
+  :func:`write_new_file` writes it through a temporary file in the same folder and a rename,
+  so an interrupted write never leaves half a file where the old one was.
+- A results folder (``fgslam run --out DIR``, ``fgslam bench --out DIR``):
+  :class:`ResultsFolder`. It is checked before the run and filled after it; the files a run
+  wrote are listed in ``DIR/manifest.json``, and the next run into the same folder removes
+  exactly those first, so nothing stale from an older run remains.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import secrets
+import shlex
+import sys
+import tempfile
+from pathlib import Path
+from typing import Callable, Iterable
+
+from slamio.errors import FgslamError
+
+PROG = "fgslam"
+
+
+# --------------------------------------------------------------------------- the one error path
+
+
+def explain(error: BaseException) -> str:
+    """The message of a user error: what is wrong, where, and how to fix it."""
+    from slamio.log import LogFormatError
+
+    if isinstance(error, OSError) and not isinstance(error, FgslamError):
+        return _explain_os_error(error)
+    message = str(error)
+    if isinstance(error, LogFormatError) and error.partial is not None and error.line > 2:
+        message += (
+            f"\n  (the {error.line - 1} lines before it are valid; fix or delete line {error.line}, "
+            f"or keep only the good part: head -n {error.line - 1} {error.path} > good.jsonl)"
+        )
+    return message
+
+
+def _explain_os_error(error: OSError) -> str:
+    what = error.strerror or str(error) or type(error).__name__
+    if error.filename is None:
+        return what
+    where = f"{error.filename}" + (f" -> {error.filename2}" if error.filename2 is not None else "")
+    hint = {
+        "EACCES": "choose a place you can write to, or change its permissions",
+        "EPERM": "choose a place you can write to, or change its permissions",
+        "EROFS": "the file system is read-only: choose another place",
+        "ENOSPC": "free some space or choose another disk",
+        "EISDIR": "give a file name, not a folder",
+        "ENOTDIR": "a part of the path is a file, not a folder",
+        "ENOENT": "check the path",
+    }.get(_errno_name(error.errno), "")
+    return f"{where}: {what}" + (f" ({hint})" if hint else "")
+
+
+def _errno_name(number: int | None) -> str:
+    import errno
+
+    return errno.errorcode.get(number, "") if number is not None else ""
+
+
+def fail(error: BaseException, stream=None) -> int:
+    """Print a user error as ``fgslam: error: ...`` on stderr and return exit status 1.
+
+    The only place a verb's :class:`FgslamError` or :class:`OSError` (a file that does not
+    open, a folder that cannot be written, a full disk) becomes a message.
+    """
+    stream = sys.stderr if stream is None else stream
+    if isinstance(error, BrokenPipeError):  # `fgslam ... | head`: the reader left; say nothing
+        try:
+            sys.stdout = open(os.devnull, "w")
+        except OSError:
+            pass
+        return 1
+    print(f"{PROG}: error: {explain(error)}", file=stream)
+    return 1
+
+
+def run_verb(func: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> int:
+    """Run a verb's handler: user errors become one line and exit 1, Ctrl-C exit 130."""
+    try:
+        return func(args)
+    except (FgslamError, OSError) as error:
+        return fail(error)
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return 130
+
+
+def command_line(args: argparse.Namespace, default: str = "") -> str:
+    """The command as typed (``fgslam sim ...``), for the provenance in headers and manifests.
+
+    ``--overwrite`` is left out: it says what happens to an older file, not what is in this
+    one, so ``make data`` (which needs it) gives the same bytes as the first ``fgslam sim``.
+    """
+    argv = getattr(args, "argv", None)
+    if argv is None:
+        return f"{PROG} {default}".strip()
+    return f"{PROG} " + " ".join(shlex.quote(a) for a in argv if a != "--overwrite")
+
+
+def add_overwrite_option(parser: argparse.ArgumentParser, what: str = "an existing --out file") -> None:
+    parser.add_argument("--overwrite", action="store_true", help=f"replace {what} (default: refuse, keep it)")
+
+
+# --------------------------------------------------------------------------- logs
+
+
+def summary(log) -> str:
+    """One line on what a run log holds."""
+    from slamio.log import Observation
+
+    steps = log.steps()
+    observations = [r for r in log.records if isinstance(r, Observation)]
+    ids = {o.landmark_id for o in observations if o.landmark_id is not None}
+    unknown = sum(o.landmark_id is None for o in observations)
+    duration = steps[-1].stamp_s - steps[0].stamp_s
+    with_truth = sum(s.truth is not None for s in steps)
+    surveyed = len(log.truth_landmarks())
+    if with_truth == len(steps):
+        truth = "ground truth for every pose"
+    elif with_truth:
+        truth = f"ground truth for {with_truth} of {len(steps)} poses"
+    elif surveyed:
+        truth = f"no pose truth, {surveyed} surveyed landmarks"
+    else:
+        truth = "no ground truth"
+    return (
+        f"{len(steps)} poses over {duration:.1f} s, {len(observations)} observations of "
+        f"{len(ids)} landmarks" + (f" (+{unknown} with unknown id)" if unknown else "") + f", {truth}"
+    )
+
+
+def read(path: str):
+    """Read a run log, warning on stderr when its last line was cut off."""
+    from slamio.log import read_log
+
+    log = read_log(path)
+    if log.truncated:
+        print(f"{PROG}: warning: {log.truncated}", file=sys.stderr)
+    rejected = log.rejection_summary() if hasattr(log, "rejection_summary") else None
+    if rejected:
+        print(f"{PROG}: warning: {rejected}", file=sys.stderr)
+    return log
+
+
+def write_run_log(out_path: str | os.PathLike, header, records, *, overwrite: bool = False, option: str = "--out") -> int:
+    """Write a made or imported log (never over an existing file unless ``overwrite``) and
+    say what is in it (from memory, not re-read)."""
+    from slamio.log import RunLog, write_log
+
+    records = tuple(records)
+    out = Path(out_path)
+    write_new_file(out, lambda tmp: write_log(tmp, header, records), overwrite=overwrite, option=option)
+    print(f"wrote {out}: {summary(RunLog(str(out), header, records))}")
+    return 0
+
+
+# --------------------------------------------------------------------------- single output files
+
+
+def check_new_file(path: str | os.PathLike, *, overwrite: bool = False, option: str = "--out",
+                   example: str = "run.jsonl") -> Path:
+    """Check, before any work, that ``path`` can be written as a new file.
+
+    Refuses (:class:`FgslamError`, one line naming the file and the fix) an existing file
+    unless ``overwrite``, an existing folder, and a place that cannot be written to. Creates
+    nothing: the missing parent folders are made when the file is written. Returns ``path``.
+    """
+    out = Path(path)
+    if out.is_dir():
+        raise FgslamError(f"{option} {out} is a folder; give a file name such as {out / example}")
+    if out.exists() or out.is_symlink():
+        if not overwrite:
+            raise FgslamError(
+                f"{option} {out} exists ({_describe_file(out)}); give another name, or add --overwrite to replace it"
+            )
+    probe_writable(out.parent, option=option, target=out)
+    return out
+
+
+def _describe_file(path: Path) -> str:
+    try:
+        size = path.stat().st_size
+    except OSError:
+        return "unreadable"
+    if path.suffix == ".jsonl" and size < 1 << 30:
+        try:
+            with open(path, "rb") as f:
+                lines = sum(chunk.count(b"\n") for chunk in iter(lambda: f.read(1 << 20), b""))
+            return f"{lines} lines"
+        except OSError:
+            pass
+    return f"{size} bytes"
+
+
+def probe_writable(folder: Path, *, option: str = "--out", target: Path | None = None) -> None:
+    """Check that files can be made in ``folder`` (or, while it does not exist, in its nearest
+    existing parent, where it will be made): create a probe file there and remove it — the
+    only test that also holds for root on a read-only disk. Creates nothing that stays.
+    One clear line (:class:`FgslamError`) if it fails."""
+    target = folder if target is None else target
+    existing = folder
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise FgslamError(f"{option} {target}: {existing} is a file, not a folder; choose another place")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".fgslam-probe-", dir=existing)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as error:
+        raise FgslamError(f"{option} {target}: cannot write in {existing} ({error.strerror or error}); "
+                          f"choose a place you can write to") from None
+
+
+def write_new_file(path: Path, write: Callable[[str], None], *, overwrite: bool = False, option: str = "--out") -> None:
+    """``write(tmp)`` into a temporary file beside ``path``, then move it into place.
+
+    Never replaces an existing file unless ``overwrite`` (checked again here: a file may have
+    appeared during the work), and never leaves a half-written file at ``path``.
+    """
+    path = Path(path)
+    check_new_file(path, overwrite=overwrite, option=option)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    # Not mkstemp: its file is 0600, and the log would keep that; this one gets the umask's mode.
+    tmp = str(path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
+    open(tmp, "x").close()
+    try:
+        write(tmp)
+        if overwrite:
+            os.replace(tmp, path)
+        else:
+            try:
+                os.link(tmp, path)  # fails if the file appeared meanwhile: never replaced
+            except FileExistsError:
+                raise FgslamError(f"{option} {path} appeared while it was being made; nothing was replaced, "
+                                  "give another name or add --overwrite") from None
+            except OSError:  # a file system without hard links
+                if path.exists():
+                    raise FgslamError(f"{option} {path} appeared while it was being made; nothing was "
+                                      "replaced, give another name or add --overwrite") from None
+                os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+# --------------------------------------------------------------------------- results folders
+
+MANIFEST = "manifest.json"
+MANIFEST_FORMAT = "fgslam-results"
+
+
+class ResultsFolder:
+    """A folder of results that never keeps a stale file and never deletes one it did not write.
+
+    ``check()`` (before the run) accepts a new or empty folder, or one holding an earlier
+    fgslam output (a ``manifest.json`` it wrote, or — from before manifests — a
+    ``metrics.json`` with the ``.tum`` files of ``fgslam run``). Anything else is refused
+    unless ``overwrite``. ``clear()`` (after the run, just before writing) removes the files
+    of the earlier output: those its manifest lists, or for an older output or with
+    ``overwrite`` the file names fgslam writes (:attr:`own_names`, :attr:`own_suffixes`).
+    Other files are left alone. ``finish()`` writes the manifest: every file written since
+    ``clear()``.
+    """
+
+    def __init__(self, path: str | os.PathLike, *, overwrite: bool = False, verb: str = "run",
+                 own_names: Iterable[str] | Callable[[], Iterable[str]] = (), own_suffixes: Iterable[str] = (),
+                 option: str = "--out"):
+        self.path = Path(path)
+        self.overwrite = overwrite
+        self.verb = verb
+        self._own_names = own_names  # a callable is asked only when an earlier output is cleared
+        self.own_suffixes = tuple(own_suffixes)
+        self.option = option
+        self.earlier: list[str] | None = None  # files of the earlier output to remove
+        self._before: dict[str, tuple] = {}
+        self.finish_names: list[str] = []
+
+    # -- before the run
+    def check(self) -> "ResultsFolder":
+        out = self.path
+        if out.exists() and not out.is_dir():
+            raise FgslamError(f"{self.option} {out} is a file, and the results are a folder of files; "
+                              f"give a folder name (e.g. {out.with_suffix('')}_results)")
+        entries = sorted(p.name for p in out.iterdir()) if out.is_dir() else []
+        if entries:
+            manifest = self._read_manifest()
+            if manifest is not None:
+                self.earlier = [n for n in manifest if _plain_name(n)]
+            elif self._looks_like_older_output(entries):
+                self.earlier = [n for n in entries if self._is_own(n)]
+            elif self.overwrite:
+                self.earlier = [n for n in entries if self._is_own(n)]
+            else:
+                shown = ", ".join(entries[:3]) + (f", ... ({len(entries)} in all)" if len(entries) > 3 else "")
+                raise FgslamError(
+                    f"{self.option} {out} is a folder with other files in it ({shown}) and no {MANIFEST} of an "
+                    f"earlier fgslam {self.verb}; give a new or empty folder, or add --overwrite to write into "
+                    "it (fgslam's own file names there are replaced, other files are left alone)"
+                )
+        probe_writable(out, option=self.option)  # makes nothing: the folder is made by clear()
+        return self
+
+    def _read_manifest(self) -> list[str] | None:
+        try:
+            data = json.loads((self.path / MANIFEST).read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return None
+        if not isinstance(data, dict) or data.get("format") != MANIFEST_FORMAT or not isinstance(data.get("files"), list):
+            return None
+        return [n for n in data["files"] if isinstance(n, str)]
+
+    def _looks_like_older_output(self, entries: list[str]) -> bool:
+        """An ``fgslam run`` folder from before manifests: its metrics.json and .tum files."""
+        if "metrics.json" not in entries or not any(n.endswith(".tum") for n in entries):
+            return False
+        try:
+            metrics = json.loads((self.path / "metrics.json").read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return False
+        return isinstance(metrics, dict) and "reference" in metrics
+
+    @property
+    def own_names(self) -> set[str]:
+        if callable(self._own_names):
+            self._own_names = tuple(self._own_names())
+        return set(self._own_names) | {MANIFEST}
+
+    def _is_own(self, name: str) -> bool:
+        return name in self.own_names or (bool(self.own_suffixes) and name.endswith(self.own_suffixes))
+
+    # -- after the run
+    def clear(self) -> list[str]:
+        """Remove the earlier output's files; return their names."""
+        removed = []
+        for name in self.earlier or ():
+            target = self.path / name
+            try:
+                if target.is_dir() and not target.is_symlink():
+                    import shutil
+
+                    shutil.rmtree(target)
+                else:
+                    target.unlink()
+                removed.append(name)
+            except FileNotFoundError:
+                pass
+        self.path.mkdir(parents=True, exist_ok=True)
+        self._before = self._snapshot()
+        return removed
+
+    def _snapshot(self) -> dict[str, tuple]:
+        result = {}
+        for entry in os.scandir(self.path):
+            try:
+                st = entry.stat(follow_symlinks=False)
+            except OSError:
+                continue
+            result[entry.name] = (st.st_ino, st.st_size, st.st_mtime_ns)
+        return result
+
+    def finish(self, **provenance) -> list[str]:
+        """Write the manifest (every file written since :meth:`clear`); return the names."""
+        now = self._snapshot()
+        written = sorted(n for n, stat in now.items() if self._before.get(n) != stat and n != MANIFEST)
+        self.finish_names = written
+        manifest = {"format": MANIFEST_FORMAT, "written_by": f"fgslam {self.verb}", **provenance,
+                    "files": written + [MANIFEST]}
+        tmp = self.path / f".{MANIFEST}.tmp"
+        tmp.write_text(json.dumps(manifest, indent=1) + "\n", encoding="utf-8")
+        os.replace(tmp, self.path / MANIFEST)
+        return written
+
+
+def _plain_name(name: str) -> bool:
+    """A manifest entry that names a file directly in the folder (nothing outside it)."""
+    return bool(name) and name not in (".", "..") and "/" not in name and "\\" not in name

@@ -1,0 +1,296 @@
+"""``fgslam detect``: camera frames → landmark observations in a run log.
+
+``add_parser(verbs)`` adds the verb to ``fgslam``'s sub-parsers. The verb reads a
+frame folder (TUM RGB-D or plain images) or a video file, runs the camera front-end
+(:mod:`slamio.camera.detect`) on every frame and adds the observations to ``--out``:
+
+- **LOG exists** (a recorded run: header and odometry): each frame's observations are put
+  into the pose that is current at the frame's stamp — the pose started by the last
+  odometry record at or before it — right after the records stamped at or before the frame,
+  so stamps stay in order. The log format ties an observation to the latest pose, so a
+  recorder writes an odometry record at each camera time (docs/log-format.md). When the
+  latest pose is older than the frame by more than ``--max-pose-gap`` seconds (default
+  0.05 s: a few Create sensor periods), the log has **no pose at that time**: the frame's
+  observations are dropped and counted as ``no_pose_at_frame_time`` (frames older than the
+  log's start as ``before_log_start``) — detect never invents motion. The file is rewritten
+  atomically (a temporary file, then a rename); the header gains the front-end's settings
+  under ``source.detect``.
+- **LOG does not exist**: only with ``--static`` (a camera that did not move): a new log
+  with pose 0 at the first frame's stamp and no odometry, so every observation belongs to
+  pose 0.
+
+``--show DIR`` writes each frame with its detections, measurements and rejection reasons
+drawn, as DIR/<frame>.png. At the end it prints how many frames became observations and
+every rejection by name (corrupt image, over-exposed, no landmark, missing depth, ...).
+"""
+
+from __future__ import annotations
+
+import argparse
+import bisect
+import os
+import tempfile
+from dataclasses import replace
+from pathlib import Path
+
+from fgslam.cli.common import command_line, probe_writable
+from fgslam.cli.progress import Progress
+from slamio.errors import FgslamError
+from slamio.log import Header, Observation, Odometry, read_log, write_log
+
+DEFAULT_MAX_POSE_GAP_S = 0.05
+
+
+class DetectError(FgslamError):
+    """A user error of ``fgslam detect`` (bad option, missing file)."""
+
+
+# --------------------------------------------------------------------------- merging into a log
+
+
+def _stamp(record) -> float | None:
+    return getattr(record, "stamp_s", None)
+
+
+def merge_observations(header: Header, records: list, frames: list[tuple[float, list[Observation]]],
+                       max_pose_gap_s: float) -> tuple[list, dict[str, int]]:
+    """Records with each frame's observations put into the pose current at its stamp.
+
+    ``frames`` is [(stamp_s, observations)]. Returns the new record list and the count of
+    frames dropped by reason (``no_pose_at_frame_time``, ``before_log_start``).
+    """
+    # segments: pose k = records from its odometry record (or the start) to the next one
+    segments: list[list] = [[]]
+    for record in records:
+        if isinstance(record, Odometry):
+            segments.append([])
+        segments[-1].append(record)
+    pose_stamps = [header.stamp_s] + [r.stamp_s for r in records if isinstance(r, Odometry)]
+    dropped = {"no_pose_at_frame_time": 0, "before_log_start": 0}
+    for stamp, observations in sorted(frames, key=lambda f: f[0]):
+        if not observations:
+            continue
+        k = bisect.bisect_right(pose_stamps, stamp) - 1
+        if k < 0:
+            dropped["before_log_start"] += 1
+            continue
+        if stamp - pose_stamps[k] > max_pose_gap_s:
+            dropped["no_pose_at_frame_time"] += 1
+            continue
+        segment = segments[k]
+        position = 0
+        for i, record in enumerate(segment):
+            s = _stamp(record)
+            if s is not None and s <= stamp:
+                position = i + 1
+        segment[position:position] = observations
+    merged = [r for segment in segments for r in segment]
+    return merged, dropped
+
+
+def static_header(first_stamp_s: float, kind: str, camera_name: str, noise: dict, command: str) -> Header:
+    """Header of a new log for a camera that does not move (pose 0 only)."""
+    return Header(
+        stamp_s=first_stamp_s,
+        start_pose=(0.0, 0.0, 0.0),
+        start_sigma=(1e-3, 1e-3, 1e-3),
+        robot={"name": "static camera (no odometry)"},
+        sensor={"kind": "range-bearing", "landmark_kind": "apriltag" if kind == "apriltag" else "coloured-cylinder",
+                "camera": camera_name},
+        noise={"odometry": {"model": "none: a static camera, every observation belongs to pose 0"},
+               "observation": noise},
+        source={"generator": "fgslam detect --static", "command": command},
+    )
+
+
+def _write_atomically(path: Path, header: Header, records: list) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        write_log(tmp, header, records)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+# --------------------------------------------------------------------------- the verb
+
+
+def _config_from_args(args):
+    from slamio.camera.colour import ColourOptions
+    from slamio.camera.detect import FrontEndConfig
+
+    if args.tag_size <= 0:
+        raise DetectError("--tag-size must be > 0 (metres: the side of the tag's black square)")
+    if args.min_range < 0 or args.max_range <= args.min_range:
+        raise DetectError("--min-range and --max-range must satisfy 0 <= min < max (metres)")
+    tag_ids = None
+    if args.tag_ids:
+        try:
+            tag_ids = frozenset(int(x) for x in args.tag_ids.split(",") if x.strip())
+        except ValueError:
+            raise DetectError(f"--tag-ids must be comma-separated integers, got {args.tag_ids!r}") from None
+    colour = ColourOptions(bearing_method=args.bearing, height_method=args.height)
+    return FrontEndConfig(
+        kind=args.kind, tag_family=args.tag_family, tag_size_m=args.tag_size, tag_ids=tag_ids,
+        quad_decimate=args.quad_decimate, nthreads=args.threads, colour=colour,
+        min_range_m=args.min_range, max_range_m=args.max_range,
+    )
+
+
+def _frames(args):
+    from slamio.camera.sources import kinect_frames, open_frames, video_frames
+
+    source = args.frames
+    for prefix, live in (("kinect:", kinect_frames), ("camera:", video_frames)):
+        if source.startswith(prefix):
+            device = source[len(prefix):] or "0"
+            if not device.isdigit():
+                raise DetectError(f"{source!r}: the device after '{prefix}' is a number, e.g. {prefix}0")
+            return live(int(device), max_frames=args.max_frames)
+    return open_frames(source, fps=args.fps, depth_scale_per_m=args.depth_scale)
+
+
+def cmd_detect(args: argparse.Namespace) -> int:
+    import cv2
+
+    from slamio.camera.detect import DetectionStats, FrontEnd, annotate
+    from slamio.camera.model import load_camera
+
+    camera = load_camera(args.camera)
+    config = _config_from_args(args)
+    front = FrontEnd(camera, config)
+    out = Path(args.out)
+    if out.is_dir():
+        raise DetectError(f"--out {out} is a folder; give the run log to add the observations to, e.g. {out / 'run.jsonl'}")
+    if not out.exists() and not args.static:
+        raise DetectError(
+            f"{out} does not exist: detect adds observations to a recorded run log (header and odometry "
+            "first); pass --static to start a new log for a camera that did not move"
+        )
+    probe_writable(out.parent, target=out)  # the log is rewritten at the end: check before the frames
+    existing = read_log(out) if out.exists() else None
+    if existing is not None and existing.truncated:
+        print(f"fgslam: warning: {existing.truncated}; the cut-off line is dropped when the log is rewritten")
+    show = Path(args.show) if args.show else None
+    if show is not None:
+        if show.exists() and not show.is_dir():
+            raise DetectError(f"--show {show} is a file; give a folder for the annotated frames")
+        probe_writable(show, option="--show")
+        show.mkdir(parents=True, exist_ok=True)
+    stats = DetectionStats()
+    frames: list[tuple[float, list[Observation]]] = []
+    progress = Progress(unit="frames", status_at_once=False)
+    try:
+        for frame in _frames(args):
+            result = front.process(frame)
+            stats.add(result)
+            progress.status(stats.frames, lambda: f"frames {stats.frames}, observations {stats.observations}")
+            frames.append((frame.stamp_s, result.observations))
+            if show is not None:
+                name = Path(frame.name.replace("/", "_").replace(":", "_").replace("#", "_")).stem
+                cv2.imwrite(str(show / f"{frame.index:06d}_{name}.png"), annotate(frame.bgr, result, camera))
+    except KeyboardInterrupt:  # a live source runs until stopped: keep what was seen
+        progress.close()
+        print(f"fgslam: interrupted after {stats.frames} frames; writing their observations")
+    finally:
+        progress.close()
+    if stats.frames == 0:
+        raise DetectError(f"{args.frames}: no frames")
+    command = command_line(args, "detect")
+    if existing is None:
+        header = static_header(min(s for s, _ in frames), config.kind, camera.name, front.noise.describe(), command)
+        records = [o for _, observations in sorted(frames, key=lambda f: f[0]) for o in observations]
+        dropped: dict[str, int] = {}
+    else:
+        header = existing.header
+        records, dropped = merge_observations(existing.header, list(existing.records), frames, args.max_pose_gap)
+        for reason, count in dropped.items():
+            if count:
+                stats.reject(reason, count)
+    settings = {
+        "command": command, "camera": camera.name, "kind": config.kind,
+        "frames": stats.frames, "observations": stats.observations,
+        "rejected": dict(sorted(stats.reasons.items())),
+        "noise": front.noise.describe(),
+    }
+    if config.kind == "apriltag":
+        settings.update(tag_family=config.tag_family, tag_size_m=config.tag_size_m)
+    else:
+        settings.update(bearing=config.colour.bearing_method, height=config.colour.height_method)
+    earlier = header.source.get("detect")
+    runs = list(earlier) if isinstance(earlier, list) else []
+    header = replace(header, source={**header.source, "detect": runs + [settings]})
+    _write_atomically(out, header, records)
+    kept = sum(isinstance(r, Observation) for r in records) - (
+        0 if existing is None else sum(isinstance(r, Observation) for r in existing.records))
+    print(f"wrote {out}: {kept} observations added")
+    print(stats.summary())
+    if dropped.get("no_pose_at_frame_time"):
+        print(f"  ({dropped['no_pose_at_frame_time']} frames had no pose within {args.max_pose_gap:g} s: record "
+              "odometry at each camera frame, or raise --max-pose-gap if the robot was still)")
+    if show is not None:
+        print(f"annotated frames in {show}/")
+    return 0
+
+
+def add_parser(verbs) -> argparse.ArgumentParser:
+    """Add the ``detect`` verb to ``fgslam``'s sub-parsers; returns its parser."""
+    from slamio.camera.sources import TUM_DEPTH_SCALE_PER_M
+
+    detect = verbs.add_parser(
+        "detect",
+        help="camera frames -> landmark observations (AprilTags or Kinect colour cylinders) in a run log",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=(
+            "Detect landmarks in camera frames and add them to a run log as observations in the robot\n"
+            "frame (range, bearing, and tag yaw or cylinder height). FRAMES is a TUM RGB-D folder\n"
+            "(rgb/, depth/, rgb.txt, depth.txt), a folder of images (stamps from numeric file names,\n"
+            "else --fps), a video file, camera:N (a live cv2.VideoCapture device) or kinect:N (a live\n"
+            "Kinect through the optional freenect package). CAM.yaml is a ROS camera_info file with an\n"
+            "optional robot_mount (scripts/calibrate_camera.py writes one).\n\n"
+            "Observations go into the pose current at each frame's stamp (the last odometry record at or\n"
+            "before it); a frame with no pose within --max-pose-gap is dropped and counted. Frames that\n"
+            "cannot be used (corrupt, over-exposed, no landmark, no depth) are counted by reason, never\n"
+            "fatal. See docs/camera.md."
+        ),
+        epilog=(
+            "examples:\n"
+            "  fgslam detect run/frames --camera kinect.yaml --kind colour --out run.jsonl --show run/shown\n"
+            "  fgslam detect tags/ --camera webcam.yaml --tag-size 0.16 --out still.jsonl --static"
+        ),
+    )
+    detect.add_argument("frames", metavar="FRAMES", help="frame folder, video file, camera:N or kinect:N")
+    detect.add_argument("--camera", required=True, metavar="CAM.yaml", help="camera_info YAML (intrinsics, mount)")
+    detect.add_argument("--out", required=True, metavar="LOG", help="run log to add the observations to")
+    detect.add_argument("--show", default=None, metavar="DIR", help="write annotated frames (PNG) to DIR")
+    detect.add_argument("--kind", choices=("apriltag", "colour"), default="apriltag",
+                        help="landmarks to look for (default apriltag)")
+    detect.add_argument("--static", action="store_true",
+                        help="LOG does not exist yet: start one for a camera that did not move (pose 0 only)")
+    detect.add_argument("--max-pose-gap", type=float, default=DEFAULT_MAX_POSE_GAP_S, metavar="S",
+                        help=f"largest gap between a frame and the pose it joins (default {DEFAULT_MAX_POSE_GAP_S} s)")
+    detect.add_argument("--tag-family", default="tag36h11", help="AprilTag family (default tag36h11)")
+    detect.add_argument("--tag-size", type=float, default=0.16, metavar="M",
+                        help="side of the tag's black square, metres (default 0.16)")
+    detect.add_argument("--tag-ids", default=None, metavar="LIST", help="only these ids (comma-separated)")
+    detect.add_argument("--quad-decimate", type=float, default=1.0,
+                        help="AprilTag quad_decimate (default 1.0: finds small tags; 2.0 is faster)")
+    detect.add_argument("--threads", type=int, default=1, help="AprilTag detector threads (default 1)")
+    detect.add_argument("--bearing", choices=("exact", "linear"), default="exact",
+                        help="colour: bearing through the intrinsics (default) or seed 000's linear map")
+    detect.add_argument("--height", choices=("pinhole", "gheight"), default="pinhole",
+                        help="colour: exact pinhole height (default) or seed 002's gHeight")
+    detect.add_argument("--min-range", type=float, default=0.1, metavar="M", help="drop nearer landmarks (default 0.1)")
+    detect.add_argument("--max-range", type=float, default=8.0, metavar="M", help="drop farther landmarks (default 8)")
+    detect.add_argument("--fps", type=float, default=30.0,
+                        help="stamps of a plain image folder whose file names are not numbers (default 30)")
+    detect.add_argument("--depth-scale", type=float, default=TUM_DEPTH_SCALE_PER_M, metavar="UNITS_PER_M",
+                        help="depth PNG units per metre (TUM 5000, the default; millimetre PNGs 1000)")
+    detect.add_argument("--max-frames", type=int, default=None, help="live sources: stop after N frames")
+    detect.set_defaults(func=cmd_detect)
+    return detect
+

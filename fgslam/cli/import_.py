@@ -1,0 +1,99 @@
+"""``fgslam import``: convert a dataset from elsewhere into a run log."""
+
+from __future__ import annotations
+
+import argparse
+
+from fgslam.cli.common import add_overwrite_option, check_new_file, write_run_log
+from slamio.errors import FgslamError
+
+DATASETS = ["victoria-park", "plaza1", "plaza2", "mrclam", "rosbag"]
+
+
+def add_parser(verbs) -> argparse.ArgumentParser:
+    imp = verbs.add_parser(
+        "import",
+        help="convert a dataset from elsewhere into a run log",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=(
+            "Convert a public dataset into a run log, so every estimator can run on it.\n\n"
+            "datasets:\n"
+            "  victoria-park  the Victoria Park car run shipped inside the gtsam wheel (6 969 poses,\n"
+            "                 151 trees; no ground truth, so `fgslam run` compares against the\n"
+            "                 smoothed solution).\n"
+            "  plaza1, plaza2 CMU's ranging-radio runs shipped inside the gtsam wheel: range-only\n"
+            "                 beacons, GPS ground truth (`fgslam run` reports ATE against it).\n"
+            "  mrclam         one robot of a UTIAS MRCLAM dataset folder (SOURCE; --robot N): Creates\n"
+            "                 with cameras reading barcoded landmarks, Vicon ground truth.\n"
+            "  rosbag         a ROS 1 .bag or ROS 2 bag folder (SOURCE) through the rosbags package:\n"
+            "                 --odom-topic, --detections-topic or --tag-pose-topic, --truth-topic;\n"
+            "                 a bag from `fgslam export rosbag` needs no topics.\n"
+            "See docs/datasets.md for what is converted and how. An existing OUT is kept unless\n"
+            "--overwrite.\n\n"
+            "usage: fgslam import DATASET [SOURCE] OUT   (SOURCE defaults to the gtsam wheel's copy)"
+        ),
+    )
+    imp.add_argument("dataset", choices=DATASETS, metavar="DATASET", help="victoria-park, plaza1, plaza2, mrclam or rosbag")
+    imp.add_argument("paths", nargs="+", metavar="[SOURCE] OUT",
+                     help="the dataset file or folder (optional), then the run log to write (.jsonl)")
+    imp.add_argument(
+        "--source",
+        default=None,
+        metavar="PATH",
+        help="the dataset file (Victoria Park) or folder (Plaza); default: the installed gtsam wheel's copy",
+    )
+    add_overwrite_option(imp, "an existing OUT")
+    imp.add_argument("--range-sigma", type=float, default=1.5, metavar="M",
+                     help="Plaza: standard deviation given to every range (default 1.5 m)")
+    imp.add_argument("--range-bias", type=float, default=0.0, metavar="M",
+                     help="Plaza: subtract this from every range (default 0; GPS says the radios read ~2.8 m long)")
+    imp.add_argument("--robot", type=int, default=1, metavar="N", help="MRCLAM: which robot, 1-5 (default 1)")
+    imp.add_argument("--noise", default=None, metavar="FILE",
+                     help="MRCLAM: a noise model from `fgslam calibrate LOG... --out FILE` (odometry lag and "
+                          "scale, range/bearing correction and sigmas); default: round, unfitted values")
+    imp.add_argument("--odom-topic", default=None, help="rosbag: nav_msgs/Odometry topic")
+    imp.add_argument("--detections-topic", default=None,
+                     help="rosbag: apriltag_ros/AprilTagDetectionArray topic")
+    imp.add_argument("--tag-pose-topic", default=None,
+                     help="rosbag: prefix of one geometry_msgs/PoseStamped topic per tag, e.g. /tags/tag_")
+    imp.add_argument("--truth-topic", default=None, help="rosbag: ground-truth pose topic (optional)")
+    imp.set_defaults(func=cmd_import, takes_extra_paths=True)
+    return imp
+
+
+def cmd_import(args: argparse.Namespace) -> int:
+    if len(args.paths) > 2:
+        raise FgslamError(f"import takes [SOURCE] OUT, got {len(args.paths)} paths: {' '.join(args.paths)}")
+    source = args.paths[0] if len(args.paths) == 2 else args.source
+    out = args.paths[-1]
+    needs_source = ("mrclam", "rosbag")
+    if args.dataset in needs_source and source is None:
+        raise FgslamError(f"import {args.dataset} needs SOURCE: fgslam import {args.dataset} SOURCE OUT")
+    check_new_file(out, overwrite=args.overwrite, option="OUT")  # before the conversion
+    if args.dataset == "victoria-park":
+        from slamio.datasets import import_victoria_park
+
+        header, records = import_victoria_park(source)
+    elif args.dataset == "mrclam":
+        from slamio.datasets.mrclam import import_mrclam
+
+        model = None
+        if args.noise is not None:
+            from slamio.noise_model import load_noise_model
+
+            model = load_noise_model(args.noise)
+        header, records = import_mrclam(source, args.robot, model=model)
+    elif args.dataset == "rosbag":
+        from slamio.datasets.rosbag import import_rosbag
+
+        header, records = import_rosbag(
+            source, odom_topic=args.odom_topic, detections_topic=args.detections_topic,
+            tag_pose_topic=args.tag_pose_topic, truth_topic=args.truth_topic,
+        )
+    else:  # plaza1, plaza2
+        from slamio.datasets.plaza import import_plaza
+
+        header, records = import_plaza(
+            args.dataset, source, range_sigma_m=args.range_sigma, range_bias_m=args.range_bias
+        )
+    return write_run_log(out, header, records, overwrite=args.overwrite, option="OUT")

@@ -1,0 +1,208 @@
+"""``fgslam record``: drive an iRobot Create (or the simulated one) and record its odometry.
+
+Exit status: 0 when the path was driven to the end (or teleop quit), 2 when the robot was
+stopped early (bump, wheel drop, watchdog, no data, serial error, time limit; the log is
+kept and the reason printed), 130 on Ctrl-C/SIGTERM, 1 on a user error (bad option, port
+that does not open, an existing --out without --overwrite).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from fgslam.cli.common import add_overwrite_option, check_new_file, command_line
+from slamio.errors import FgslamError
+
+EXIT_STOPPED_EARLY = 2
+EXIT_INTERRUPTED = 130
+
+RECORD_DESCRIPTION = """\
+Drive an iRobot Create along a scripted path (or from the keyboard) and write its odometry
+to a run log, one record every 0.1 s, flushed as written: a recorder that is killed leaves
+every record but at most the last.
+
+The robot stops (and the log is kept) on a bump, a wheel drop, when it leaves Safe mode,
+when the host stops sending commands for 0.5 s (watchdog), when no valid sensor data comes
+for 0.5 s, on Ctrl-C, and when the serial port fails. Whatever happens, the exit sends
+Drive Direct 0 0 and puts the robot back in Passive mode. The reason is printed and written
+to LOG's .status.json file next to it.
+
+paths (counter-clockwise, turning left in place at each corner, from where the robot stands):
+  square    4 sides of --side m (default 1.0 m)
+  octagon   8 sides of --side m (default 0.5 m; about 1.2 m across)
+  teleop    keyboard: w/s faster/slower, a/d turn, space stop, q quit
+
+--port sim drives the built-in simulated Create (a pseudo-terminal speaking the same bytes)
+in seed 004's 10 ft arena, starting at (0.75 m, 0.75 m) facing +x; see docs/create.md.
+"""
+
+def _positive(kind):
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        if not value > 0:
+            raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
+        return value
+
+    return parse
+
+
+def _fraction(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not 0.0 <= value < 1.0:
+        raise argparse.ArgumentTypeError(f"must be in [0, 1), got {text}")
+    return value
+
+
+def add_parser(verbs) -> argparse.ArgumentParser:
+    """Add ``fgslam record`` to the sub-parsers ``verbs``; returns its parser."""
+    p = verbs.add_parser(
+        "record",
+        help="drive an iRobot Create (or the simulated one) and record its odometry to a run log",
+        description=RECORD_DESCRIPTION,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--port", required=True, metavar="PORT",
+                   help="serial port (/dev/ttyUSB0, /dev/serial/by-id/..., COM3, a pyserial URL), "
+                        "or 'sim' for the built-in simulated Create")
+    p.add_argument("--model", required=True, choices=("create1", "create2"),
+                   help="create1: original Create, 57600 baud, odometry from packets 19/20; "
+                        "create2: Roomba 600 based, 115200 baud, odometry from encoder counts 43/44")
+    p.add_argument("--path", default="octagon", choices=("square", "octagon", "teleop"),
+                   help="what to drive (default octagon)")
+    p.add_argument("--out", required=True, metavar="LOG", help="run log to write (.jsonl); an existing one is kept")
+    add_overwrite_option(p, "an existing LOG (and its .status.json)")
+    p.add_argument("--side", type=_positive(float), default=None, metavar="M",
+                   help="side of the square/octagon in metres (default 1.0 / 0.5)")
+    p.add_argument("--laps", type=_positive(int), default=1, metavar="N", help="laps of the path (default 1)")
+    p.add_argument("--speed", type=_positive(float), default=0.2, metavar="M_S",
+                   help="speed on straights, m/s (default 0.2, at most 0.5)")
+    p.add_argument("--turn-rate", type=_positive(float), default=0.8, metavar="RAD_S",
+                   help="turn rate in place, rad/s (default 0.8)")
+    p.add_argument("--mode", choices=("safe", "full"), default="safe",
+                   help="OI mode: safe (default; the robot also stops itself on cliffs and wheel drops) "
+                        "or full (no robot-side checks: for testing on a stand only)")
+    p.add_argument("--baud", type=_positive(int), default=None,
+                   help="baud rate (default 57600 for create1, 115200 for create2)")
+    p.add_argument("--calibration", default=None, metavar="FILE",
+                   help="noise from `fgslam calibrate --out FILE` (default: nominal, uncalibrated values)")
+    p.add_argument("--max-duration", type=_positive(float), default=None, metavar="S",
+                   help="stop after this many seconds")
+    sim = p.add_argument_group("simulated Create (--port sim)")
+    sim.add_argument("--sim-seed", type=int, default=0, metavar="N", help="random seed of the encoder noise (default 0)")
+    sim.add_argument("--sim-time-scale", type=_positive(float), default=1.0, metavar="X",
+                     help="run the simulation X times faster than real time (default 1)")
+    sim.add_argument("--sim-corrupt", type=_fraction, default=0.0, metavar="P",
+                     help="damage this fraction of the robot's bytes (default 0)")
+    sim.add_argument("--sim-drop", type=_fraction, default=0.0, metavar="P",
+                     help="drop this fraction of the robot's bytes (default 0)")
+    p.set_defaults(func=cmd_record)
+    return p
+
+
+def _status_path(out: Path) -> Path:
+    return out.with_name(out.stem + ".status.json") if out.suffix else out.with_name(out.name + ".status.json")
+
+
+def cmd_record(args: argparse.Namespace) -> int:
+    from slamio.create.calibrate import load_calibration
+    from slamio.create.link import CreateLink
+    from slamio.create.record import (
+        TELEOP_HELP,
+        PathController,
+        RecorderSettings,
+        TeleopController,
+        TerminalKeys,
+        path_moves,
+        record,
+        write_status,
+    )
+
+    # Before the port is opened and the recorder starts the log: an existing recording is never
+    # emptied unless --overwrite, and a place that cannot be written is one line, not a traceback.
+    out = check_new_file(args.out, overwrite=args.overwrite)
+    if args.speed > 0.5:
+        raise FgslamError(f"--speed {args.speed} m/s is above the Create's 0.5 m/s")
+    settings = RecorderSettings(speed_m_s=args.speed, turn_rate_rad_s=args.turn_rate, mode=args.mode,
+                                max_duration_s=args.max_duration)
+    noise = observation = None
+    if args.calibration:
+        calibration = load_calibration(args.calibration)
+        noise = calibration.odometry_noise(args.model)
+        if calibration.observation is not None:
+            observation = {"model": "range-bearing, from fgslam calibrate", **calibration.observation}
+    source = {
+        "command": command_line(args) if getattr(args, "argv", None) is not None else None,
+        "path": args.path,
+        "side_m": args.side,
+        "laps": args.laps,
+    }
+
+    out.parent.mkdir(parents=True, exist_ok=True)
+    sim = None
+    port, clock = args.port, None
+    if args.port == "sim":
+        from slamio.create.sim import SimulatedCreate
+
+        sim = SimulatedCreate(args.model, seed=args.sim_seed, time_scale=args.sim_time_scale,
+                              corrupt_fraction=args.sim_corrupt, drop_fraction=args.sim_drop).start()
+        port, clock = sim.port, sim.clock
+        source["simulator"] = {"seed": args.sim_seed, "time_scale": args.sim_time_scale,
+                               "corrupt_fraction": args.sim_corrupt, "drop_fraction": args.sim_drop}
+    try:
+        link = CreateLink(port, args.model, baud=args.baud)
+        link.open()  # a port that does not open is a user error (exit 1), before the log exists
+        kwargs = dict(settings=settings, noise=noise, source=source, observation_noise=observation)
+        if clock is not None:
+            kwargs["clock"] = clock
+        if args.path == "teleop":
+            with TerminalKeys() as keys:
+                print(TELEOP_HELP, file=sys.stderr)
+                result = record(link, out, TeleopController(keys, settings), **kwargs)
+        else:
+            moves = path_moves(args.path, args.side, args.laps)
+            result = record(link, out, PathController(moves, settings), **kwargs)
+    finally:
+        if "link" in locals():
+            link.close()
+        if sim is not None:
+            sim.close()
+    write_status(result, _status_path(out))
+    if sim is not None:  # add the ground truth to the status file
+        status = json.loads(_status_path(out).read_text())
+        status["simulator"] = {
+            "true_pose": list(sim.true_pose),
+            "true_path_length_m": sim.true_path_length_m,
+            "commanded_mm_s": list(sim.commanded_mm_s),
+            "oi_mode": int(sim.mode),
+            "frames_sent": sim.frames_sent,
+            "bytes_corrupted": sim.bytes_corrupted,
+            "bytes_dropped": sim.bytes_dropped,
+        }
+        _status_path(out).write_text(json.dumps(status, indent=2) + "\n")
+
+    stats = result.link_stats
+    quality = (f"{stats.get('frames_ok', 0)} frames, {stats.get('bad_frames', 0)} rejected"
+               if stats.get("reader") == "stream"
+               else f"{stats.get('answers', 0)} answers, {stats.get('lost_answers', 0)} lost")
+    print(f"wrote {out}: {result.records} odometry records over {result.duration_s:.1f} s, "
+          f"{result.distance_m:.3f} m driven, {result.angle_rad:.2f} rad turned ({quality})")
+    if result.shutdown is not None and not result.shutdown.stopped:
+        print(f"fgslam record: WARNING: {result.shutdown.detail}", file=sys.stderr)
+    if result.reason.kind == "interrupted":
+        print(f"fgslam record: {result.reason}", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    if result.reason.is_fault:
+        print(f"fgslam record: stopped early: {result.reason}; the log keeps the {result.records} records "
+              f"before it", file=sys.stderr)
+        return EXIT_STOPPED_EARLY
+    print(f"stopped: {result.reason}")
+    return 0

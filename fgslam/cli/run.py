@@ -1,0 +1,141 @@
+"""``fgslam run``: run the estimators on a log and write the comparison to a results folder."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from fgslam.cli.common import ResultsFolder, add_overwrite_option, command_line, read, summary
+from fgslam.cli.estimators import ESTIMATOR_HELP
+from fgslam.cli.progress import Progress
+
+#: File names ``fgslam run`` writes besides <estimator>[_online].tum and the report's PNGs:
+#: what --overwrite (or an output from before manifests) replaces in a folder without a manifest.
+OWN_NAMES = ("metrics.json", "report.html", "graph.g2o", "reference.tum")
+
+
+def own_names() -> list[str]:
+    """Every file name ``fgslam run`` can write (for a folder without a manifest)."""
+    from fgslam import report
+    from fgslam.runner import ESTIMATORS
+
+    names = list(OWN_NAMES)
+    for name in [*ESTIMATORS, "batch"]:
+        names += [f"{name}.tum", f"{name}_online.tum"]
+    names += [value for key, value in vars(report).items()
+              if key.endswith(("_PNG", "_HTML")) and isinstance(value, str)]
+    return names
+
+
+def add_parser(verbs) -> argparse.ArgumentParser:
+    run = verbs.add_parser(
+        "run",
+        help="run the estimators on a log and write the comparison",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="estimators:\n" + "\n".join(f"  {name:<15} {text}" for name, text in ESTIMATOR_HELP.items())
+        + "\n\ntiming: the wall time of each estimator.step (and finish() in the total), with\n"
+          "BLAS/OpenMP pinned to one thread (threadpoolctl), so the figures compare the\n"
+          "algorithms, not how many cores a BLAS grabs; NEES/NIS work is outside the timed region.",
+        description=(
+            "Run every estimator on the same log and compare them. The reference is the log's\n"
+            "ground truth wherever it has some: with gaps in the truth (e.g. Vicon drop-outs)\n"
+            "only the poses with truth are scored, and the first line of the table says how\n"
+            "many. Without any pose truth it is the batch Levenberg-Marquardt solution started\n"
+            "from iSAM2's result (the 'smoothed ground truth'), and the map error is against the\n"
+            "log's surveyed landmarks when it has them. Writes\n"
+            "metrics.json, report.html (self-contained), PNG figures, and each estimator's\n"
+            "trajectory in TUM format (<name>.tum final, <name>_online.tum online) to --out,\n"
+            "and prints a table of the figures.\n\n"
+            "--out is a new or empty folder, or the folder of an earlier fgslam run: its files\n"
+            "(listed in its manifest.json) are replaced, so no stale file of the earlier run\n"
+            "remains. A folder with other files is refused unless --overwrite."
+        ),
+    )
+    run.add_argument("log", metavar="LOG", help="run log (.jsonl)")
+    run.add_argument("--out", required=True, metavar="DIR", help="folder for the results (created)")
+    add_overwrite_option(run, "fgslam's files in a --out folder that holds other files too (they are left alone)")
+    run.add_argument(
+        "--estimators",
+        default="ekf,isam2,dead_reckoning",
+        metavar="LIST",
+        help="comma-separated estimators to run (default ekf,isam2,dead_reckoning; all "
+        "names below); the batch solve always runs from isam2's result",
+    )
+    run.add_argument("--noise", default=None, metavar="FILE",
+                     help="a noise model from `fgslam calibrate LOG... --out FILE`, applied to this log's "
+                          "odometry and readings before the run (slamio.noise_apply; an importer that has the "
+                          "raw data applies it exactly: prefer `fgslam import ... --noise FILE`)")
+    run.add_argument("--no-report", action="store_true", help="skip report.html and the PNG figures")
+    run.add_argument("--no-consistency", action="store_true",
+                     help="skip NEES, NIS and covariance ellipses (their work runs between the timed steps "
+                          "but can leave iSAM2 with cached marginals; use this for timings)")
+    run.set_defaults(func=cmd_run)
+    return run
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    # The results folder first (before the estimators are even loaded): an unusable --out is
+    # one line at once, never a FileExistsError after the whole run.
+    results = ResultsFolder(args.out, overwrite=args.overwrite, verb="run", own_names=own_names).check()
+
+    from fgslam.compare import compute_metrics, format_table, write_tum
+    from fgslam.export import write_g2o
+    from fgslam.runner import TIMING, compare_log, parse_estimator_names
+
+    names = parse_estimator_names(args.estimators)
+    log = read(args.log)
+    if args.noise is not None:
+        from slamio.noise_apply import apply_noise_model
+        from slamio.noise_model import load_noise_model
+
+        log, dropped = apply_noise_model(log, load_noise_model(args.noise))
+        print(f"applied the noise model {args.noise}" + (f" ({dropped} readings could not be corrected and were dropped)" if dropped else ""))
+    print(f"{args.log}: {summary(log)}")
+    with Progress() as progress:
+        result = compare_log(log, names, progress=progress, consistency=not args.no_consistency)
+    metrics = compute_metrics(result.runs, result.reference, log_path=str(args.log))
+    metrics["timing"] = TIMING["what"]  # strings: not mistaken for an estimator
+    metrics["blas_threads"] = TIMING["blas_threads"]
+    if log.truncated:
+        metrics["log_truncated"] = log.truncated
+    if getattr(log, "rejected", None):
+        metrics["log_rejected"] = log.rejection_summary()
+    if args.noise is not None:
+        metrics["noise_model"] = str(args.noise)
+    from fgslam.report import provenance
+
+    metrics["provenance"] = provenance(args.log, [r.name for r in result.runs], command=command_line(args, "run"))
+
+    out = Path(args.out)
+    replaced = results.clear()
+    (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    has_pose = result.reference.has_pose  # TUM files are stamped: leave the poses without truth out
+    write_tum(out / "reference.tum", result.stamps_s[has_pose], result.reference.trajectory[has_pose])
+    for run in result.runs:
+        write_tum(out / f"{run.name}.tum", result.stamps_s, run.final)
+        if run.online is not None:
+            write_tum(out / f"{run.name}_online.tum", result.stamps_s, run.online)
+    smoother = result.smoother  # its graph, vertices at iSAM2's final estimate
+    write_g2o(out / "graph.g2o", smoother.graph(), smoother.estimate(), smoother.num_poses)
+    written = ["metrics.json", "*.tum", "graph.g2o"]
+    if not args.no_report:
+        from fgslam.report import write_report
+
+        html = write_report(
+            out, metrics, result.runs, result.reference, result.stamps_s, title=f"fgslam run {Path(args.log).name}"
+        )
+        written.insert(1, html.name)
+    results.finish(command=command_line(args, "run"), log=str(args.log))
+    written.append("manifest.json")
+    print()
+    print(format_table(metrics))
+    print(f"time: {TIMING['what']}")
+    stale = sorted(set(replaced) - set(results.finish_names) - {"manifest.json"})
+    note = f" (replacing the earlier results; {len(stale)} of its files not written again were removed: " \
+           f"{', '.join(stale[:4])}{', ...' if len(stale) > 4 else ''})" if stale else \
+           (" (replacing the earlier results)" if replaced else "")
+    print(f"\nwrote {', '.join(written)} to {out}/{note}")
+    if log.truncated:
+        print(f"note: {log.truncated}")
+    return 0
