@@ -1,13 +1,14 @@
 # Two commands do all set-up on a fresh machine:
 #   make demo   virtual environment + install + both estimators on a bundled log + report
-#   make test   the dev extras + the whole test suite
+#   make test   the dev extras + the quick test suite (all but the tests marked slow: a few minutes)
+# make test-all runs every test, the long acceptance runs too (what CI runs, .ci/run).
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 DEMO_LOG := data/arena_octagon.jsonl
 DEMO_OUT := out/demo
 
-.PHONY: demo test install data clean
+.PHONY: demo test test-all dev install data clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -22,17 +23,22 @@ $(VENV)/.installed-dev: pyproject.toml | $(BIN)/python
 
 install: $(VENV)/.installed
 
+dev: $(VENV)/.installed-dev
+
 demo: $(VENV)/.installed
 	$(BIN)/fgslam run $(DEMO_LOG) --out $(DEMO_OUT)
 	@echo "open $(DEMO_OUT)/report.html in a browser to see the figures"
 
 test: $(VENV)/.installed-dev
+	$(BIN)/python -m pytest -m "not slow"
+
+test-all: $(VENV)/.installed-dev
 	$(BIN)/python -m pytest
 
 # Regenerate the bundled logs (deterministic: the same bytes every time).
 data: $(VENV)/.installed
-	$(BIN)/fgslam sim arena-octagon --seed 1 --out data/arena_octagon.jsonl
-	$(BIN)/fgslam sim arena-square --seed 1 --out data/arena_square.jsonl
+	$(BIN)/fgslam sim arena-octagon --seed 1 --out data/arena_octagon.jsonl --overwrite
+	$(BIN)/fgslam sim arena-square --seed 1 --out data/arena_square.jsonl --overwrite
 
 clean:
 	rm -rf $(VENV) out build *.egg-info .pytest_cache .hypothesis

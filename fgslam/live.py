@@ -56,6 +56,7 @@ __all__ = [
     "waypoint_wheel_speeds",
     "WaypointFollower",
     "PoseTracker",
+    "Lockstep",
     "CameraWorker",
     "SmootherWorker",
     "LiveLoop",
@@ -86,6 +87,8 @@ class LiveSettings:
     record_period_s: float = 0.1  # one pose per period at most
     frame_timeout_s: float = 0.5  # give up a frame after this long (robot time)
     wheel_base_m: float = WHEEL_BASE_M
+    command_timeout_s: float = 0.5  # (wall) the recorder's watchdog: no drive command for this long → stop
+    data_timeout_s: float = 0.5  # (wall) no valid sensor reading for this long → stop
 
 
 # --------------------------------------------------------------------------- waypoints
@@ -239,18 +242,58 @@ class PoseTracker:
 # --------------------------------------------------------------------------- workers
 
 
+class Lockstep:
+    """Simulation only: a live run whose robot-time behaviour does not depend on how fast
+    this machine is (``run_live(..., lockstep=Lockstep(sim))``; the tests use it).
+
+    On a real run the robot drives on while a frame is rendered and detected or a smoother
+    step runs, so how much robot time that work takes is this machine's speed. In lockstep
+    every such piece of work gets a fixed budget of robot time: a frame's observations reach
+    the live loop ``frame_s`` after the frame was asked for, a smoothed pose reaches the
+    follower ``smoother_s`` after its step was submitted. Work done sooner waits for its
+    time; work not done by then stops the simulated Create's clock
+    (:meth:`slamio.create.sim.SimulatedCreate.hold`) until it is. A slow or busy machine
+    then only stretches the run in wall time. ``frame_s`` must be below the settings'
+    ``frame_timeout_s`` (no frame is ever late), and the recorder's wall-clock timeouts
+    (``data_timeout_s``) must outlast the slowest frame: the robot streams nothing while
+    its clock stands.
+    """
+
+    def __init__(self, sim, frame_s: float = 0.4, smoother_s: float = 0.05):
+        if not (frame_s >= 0 and smoother_s >= 0):
+            raise FgslamError(f"lockstep budgets must be ≥ 0 s, got frame {frame_s}, smoother {smoother_s}")
+        self.sim = sim  # clock(), hold(at_s) -> token, release(token)
+        self.frame_s = float(frame_s)
+        self.smoother_s = float(smoother_s)
+
+    def hold_for(self, budget_s: float) -> tuple[float, int]:
+        """``(due_at, token)``: the work started now is due at ``due_at`` (robot time); the
+        clock stops there until ``release(token)``."""
+        due_at = self.sim.clock() + budget_s
+        return due_at, self.sim.hold(due_at)
+
+    def release(self, token: int) -> None:
+        self.sim.release(token)
+
+    def reached(self, due_at: float | None) -> bool:
+        return due_at is None or self.sim.clock() >= due_at - 1e-9
+
+
 class CameraWorker:
     """Grabs and processes one frame at a time in its own thread.
 
     :meth:`request` hands it a zero-argument ``grab`` (called in the worker: it returns a
     :class:`slamio.camera.sources.Frame`) for pose ``index``; it is refused while a frame
-    is in progress. :meth:`result` returns ``(index, observations)`` when one is ready.
+    is in progress. :meth:`result` returns ``(index, observations)`` when one is ready (in
+    :class:`Lockstep`: not before the frame's budget of robot time has passed).
     """
 
-    def __init__(self, process: Callable[[object], Sequence[Observation]]):
+    def __init__(self, process: Callable[[object], Sequence[Observation]], lockstep: Lockstep | None = None):
         self.process = process
+        self.lockstep = lockstep
         self._requests: queue.Queue = queue.Queue(maxsize=1)
         self._results: queue.Queue = queue.Queue()
+        self._waiting: tuple[int, list[Observation], float | None] | None = None  # done, not yet due
         self._busy = threading.Event()
         self.error: BaseException | None = None
         self.frame_seconds: list[float] = []
@@ -261,30 +304,41 @@ class CameraWorker:
         if self._busy.is_set():
             return False
         self._busy.set()
-        self._requests.put((index, grab))
+        due_at, token = self.lockstep.hold_for(self.lockstep.frame_s) if self.lockstep else (None, None)
+        self._requests.put((index, grab, due_at, token))
         return True
 
     def result(self) -> tuple[int, list[Observation]] | None:
-        try:
-            return self._results.get_nowait()
-        except queue.Empty:
+        if self._waiting is None:
+            try:
+                self._waiting = self._results.get_nowait()
+            except queue.Empty:
+                return None
+        index, observations, due_at = self._waiting
+        if self.lockstep is not None and not self.lockstep.reached(due_at):
             return None
+        self._waiting = None
+        return index, observations
 
     def _run(self) -> None:
         while True:
             item = self._requests.get()
             if item is None:
                 return
-            index, grab = item
+            index, grab, due_at, token = item
             start = time.perf_counter()
             try:
-                observations = list(self.process(grab()))
-            except BaseException as exc:  # raised in the control loop (see LiveLoop.due)
-                self.error = exc
-                observations = []
-            self.frame_seconds.append(time.perf_counter() - start)
-            self._results.put((index, observations))
-            self._busy.clear()
+                try:
+                    observations = list(self.process(grab()))
+                except BaseException as exc:  # raised in the control loop (see LiveLoop.due)
+                    self.error = exc
+                    observations = []
+                self.frame_seconds.append(time.perf_counter() - start)
+                self._results.put((index, observations, due_at))
+                self._busy.clear()
+            finally:
+                if token is not None:
+                    self.lockstep.release(token)  # type: ignore[union-attr]
 
     def close(self) -> None:
         self._requests.put(None)
@@ -293,14 +347,19 @@ class CameraWorker:
 
 class SmootherWorker:
     """Feeds steps to the smoother in its own thread; publishes each smoothed pose to the
-    :class:`PoseTracker` and records each step's wall time."""
+    :class:`PoseTracker` and records each step's wall time. In :class:`Lockstep` a pose is
+    published by :meth:`publish` (the control loop), when its budget of robot time is over."""
 
-    def __init__(self, smoother, tracker: PoseTracker, on_step: Callable[[int, object], None] | None = None):
+    def __init__(self, smoother, tracker: PoseTracker, on_step: Callable[[int, object], None] | None = None,
+                 lockstep: Lockstep | None = None):
         self.smoother = smoother
         self.tracker = tracker
         self.on_step = on_step
+        self.lockstep = lockstep
         self._steps: queue.Queue = queue.Queue()
         self._latencies: queue.Queue = queue.Queue()
+        self._smoothed: queue.Queue = queue.Queue()  # lockstep: (due_at, index, pose) to publish
+        self._due: tuple[float, int, tuple] | None = None
         self.latencies_s: list[float] = []
         self.error: BaseException | None = None
         self.max_queue = 0
@@ -308,8 +367,23 @@ class SmootherWorker:
         self._thread.start()
 
     def submit(self, step: Step) -> None:
-        self._steps.put(step)
+        due_at, token = self.lockstep.hold_for(self.lockstep.smoother_s) if self.lockstep else (None, None)
+        self._steps.put((step, due_at, token))
         self.max_queue = max(self.max_queue, self._steps.qsize())
+
+    def publish(self) -> None:
+        """Lockstep: hand the follower every smoothed pose whose time has come."""
+        while True:
+            if self._due is None:
+                try:
+                    self._due = self._smoothed.get_nowait()
+                except queue.Empty:
+                    return
+            due_at, index, pose = self._due
+            if self.lockstep is not None and not self.lockstep.reached(due_at):
+                return
+            self._due = None
+            self.tracker.smoothed(index, pose)
 
     def drain_latencies(self) -> list[tuple[int, float]]:
         out = []
@@ -321,24 +395,38 @@ class SmootherWorker:
 
     def _run(self) -> None:
         while True:
-            step = self._steps.get()
-            if step is None:
+            item = self._steps.get()
+            if item is None:
                 return
-            if self.error is not None:
-                continue
-            start = time.perf_counter()
+            step, due_at, token = item
             try:
-                self.smoother.step(step)
-                pose = self.smoother.current_pose()
-            except BaseException as exc:  # raised in the control loop (see LiveLoop.due)
-                self.error = exc
-                continue
-            latency = time.perf_counter() - start
-            self.latencies_s.append(latency)
-            self._latencies.put((step.index, latency))
+                self._smooth(step, due_at)
+            finally:
+                if token is not None:
+                    self.lockstep.release(token)  # type: ignore[union-attr]
+
+    def _smooth(self, step: Step, due_at: float | None) -> None:
+        if self.error is not None:
+            return
+        start = time.perf_counter()
+        try:
+            self.smoother.step(step)
+            pose = self.smoother.current_pose()
+        except BaseException as exc:  # raised in the control loop (see LiveLoop.due)
+            self.error = exc
+            return
+        latency = time.perf_counter() - start
+        self.latencies_s.append(latency)
+        self._latencies.put((step.index, latency))
+        if self.lockstep is None:
             self.tracker.smoothed(step.index, pose)
-            if self.on_step is not None:
+        else:
+            self._smoothed.put((due_at, step.index, pose))
+        if self.on_step is not None:
+            try:
                 self.on_step(step.index, self.smoother, latency)
+            except BaseException as exc:  # a failing status line stops the run like a failing smoother
+                self.error = exc
 
     def close(self) -> None:
         """Wait for every submitted step to be smoothed, then stop the thread (an error of
@@ -413,6 +501,7 @@ class LiveLoop:
         for worker in (self.camera, self.smoother):
             if worker is not None and worker.error is not None:
                 raise FgslamError(f"live loop: {type(worker.error).__name__}: {worker.error}") from worker.error
+        self.smoother.publish()
         if self._pending is not None:
             index, odometry, asked = self._pending
             result = self.camera.result() if self.camera is not None else None
@@ -578,18 +667,26 @@ def simulated_camera(sim, *, supersample: int = 1, pixel_noise: float = 2.0, see
 def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front_end=None,
              settings: LiveSettings = LiveSettings(), smoother=None, truth=None, truth_landmarks=(),
              clock: Callable[[], float] = time.monotonic, sensor: dict | None = None,
-             observation_noise: dict | None = None, on_step=None) -> LiveResult:
+             observation_noise: dict | None = None, on_step=None, lockstep: Lockstep | None = None) -> LiveResult:
     """Drive ``waypoints`` on the robot behind ``link`` with iSAM2 in the loop; log to
     ``out_path``. ``grab_for``/``front_end`` give the camera (None: odometry only);
     ``smoother`` defaults to :class:`fgslam.smoother.Isam2Smoother` (one update per pose).
     ``on_step(index, smoother, latency_s, loop)`` is called in the smoother worker after
     each pose (the CLI's status line and map; ``loop`` is the :class:`LiveLoop` with its
-    frame counts)."""
+    frame counts).
+
+    ``lockstep`` (simulation only, :class:`Lockstep`) gives every frame and smoother step a
+    fixed budget of robot time, so how fast this machine renders, detects and smooths
+    changes the run's wall time, never what happens in robot time. On a real robot time
+    does not stop: leave it None."""
     from fgslam.smoother import Isam2Smoother
     from slamio.create.record import RecorderSettings, record
     from slamio.log import Header
 
     start_pose = tuple(float(v) for v in start_pose)
+    if lockstep is not None and not lockstep.frame_s < settings.frame_timeout_s:
+        raise FgslamError(f"lockstep frame budget {lockstep.frame_s} s must be below frame_timeout_s "
+                          f"{settings.frame_timeout_s} s")
     if smoother is None:
         header = Header(stamp_s=0.0, start_pose=start_pose, start_sigma=(1e-3, 1e-3, 1e-3),  # as the recorder's
                         robot={"name": "live"}, sensor={"kind": "live"}, noise={"odometry": {}, "observation": {}})
@@ -597,16 +694,17 @@ def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front
     tracker = PoseTracker(start_pose)
     camera = None
     if grab_for is not None and front_end is not None:
-        camera = CameraWorker(lambda frame: front_end.process(frame).observations)
+        camera = CameraWorker(lambda frame: front_end.process(frame).observations, lockstep=lockstep)
     def step_hook(index, smoother_, latency):
         on_step(index, smoother_, latency, loop)
 
-    worker = SmootherWorker(smoother, tracker, step_hook if on_step is not None else None)
+    worker = SmootherWorker(smoother, tracker, step_hook if on_step is not None else None, lockstep=lockstep)
     worker.submit(Step(0, 0.0, None, (), None))  # pose 0: the start pose
     loop = LiveLoop(tracker, camera, worker, grab_for, settings, truth, truth_landmarks)
     follower = WaypointFollower(waypoints, tracker.current, settings, on_advance=tracker.advance)
     recorder = RecorderSettings(speed_m_s=settings.speed_m_s, turn_rate_rad_s=settings.turn_rate_rad_s,
-                                accel_m_s2=settings.accel_m_s2, record_period_s=settings.record_period_s)
+                                accel_m_s2=settings.accel_m_s2, record_period_s=settings.record_period_s,
+                                command_timeout_s=settings.command_timeout_s, data_timeout_s=settings.data_timeout_s)
     sensor = sensor or {"kind": "range-bearing", "landmark_kind": "apriltag" if camera else "none",
                         "source": "fgslam live"}
     try:

@@ -11,7 +11,8 @@ What these tests show (docs/create.md, "What the tests prove"):
 4. unplugging the simulated cable ends the run with the reason; the wheels are stopped as
    soon as the cable is back (and the report says so when it never comes back: the Create
    has no command timeout);
-5. bumps, wheel drops, the watchdog, Ctrl-C and SIGTERM/SIGINT stop the robot and keep the log.
+5. bumps, wheel drops, the watchdog, Ctrl-C and SIGTERM/SIGINT stop the robot and keep the log
+   (SIGINT also in a recorder that inherited it ignored, as a job started with ``&`` does).
 
 The simulator runs 20 × faster than real time; timeouts that watch the host are generous
 so that a busy machine cannot fail a test. Nothing asserts on how long anything took.
@@ -28,7 +29,6 @@ import signal
 import subprocess
 import sys
 import termios
-import threading
 import time
 from pathlib import Path
 
@@ -43,6 +43,7 @@ from slamio.create.record import (
     RecorderSettings,
     TeleopController,
     TerminalKeys,
+    interrupt_guard,
     path_moves,
     record,
 )
@@ -64,8 +65,9 @@ def wait_for(predicate, timeout_s=10.0):
     return predicate()
 
 
-def drive(sim, out, moves=None, settings=CALM, reconnect_attempts=3, **kwargs):
-    link = CreateLink(sim.port, sim.model, reconnect_delay_s=0.05, reconnect_attempts=reconnect_attempts)
+def drive(sim, out, moves=None, settings=CALM, reconnect_attempts=3, opener=None, **kwargs):
+    link = CreateLink(sim.port, sim.model, reconnect_delay_s=0.05, reconnect_attempts=reconnect_attempts,
+                      opener=opener)
     controller = kwargs.pop("controller", None) or PathController(moves or path_moves("octagon"), settings)
     return record(link, out, controller, settings=settings, clock=sim.clock, **kwargs)
 
@@ -211,7 +213,7 @@ def test_keyboard_interrupt_stops_the_robot(tmp_path):
 # --------------------------------------------------------------------------- 4: the cable
 
 
-def test_unplugged_cable_ends_the_run_and_the_stop_goes_out_when_it_is_back(tmp_path):
+def test_unplugged_cable_ends_the_run_and_the_stop_goes_out_when_it_is_back(tmp_path, cable_back_on_retry):
     out = tmp_path / "unplug.jsonl"
     with SimulatedCreate("create2", seed=7, time_scale=FAST) as sim:
 
@@ -221,13 +223,14 @@ def test_unplugged_cable_ends_the_run_and_the_stop_goes_out_when_it_is_back(tmp_
             if n >= 10 and not pulled and sim.commanded_mm_s != (0.0, 0.0):  # once, while it drives
                 pulled.append(n)
                 sim.unplug()
-                threading.Timer(0.1, sim.replug).start()
 
-        # the recorder tries to reconnect for 20 × 0.05 s; the cable is back after 0.1 s
-        result = drive(sim, out, on_record=unplug, reconnect_attempts=20)
+        # The cable is back after the recorder's first attempt to reopen it (an event, not a
+        # delay that a busy machine could overrun); it tries 3 times.
+        opener, attempts = cable_back_on_retry(sim)
+        result = drive(sim, out, on_record=unplug, opener=opener)
         assert stopped(sim)
     assert result.reason.kind == "serial-error" and "unplugged" in result.reason.message
-    assert result.shutdown.stopped and result.shutdown.reconnected
+    assert attempts and result.shutdown.stopped and result.shutdown.reconnected
     assert len(read_log(out).records) == result.records >= 10
 
 
@@ -292,9 +295,22 @@ def test_teleop_needs_a_terminal():
 # --------------------------------------------------------------------------- 3: subprocess kills
 
 
-def _start_recorder(out: Path, *extra: str) -> subprocess.Popen:
+# Starts a program with SIGINT at the disposition given as argv[1] ("default" or "ignored",
+# what a job started with `&` from a non-interactive script inherits) and execs the rest:
+# an exec keeps an ignored signal ignored.
+_WITH_SIGINT = (
+    "import os, signal, sys; "
+    "signal.signal(signal.SIGINT, signal.SIG_IGN if sys.argv[1] == 'ignored' else signal.SIG_DFL); "
+    "os.execv(sys.argv[2], sys.argv[2:])"
+)
+
+
+def _start_recorder(out: Path, *extra: str, sigint: str = "default") -> subprocess.Popen:
+    """The recorder CLI in a subprocess, SIGINT set to ``sigint`` when it starts (whatever
+    pytest itself inherited)."""
     cmd = [sys.executable, "-m", "fgslam.record_cli", "record", "--port", "sim", "--model", "create2",
            "--path", "square", "--laps", "3", "--out", str(out), "--sim-time-scale", "5", *extra]
+    cmd = [sys.executable, "-c", _WITH_SIGINT, sigint, *cmd]
     env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
     return subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
@@ -327,11 +343,14 @@ def test_sigkill_mid_run_leaves_a_log_read_up_to_the_last_complete_record(tmp_pa
     assert len(cut_log.records) == complete - 1 and "cut off" in cut_log.truncated
 
 
-def test_sigint_stops_the_robot_keeps_the_log_and_says_why(tmp_path):
+@pytest.mark.parametrize("sigint", ["default", "ignored"])
+def test_sigint_stops_the_robot_keeps_the_log_and_says_why(tmp_path, sigint):
+    """Also when the recorder inherited SIGINT ignored (started with `&` from a script):
+    it used to keep driving the robot to the end of the path and exit 0."""
     out = tmp_path / "sigint.jsonl"
-    proc = _start_recorder(out)
+    proc = _start_recorder(out, sigint=sigint)
     try:
-        _wait_for_lines(proc, out, 15)
+        _wait_for_lines(proc, out, 15)  # recording: record() has installed its handler
     finally:
         proc.send_signal(signal.SIGINT)
         stdout, stderr = proc.communicate(timeout=60)
@@ -341,3 +360,15 @@ def test_sigint_stops_the_robot_keeps_the_log_and_says_why(tmp_path):
     assert status["reason"]["kind"] == "interrupted" and status["shutdown"]["stopped"]
     assert status["simulator"]["commanded_mm_s"] == [0.0, 0.0] and status["simulator"]["oi_mode"] == 1
     assert len(read_log(out).records) == status["records"]
+
+
+def test_interrupt_guard_installs_ctrl_c_even_when_sigint_was_ignored_and_restores_it():
+    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        with interrupt_guard():
+            assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+            with pytest.raises(KeyboardInterrupt):
+                signal.raise_signal(signal.SIGINT)
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN  # given back as inherited
+    finally:
+        signal.signal(signal.SIGINT, before)

@@ -7,6 +7,7 @@ and take no wall-clock time; the robot's answers are read from its pseudo-termin
 from __future__ import annotations
 
 import math
+import time
 
 import pytest
 import serial
@@ -197,3 +198,34 @@ def test_bad_arguments():
         SimulatedCreate(corrupt_fraction=1.5)
     with pytest.raises(FgslamError, match="time_scale"):
         SimulatedCreate(time_scale=0)
+
+
+def _wait_for(predicate, timeout_s=30.0):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.002)
+    return predicate()
+
+
+def test_a_hold_stops_the_clock_at_its_time_and_commands_are_still_obeyed():
+    with SimulatedCreate("create2", time_scale=50.0, arena_m=None) as sim:
+        port = serial.serial_for_url(sim.port, baudrate=115200, timeout=0.5)
+        try:
+            token = sim.hold(at_s=0.3)
+            assert _wait_for(lambda: sim.clock() >= 0.3)
+            stood = sim.clock()
+            assert 0.3 <= stood < 0.3 + STEP_S + 1e-9  # it stops at the first step at or after 0.3 s
+            port.write(p.start() + p.safe() + p.drive_direct(left_mm_s=100, right_mm_s=100))
+            assert _wait_for(lambda: sim.commanded_mm_s == (100.0, 100.0))  # obeyed while time stands
+            assert sim.clock() == stood and sim.true_pose == (0.75, 0.75, 0.0)
+            with sim.held():  # a second hold, from now: still standing after the first is released
+                sim.release(token)
+                assert sim.clock() == stood and sim.holds == 1
+            assert _wait_for(lambda: sim.clock() > stood + 0.1) and sim.true_pose[0] > 0.75
+            assert sim.holds == 0 and sim.hold_wall_s > 0
+            with pytest.raises(RuntimeError, match="no such hold"):
+                sim.release(token)
+        finally:
+            port.close()

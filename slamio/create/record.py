@@ -16,8 +16,10 @@
    SIGKILL) leaves every record but possibly the one being written; ``read_log`` drops a
    cut-off last line and says so;
 5. stops on the first hazard (:mod:`slamio.create.safety`: bump, wheel drop, mode change,
-   watchdog, no data, Ctrl-C/SIGTERM, serial error), keeps the log, and returns the
-   :class:`~slamio.create.safety.StopReason` in a :class:`RecordResult`.
+   watchdog, no data, Ctrl-C/SIGINT/SIGTERM, serial error), keeps the log, and returns the
+   :class:`~slamio.create.safety.StopReason` in a :class:`RecordResult`. SIGINT stops the
+   robot even in a recorder started with ``&`` from a script, which inherits SIGINT ignored
+   (:func:`interrupt_guard`).
 
 The scripted paths stop (``settle_s``) between a straight and a turn: a Create 2 encoder
 counts in the commanded direction, so a wheel reversed while still rolling would count the
@@ -26,14 +28,17 @@ wrong way.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
 import select
+import signal
 import sys
+import threading
 import time
 from dataclasses import asdict, dataclass, field
-from typing import Any, Callable, Protocol, Sequence
+from typing import Any, Callable, Iterator, Protocol, Sequence
 
 from slamio.create import protocol
 from slamio.create.link import CreateLink, LinkError, ShutdownReport
@@ -71,6 +76,7 @@ __all__ = [
     "make_header",
     "record",
     "RecordHooks",
+    "interrupt_guard",
     "write_status",
     "STREAM_IDS",
     "POLL_IDS",
@@ -509,6 +515,28 @@ def make_header(model: str, port: str, baud: int, noise: OdometryNoise, settings
     )
 
 
+@contextlib.contextmanager
+def interrupt_guard() -> Iterator[None]:
+    """SIGINT (Ctrl-C, ``kill -INT``) raises KeyboardInterrupt while the block runs, whatever
+    the process inherited.
+
+    Python installs its Ctrl-C handler at start-up only when SIGINT is not ignored; a
+    recorder started with ``&`` from a non-interactive script (or by a supervisor that
+    ignores SIGINT) inherits it ignored, and SIGINT would leave the robot driving. So the
+    default handler is installed unconditionally for the recording, and the previous
+    disposition (ignored or not) restored after. Only the main thread can install signal
+    handlers; elsewhere this does nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler if previous is None else previous)
+
+
 class RecordHooks(Protocol):
     """What :func:`record` asks of a loop that rides on it (``fgslam live``)."""
 
@@ -603,7 +631,7 @@ def record(
         controller.advance(d, a)
 
     started = False
-    with LogWriter(out_path, header) as log, signal_guard():
+    with LogWriter(out_path, header) as log, signal_guard(), interrupt_guard():
         if hooks is not None and hasattr(hooks, "started"):
             hooks.started(log)
         try:

@@ -47,10 +47,23 @@ simulator waits until the host has read everything sent so far (the pty's input 
 empty), for at most ``wait_for_host_s`` of real time, so simulated time stretches instead.
 The ground truth — :attr:`true_pose`, :attr:`true_path_length_m`, :attr:`true_turn_rad` —
 and the raw frames sent before any damage (:attr:`sent_frames`) can be read at any time.
+
+**Holding the clock (lockstep).** Host-side work that the robot does not wait for on a real
+run — rendering and processing a camera frame, a smoother step — takes robot time that
+depends on how fast the machine is. ``token = sim.hold(at_s)`` … ``sim.release(token)`` (or
+``with sim.held(at_s):``) stops the simulated clock when it reaches ``at_s`` (now if None)
+until the work is done: a piece of work given a budget of robot time then always ends
+within it, however slow the machine (:class:`fgslam.live.Lockstep` gives a frame's result to
+the live loop exactly at the end of its budget). Holds may come from any thread. While the
+clock stands no step is taken and no frame is streamed, but commands are still obeyed at
+once (a stop goes out whatever holds the clock). A slow or busy machine then only stretches
+the run in wall time. ``max_hold_s`` (wall) bounds one wait, so a hold that is never
+released cannot freeze the robot for ever.
 """
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import fcntl
 import math
@@ -61,7 +74,7 @@ import termios
 import threading
 import time
 import tty
-from typing import Sequence
+from typing import Iterator, Sequence
 
 import numpy as np
 
@@ -118,7 +131,7 @@ class SimulatedCreate:
                  start_pose: Sequence[float] = DEFAULT_START_POSE, encoder_noise: float = 0.02,
                  accel_m_s2: float = 1.0, corrupt_fraction: float = 0.0, drop_fraction: float = 0.0,
                  robot_radius_m: float = ROBOT_RADIUS_M, wheel_base_m: float = WHEEL_BASE_M,
-                 wait_for_host_s: float = 0.5, port_dir: str | None = None):
+                 wait_for_host_s: float = 0.5, max_hold_s: float = 60.0, port_dir: str | None = None):
         if model not in ("create1", "create2"):
             raise FgslamError(f"unknown Create model {model!r}; use create1 or create2")
         if not (time_scale > 0 and math.isfinite(time_scale)):
@@ -136,6 +149,7 @@ class SimulatedCreate:
         self.robot_radius_m = robot_radius_m
         self.wheel_base_m = wheel_base_m
         self.wait_for_host_s = float(wait_for_host_s)
+        self.max_hold_s = float(max_hold_s)
         motion_seed, fault_seed = np.random.SeedSequence(int(seed)).spawn(2)
         self._rng = np.random.default_rng(motion_seed)
         self._fault_rng = np.random.default_rng(fault_seed)
@@ -174,6 +188,10 @@ class SimulatedCreate:
         self._slave: int | None = None
         self._thread: threading.Thread | None = None
         self._running = threading.Event()
+        self._holds: dict[int, float] = {}  # token → robot time from which it stops the clock
+        self._hold_tokens = 0
+        self._held = threading.Condition(threading.Lock())
+        self.hold_wall_s = 0.0  # wall time the clock was held (how much a slow machine stretched the run)
 
     # ------------------------------------------------------------------ life cycle
 
@@ -292,6 +310,62 @@ class SimulatedCreate:
 
     # ------------------------------------------------------------------ the clock
 
+    def hold(self, at_s: float | None = None) -> int:
+        """Stop the simulated clock when it reaches ``at_s`` (robot seconds of :meth:`clock`;
+        None: now) until :meth:`release` is called with the returned token. Any thread; the
+        clock runs while no hold has reached its time."""
+        with self._held:
+            self._hold_tokens += 1
+            token = self._hold_tokens
+            self._holds[token] = -math.inf if at_s is None else float(at_s)
+            return token
+
+    def release(self, token: int) -> None:
+        """End the hold ``token`` (from :meth:`hold`)."""
+        with self._held:
+            if self._holds.pop(token, None) is None:
+                raise RuntimeError(f"SimulatedCreate.release({token!r}): no such hold")
+            self._held.notify_all()
+
+    @contextlib.contextmanager
+    def held(self, at_s: float | None = None) -> Iterator[None]:
+        """``with sim.held():`` the clock stands still (from ``at_s``) while the block runs."""
+        token = self.hold(at_s)
+        try:
+            yield
+        finally:
+            self.release(token)
+
+    @property
+    def holds(self) -> int:
+        """How many holds are active (reached or not)."""
+        with self._held:
+            return len(self._holds)
+
+    def _holding(self) -> bool:
+        """A hold has reached its time (call with ``_held``)."""
+        now = self.clock() + 1e-9
+        return any(at <= now for at in self._holds.values())
+
+    def _wait_while_held(self) -> bool:
+        """Wait (obeying commands meanwhile) until no hold stops the clock, at most
+        ``max_hold_s`` of wall time; True if the clock was held at all."""
+        with self._held:
+            if not self._holding():
+                return False
+        start = time.monotonic()
+        give_up = start + self.max_hold_s
+        while self._running.is_set() and time.monotonic() < give_up:
+            with self._lock:
+                self._receive()  # a stop sent while the clock stands is obeyed at once
+            with self._held:
+                if self._holding():
+                    self._held.wait(timeout=0.005)
+                if not self._holding():
+                    break
+        self.hold_wall_s += time.monotonic() - start
+        return True
+
     def _unread_by_host(self) -> int:
         """Bytes sent that the host has not read yet (the pty's input queue)."""
         with self._lock:
@@ -312,6 +386,10 @@ class SimulatedCreate:
             while self._unread_by_host() and time.monotonic() < give_up and self._running.is_set():
                 time.sleep(0.0002)
                 next_wall = time.monotonic()
+            if self._wait_while_held():  # host-side work in progress: time stands still
+                next_wall = time.monotonic()
+            if not self._running.is_set():
+                break
             self.step()
             next_wall += wall_step
             delay = next_wall - time.monotonic()

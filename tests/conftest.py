@@ -1,0 +1,70 @@
+"""What every test module shares: no test may depend on how fast this machine is.
+
+* **Hypothesis** runs without its per-example deadline (200 ms by default) and without its
+  "too slow" health check: on a busy machine an example can take longer than that, which
+  says nothing about the code (profile ``fgslam``; ``--hypothesis-profile`` picks another).
+* **The ``slow`` marker** (registered in pyproject.toml) is put on the long acceptance runs
+  listed in :data:`SLOW`. ``make test`` (``pytest -m "not slow"``) leaves them out and
+  finishes in a few minutes; ``make test-all`` (plain ``pytest``) and CI run everything.
+  A test can also say it is slow itself with ``@pytest.mark.slow``.
+* **``cable_back_on_retry``**: a pulled serial cable that goes back in right after the
+  link's first attempt to reopen it — "back within the retry window" as an event, not as a
+  delay that a busy machine could overrun.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import pytest
+from hypothesis import HealthCheck, settings
+
+settings.register_profile("fgslam", deadline=None, suppress_health_check=[HealthCheck.too_slow])
+settings.load_profile("fgslam")
+
+# (module file, test name with its parameters): the long acceptance runs, up to minutes
+# each on a busy 2-core machine (`pytest --durations=40` finds them).
+SLOW = {
+    ("test_acceptance.py", "test_grid_200_skeleton_promises"),
+    ("test_acceptance.py", "test_jcbb_associates_hidden_ids_at_least_99_percent_and_nn_no_better[grid-200]"),
+    ("test_acceptance.py", "test_dcs_isam2_with_10_percent_outliers_on_grid_200_stays_within_1_2x_of_clean"),
+    ("test_cli.py", "test_victoria_park_with_the_fast_preset_ends_at_the_smoothed_reference"),  # 6 969 real poses
+}
+
+
+@pytest.hookimpl(tryfirst=True)  # before -m deselects by marker
+def pytest_collection_modifyitems(config, items):
+    modules = {}
+    for item in items:
+        if (item.path.name, item.name) in SLOW:
+            item.add_marker(pytest.mark.slow)
+        modules.setdefault(item.path.name, getattr(item, "module", None))
+    for file, name in sorted(SLOW):  # a renamed test would silently join the quick run
+        module = modules.get(file)
+        if module is not None and not hasattr(module, name.split("[", 1)[0]):
+            warnings.warn(pytest.PytestWarning(f"tests/conftest.py: SLOW names {file}::{name}, which does not exist"))
+
+
+@pytest.fixture
+def cable_back_on_retry():
+    """``make(sim) -> (opener, attempts)``: give ``opener`` to :class:`CreateLink`. While
+    ``sim`` is unplugged, the link's first attempt to open the port fails (the cable is out)
+    and plugs the cable back in, so the next attempt succeeds; ``attempts`` lists the
+    attempts made while unplugged."""
+    import serial
+
+    def make(sim):
+        attempts: list[str] = []
+
+        def opener(url, **kwargs):
+            if not sim.plugged:
+                attempts.append(url)
+                try:
+                    return serial.serial_for_url(url, **kwargs)  # fails: no port behind the path
+                finally:
+                    sim.replug()
+            return serial.serial_for_url(url, **kwargs)
+
+        return opener, attempts
+
+    return make
