@@ -2,7 +2,22 @@
 
 from __future__ import annotations
 
+import time
+
 from slamio.log import Header
+
+
+def wait_for(predicate, timeout_s=30.0):
+    """Poll ``predicate`` until it is true or ``timeout_s`` of wall time has passed; its last value.
+
+    For tests that wait on an event (a stop command, a record) instead of sleeping: the
+    timeout only bounds a hang, it never decides a pass on a busy machine."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.002)
+    return predicate()
 
 
 def minimal_header(start_pose=(0.0, 0.0, 0.0), start_sigma=(1e-3, 1e-3, 1e-3), stamp_s=0.0) -> Header:

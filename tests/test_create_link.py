@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import time
+import builders
 
 import pytest
 import serial
@@ -50,12 +50,7 @@ def spy_opener(spies):
 
 
 def wait_for(predicate, timeout_s=10.0):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.002)
-    return predicate()
+    return builders.wait_for(predicate, timeout_s)
 
 
 def test_loop_url_round_trip_and_default_baud():

@@ -29,7 +29,7 @@ import signal
 import subprocess
 import sys
 import termios
-import time
+import builders
 from pathlib import Path
 
 import pytest
@@ -57,12 +57,7 @@ CALM = RecorderSettings(command_timeout_s=3.0, data_timeout_s=3.0, startup_timeo
 
 
 def wait_for(predicate, timeout_s=10.0):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.002)
-    return predicate()
+    return builders.wait_for(predicate, timeout_s)
 
 
 def drive(sim, out, moves=None, settings=CALM, reconnect_attempts=3, opener=None, **kwargs):

@@ -7,7 +7,7 @@ and take no wall-clock time; the robot's answers are read from its pseudo-termin
 from __future__ import annotations
 
 import math
-import time
+import builders
 
 import pytest
 import serial
@@ -201,12 +201,7 @@ def test_bad_arguments():
 
 
 def _wait_for(predicate, timeout_s=30.0):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.002)
-    return predicate()
+    return builders.wait_for(predicate, timeout_s)
 
 
 def test_a_hold_stops_the_clock_at_its_time_and_commands_are_still_obeyed():

@@ -17,6 +17,8 @@ import math
 import threading
 import time
 
+import builders
+
 import numpy as np
 import pytest
 
@@ -48,12 +50,7 @@ CALM = LiveSettings(command_timeout_s=30.0, data_timeout_s=30.0)
 
 
 def wait_for(predicate, timeout_s=30.0):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.002)
-    return predicate()
+    return builders.wait_for(predicate, timeout_s)
 
 
 def wheels_stopped(sim):
