@@ -25,11 +25,10 @@ import numpy as np  # noqa: E402
 
 from ekf import EkfSlam  # noqa: E402
 from fgslam.runner import ESTIMATORS, run_estimator  # noqa: E402
-from fgslam.smoother import Isam2Smoother  # noqa: E402
 from slamio.datasets import mrclam  # noqa: E402
 from slamio.log import RunLog  # noqa: E402
 from slamio.noise_fit import fit_noise_model  # noqa: E402
-from slamio.noise_model import ObservationModel, OdometryModel  # noqa: E402
+from slamio.noise_model import ObservationModel  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_mrclam import ate_pair_m  # noqa: E402

@@ -31,13 +31,9 @@ import numpy as np
 from slamio.errors import FgslamError
 from slamio.log import Observation, Odometry, RunLog, as_matrix3
 from slamio.noise_fit import OdometryChain, turn_rate_radps
-from slamio.noise_model import NoiseModel, NoiseModelError, correct_observation
+from slamio.noise_model import NoiseModel, NoiseModelError, carries_fitted_model, correct_observation
 
 __all__ = ["apply_noise_model"]
-
-
-def _already_fitted(noise: dict) -> bool:
-    return "fitted_on" in noise or "lag_s" in noise.get("odometry", {})
 
 
 def apply_noise_model(log: RunLog, model: NoiseModel) -> tuple[RunLog, int]:
@@ -46,7 +42,7 @@ def apply_noise_model(log: RunLog, model: NoiseModel) -> tuple[RunLog, int]:
     Returns the new log and the number of readings dropped as uncorrectable. Raises
     :class:`~slamio.errors.FgslamError` when the log already carries a fitted model.
     """
-    if _already_fitted(log.header.noise):
+    if carries_fitted_model(log.header.noise):
         raise FgslamError(
             f"{log.path}: this log already carries a fitted noise model (imported with --noise); "
             "apply a model only to a log made without one"

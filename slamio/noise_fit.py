@@ -47,7 +47,7 @@ from scipy.optimize import nnls
 from slamio.errors import FgslamError
 from slamio.geometry import wrap_angle
 from slamio.log import RunLog
-from slamio.noise_model import NoiseModel, ObservationModel, OdometryModel, OdometryNoiseRates
+from slamio.noise_model import NoiseModel, ObservationModel, OdometryModel, OdometryNoiseRates, carries_fitted_model
 
 __all__ = ["CalibrationError", "OdometryChain", "fit_noise_model", "turn_rate_radps"]
 
@@ -138,7 +138,7 @@ class _LogData:
 
 def _log_data(log: RunLog) -> _LogData:
     steps = log.steps()
-    if any(k in log.header.noise.get("odometry", {}) for k in ("lag_s",)) or "fitted_on" in log.header.noise:
+    if carries_fitted_model(log.header.noise):
         raise CalibrationError(
             f"{log.path}: this log was imported with a fitted noise model already; calibrate on "
             "logs imported without --noise (the fit is relative to the raw odometry and readings)"

@@ -53,6 +53,7 @@ __all__ = [
     "ObservationModel",
     "OdometryModel",
     "OdometryNoiseRates",
+    "carries_fitted_model",
     "correct_observation",
     "load_noise_model",
     "save_noise_model",
@@ -194,6 +195,12 @@ class NoiseModel:
             "fitted_on": list(self.fitted_on),
             "fit_report": self.fit_report,
         }
+
+
+def carries_fitted_model(noise: dict) -> bool:
+    """True when a log header's ``noise`` says a fitted model was applied (by an importer's
+    ``--noise`` or by :func:`slamio.noise_apply.apply_noise_model`)."""
+    return "fitted_on" in noise or "lag_s" in noise.get("odometry", {})
 
 
 def correct_observation(
