@@ -103,7 +103,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         metrics["log_rejected"] = log.rejection_summary()
     if args.noise is not None:
         metrics["noise_model"] = str(args.noise)
-    from fgslam.report import provenance
+    from fgslam.provenance import provenance
 
     metrics["provenance"] = provenance(args.log, [r.name for r in result.runs], command=command_line(args, "run"))
 
