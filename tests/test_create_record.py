@@ -47,6 +47,7 @@ from slamio.create.record import (
     path_moves,
     record,
 )
+from slamio.create.safety import interrupts_deferred
 from slamio.create.sim import SimulatedCreate
 from slamio.errors import FgslamError
 from slamio.log import Odometry, read_log
@@ -367,3 +368,21 @@ def test_interrupt_guard_installs_ctrl_c_even_when_sigint_was_ignored_and_restor
         assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN  # given back as inherited
     finally:
         signal.signal(signal.SIGINT, before)
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_an_interrupt_during_a_record_write_is_raised_after_the_record_is_counted(signum):
+    """The recorder writes and counts a record inside interrupts_deferred: a Ctrl-C that
+    lands between the write and the count used to leave a written record uncounted."""
+    written = counted = 0
+    with interrupt_guard(), pytest.raises(KeyboardInterrupt):
+        previous_term = signal.signal(signal.SIGTERM, signal.default_int_handler)
+        try:
+            with interrupts_deferred():
+                written += 1
+                signal.raise_signal(signum)  # arrives between the write and the count
+                counted += 1
+        finally:
+            signal.signal(signal.SIGTERM, previous_term)
+    assert written == counted == 1
+    assert signal.getsignal(signal.SIGTERM) is previous_term  # handlers given back

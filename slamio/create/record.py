@@ -57,6 +57,7 @@ from slamio.create.safety import (
     implausible_create1_reading,
     implausible_encoder_jump,
     implausible_frame,
+    interrupts_deferred,
     signal_guard,
 )
 from slamio.errors import FgslamError
@@ -603,11 +604,12 @@ def record(
 
     def write_record(log: LogWriter) -> None:
         nonlocal records, distance_m, angle_rad, pose, stamp
-        stamp = now_s()
-        rec = odometry.take(stamp)
-        log.write(rec)
-        log.flush()
-        records += 1
+        with interrupts_deferred():  # a written record is always a counted one
+            stamp = now_s()
+            rec = odometry.take(stamp)
+            log.write(rec)
+            log.flush()
+            records += 1
         if hooks is not None:
             hooks.after_record(rec, log)
         distance_m += abs(rec.distance_m)

@@ -37,6 +37,7 @@ from slamio.create.protocol import OiMode, decode_bumps_and_drops
 __all__ = [
     "StopReason",
     "STOP_KINDS",
+    "interrupts_deferred",
     "hazard_from_bumps",
     "hazard_from_mode",
     "implausible_frame",
@@ -285,3 +286,30 @@ def signal_guard() -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+@contextlib.contextmanager
+def interrupts_deferred() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM back while the block runs; raise KeyboardInterrupt after it
+    if one came.
+
+    The recorder writes a record and counts it in one such block, so an interrupt cannot
+    land between the two (a written record left out of the count the recorder reports).
+    Only the main thread can install signal handlers; elsewhere this does nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending: list[int] = []
+
+    def _hold(signum, frame):  # noqa: ARG001
+        pending.append(signum)
+
+    previous = {signum: signal.signal(signum, _hold) for signum in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, signal.default_int_handler if handler is None else handler)
+    if pending:
+        raise KeyboardInterrupt(f"signal {pending[0]}")
