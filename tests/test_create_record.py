@@ -167,10 +167,16 @@ def test_bump_stops_the_robot_and_keeps_the_log(tmp_path):
     with SimulatedCreate("create2", seed=3, time_scale=FAST, start_pose=(2.3, 1.5, 0.0)) as sim:
         result = drive(sim, out, moves=path_moves("square", side_m=1.0))
         assert stopped(sim)
+        counted_m = sim.encoder_path_m
     assert result.reason.kind == "bump" and "bumper" in result.reason.message
     log = read_log(out)
     assert len(log.records) == result.records > 0
-    assert integrate_records(log.records)[1] == pytest.approx(3.048 - 0.17 - 2.3, abs=0.03)
+    logged_m = integrate_records(log.records)[1]
+    # The robot reached the wall (0.578 m away) and the log keeps every count it read; the
+    # wheels slip against the wall until the stop arrives, so how far the encoders counted
+    # past the wall depends on how fast the host reacts, not on the log.
+    assert logged_m >= 3.048 - 0.17 - 2.3 - 0.03
+    assert counted_m - 0.05 <= logged_m <= counted_m + 0.002  # the stop's deceleration may go unread
 
 
 def test_wheel_drop_stops_the_robot(tmp_path):

@@ -158,6 +158,7 @@ class SimulatedCreate:
         self._steps = 0
         self._pose = tuple(float(v) for v in start_pose)
         self._path_m = 0.0
+        self._encoder_path_m = 0.0
         self._turn_rad = 0.0
         self.mode = OiMode.OFF
         self._command_mm_s = [0.0, 0.0]  # left, right
@@ -285,6 +286,13 @@ class SimulatedCreate:
         """Distance the robot's centre has really travelled."""
         with self._lock:
             return self._path_m
+
+    @property
+    def encoder_path_m(self) -> float:
+        """Distance the wheel encoders have counted (their mean, noise included): more than
+        :attr:`true_path_length_m` when the wheels slip, e.g. while pushing against a wall."""
+        with self._lock:
+            return self._encoder_path_m
 
     @property
     def true_turn_rad(self) -> float:
@@ -573,6 +581,7 @@ class SimulatedCreate:
             self._ticks[i] += self._direction[i] * measured[i] * 1000.0 / CREATE2_MM_PER_COUNT
         signed = [_sign(travel[i]) * measured[i] for i in range(2)]
         self._distance_mm += 500.0 * (signed[0] + signed[1])
+        self._encoder_path_m += abs(0.5 * (signed[0] + signed[1]))
         self._angle_deg += math.degrees((signed[1] - signed[0]) / self.wheel_base_m)
         if self._lifted:
             self._bumps = 0
