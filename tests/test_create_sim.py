@@ -9,13 +9,16 @@ from __future__ import annotations
 import math
 import builders
 
+import numpy as np
 import pytest
 import serial
 
 from slamio.create import protocol as p
-from slamio.create.odometry import CREATE2_MM_PER_COUNT, WHEEL_BASE_M, counts_delta
+from slamio.create.odometry import CREATE2_MM_PER_COUNT, WHEEL_BASE_M, OdometryNoise, counts_delta, quantisation_floor
 from slamio.create.protocol import OiMode
 from slamio.create.sim import STEP_S, SimulatedCreate, wheel_speeds_from_drive
+
+NOISELESS = OdometryNoise(np.zeros((3, 3)), np.zeros((3, 3)), quantisation_floor("create2"))
 from slamio.errors import FgslamError
 
 
@@ -76,7 +79,7 @@ def test_drive_command_radii():
 
 
 def test_kinematics_straight_and_in_place(manual):
-    sim, _ = manual(arena_m=None, encoder_noise=0.0, start_pose=(0.0, 0.0, 0.0))
+    sim, _ = manual(arena_m=None, odometry_noise=NOISELESS, start_pose=(0.0, 0.0, 0.0))
     sim.handle_bytes(p.start() + p.safe() + p.drive_direct(left_mm_s=200, right_mm_s=200))
     steps(sim, 2.0)
     sim.handle_bytes(p.drive_direct(left_mm_s=0, right_mm_s=0))
@@ -95,7 +98,7 @@ def test_kinematics_straight_and_in_place(manual):
 
 
 def test_encoders_count_in_the_commanded_direction_and_wrap(manual):
-    sim, port = manual(arena_m=None, encoder_noise=0.0)
+    sim, port = manual(arena_m=None, odometry_noise=NOISELESS)
     sim.handle_bytes(p.start() + p.safe())
     first = ask(sim, port, [43, 44])
     sim.handle_bytes(p.drive_direct(left_mm_s=200, right_mm_s=200))
@@ -113,7 +116,7 @@ def test_encoders_count_in_the_commanded_direction_and_wrap(manual):
 
 
 def test_create1_angle_packet_truncates_and_forgets_the_remainder(manual):
-    sim, port = manual("create1", arena_m=None, encoder_noise=0.0)
+    sim, port = manual("create1", arena_m=None, odometry_noise=NOISELESS)
     sim.handle_bytes(p.start() + p.safe())
     wheel = math.radians(30.0) * WHEEL_BASE_M / 2 * 1000  # 30°/s in place
     sim.handle_bytes(p.drive_direct(left_mm_s=-wheel, right_mm_s=wheel))
@@ -130,7 +133,7 @@ def test_create1_angle_packet_truncates_and_forgets_the_remainder(manual):
 
 
 def test_walls_press_the_bumpers_and_stop_the_robot(manual):
-    sim, port = manual(start_pose=(2.5, 1.5, 0.0), encoder_noise=0.0)  # 0.38 m from the east wall
+    sim, port = manual(start_pose=(2.5, 1.5, 0.0), odometry_noise=NOISELESS)  # 0.38 m from the east wall
     sim.handle_bytes(p.start() + p.safe() + p.drive_direct(left_mm_s=300, right_mm_s=300))
     steps(sim, 3.0)
     assert sim.true_pose[0] == pytest.approx(3.048 - 0.17)
@@ -224,3 +227,31 @@ def test_a_hold_stops_the_clock_at_its_time_and_commands_are_still_obeyed():
                 sim.release(token)
         finally:
             port.close()
+
+
+def test_encoder_errors_follow_the_stated_noise_model_whatever_the_step():
+    """The encoders err like the odometry noise model a recording from the simulator states:
+    over a drive of length L with turn Δθ the (distance, heading) error has covariance
+    L·F + |Δθ|·R, however many 15 ms steps make the drive (measured_wheel_travel_m called
+    directly: 400 independent drives of 1 m on a 1 rad arc, cut into 10 or into 200 steps)."""
+    from slamio.create.sim import measured_wheel_travel_m, wheel_odometry_noise
+
+    noise = wheel_odometry_noise("create2")
+    length_m, turn_rad = 1.0, 1.0
+    index = np.ix_((0, 2), (0, 2))
+    expected = length_m * np.array(noise.forward_per_m)[index] + turn_rad * np.array(noise.rotate_per_rad)[index]
+    for n_steps in (10, 200):
+        rng = np.random.default_rng(7)
+        ds, dth = length_m / n_steps, turn_rad / n_steps
+        true = (ds - 0.5 * WHEEL_BASE_M * dth, ds + 0.5 * WHEEL_BASE_M * dth)
+        errors = []
+        for _ in range(400):
+            left = right = 0.0
+            for _ in range(n_steps):
+                m = measured_wheel_travel_m(true, WHEEL_BASE_M, noise, rng)
+                left, right = left + m[0], right + m[1]
+            errors.append((0.5 * (left + right) - length_m, (right - left) / WHEEL_BASE_M - turn_rad))
+        cov = np.cov(np.array(errors).T)
+        # 400 samples: a variance is known to about ±14 % (2σ of a χ²₄₀₀ / 400)
+        assert np.diag(cov) == pytest.approx(np.diag(expected), rel=0.16), n_steps
+    assert noise.forward_per_m[1][1] == 0.0 and noise.rotate_per_rad[1][1] == 0.0  # wheels do not slide sideways

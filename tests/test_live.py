@@ -107,7 +107,7 @@ def octagon_run(tmp_path_factory):
         grab_for, front_end, truth_landmarks = simulated_camera(sim)
         result = run_live(CreateLink(sim.port, "create2"), str(out), waypoints, start_pose=start, grab_for=grab_for,
                           front_end=front_end, truth=lambda: sim.true_pose, truth_landmarks=truth_landmarks,
-                          clock=sim.clock, settings=CALM, lockstep=Lockstep(sim))
+                          clock=sim.clock, settings=CALM, lockstep=Lockstep(sim), odometry_noise=sim.odometry_noise)
         stopped = wheels_stopped(sim)
         true_pose = sim.true_pose
         assert sim.holds == 0  # every frame and smoother step gave the clock back
@@ -209,3 +209,29 @@ def test_an_exception_in_the_loop_stops_the_wheels_first(tmp_path):
                      smoother=_FailingSmoother(Isam2Smoother(header)), settings=CALM, lockstep=Lockstep(sim))
         assert wheels_stopped(sim)
     assert len(read_log(out).steps()) >= 15
+
+
+
+def test_hil_log_states_the_noise_its_camera_and_encoders_have(octagon_run):
+    """A replayed live-simulation log is only a fair test if its header and records state the
+    noise that made them. The observations against the log's own truth: range and bearing
+    errors divided by the σ each observation states have an RMS near 1 (the simulated
+    camera's RENDERED_CORNER_SIGMA_PX); the odometry's σ is the simulated encoders' model."""
+    from slamio.create.sim import wheel_odometry_noise
+    from slamio.geometry import wrap_angle
+
+    out, _, _, _ = octagon_run
+    log = read_log(out)
+    assert log.header.noise["odometry"]["forward_per_m"] == [list(r) for r in wheel_odometry_noise("create2").forward_per_m]
+    landmarks = {i: (t.x_m, t.y_m) for i, t in log.truth_landmarks().items()}
+    z_range, z_bearing = [], []
+    for step in log.steps():
+        x, y, theta = step.truth.x_m, step.truth.y_m, step.truth.theta_rad
+        for o in step.observations:
+            dx, dy = landmarks[o.landmark_id][0] - x, landmarks[o.landmark_id][1] - y
+            z_range.append((o.range_m - math.hypot(dx, dy)) / o.sigma_range_m)
+            z_bearing.append(wrap_angle(o.bearing_rad - math.atan2(dy, dx) + theta) / o.sigma_bearing_rad)
+    assert len(z_range) > 100
+    for name, z in (("range", z_range), ("bearing", z_bearing)):
+        rms = math.sqrt(np.mean(np.square(z)))
+        assert 0.6 < rms < 1.5, (name, rms)  # was 0.39 (range) and 0.05 (bearing): σ 2.5× and 20× too large

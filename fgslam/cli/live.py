@@ -127,6 +127,7 @@ def cmd_live(args: argparse.Namespace) -> int:
 
     sim = None
     unplug_timer = None
+    odometry_noise = None  # a real robot: the recorder's nominal model
     try:
         if args.port == "sim":
             from slamio.create.sim import SimulatedCreate
@@ -135,6 +136,7 @@ def cmd_live(args: argparse.Namespace) -> int:
                                   start_pose=start_pose).start()
             grab_for, front_end, truth_landmarks = simulated_camera(sim, seed=args.sim_seed, tag_size_m=args.tag_size)
             port, clock, truth = sim.port, sim.clock, (lambda: sim.true_pose)
+            odometry_noise = sim.odometry_noise  # the log states what the simulated encoders do
             if args.sim_unplug_after is not None:
                 def unplug_when_due():
                     while sim.clock() < args.sim_unplug_after and sim.plugged:
@@ -150,7 +152,7 @@ def cmd_live(args: argparse.Namespace) -> int:
         link.open()  # a port that does not open is a user error (exit 1), before the log exists
         result = run_live(link, args.out, waypoints, start_pose=start_pose, grab_for=grab_for, front_end=front_end,
                           settings=settings, truth=truth, truth_landmarks=truth_landmarks, clock=clock,
-                          on_step=on_step)
+                          odometry_noise=odometry_noise, on_step=on_step)
     finally:
         status.close()
         if "link" in locals():

@@ -152,8 +152,13 @@ def cmd_record(args: argparse.Namespace) -> int:
     if args.port == "sim":
         from slamio.create.sim import SimulatedCreate
 
+        from slamio.create.sim import without_sideways
+
+        # The simulated encoders err as the log's header says (a calibration's model when given).
         sim = SimulatedCreate(args.model, seed=args.sim_seed, time_scale=args.sim_time_scale,
-                              corrupt_fraction=args.sim_corrupt, drop_fraction=args.sim_drop).start()
+                              corrupt_fraction=args.sim_corrupt, drop_fraction=args.sim_drop,
+                              odometry_noise=None if noise is None else without_sideways(noise)).start()
+        noise = sim.odometry_noise
         port, clock = sim.port, sim.clock
         source["simulator"] = {"seed": args.sim_seed, "time_scale": args.sim_time_scale,
                                "corrupt_fraction": args.sim_corrupt, "drop_fraction": args.sim_drop}

@@ -27,8 +27,15 @@ What is simulated
   (it slides along it, the wheels slip and the encoders keep counting); a wall touching
   the front half presses the bumper (packet 7: within 20° of straight ahead both bumpers,
   else the left or right one).
-* **Encoders.** Every step each wheel's travel is measured with a relative error
-  ``N(0, encoder_noise²)`` (seeded ``numpy.random.Generator``). Create 2: packets 43/44
+* **Encoders.** What the wheels report errs like the odometry noise model a recording
+  states (:class:`slamio.create.odometry.OdometryNoise`, ``odometry_noise``; default the
+  nominal model of :func:`wheel_odometry_noise`): each step the measured distance and turn
+  get errors drawn with covariance ``|Δs|·F + |Δθ|·R`` over (distance, heading) — variance
+  in proportion to the motion, a random walk, so the error of a drive does not depend on
+  the 15 ms step — and the wheels' counts are made from them (seeded
+  ``numpy.random.Generator``). Wheels cannot err sideways, so the model's sideways terms
+  are not simulated (:func:`wheel_odometry_noise` drops them). A log recorded from the
+  simulator with that model in its header is then consistent (NEES). Create 2: packets 43/44
   count ``π·72/508.8`` mm per count, uint16 wrapping, in the *commanded* direction of the
   wheel (the last non-zero command; not quadrature). Both models: packets 19/20 report the
   distance (mm) and angle (degrees) since they were last read, truncated toward zero with
@@ -79,7 +86,7 @@ from typing import Iterator, Sequence
 import numpy as np
 
 from slamio.create import protocol
-from slamio.create.odometry import CREATE2_MM_PER_COUNT, WHEEL_BASE_M
+from slamio.create.odometry import CREATE2_MM_PER_COUNT, WHEEL_BASE_M, OdometryNoise, default_noise
 from slamio.create.protocol import Opcode, OiMode
 from slamio.errors import FgslamError
 from slamio.geometry import arc_increment, compose_pose
@@ -123,12 +130,64 @@ def wheel_speeds_from_drive(velocity_mm_s: int, radius_mm: int, wheel_base_mm: f
     return v * (r - half) / r, v * (r + half) / r
 
 
+def wheel_odometry_noise(model: str) -> OdometryNoise:
+    """The nominal odometry noise (:func:`slamio.create.odometry.default_noise`) without its
+    sideways terms, which wheels cannot produce: what the simulated Create's encoders do,
+    and so what a recording from it states."""
+    return without_sideways(default_noise(model))
+
+
+def without_sideways(noise: OdometryNoise) -> OdometryNoise:
+    """``noise`` with the rows and columns of y (sideways) zeroed in F and R (the floor,
+    the quantisation, is kept)."""
+
+    def drop_y(m) -> np.ndarray:
+        a = np.array(m, float)
+        a[1, :] = 0.0
+        a[:, 1] = 0.0
+        return a
+
+    return OdometryNoise(drop_y(noise.forward_per_m), drop_y(noise.rotate_per_rad), noise.floor,
+                         source=f"{noise.source}; no sideways slip (wheel encoders)")
+
+
+def _matrix_sqrt_2x2(cov: np.ndarray) -> np.ndarray:
+    """A square root S (S·Sᵀ = cov) of a 2×2 covariance that may be singular."""
+    try:
+        return np.linalg.cholesky(cov)
+    except np.linalg.LinAlgError:
+        w, v = np.linalg.eigh(cov)
+        return v * np.sqrt(np.clip(w, 0.0, None))
+
+
+def measured_wheel_travel_m(travel_m: Sequence[float], wheel_base_m: float, noise: OdometryNoise,
+                            rng: np.random.Generator) -> list[float]:
+    """What the (left, right) encoders measure of the wheels' true (left, right) travel in
+    one step: unsigned distances (the counting direction is the commanded one).
+
+    The step's distance Δs and turn Δθ get an error drawn with covariance
+    ``|Δs|·F + |Δθ|·R`` over (distance, heading) — the x and θ rows of ``noise``'s F and R —
+    and the wheels' travel is made back from the erred (Δs, Δθ).
+    """
+    left, right = float(travel_m[0]), float(travel_m[1])
+    ds, dtheta = 0.5 * (left + right), (right - left) / wheel_base_m
+    index = np.ix_((0, 2), (0, 2))
+    cov = abs(ds) * np.array(noise.forward_per_m)[index] + abs(dtheta) * np.array(noise.rotate_per_rad)[index]
+    if cov.any():
+        e_s, e_theta = _matrix_sqrt_2x2(cov) @ rng.standard_normal(2)
+        ds, dtheta = ds + e_s, dtheta + e_theta
+    half = 0.5 * wheel_base_m * dtheta
+    measured = (ds - half, ds + half)
+    # Each wheel counts its own travel's size; an error cannot flip a wheel's direction.
+    return [abs(m) if (m >= 0) == (t >= 0) or t == 0 else 0.0 for m, t in zip(measured, (left, right))]
+
+
 class SimulatedCreate:
     """A Create on a pseudo-terminal (module docstring); start with :meth:`start` or ``with``."""
 
     def __init__(self, model: str = "create2", *, seed: int = 0, time_scale: float = 1.0,
                  arena_m: tuple[float, float] | None = ARENA_M,
-                 start_pose: Sequence[float] = DEFAULT_START_POSE, encoder_noise: float = 0.02,
+                 start_pose: Sequence[float] = DEFAULT_START_POSE, odometry_noise: OdometryNoise | None = None,
                  accel_m_s2: float = 1.0, corrupt_fraction: float = 0.0, drop_fraction: float = 0.0,
                  robot_radius_m: float = ROBOT_RADIUS_M, wheel_base_m: float = WHEEL_BASE_M,
                  wait_for_host_s: float = 0.5, max_hold_s: float = 60.0, port_dir: str | None = None):
@@ -142,7 +201,7 @@ class SimulatedCreate:
         self.model = model
         self.time_scale = float(time_scale)
         self.arena_m = arena_m
-        self.encoder_noise = float(encoder_noise)
+        self.odometry_noise = wheel_odometry_noise(model) if odometry_noise is None else odometry_noise
         self.accel_m_s2 = float(accel_m_s2)
         self.corrupt_fraction = float(corrupt_fraction)
         self.drop_fraction = float(drop_fraction)
@@ -158,7 +217,8 @@ class SimulatedCreate:
         self._steps = 0
         self._pose = tuple(float(v) for v in start_pose)
         self._path_m = 0.0
-        self._encoder_path_m = 0.0
+        self._encoder_distance_m = 0.0
+        self._encoder_turn_rad = 0.0
         self._turn_rad = 0.0
         self.mode = OiMode.OFF
         self._command_mm_s = [0.0, 0.0]  # left, right
@@ -288,11 +348,18 @@ class SimulatedCreate:
             return self._path_m
 
     @property
-    def encoder_path_m(self) -> float:
-        """Distance the wheel encoders have counted (their mean, noise included): more than
-        :attr:`true_path_length_m` when the wheels slip, e.g. while pushing against a wall."""
+    def encoder_distance_m(self) -> float:
+        """Distance the wheel encoders have counted (their mean, signed, noise included):
+        more than the robot moved when the wheels slip, e.g. while pushing against a wall."""
         with self._lock:
-            return self._encoder_path_m
+            return self._encoder_distance_m
+
+    @property
+    def encoder_turn_rad(self) -> float:
+        """Heading change the wheel encoders have counted (counter-clockwise positive, not
+        wrapped, noise included)."""
+        with self._lock:
+            return self._encoder_turn_rad
 
     @property
     def true_turn_rad(self) -> float:
@@ -575,13 +642,13 @@ class SimulatedCreate:
             v1 = v0 + max(-limit, min(limit, target - v0))
             self._wheel_m_s[i] = v1
             travel.append(0.5 * (v0 + v1) * dt)
-        noise = 1.0 + self.encoder_noise * self._rng.standard_normal(2)
-        measured = [abs(travel[i]) * noise[i] for i in range(2)]
+        measured = measured_wheel_travel_m(travel, self.wheel_base_m, self.odometry_noise, self._rng)
         for i in range(2):
             self._ticks[i] += self._direction[i] * measured[i] * 1000.0 / CREATE2_MM_PER_COUNT
         signed = [_sign(travel[i]) * measured[i] for i in range(2)]
         self._distance_mm += 500.0 * (signed[0] + signed[1])
-        self._encoder_path_m += abs(0.5 * (signed[0] + signed[1]))
+        self._encoder_distance_m += 0.5 * (signed[0] + signed[1])
+        self._encoder_turn_rad += (signed[1] - signed[0]) / self.wheel_base_m
         self._angle_deg += math.degrees((signed[1] - signed[0]) / self.wheel_base_m)
         if self._lifted:
             self._bumps = 0
