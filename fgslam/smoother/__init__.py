@@ -38,8 +38,8 @@ The factor graph
 * ``H(id)`` — a landmark's height (seed 002), a scalar, when observations carry one: each
   adds ``PriorFactorDouble(H(id), height, σ_h)``. Nothing else touches a height, so it is
   the information-weighted mean of the heights measured, as in the EKF.
-* With ``robust="huber"`` or ``"cauchy"`` (see :class:`~fgslam.smoother.isam2.Isam2Smoother`) every landmark
-  factor's noise model is ``noiseModel.Robust`` wrapping its Gaussian model; the prior,
+* With ``robust="huber"`` or ``"cauchy"`` (see :class:`~fgslam.smoother.isam2.Isam2Smoother`)
+  every landmark factor's noise model is ``noiseModel.Robust`` wrapping its Gaussian model; the prior,
   the odometry and the height factors stay Gaussian.
 """
 

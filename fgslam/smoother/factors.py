@@ -20,7 +20,7 @@ from gtsam.symbol_shorthand import H, L, T, X
 from slamio.errors import FgslamError
 from slamio.log import Header, Observation, Odometry
 
-#: The robust kernels :class:`Isam2Smoother` offers for landmark factors.
+#: The robust kernels :class:`~fgslam.smoother.isam2.Isam2Smoother` offers for landmark factors.
 ROBUST_KERNELS = ("huber", "cauchy", "tukey", "dcs")
 
 #: Default kernel widths k, in whitened units (σ of the factor's whole 2-D residual).
