@@ -127,41 +127,31 @@ class _TimedIsam:
 
 
 def run(steps, header, kwargs, profiled: bool):
+    """Drive the smoother over ``steps`` as ``fgslam run`` does; (smoother, timed profile,
+    outside profile, update timer, timed seconds, outside seconds)."""
     smoother = Isam2Smoother(header, **kwargs)
     timed, outside = cProfile.Profile(), cProfile.Profile()
     timer = _TimedIsam(smoother._isam)
     if profiled:
         smoother._isam = timer
-    on = (lambda p: p.enable()) if profiled else (lambda p: None)
-    off = (lambda p: p.disable()) if profiled else (lambda p: None)
-    step_s = outside_s = 0.0
+    seconds = {"timed": 0.0, "outside": 0.0}
+
+    def within(region: str, profile: cProfile.Profile, call) -> None:
+        start = time.perf_counter()
+        if profiled:
+            profile.enable()
+        call()
+        if profiled:
+            profile.disable()
+        seconds[region] += time.perf_counter() - start
+
     for step in steps:
-        t0 = time.perf_counter()
-        on(outside)
-        smoother.predicted_nis(step)
-        off(outside)
-        t1 = time.perf_counter()
-        on(timed)
-        smoother.step(step)
-        smoother.current_pose()
-        off(timed)
-        t2 = time.perf_counter()
-        on(outside)
-        smoother.current_covariance()
-        off(outside)
-        t3 = time.perf_counter()
-        step_s += t2 - t1
-        outside_s += (t1 - t0) + (t3 - t2)
-    t0 = time.perf_counter()
-    on(timed)
-    smoother.finish()
-    off(timed)
-    t1 = time.perf_counter()
-    on(outside)
-    smoother.landmark_covariances()
-    off(outside)
-    t2 = time.perf_counter()
-    return smoother, timed, outside, timer, step_s + (t1 - t0), outside_s + (t2 - t1)
+        within("outside", outside, lambda: smoother.predicted_nis(step))
+        within("timed", timed, lambda: (smoother.step(step), smoother.current_pose()))
+        within("outside", outside, smoother.current_covariance)
+    within("timed", timed, smoother.finish)
+    within("outside", outside, smoother.landmark_covariances)
+    return smoother, timed, outside, timer, seconds["timed"], seconds["outside"]
 
 
 def table(title: str, seconds: dict[str, float], wall_s: float) -> None:
