@@ -16,14 +16,15 @@ import numpy as np
 import pytest
 from gtsam.symbol_shorthand import X
 
-from fgslam.smoother import FAST_SETTINGS, Isam2Smoother, _Chain, batch_solve, odometry_noise_covariance
+from fgslam.smoother import FAST_SETTINGS, Isam2Smoother, batch_solve, odometry_noise_covariance
+from fgslam.smoother.chain import OdometryChain
 from slamio.log import group_steps
 from builders import run_smoother
 from slamio.sim import simulate
 
 
-def random_chain(rng, m: int) -> _Chain:
-    chain = _Chain(0)
+def random_chain(rng, m: int) -> OdometryChain:
+    chain = OdometryChain(0)
     for _ in range(m):
         z = gtsam.Pose2(rng.uniform(0.05, 0.3), rng.uniform(-0.05, 0.05), rng.uniform(-0.3, 0.3))
         L = rng.normal(size=(3, 3)) * np.array([0.01, 0.005, 0.01])
@@ -31,7 +32,7 @@ def random_chain(rng, m: int) -> _Chain:
     return chain
 
 
-def perturbed_end(chain: _Chain, errors) -> gtsam.Pose2:
+def perturbed_end(chain: OdometryChain, errors) -> gtsam.Pose2:
     """start = identity; end = z_1 Exp(e_1) ⋯ z_m Exp(e_m)."""
     pose = gtsam.Pose2()
     for (z, _), e in zip(chain.links, errors):
@@ -117,7 +118,7 @@ def test_keyframes_solve_the_same_problem(sparse_octagon):
     header, steps = sparse_octagon
     full = run_smoother(header, steps)
     keyed = run_smoother(header, steps, keyframes=True)
-    assert len(keyed._key_indices) < len(steps) / 3
+    assert len(keyed._keyframes.indices) < len(steps) / 3
     # graph() is the whole problem in both cases: same factors, same error at the same values
     graph, keyed_graph = full.graph(), keyed.graph()
     assert keyed_graph.size() == graph.size()
@@ -137,7 +138,7 @@ def test_keyframed_online_pose_and_covariance_between_keyframes(sparse_octagon):
     for step in steps[:203]:  # ends 3 steps after a keyframe
         full.step(step)
         keyed.step(step)
-    assert steps[202].index % 4 == 2 and keyed._open.links
+    assert steps[202].index % 4 == 2 and keyed._keyframes.open.links
     assert np.allclose(keyed.current_pose(), full.current_pose(), atol=1e-3)
     assert np.allclose(keyed.current_covariance(), full.current_covariance(), rtol=1e-2, atol=1e-12)
     assert keyed.trajectory().shape == (203, 3)
@@ -148,7 +149,7 @@ def test_a_log_without_observations_is_dead_reckoning(sparse_octagon):
     blind = [dataclasses.replace(s, observations=()) for s in steps[:40]]
     keyed = run_smoother(header, blind, keyframes=True, max_keyframe_gap=15)
     full = run_smoother(header, blind)
-    assert keyed._key_indices == [0, 15, 30]
+    assert keyed._keyframes.indices == [0, 15, 30]
     assert np.allclose(keyed.trajectory(), full.trajectory(), atol=1e-9)
     assert keyed.error() == pytest.approx(0.0, abs=1e-12)
 
@@ -168,17 +169,17 @@ def test_covariance_of_the_online_pose_does_not_flush_held_steps(sparse_octagon,
     held = Isam2Smoother(header, update_every=40, update_on="observations", keyframes=keyframes)
     for step in steps[:203]:
         held.step(step)
-    assert held._held_steps > 0
+    assert held._held.steps > 0
     updates = held.updates
     cov = held.current_covariance()
-    assert held.updates == updates and held._held_steps > 0  # nothing was flushed
+    assert held.updates == updates and held._held.steps > 0  # nothing was flushed
     # Held steps 201, 202: the marginal of the newest pose in iSAM2 carried through their
     # odometry, Σ ← A Σ Aᵀ + Σ_z with A = Ad(z⁻¹), written out here step by step.
     smoother = Isam2Smoother(header, update_every=40, update_on="observations", keyframes=keyframes)
     for step in steps[:201]:
         smoother.step(step)
     smoother._flush()
-    last = smoother._key_indices[-1]
+    last = smoother._keyframes.last
     assert last == 200  # step 200 has observations: a keyframe in both modes
     sigma = np.asarray(smoother._isam.marginalCovariance(X(last)))
     for step in steps[last + 1 : 203]:

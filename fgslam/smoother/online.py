@@ -1,0 +1,137 @@
+"""The online estimate: the newest pose, its covariance, predicted NIS, landmark marginals.
+
+:class:`OnlinePose` is what a live robot acts on: iSAM2's estimate of the newest pose it
+holds, composed with the odometry of the steps since (held steps, or the poses after the
+last keyframe). Its covariance is iSAM2's marginal of that pose carried through the same
+odometry, so asking for it never flushes held steps nor changes when iSAM2 updates.
+Marginals come from ``isam.marginalCovariance`` / ``jointMarginalCovariance``, which use
+the Bayes tree and do not recompute the whole graph's marginals.
+"""
+
+from __future__ import annotations
+
+import math
+
+import gtsam
+import numpy as np
+from gtsam.symbol_shorthand import L, T, X
+
+from ekf.models import range_bearing_nis
+from fgslam.smoother.chain import OdometryChain
+from fgslam.smoother.factors import odometry_noise_covariance
+from slamio.log import Odometry, Step
+
+
+class OnlinePose:
+    """The newest pose and the odometry since the newest pose in iSAM2."""
+
+    def __init__(self):
+        self.pose: gtsam.Pose2 | None = None  # latest pose: iSAM2's after an update, else ⊕ odometry
+        # odometry records since the newest pose in iSAM2, for the online covariance; kept
+        # raw, so a step costs one list append
+        self._since: list[tuple[gtsam.Pose2, Odometry]] = []
+        # current_covariance() is asked at every step (NEES): the marginal is kept until
+        # iSAM2 changes, and the held odometry is propagated only once per record
+        self._marginal: np.ndarray | None = None
+        self._since_chain = OdometryChain(0)
+
+    def moved(self, increment: gtsam.Pose2, odometry: Odometry) -> None:
+        """Note one more step's odometry since the newest pose in iSAM2."""
+        self._since.append((increment, odometry))
+
+    def updated(self, pose: gtsam.Pose2, newest_in_isam: int, steps_after: int) -> None:
+        """After an iSAM2 update: ``pose`` is the newest pose; the newest pose iSAM2 holds is
+        ``newest_in_isam`` and only the last ``steps_after`` steps (the open keyframe chain) follow it."""
+        self.pose = pose
+        self._since = self._since[len(self._since) - steps_after :] if steps_after else []
+        self._since_chain = OdometryChain(newest_in_isam)
+        self._marginal = None
+
+    def forget_marginal(self) -> None:
+        """iSAM2 changed without new poses (the final updates): recompute the marginal when asked."""
+        self._marginal = None
+
+    def _caught_up_since_chain(self) -> OdometryChain:
+        """The odometry since the newest iSAM2 pose, with the records held since the last call."""
+        chain = self._since_chain
+        for increment, odo in self._since[len(chain.links) :]:
+            chain.append(increment, odometry_noise_covariance(odo))
+        return chain
+
+    def covariance(self, isam: gtsam.ISAM2, frame: str) -> np.ndarray:
+        """3×3 covariance of :attr:`pose` (see :meth:`Isam2Smoother.current_covariance`)."""
+        chain = self._caught_up_since_chain()
+        if self._marginal is None:
+            self._marginal = np.asarray(isam.marginalCovariance(X(chain.start)), dtype=float)
+        cov = self._marginal
+        if chain.links:
+            A = chain.compound.inverse().AdjointMap()
+            cov = A @ cov @ A.T + chain.covariance()
+        if frame == "world":
+            J = body_to_world(self.pose.theta())
+            cov = J @ cov @ J.T
+        return 0.5 * (cov + cov.T)
+
+    def predicted_nis(self, isam: gtsam.ISAM2, step: Step, tag_ids: set[int]) -> list[float | None]:
+        """NIS of each observation of ``step`` (see :meth:`Isam2Smoother.predicted_nis`)."""
+        out: list[float | None] = [None] * len(step.observations)
+        if self.pose is None or step.odometry is None:
+            return out
+        wanted = [
+            (j, o) for j, o in enumerate(step.observations)
+            if o.landmark_id is not None and not o.range_only and o.landmark_id not in tag_ids
+            and isam.valueExists(L(o.landmark_id))
+        ]
+        if not wanted:
+            return out
+        chain = self._caught_up_since_chain()
+        odo = step.odometry
+        increment = gtsam.Pose2(odo.dx_m, odo.dy_m, odo.dtheta_rad)
+        compound, moved_cov = chain.extended(increment, odometry_noise_covariance(odo))
+        A = compound.inverse().AdjointMap()
+        pose = self.pose.compose(increment)
+        to_world = body_to_world(pose.theta())  # body → world at the new pose
+        J = to_world @ A  # perturbation of the newest iSAM2 pose → world perturbation of the new pose
+        x_key = X(chain.start)
+        ids = list(dict.fromkeys(o.landmark_id for _, o in wanted))
+        try:
+            joint = isam.jointMarginalCovariance(gtsam.KeyVector([x_key] + [L(i) for i in ids]))
+        except RuntimeError:  # gtsam.IndeterminateSystemException: no marginal, so no NIS
+            return out
+        pose_cov = J @ joint.at(x_key, x_key) @ J.T + to_world @ moved_cov @ to_world.T
+        mean = np.array([pose.x(), pose.y(), pose.theta()])
+        for j, o in wanted:
+            key = L(o.landmark_id)
+            cov = np.empty((5, 5))
+            cov[:3, :3] = pose_cov
+            cov[:3, 3:] = J @ joint.at(x_key, key)
+            cov[3:, :3] = cov[:3, 3:].T
+            cov[3:, 3:] = joint.at(key, key)
+            landmark = isam.calculateEstimatePoint2(key)
+            out[j] = range_bearing_nis(
+                mean, landmark, cov, o.range_m, o.bearing_rad, np.diag([o.sigma_range_m**2, o.sigma_bearing_rad**2])
+            )
+        return out
+
+
+def landmark_covariances(isam: gtsam.ISAM2, landmark_ids, tag_ids) -> dict[int, np.ndarray]:
+    """Landmark id → 2×2 world-frame marginal covariance of its (x, y) (for a tag, the
+    position block of its Pose2 marginal rotated from the tag's frame)."""
+    out = {}
+    for lid in landmark_ids:
+        if lid in tag_ids:
+            cov = np.asarray(isam.marginalCovariance(T(lid)), dtype=float)[:2, :2]
+            th = isam.calculateEstimatePose2(T(lid)).theta()
+            c, s = math.cos(th), math.sin(th)
+            rot = np.array([[c, -s], [s, c]])
+            out[lid] = rot @ cov @ rot.T
+        else:
+            out[lid] = np.asarray(isam.marginalCovariance(L(lid)), dtype=float)
+    return out
+
+
+def body_to_world(theta_rad: float) -> np.ndarray:
+    """3×3 map of a Pose2 perturbation in the robot's frame (GTSAM's convention) to world
+    (x, y, θ) at heading ``theta_rad``."""
+    c, s = math.cos(theta_rad), math.sin(theta_rad)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])

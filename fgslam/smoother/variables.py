@@ -1,0 +1,80 @@
+"""The graph's variables: which landmarks iSAM2 holds, and reading ``gtsam.Values`` back.
+
+Keys (``gtsam.symbol_shorthand``): ``X(i)`` pose *i* (``Pose2``), ``L(id)`` a point landmark
+(``Point2``), ``T(id)`` a tag (``Pose2``: centre and facing direction), ``H(id)`` a
+landmark's height (a scalar).
+"""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+from gtsam.symbol_shorthand import H, L, T, X
+
+
+class LandmarkRegistry:
+    """The landmarks seen so far: which are in iSAM2, which are tags, which have a height."""
+
+    def __init__(self):
+        self.ids: list[int] = []  # landmarks in iSAM2, in order of entry
+        self.known: set[int] = set()  # the same, as a set
+        self.tag_ids: set[int] = set()  # landmarks in iSAM2 that are tags (Pose2 T(id))
+        self.height_ids: set[int] = set()  # landmarks with a height variable H(id) (in iSAM2 or held)
+        self._is_tag: dict[int, bool] = {}  # every landmark seen: tag or point (first sight decides)
+
+    def is_tag(self, landmark_id: int, if_new: bool) -> bool:
+        """Whether ``landmark_id`` is a tag; the first sighting decides (``if_new``)."""
+        return self._is_tag.setdefault(landmark_id, if_new)
+
+    def enter(self, values: gtsam.Values) -> None:
+        """Note the landmarks among ``values``, the new variables of an accepted update."""
+        for key in values.keys():
+            symbol = gtsam.Symbol(key)
+            if chr(symbol.chr()) in "lt":
+                lid = int(symbol.index())
+                self.known.add(lid)
+                self.ids.append(lid)
+                if chr(symbol.chr()) == "t":
+                    self.tag_ids.add(lid)
+
+    def positions(self, values: gtsam.Values) -> dict[int, tuple[float, float]]:
+        """Landmark id → (x_m, y_m) in ``values``, for the landmarks in iSAM2 in order of entry."""
+        return landmarks_of(values, self.ids, self.tag_ids)
+
+    def yaws(self, values: gtsam.Values) -> dict[int, float]:
+        return yaws_of(values, self.tag_ids)
+
+    def heights(self, values: gtsam.Values) -> dict[int, float]:
+        return heights_of(values, self.height_ids)
+
+
+def poses_of(values: gtsam.Values, n: int) -> np.ndarray:
+    """(n, 3): poses ``X(0)`` … ``X(n − 1)`` of ``values`` as (x_m, y_m, theta_rad)."""
+    out = np.empty((n, 3))
+    for i in range(n):
+        p = values.atPose2(X(i))
+        out[i] = (p.x(), p.y(), p.theta())
+    return out
+
+
+def landmarks_of(values: gtsam.Values, ids, tag_ids) -> dict[int, tuple[float, float]]:
+    """Landmark id → (x_m, y_m) for ``ids`` (a tag's position is its centre)."""
+    out = {}
+    for lid in ids:
+        if lid in tag_ids:
+            pose = values.atPose2(T(lid))
+            out[lid] = (pose.x(), pose.y())
+        else:
+            p = values.atPoint2(L(lid))
+            out[lid] = (float(p[0]), float(p[1]))
+    return out
+
+
+def yaws_of(values: gtsam.Values, tag_ids) -> dict[int, float]:
+    """Tag id → the world direction its face points to (rad), by id."""
+    return {lid: values.atPose2(T(lid)).theta() for lid in sorted(tag_ids)}
+
+
+def heights_of(values: gtsam.Values, height_ids) -> dict[int, float]:
+    """Landmark id → height (m), by id."""
+    return {lid: values.atDouble(H(lid)) for lid in sorted(height_ids)}
