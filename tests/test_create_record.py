@@ -208,7 +208,7 @@ def test_keyboard_interrupt_stops_the_robot(tmp_path):
         if n == 10:
             raise KeyboardInterrupt
 
-    with SimulatedCreate("create2", seed=6, time_scale=FAST) as sim:
+    with SimulatedCreate("create2", seed=6, time_scale=FAST, arena_m=None) as sim:  # no wall to bump into first
         result = drive(sim, tmp_path / "ctrl-c.jsonl", on_record=interrupt)
         assert stopped(sim)
     assert result.reason.kind == "interrupted" and result.records >= 10
@@ -258,14 +258,18 @@ def test_cable_that_stays_out_is_reported_honestly(tmp_path):
 
 
 class ScriptedKeys:
-    """Keys as a person would press them, at robot times."""
+    """Keys as a person would press them, at robot times. Each key holds the simulated clock
+    at its time until it is read, so a host that polls late on a busy machine still reads
+    it at that robot time (a person would have waited for the robot)."""
 
     def __init__(self, sim, script):
-        self.sim, self.script = sim, list(script)
+        self.sim, self.script = sim, [(t, key, sim.hold(at_s=t)) for t, key in script]
 
     def read_key(self):
         if self.script and self.sim.clock() >= self.script[0][0]:
-            return self.script.pop(0)[1]
+            _, key, token = self.script.pop(0)
+            self.sim.release(token)
+            return key
         return None
 
 

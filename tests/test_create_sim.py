@@ -208,10 +208,11 @@ def _wait_for(predicate, timeout_s=30.0):
 
 
 def test_a_hold_stops_the_clock_at_its_time_and_commands_are_still_obeyed():
-    with SimulatedCreate("create2", time_scale=50.0, arena_m=None) as sim:
+    sim = SimulatedCreate("create2", time_scale=50.0, arena_m=None)
+    token = sim.hold(at_s=0.3)  # before the clock starts: on a busy machine 0.3 s pass in no time at 50×
+    with sim.start():
         port = serial.serial_for_url(sim.port, baudrate=115200, timeout=0.5)
         try:
-            token = sim.hold(at_s=0.3)
             assert _wait_for(lambda: sim.clock() >= 0.3)
             stood = sim.clock()
             assert 0.3 <= stood < 0.3 + STEP_S + 1e-9  # it stops at the first step at or after 0.3 s
