@@ -324,6 +324,22 @@ def predict_covariance(P: np.ndarray, G: np.ndarray, R: np.ndarray) -> np.ndarra
     return P
 
 
+def trial_calibration(header: Header) -> tuple[np.ndarray | None, tuple | None]:
+    """``(R, q_sigmas)`` from the trial calibration a log's header carries, as seed 001 made
+    its R and Q (§IV): R the covariance of the pooled forward and rotate trials
+    (``pooled_motion_covariance`` of ``fgslam calibrate TRIALS.csv``), Q's σ_r and σ_φ the
+    sensor trials' (σ_s stays each observation's own: the trials have no signature). None
+    where the header has no ``noise.calibration`` or it lacks that part."""
+    calibration = header.noise.get("calibration") if isinstance(header.noise, dict) else None
+    if not isinstance(calibration, dict):
+        return None, None
+    pooled = calibration.get("pooled_motion_covariance")
+    R = None if pooled is None else np.array(pooled, dtype=float).reshape(3, 3)
+    sensor = calibration.get("observation")
+    q = None if not sensor else (float(sensor["sigma_range_m"]), float(sensor["sigma_bearing_rad"]), None)
+    return R, q
+
+
 # --------------------------------------------------------------------------- the filter
 
 
@@ -338,7 +354,11 @@ class EkfS001:
 
     ``q_diagonal``        ``"sigma"`` (eq. 20 as written) or ``"variance"`` (correct).
     ``q_sigmas``          ``None``: each observation's own (σ_r, σ_φ, σ_height); or a constant
-                          ``(σ_r, σ_φ, σ_s)`` like the paper's calibrated Q.
+                          ``(σ_r, σ_φ, σ_s)`` like the paper's calibrated Q (a None entry:
+                          the observation's own).
+    ``motion_covariance`` and ``q_sigmas`` default to the log's trial calibration when its
+    header carries one (``noise.calibration``, :func:`trial_calibration`): the paper's R and
+    Q come from its 30 + 30 measured trials, and so do ours.
     ``motion_model``      ``"forward-rotate"`` (eqs. 23–26) or ``"arc"`` (the log's SE(2)
                           increment, exact).
     ``motion_noise``      ``"constant"`` (the paper's R) or ``"log"`` (each reading's own
@@ -375,7 +395,12 @@ class EkfS001:
         if not gate_m > 0.0:
             raise ValueError(f"gate_m must be > 0, got {gate_m!r}")
         self.q_diagonal = q_diagonal
-        self.q_sigmas = None if q_sigmas is None else tuple(float(v) for v in q_sigmas)
+        calibrated_R, calibrated_q = trial_calibration(header)
+        if motion_covariance is None:
+            motion_covariance = calibrated_R
+        if q_sigmas is None:
+            q_sigmas = calibrated_q
+        self.q_sigmas = None if q_sigmas is None else tuple(None if v is None else float(v) for v in q_sigmas)
         if self.q_sigmas is not None and len(self.q_sigmas) != 3:
             raise ValueError("q_sigmas must be (sigma_range_m, sigma_bearing_rad, sigma_signature)")
         self.motion_model = motion_model
@@ -467,10 +492,8 @@ class EkfS001:
         self._mean[:ROBOT_DIM] = new_pose
 
     def _sigmas(self, observation: Observation, with_signature: bool) -> list[float]:
-        if self.q_sigmas is not None:
-            sigmas = list(self.q_sigmas)
-        else:
-            sigmas = [observation.sigma_range_m, observation.sigma_bearing_rad, observation.sigma_height_m or 0.0]
+        own = [observation.sigma_range_m, observation.sigma_bearing_rad, observation.sigma_height_m or 0.0]
+        sigmas = own if self.q_sigmas is None else [o if q is None else q for q, o in zip(self.q_sigmas, own)]
         return sigmas if with_signature else sigmas[:2]
 
     def _observe(self, observation: Observation) -> int | None:

@@ -463,3 +463,44 @@ def test_a_constant_q_replaces_the_observations_sigmas():
     # seen straight ahead from the origin: x along the range, y along r·bearing
     expected = np.diag([0.1, 2.0**2 * 0.05, 0.2])
     np.testing.assert_allclose(f.state_covariance()[3:, 3:], expected, atol=1e-12)
+
+
+# --------------------------------------------------------------------------- the trials wired in
+
+
+def test_trial_calibration_in_the_header_gives_the_filter_its_R_and_Q(tmp_path):
+    """Seed 001's procedure end to end: the trials' pooled covariance becomes R and the sensor
+    trials' σ become Q's σ_r, σ_φ (σ_s stays each observation's own), read from the header
+    where `fgslam record --calibration` and `fgslam run --calibration` put it."""
+    from ekf.seed001 import EkfS001, trial_calibration
+    from slamio.create.calibrate import calibrate, read_trials
+
+    calibration = calibrate(*read_trials("data/calibration_trials_s001.csv"), source="trials")
+    header = minimal_header()
+    assert trial_calibration(header) == (None, None)
+    header = dataclasses.replace(header, noise={**header.noise, "calibration": calibration.to_dict()})
+    R, q = trial_calibration(header)
+    np.testing.assert_allclose(R, np.array(calibration.pooled_motion_covariance))
+    assert q == (calibration.observation["sigma_range_m"], calibration.observation["sigma_bearing_rad"], None)
+    ekf = EkfS001(header)
+    np.testing.assert_allclose(ekf.R, R)
+    obs = Observation(0.0, None, 1.0, 0.1, 0.5, 0.5, height_m=0.3, sigma_height_m=0.02)
+    assert ekf._sigmas(obs, True) == [q[0], q[1], 0.02]
+    assert EkfS001(header, q_sigmas=(0.1, 0.2, 0.3)).q_sigmas == (0.1, 0.2, 0.3)  # a keyword still wins
+
+
+def test_fgslam_run_calibration_reaches_ekf_s001(tmp_path, capsys):
+    from fgslam.cli import main
+
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", "data/calibration_trials_s001.csv", "--out", str(cal)]) == 0
+    ate = {}
+    for name, extra in (("plain", []), ("calibrated", ["--calibration", str(cal)])):
+        out = tmp_path / name
+        assert main(["run", "data/arena_octagon.jsonl", "--out", str(out), "--estimators", "ekf-s001,isam2",
+                     "--no-report", "--no-consistency", *extra]) == 0
+        metrics = __import__("json").loads((out / "metrics.json").read_text())
+        ate[name] = metrics["ekf-s001"]["ate_rmse_m"]
+    assert metrics["trial_calibration"] == str(cal)
+    assert "R and Q from the trial calibration" in capsys.readouterr().out
+    assert ate["plain"] != ate["calibrated"]  # the filter did use the trials

@@ -133,9 +133,10 @@ def cmd_record(args: argparse.Namespace) -> int:
         raise FgslamError(f"--speed {args.speed} m/s is above the Create's 0.5 m/s")
     settings = RecorderSettings(speed_m_s=args.speed, turn_rate_rad_s=args.turn_rate, mode=args.mode,
                                 max_duration_s=args.max_duration)
-    noise = observation = None
+    noise = observation = trials = None
     if args.calibration:
         calibration = load_calibration(args.calibration)
+        trials = calibration.to_dict()  # the header keeps it whole: seed 001's EKF takes R and Q from it
         noise = calibration.odometry_noise(args.model)
         if calibration.observation is not None:
             observation = {"model": "range-bearing, from fgslam calibrate", **calibration.observation}
@@ -165,7 +166,8 @@ def cmd_record(args: argparse.Namespace) -> int:
     try:
         link = CreateLink(port, args.model, baud=args.baud)
         link.open()  # a port that does not open is a user error (exit 1), before the log exists
-        kwargs = dict(settings=settings, noise=noise, source=source, observation_noise=observation)
+        kwargs = dict(settings=settings, noise=noise, source=source, observation_noise=observation,
+                      calibration=trials)
         if clock is not None:
             kwargs["clock"] = clock
         if args.path == "teleop":

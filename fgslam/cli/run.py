@@ -66,12 +66,25 @@ def add_parser(verbs) -> argparse.ArgumentParser:
                      help="a noise model from `fgslam calibrate LOG... --out FILE`, applied to this log's "
                           "odometry and readings before the run (slamio.noise_apply; an importer that has the "
                           "raw data applies it exactly: prefer `fgslam import ... --noise FILE`)")
+    run.add_argument("--calibration", default=None, metavar="CAL.json",
+                     help="seed 001's trial calibration from `fgslam calibrate TRIALS.csv --out CAL.json`: "
+                          "ekf-s001 takes its R and Q from it (as `fgslam record --calibration` does)")
     run.add_argument("--no-report", action="store_true", help="skip report.html and the PNG figures")
     run.add_argument("--no-consistency", action="store_true",
                      help="skip NEES, NIS and covariance ellipses (their work runs between the timed steps "
                           "but can leave iSAM2 with cached marginals; use this for timings)")
     run.set_defaults(func=cmd_run)
     return run
+
+
+def with_trial_calibration(log, path):
+    """``log`` with the trial calibration at ``path`` in its header (``noise.calibration``)."""
+    import dataclasses
+
+    from slamio.create.calibrate import load_calibration
+
+    noise = {**log.header.noise, "calibration": load_calibration(path).to_dict()}
+    return dataclasses.replace(log, header=dataclasses.replace(log.header, noise=noise))
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -91,6 +104,9 @@ def cmd_run(args: argparse.Namespace) -> int:
 
         log, dropped = apply_noise_model(log, load_noise_model(args.noise))
         print(f"applied the noise model {args.noise}" + (f" ({dropped} readings could not be corrected and were dropped)" if dropped else ""))
+    if args.calibration is not None:
+        log = with_trial_calibration(log, args.calibration)
+        print(f"seed 001's R and Q from the trial calibration {args.calibration}")
     print(f"{args.log}: {summary(log)}")
     with Progress() as progress:
         result = compare_log(log, names, progress=progress, consistency=not args.no_consistency)
@@ -103,6 +119,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         metrics["log_rejected"] = log.rejection_summary()
     if args.noise is not None:
         metrics["noise_model"] = str(args.noise)
+    if args.calibration is not None:
+        metrics["trial_calibration"] = str(args.calibration)
     from fgslam.provenance import provenance
 
     metrics["provenance"] = provenance(args.log, [r.name for r in result.runs], command=command_line(args, "run"))

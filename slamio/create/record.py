@@ -482,9 +482,12 @@ class _PollReader:
 
 def make_header(model: str, port: str, baud: int, noise: OdometryNoise, settings: RecorderSettings,
                 source: dict[str, Any] | None = None, observation_noise: dict[str, Any] | None = None,
-                *, start_pose: Sequence[float] = (0.0, 0.0, 0.0), sensor: dict[str, Any] | None = None) -> Header:
+                *, start_pose: Sequence[float] = (0.0, 0.0, 0.0), sensor: dict[str, Any] | None = None,
+                calibration: dict[str, Any] | None = None) -> Header:
     """The run-log header of a recording: start pose (0, 0, 0) defines the world frame unless
-    the caller knows where the robot starts in its map (the live loop)."""
+    the caller knows where the robot starts in its map (the live loop). ``calibration`` (what
+    ``fgslam calibrate TRIALS.csv`` wrote) goes to ``noise.calibration``, where seed 001's
+    EKF takes its R and Q from."""
     if model == "create2":
         odometry = "encoder counts (packets 43/44) streamed every 15 ms"
     else:
@@ -511,6 +514,7 @@ def make_header(model: str, port: str, baud: int, noise: OdometryNoise, settings
         noise={
             "odometry": noise.header_dict(),
             "observation": observation_noise or {"model": "none: no landmark sensor in this recording"},
+            **({"calibration": calibration} if calibration else {}),
         },
         source={"generator": "slamio.create.record", "recorder_version": RECORDER_VERSION, **(source or {})},
     )
@@ -566,6 +570,7 @@ def record(
     hooks: "RecordHooks | None" = None,
     start_pose: Sequence[float] = (0.0, 0.0, 0.0),
     sensor: dict[str, Any] | None = None,
+    calibration: dict[str, Any] | None = None,
 ) -> RecordResult:
     """Drive ``controller``'s path on the robot behind ``link`` and log the odometry.
 
@@ -581,7 +586,7 @@ def record(
     noise = noise or default_noise(model)
     target_mode = OiMode.SAFE if settings.mode == "safe" else OiMode.FULL
     header = make_header(model, link.port, link.baud, noise, settings, source, observation_noise,
-                         start_pose=start_pose, sensor=sensor)
+                         start_pose=start_pose, sensor=sensor, calibration=calibration)
     odometry = Create2Odometry(noise) if model == "create2" else Create1Odometry(noise)
     reader = _StreamReader(link, model) if model == "create2" else _PollReader(link, model, settings.poll_period_s)
     monitor = SafetyMonitor(
