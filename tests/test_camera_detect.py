@@ -340,3 +340,11 @@ def test_detect_puts_frames_on_the_log_clock_with_a_time_offset(tmp_path, capsys
         assert read_log(log).header.source["detect"][0]["time_offset_s"] == pytest.approx(-epoch)
     with pytest.raises(DetectError, match="--time-offset must be seconds"):
         _run(["detect", str(frames), "--out", str(log), "--replace", "--time-offset", "soon"] + common)
+
+
+def test_merge_treats_stamps_a_microsecond_apart_as_the_same_instant():
+    header = minimal_header(stamp_s=10.0)
+    records = [_odo(11.0 + 1e-7)]  # the log keeps every digit; a frame file name keeps six
+    merged, dropped = merge_observations(header, records, [(11.0, [_obs(11.0, 4)])], max_pose_gap_s=0.05)
+    assert dropped == {"no_pose_at_frame_time": 0, "before_log_start": 0}
+    assert isinstance(merged[0], Odometry) and merged[1].stamp_s == 11.0 + 1e-7

@@ -47,6 +47,8 @@ from slamio.errors import FgslamError
 from slamio.log import Header, Observation, Odometry, read_log, write_log
 
 DEFAULT_MAX_POSE_GAP_S = 0.05
+#: Stamps closer than this are the same instant (frame files named by their stamp to the microsecond).
+STAMP_RESOLUTION_S = 1e-6
 
 
 class DetectError(FgslamError):
@@ -78,10 +80,13 @@ def merge_observations(header: Header, records: list, frames: list[tuple[float, 
     for stamp, observations in sorted(frames, key=lambda f: f[0]):
         if not observations:
             continue
-        k = bisect.bisect_right(pose_stamps, stamp) - 1
+        k = bisect.bisect_right(pose_stamps, stamp + STAMP_RESOLUTION_S) - 1
         if k < 0:
             dropped["before_log_start"] += 1
             continue
+        if stamp < pose_stamps[k]:  # the same instant, written with fewer digits (a file name)
+            stamp = pose_stamps[k]
+            observations = [replace(o, stamp_s=stamp) for o in observations]
         if stamp - pose_stamps[k] > max_pose_gap_s:
             dropped["no_pose_at_frame_time"] += 1
             continue
@@ -165,7 +170,7 @@ def clock_hint(existing, raw_stamps: list[float], offset_s: float, dropped: dict
                     f"--time-offset SECONDS (added to each frame's stamp; {log_lo - min(raw_stamps):+.3f} puts the first "
                     "frame at the log's start) or --time-offset start)")
     return (f"({n} frames had no pose within {max_gap_s:g} s before them: record odometry at each camera frame "
-            "(fgslam record --frames does), check the clocks (--time-offset), or raise --max-pose-gap if the "
+            "(fgslam record --save-frames does), check the clocks (--time-offset), or raise --max-pose-gap if the "
             "robot was still)")
 
 
