@@ -176,13 +176,14 @@ def load_landmarks(path: str | os.PathLike[str], base: ColourOptions = ColourOpt
     return options_from_dict(data, str(p), base)
 
 
-def save_landmarks(path: str | os.PathLike[str], options: ColourOptions, comment: str = "") -> None:
-    """Write a landmark file: JSON for a ``.json`` name, YAML otherwise."""
+def save_landmarks(path: str | os.PathLike[str], options: ColourOptions, comment: str = "",
+                   as_json: bool | None = None) -> None:
+    """Write a landmark file: JSON for a ``.json`` name (or ``as_json``), YAML otherwise."""
     import yaml
 
     p = Path(path)
     data = options_to_dict(options)
-    if p.suffix.lower() == ".json":
+    if as_json if as_json is not None else p.suffix.lower() == ".json":
         p.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
         return
     header = "# fgslam colour landmarks (docs/camera.md): colours, ids, shapes, sizes and the checks' tolerances\n"
