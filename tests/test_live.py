@@ -209,3 +209,28 @@ def test_an_exception_in_the_loop_stops_the_wheels_first(tmp_path):
                      smoother=_FailingSmoother(Isam2Smoother(header)), settings=CALM, lockstep=Lockstep(sim))
         assert wheels_stopped(sim)
     assert len(read_log(out).steps()) >= 15
+
+
+@pytest.mark.slow
+def test_hil_colour_landmarks_with_the_simulated_kinect(tmp_path):
+    """fgslam live with Kinect colour landmarks: seed 000's cylinders in the arena, rendered RGB-D
+    frames from the simulated Create's true pose, the colour front-end and iSAM2 in the loop."""
+    from fgslam.live_colour import simulated_kinect
+
+    out = tmp_path / "colour.jsonl"
+    waypoints = polygon_waypoints(8, ARENA_PATH_WIDTH_M, CENTRE)
+    start = start_pose_facing(waypoints)
+    with SimulatedCreate("create2", seed=2, time_scale=TIME_SCALE, start_pose=start) as sim:
+        grab_for, front_end, truth_landmarks = simulated_kinect(sim)
+        result = run_live(CreateLink(sim.port, "create2"), str(out), waypoints, start_pose=start, grab_for=grab_for,
+                          front_end=front_end, truth=lambda: sim.true_pose, truth_landmarks=truth_landmarks,
+                          clock=sim.clock, settings=CALM, lockstep=Lockstep(sim))
+        assert wheels_stopped(sim)
+        true_pose = sim.true_pose
+    assert result.completed and pose_error_m(result.final_pose, true_pose) < 0.1
+    assert set(result.landmarks) == {0, 1, 2} and result.observations > 30
+    truth = {t.landmark_id: (t.x_m, t.y_m) for t in truth_landmarks}
+    for landmark_id, xy in result.landmarks.items():
+        assert math.dist(np.asarray(xy)[:2], truth[landmark_id]) < 0.1
+    heights = [o.height_m for o in read_log(out).records if getattr(o, "height_m", None) is not None]
+    assert heights  # the cylinders' heights are measured on the way
