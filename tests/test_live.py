@@ -101,17 +101,24 @@ def test_waypoints_from_a_file_and_seed_004_paths(tmp_path):
 def octagon_run(tmp_path_factory):
     """The hardware-in-the-loop run of issue 8: the octagon of seed 004's arena."""
     out = tmp_path_factory.mktemp("live") / "live.jsonl"
+    result, true_pose, stopped, _ = hil_octagon(out, 1, simulated_camera)
+    return out, result, true_pose, stopped
+
+
+def hil_octagon(out, seed, camera_for):
+    """One lockstep octagon of the simulated Create with ``camera_for(sim)``'s camera:
+    (result, true end pose, wheels stopped, truth landmarks)."""
     waypoints = polygon_waypoints(8, ARENA_PATH_WIDTH_M, CENTRE)
     start = start_pose_facing(waypoints)
-    with SimulatedCreate("create2", seed=1, time_scale=TIME_SCALE, start_pose=start) as sim:
-        grab_for, front_end, truth_landmarks = simulated_camera(sim)
+    with SimulatedCreate("create2", seed=seed, time_scale=TIME_SCALE, start_pose=start) as sim:
+        grab_for, front_end, truth_landmarks = camera_for(sim)
         result = run_live(CreateLink(sim.port, "create2"), str(out), waypoints, start_pose=start, grab_for=grab_for,
                           front_end=front_end, truth=lambda: sim.true_pose, truth_landmarks=truth_landmarks,
                           clock=sim.clock, settings=CALM, lockstep=Lockstep(sim))
         stopped = wheels_stopped(sim)
         true_pose = sim.true_pose
         assert sim.holds == 0  # every frame and smoother step gave the clock back
-    return out, result, true_pose, stopped
+    return result, true_pose, stopped, truth_landmarks
 
 
 def test_hil_octagon_ends_within_10_cm_of_the_truth(octagon_run):
@@ -218,16 +225,8 @@ def test_hil_colour_landmarks_with_the_simulated_kinect(tmp_path):
     from fgslam.live_colour import simulated_kinect
 
     out = tmp_path / "colour.jsonl"
-    waypoints = polygon_waypoints(8, ARENA_PATH_WIDTH_M, CENTRE)
-    start = start_pose_facing(waypoints)
-    with SimulatedCreate("create2", seed=2, time_scale=TIME_SCALE, start_pose=start) as sim:
-        grab_for, front_end, truth_landmarks = simulated_kinect(sim)
-        result = run_live(CreateLink(sim.port, "create2"), str(out), waypoints, start_pose=start, grab_for=grab_for,
-                          front_end=front_end, truth=lambda: sim.true_pose, truth_landmarks=truth_landmarks,
-                          clock=sim.clock, settings=CALM, lockstep=Lockstep(sim))
-        assert wheels_stopped(sim)
-        true_pose = sim.true_pose
-    assert result.completed and pose_error_m(result.final_pose, true_pose) < 0.1
+    result, true_pose, stopped, truth_landmarks = hil_octagon(out, 2, simulated_kinect)
+    assert stopped and result.completed and pose_error_m(result.final_pose, true_pose) < 0.1
     assert set(result.landmarks) == {0, 1, 2} and result.observations > 30
     truth = {t.landmark_id: (t.x_m, t.y_m) for t in truth_landmarks}
     for landmark_id, xy in result.landmarks.items():

@@ -87,14 +87,18 @@ def _hsv_ranges(path: str, where: str, value: Any) -> tuple:
     return tuple(out)
 
 
+def _refuse_unknown_keys(path: str, where: str, given: dict, known) -> None:
+    unknown = sorted(set(given) - set(known), key=str)
+    if unknown:
+        raise LandmarkFileError(f"{path}: {where}: unknown key(s) {', '.join(map(str, unknown))}; "
+                                f"known: {', '.join(known)}")
+
+
 def _landmark(path: str, k: int, entry: Any) -> ColourSpec:
     where = f"landmarks[{k}]"
     if not isinstance(entry, dict):
         raise LandmarkFileError(f"{path}: {where} must be a mapping with keys {', '.join(LANDMARK_KEYS)}")
-    unknown = sorted(set(entry) - set(LANDMARK_KEYS))
-    if unknown:
-        raise LandmarkFileError(f"{path}: {where}: unknown key(s) {', '.join(map(str, unknown))}; "
-                                f"known: {', '.join(LANDMARK_KEYS)}")
+    _refuse_unknown_keys(path, where, entry, LANDMARK_KEYS)
     for key in ("name", "hsv"):
         if key not in entry:
             raise LandmarkFileError(f"{path}: {where} needs '{key}'")
@@ -121,10 +125,7 @@ def options_from_dict(data: Any, path: str = "<landmarks>", base: ColourOptions 
     """ColourOptions from a parsed landmark file (``base`` supplies what the file does not say)."""
     if not isinstance(data, dict) or "landmarks" not in data:
         raise LandmarkFileError(f"{path}: expected a mapping with a 'landmarks' list (see docs/camera.md)")
-    unknown = sorted(set(data) - {"landmarks", "checks"})
-    if unknown:
-        raise LandmarkFileError(f"{path}: unknown top-level key(s) {', '.join(map(str, unknown))}; "
-                                "known: landmarks, checks")
+    _refuse_unknown_keys(path, "top level", data, ("landmarks", "checks"))
     entries = data["landmarks"]
     if not isinstance(entries, list) or not entries:
         raise LandmarkFileError(f"{path}: 'landmarks' must be a non-empty list")
@@ -137,10 +138,7 @@ def options_from_dict(data: Any, path: str = "<landmarks>", base: ColourOptions 
     checks = data.get("checks") or {}
     if not isinstance(checks, dict):
         raise LandmarkFileError(f"{path}: 'checks' must be a mapping of {', '.join(CHECK_KEYS)}")
-    unknown = sorted(set(checks) - set(CHECK_KEYS))
-    if unknown:
-        raise LandmarkFileError(f"{path}: checks: unknown key(s) {', '.join(map(str, unknown))}; "
-                                f"known: {', '.join(CHECK_KEYS)}")
+    _refuse_unknown_keys(path, "checks", checks, tuple(CHECK_KEYS))
     values = {key: _number(path, f"checks.{key}", checks[key], kind, 0.0, inclusive=True)
               for key, kind in CHECK_KEYS.items() if key in checks}
     return replace(base, colours=colours, **values)
