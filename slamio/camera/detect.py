@@ -379,6 +379,15 @@ def _label(image: np.ndarray, text: str, org: tuple[int, int], colour: tuple[int
     cv2.putText(image, text, (x, y), font, scale, colour, 1, cv2.LINE_AA)
 
 
+def _rejection_lines(rejections: list[Rejection], max_lines: int = 8) -> list[str]:
+    """One line per rejection (with its detail), or per reason and colour/tag with a count when
+    there are many (a cluttered frame rejects dozens of blobs; their reasons are drawn at them)."""
+    if len(rejections) <= max_lines:
+        return [f"{r.reason} {r.what} {r.detail}".strip() for r in rejections]
+    counts = Counter((r.reason, r.what) for r in rejections)
+    return [f"{reason} {what} x{n}".strip() for (reason, what), n in counts.most_common()]
+
+
 def annotate(bgr: np.ndarray | None, result: FrameResult, camera: CameraModel | None = None) -> np.ndarray:
     """A copy of the frame with detections, measurements and rejection reasons drawn."""
     import cv2
@@ -403,7 +412,7 @@ def annotate(bgr: np.ndarray | None, result: FrameResult, camera: CameraModel | 
         _label(image, text, (int(x), int(y)), (255, 255, 255))
     y = 16
     header = f"{result.frame_name}  t={result.stamp_s:.3f} s  {len(result.observations)} obs"
-    for text in [header] + [f"{r.reason} {r.what} {r.detail}".strip() for r in result.rejections]:
+    for text in [header] + _rejection_lines(result.rejections):
         _label(image, text[:90], (5, y), (0, 255, 255))
         y += 18
     return image
