@@ -12,7 +12,7 @@ saturation and value floors at 0.6 × their 1st percentile (room for a darker ex
 on frames that cover the lighting of the runs. A colour found in no
 frame keeps its ranges.
 
-Pure functions on numbers and masks; :mod:`fgslam.cli.tune` reads the frames and writes
+Pure functions on numbers and masks; :mod:`fgslam.cli.tune_colours` reads the frames and writes
 the file and the pictures.
 """
 

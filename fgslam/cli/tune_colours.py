@@ -51,7 +51,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     p.add_argument("--depth-scale", type=float, default=TUM_DEPTH_SCALE_PER_M, metavar="UNITS_PER_M",
                    help="depth PNG units per metre (TUM 5000, the default; millimetre PNGs 1000)")
     add_overwrite_option(p, "an existing --out FILE")
-    p.set_defaults(func=cmd_tune)
+    p.set_defaults(func=cmd_tune_colours)
     return p
 
 
@@ -77,7 +77,7 @@ def _mask_picture(bgr, options):
     return out
 
 
-def cmd_tune(args: argparse.Namespace) -> int:
+def cmd_tune_colours(args: argparse.Namespace) -> int:
     import cv2
 
     from slamio.camera.colour import ColourOptions
