@@ -77,3 +77,13 @@ def test_unreadable_and_malformed_files(tmp_path):
     bad.write_text("landmarks:\n  - name: red\n    hsv: [[[0, 1, 2]\n")
     with pytest.raises(LandmarkFileError, match=r"bad.yaml:\d+: not valid YAML"):
         load_landmarks(bad)
+
+
+def test_the_example_in_the_docs_is_the_default():
+    from pathlib import Path
+
+    import yaml
+
+    text = (Path(__file__).parents[1] / "docs" / "camera.md").read_text()
+    start = text.index("```yaml\n# fgslam colour landmarks") + len("```yaml\n")
+    assert options_from_dict(yaml.safe_load(text[start : text.index("```", start)]), "docs") == ColourOptions()
