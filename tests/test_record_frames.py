@@ -14,6 +14,7 @@ from slamio.camera.sources import Frame, tum_frames
 from slamio.log import Observation, Odometry, read_log
 
 
+@pytest.mark.slow
 def test_record_then_detect_on_the_simulator_rejects_no_frame_for_timing(tmp_path, capsys):
     out, frames = tmp_path / "run.jsonl", tmp_path / "frames"
     code = main(["record", "--port", "sim", "--model", "create2", "--path", "square", "--side", "0.5",
