@@ -155,9 +155,11 @@ def _run(argv):
     return args.func(args)
 
 
-def _recorded_run(tmp_path):
+def _recorded_run(tmp_path, camera_clock_s: float = 0.0):
     """A robot driving towards the cylinders: a run log with odometry at every camera frame,
-    and a TUM RGB-D folder of what the Kinect saw (one frame corrupt, one with no pose)."""
+    and a TUM RGB-D folder of what the Kinect saw (one frame corrupt, one with no pose).
+    The camera's clock reads ``camera_clock_s`` more than the log's."""
+    tmp_path.mkdir(parents=True, exist_ok=True)
     import cv2
 
     poses = [(0.0, 0.0, 0.0), (0.3, 0.0, 0.05), (0.6, 0.05, 0.1), (0.9, 0.1, 0.1)]
@@ -178,14 +180,15 @@ def _recorded_run(tmp_path):
     for k, stamp in enumerate(frame_stamps):
         pose = poses[min(k, len(poses) - 1)]
         image = render(KINECT, pose, Scene(cylinders=CYLINDERS), supersample=2, depth_model="kinect")
-        name = f"{stamp:.6f}.png"
+        camera_stamp = stamp + camera_clock_s
+        name = f"{camera_stamp:.6f}.png"
         cv2.imwrite(str(frames / "rgb" / name), image.bgr)
         depth = np.nan_to_num(image.depth_m * 5000.0, nan=0.0).round().astype(np.uint16)
         cv2.imwrite(str(frames / "depth" / name), depth)
-        rgb_lines.append(f"{stamp:.6f} rgb/{name}")
-        depth_lines.append(f"{stamp + 0.004:.6f} depth/{name}")
-    (frames / "rgb" / "0.700000.png").write_bytes(b"garbage, not a png")
-    rgb_lines.append("0.700000 rgb/0.700000.png")
+        rgb_lines.append(f"{camera_stamp:.6f} rgb/{name}")
+        depth_lines.append(f"{camera_stamp + 0.004:.6f} depth/{name}")
+    (frames / "rgb" / "corrupt.png").write_bytes(b"garbage, not a png")
+    rgb_lines.append(f"{0.7 + camera_clock_s:.6f} rgb/corrupt.png")
     (frames / "rgb.txt").write_text("# timestamp filename\n" + "\n".join(rgb_lines) + "\n")
     (frames / "depth.txt").write_text("# timestamp filename\n" + "\n".join(depth_lines) + "\n")
     camera = tmp_path / "kinect.yaml"
@@ -270,3 +273,78 @@ def test_detect_records_its_runs_in_the_header(tmp_path):
     assert rejected["corrupt_image"] == 1 and rejected["no_pose_at_frame_time"] == 1
     assert set(rejected) <= {"corrupt_image", "no_pose_at_frame_time", "blob_at_image_border"}
     assert runs[0]["noise"]["sigma_height_m"] == 0.02
+
+
+def test_detect_reads_the_landmark_file(tmp_path):
+    from slamio.camera.colour import DEFAULT_COLOURS, ColourOptions
+    from slamio.camera.landmark_file import save_landmarks
+
+    log, frames, camera, _ = _recorded_run(tmp_path)
+    only_red = tmp_path / "red.yaml"
+    save_landmarks(only_red, ColourOptions(colours=DEFAULT_COLOURS[:1]))
+    with pytest.raises(DetectError, match="--kind colour"):
+        _run(["detect", str(frames), "--camera", str(camera), "--out", str(log), "--landmarks", str(only_red)])
+    assert _run(["detect", str(frames), "--camera", str(camera), "--out", str(log), "--kind", "colour",
+                 "--landmarks", str(only_red)]) == 0
+    run = read_log(log)
+    assert {o.landmark_id for step in run.steps() for o in step.observations} == {0}
+    assert [c["name"] for c in run.header.source["detect"][0]["landmarks"]["landmarks"]] == ["red"]
+
+
+def _observations(log):
+    return [(o.stamp_s, o.landmark_id, round(o.range_m, 9)) for o in read_log(log).records
+            if isinstance(o, Observation)]
+
+
+def test_detect_refuses_to_add_observations_twice_and_replaces_them_on_request(tmp_path, capsys):
+    log, frames, camera, _ = _recorded_run(tmp_path)
+    argv = ["detect", str(frames), "--camera", str(camera), "--out", str(log), "--kind", "colour",
+            "--max-pose-gap", "0.1"]
+    assert _run(argv) == 0
+    first = _observations(log)
+    others = [r for r in read_log(log).records if not isinstance(r, Observation)]
+    assert len(first) >= 6
+    with pytest.raises(DetectError, match=r"already has \d+ observations .*--replace") as error:
+        _run(argv)
+    assert "\n" not in str(error.value)
+    assert _observations(log) == first  # untouched
+    capsys.readouterr()
+    assert _run(argv + ["--replace"]) == 0
+    assert f"({len(first)} earlier ones removed)" in capsys.readouterr().out
+    run = read_log(log)
+    assert _observations(log) == first  # the same observations, once
+    assert [r for r in run.records if not isinstance(r, Observation)] == others  # odometry and truth kept
+    runs = run.header.source["detect"]
+    assert len(runs) == 2 and runs[0]["observations_removed"] and runs[1]["replaced_observations"] == len(first)
+
+
+def test_detect_puts_frames_on_the_log_clock_with_a_time_offset(tmp_path, capsys):
+    reference = tmp_path / "reference"
+    log, frames, camera, _ = _recorded_run(reference)
+    common = ["--camera", str(camera), "--kind", "colour", "--max-pose-gap", "0.1"]
+    assert _run(["detect", str(frames), "--out", str(log)] + common) == 0
+    expected = _observations(log)
+    epoch = 1_700_000_000.25  # a camera whose files are named by the wall clock
+    shifted = tmp_path / "shifted"
+    log, frames, camera, _ = _recorded_run(shifted, camera_clock_s=epoch)
+    capsys.readouterr()
+    assert _run(["detect", str(frames), "--out", str(log)] + common) == 0
+    printed = capsys.readouterr().out
+    assert "0 observations added" in printed and "different clocks" in printed and f"{-epoch:+.3f}" in printed
+    for offset in (str(-epoch), "start"):
+        log, frames, camera, _ = _recorded_run(tmp_path / f"run{offset}", camera_clock_s=epoch)
+        assert _run(["detect", str(frames), "--out", str(log), "--time-offset", offset] + common) == 0
+        got = _observations(log)
+        assert [(i, r) for _, i, r in got] == [(i, r) for _, i, r in expected]
+        assert np.allclose([t for t, _, _ in got], [t for t, _, _ in expected], atol=1e-6)
+        assert read_log(log).header.source["detect"][0]["time_offset_s"] == pytest.approx(-epoch)
+    with pytest.raises(DetectError, match="--time-offset must be seconds"):
+        _run(["detect", str(frames), "--out", str(log), "--replace", "--time-offset", "soon"] + common)
+
+
+def test_merge_treats_stamps_a_microsecond_apart_as_the_same_instant():
+    header = minimal_header(stamp_s=10.0)
+    records = [_odo(11.0 + 1e-7)]  # the log keeps every digit; a frame file name keeps six
+    merged, dropped = merge_observations(header, records, [(11.0, [_obs(11.0, 4)])], max_pose_gap_s=0.05)
+    assert dropped == {"no_pose_at_frame_time": 0, "before_log_start": 0}
+    assert isinstance(merged[0], Odometry) and merged[1].stamp_s == 11.0 + 1e-7

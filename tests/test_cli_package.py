@@ -16,7 +16,7 @@ import fgslam.cli as cli
 PACKAGE = Path(cli.__file__).parent
 VERB_MODULES = {"sim": "sim", "run": "run", "import": "import_", "export": "export", "validate": "validate",
                 "check": "check", "bench": "bench", "record": "record", "calibrate": "calibrate",
-                "detect": "detect", "live": "live"}
+                "detect": "detect", "tune-colours": "tune_colours", "live": "live"}
 
 
 def test_one_module_per_verb_each_with_its_parser_and_handler():
@@ -27,7 +27,7 @@ def test_one_module_per_verb_each_with_its_parser_and_handler():
     for verb, module_name in VERB_MODULES.items():
         module = getattr(cli, module_name)
         assert callable(module.add_parser)
-        handler = getattr(module, f"cmd_{verb}")
+        handler = getattr(module, f"cmd_{verb.replace('-', '_')}")
         assert verbs[verb].get_default("func") is handler
 
 

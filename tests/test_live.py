@@ -101,17 +101,24 @@ def test_waypoints_from_a_file_and_seed_004_paths(tmp_path):
 def octagon_run(tmp_path_factory):
     """The hardware-in-the-loop run of issue 8: the octagon of seed 004's arena."""
     out = tmp_path_factory.mktemp("live") / "live.jsonl"
+    result, true_pose, stopped, _ = hil_octagon(out, 1, simulated_camera)
+    return out, result, true_pose, stopped
+
+
+def hil_octagon(out, seed, camera_for):
+    """One lockstep octagon of the simulated Create with ``camera_for(sim)``'s camera:
+    (result, true end pose, wheels stopped, truth landmarks)."""
     waypoints = polygon_waypoints(8, ARENA_PATH_WIDTH_M, CENTRE)
     start = start_pose_facing(waypoints)
-    with SimulatedCreate("create2", seed=1, time_scale=TIME_SCALE, start_pose=start) as sim:
-        grab_for, front_end, truth_landmarks = simulated_camera(sim)
+    with SimulatedCreate("create2", seed=seed, time_scale=TIME_SCALE, start_pose=start) as sim:
+        grab_for, front_end, truth_landmarks = camera_for(sim)
         result = run_live(CreateLink(sim.port, "create2"), str(out), waypoints, start_pose=start, grab_for=grab_for,
                           front_end=front_end, truth=lambda: sim.true_pose, truth_landmarks=truth_landmarks,
                           clock=sim.clock, settings=CALM, lockstep=Lockstep(sim), odometry_noise=sim.odometry_noise)
         stopped = wheels_stopped(sim)
         true_pose = sim.true_pose
         assert sim.holds == 0  # every frame and smoother step gave the clock back
-    return out, result, true_pose, stopped
+    return result, true_pose, stopped, truth_landmarks
 
 
 def test_hil_octagon_ends_within_10_cm_of_the_truth(octagon_run):
@@ -235,3 +242,20 @@ def test_hil_log_states_the_noise_its_camera_and_encoders_have(octagon_run):
     for name, z in (("range", z_range), ("bearing", z_bearing)):
         rms = math.sqrt(np.mean(np.square(z)))
         assert 0.6 < rms < 1.5, (name, rms)  # was 0.39 (range) and 0.05 (bearing): σ 2.5× and 20× too large
+
+
+@pytest.mark.slow
+def test_hil_colour_landmarks_with_the_simulated_kinect(tmp_path):
+    """fgslam live with Kinect colour landmarks: seed 000's cylinders in the arena, rendered RGB-D
+    frames from the simulated Create's true pose, the colour front-end and iSAM2 in the loop."""
+    from fgslam.live_colour import simulated_kinect
+
+    out = tmp_path / "colour.jsonl"
+    result, true_pose, stopped, truth_landmarks = hil_octagon(out, 2, simulated_kinect)
+    assert stopped and result.completed and pose_error_m(result.final_pose, true_pose) < 0.1
+    assert set(result.landmarks) == {0, 1, 2} and result.observations > 30
+    truth = {t.landmark_id: (t.x_m, t.y_m) for t in truth_landmarks}
+    for landmark_id, xy in result.landmarks.items():
+        assert math.dist(np.asarray(xy)[:2], truth[landmark_id]) < 0.1
+    heights = [o.height_m for o in read_log(out).records if getattr(o, "height_m", None) is not None]
+    assert heights  # the cylinders' heights are measured on the way

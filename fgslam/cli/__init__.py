@@ -1,7 +1,7 @@
 """The ``fgslam`` command line: one module per verb, one error path, one progress display.
 
 - ``fgslam.cli.<verb>`` (``sim``, ``run``, ``import_``, ``export``, ``validate``, ``check``,
-  ``bench``, ``record``, ``calibrate``, ``detect``, ``live``): ``add_parser(verbs)`` adds the
+  ``bench``, ``record``, ``calibrate``, ``detect``, ``tune_colours`` (``tune-colours``), ``live``): ``add_parser(verbs)`` adds the
   verb and its ``--help``; ``cmd_<verb>(args)`` does it and returns the exit status.
 - :mod:`fgslam.cli.common`: the one error path (:func:`~fgslam.cli.common.run_verb`: every
   :class:`~slamio.errors.FgslamError` or :class:`OSError` becomes ``fgslam: error: <what,
@@ -30,6 +30,7 @@ from fgslam.cli import (
     record,
     run,
     sim,
+    tune_colours,
     validate,
 )
 from fgslam.cli.common import run_verb
@@ -48,7 +49,7 @@ typical use:
 """
 
 #: The verb modules, in the order ``fgslam --help`` lists them.
-VERBS = (sim, run, import_, export, validate, check, bench, detect, record, calibrate, live)
+VERBS = (sim, run, import_, export, validate, check, bench, detect, tune_colours, record, calibrate, live)
 
 
 def build_parser() -> argparse.ArgumentParser:

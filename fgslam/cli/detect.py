@@ -15,6 +15,14 @@ frame folder (TUM RGB-D or plain images) or a video file, runs the camera front-
   log's start as ``before_log_start``) — detect never invents motion. The file is rewritten
   atomically (a temporary file, then a rename); the header gains the front-end's settings
   under ``source.detect``.
+- **Clocks**: ``--time-offset S`` adds S seconds to every frame's stamp (and its
+  observations') to put the frames on the log's clock; ``--time-offset start`` puts the first
+  frame at the log's start. When frames find no pose and their stamps do not even overlap the
+  log's, the summary says so and prints the offset that would line them up.
+- **Once**: a log that already has observations is refused — detecting twice would add
+  every observation twice. ``--replace`` removes every observation record (odometry, truth
+  and all other records are kept) before the new ones go in; the header's earlier detect
+  runs are kept, marked ``observations_removed``.
 - **LOG does not exist**: only with ``--static`` (a camera that did not move): a new log
   with pose 0 at the first frame's stamp and no odometry, so every observation belongs to
   pose 0.
@@ -39,6 +47,8 @@ from slamio.errors import FgslamError
 from slamio.log import Header, Observation, Odometry, read_log, write_log
 
 DEFAULT_MAX_POSE_GAP_S = 0.05
+#: Stamps closer than this are the same instant (frame files named by their stamp to the microsecond).
+STAMP_RESOLUTION_S = 1e-6
 
 
 class DetectError(FgslamError):
@@ -70,10 +80,13 @@ def merge_observations(header: Header, records: list, frames: list[tuple[float, 
     for stamp, observations in sorted(frames, key=lambda f: f[0]):
         if not observations:
             continue
-        k = bisect.bisect_right(pose_stamps, stamp) - 1
+        k = bisect.bisect_right(pose_stamps, stamp + STAMP_RESOLUTION_S) - 1
         if k < 0:
             dropped["before_log_start"] += 1
             continue
+        if stamp < pose_stamps[k]:  # the same instant, written with fewer digits (a file name)
+            stamp = pose_stamps[k]
+            observations = [replace(o, stamp_s=stamp) for o in observations]
         if stamp - pose_stamps[k] > max_pose_gap_s:
             dropped["no_pose_at_frame_time"] += 1
             continue
@@ -116,6 +129,51 @@ def _write_atomically(path: Path, header: Header, records: list) -> None:
         raise
 
 
+def _time_offset(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise DetectError(f"--time-offset must be seconds (e.g. -1700000000.25) or 'start', got {text!r}") from None
+    if value != value or value in (float("inf"), float("-inf")):
+        raise DetectError(f"--time-offset must be a finite number of seconds, got {text!r}")
+    return value
+
+
+def _without_observations(existing, path: Path, replace_them: bool):
+    """The log without its observations when ``--replace`` says so; a log that has some and no
+    --replace is refused (detecting twice would add every observation twice)."""
+    count = sum(isinstance(r, Observation) for r in existing.records) + len(existing.rejected)
+    if not count:
+        return existing, 0
+    if not replace_them:
+        runs = existing.header.source.get("detect")
+        by = (f"{len(runs)} earlier fgslam detect run(s)" if isinstance(runs, list) and runs
+              else "its recorder")
+        raise DetectError(
+            f"{path} already has {count} observations (from {by}); detecting again would add them twice. "
+            "Pass --replace to remove every observation from it (odometry, truth and everything else is kept) "
+            "and add the new ones, or give another log")
+    kept = tuple(r for r in existing.records if not isinstance(r, Observation))
+    return replace(existing, records=kept, rejected=()), count
+
+
+def clock_hint(existing, raw_stamps: list[float], offset_s: float, dropped: dict[str, int], max_gap_s: float) -> str:
+    """Why frames found no pose, and what to do: a clock offset, or odometry at each frame."""
+    n = dropped.get("no_pose_at_frame_time", 0) + dropped.get("before_log_start", 0)
+    if existing is not None and raw_stamps:
+        stamps = [r.stamp_s for r in existing.records if _stamp(r) is not None] or [existing.header.stamp_s]
+        log_lo, log_hi = min(existing.header.stamp_s, min(stamps)), max(stamps)
+        lo, hi = min(raw_stamps) + offset_s, max(raw_stamps) + offset_s
+        if hi < log_lo or lo > log_hi + max_gap_s:
+            return (f"({n} frames found no pose: the frames' stamps {lo:.3f}..{hi:.3f} s do not overlap the log's "
+                    f"{log_lo:.3f}..{log_hi:.3f} s, so the camera and the odometry are on different clocks; pass "
+                    f"--time-offset SECONDS (added to each frame's stamp; {log_lo - min(raw_stamps):+.3f} puts the first "
+                    "frame at the log's start) or --time-offset start)")
+    return (f"({n} frames had no pose within {max_gap_s:g} s before them: record odometry at each camera frame "
+            "(fgslam record --save-frames does), check the clocks (--time-offset), or raise --max-pose-gap if the "
+            "robot was still)")
+
+
 # --------------------------------------------------------------------------- the verb
 
 
@@ -134,11 +192,24 @@ def _config_from_args(args):
         except ValueError:
             raise DetectError(f"--tag-ids must be comma-separated integers, got {args.tag_ids!r}") from None
     colour = ColourOptions(bearing_method=args.bearing, height_method=args.height)
+    if args.landmarks:
+        from slamio.camera.landmark_file import load_landmarks
+
+        if args.kind != "colour":
+            raise DetectError("--landmarks describes colour landmarks: add --kind colour")
+        colour = load_landmarks(args.landmarks, base=colour)
     return FrontEndConfig(
         kind=args.kind, tag_family=args.tag_family, tag_size_m=args.tag_size, tag_ids=tag_ids,
         quad_decimate=args.quad_decimate, nthreads=args.threads, colour=colour,
         min_range_m=args.min_range, max_range_m=args.max_range,
     )
+
+
+def landmark_settings(options) -> dict:
+    """The colour landmarks and tolerances a detect run used, for the log's header."""
+    from slamio.camera.landmark_file import options_to_dict
+
+    return options_to_dict(options)
 
 
 def _frames(args):
@@ -175,6 +246,9 @@ def cmd_detect(args: argparse.Namespace) -> int:
     existing = read_log(out) if out.exists() else None
     if existing is not None and existing.truncated:
         print(f"fgslam: warning: {existing.truncated}; the cut-off line is dropped when the log is rewritten")
+    removed = 0
+    if existing is not None:
+        existing, removed = _without_observations(existing, out, args.replace)
     show = Path(args.show) if args.show else None
     if show is not None:
         if show.exists() and not show.is_dir():
@@ -183,13 +257,19 @@ def cmd_detect(args: argparse.Namespace) -> int:
         show.mkdir(parents=True, exist_ok=True)
     stats = DetectionStats()
     frames: list[tuple[float, list[Observation]]] = []
+    offset_s = None if args.time_offset == "start" else _time_offset(args.time_offset)
+    raw_stamps: list[float] = []
     progress = Progress(unit="frames", status_at_once=False)
     try:
         for frame in _frames(args):
             result = front.process(frame)
             stats.add(result)
             progress.status(stats.frames, lambda: f"frames {stats.frames}, observations {stats.observations}")
-            frames.append((frame.stamp_s, result.observations))
+            if offset_s is None:  # --time-offset start: the first frame is the log's start
+                offset_s = (existing.header.stamp_s if existing is not None else 0.0) - frame.stamp_s
+            raw_stamps.append(frame.stamp_s)
+            frames.append((frame.stamp_s + offset_s,
+                           [replace(o, stamp_s=o.stamp_s + offset_s) for o in result.observations]))
             if show is not None:
                 name = Path(frame.name.replace("/", "_").replace(":", "_").replace("#", "_")).stem
                 cv2.imwrite(str(show / f"{frame.index:06d}_{name}.png"), annotate(frame.bgr, result, camera))
@@ -212,7 +292,7 @@ def cmd_detect(args: argparse.Namespace) -> int:
             if count:
                 stats.reject(reason, count)
     settings = {
-        "command": command, "camera": camera.name, "kind": config.kind,
+        "command": command, "camera": camera.name, "kind": config.kind, "time_offset_s": offset_s,
         "frames": stats.frames, "observations": stats.observations,
         "rejected": dict(sorted(stats.reasons.items())),
         "noise": front.noise.describe(),
@@ -220,18 +300,21 @@ def cmd_detect(args: argparse.Namespace) -> int:
     if config.kind == "apriltag":
         settings.update(tag_family=config.tag_family, tag_size_m=config.tag_size_m)
     else:
-        settings.update(bearing=config.colour.bearing_method, height=config.colour.height_method)
+        settings.update(bearing=config.colour.bearing_method, height=config.colour.height_method,
+                        landmarks=landmark_settings(config.colour))
     earlier = header.source.get("detect")
     runs = list(earlier) if isinstance(earlier, list) else []
+    if removed:
+        runs = [{**run, "observations_removed": True} if isinstance(run, dict) else run for run in runs]
+        settings["replaced_observations"] = removed
     header = replace(header, source={**header.source, "detect": runs + [settings]})
     _write_atomically(out, header, records)
     kept = sum(isinstance(r, Observation) for r in records) - (
         0 if existing is None else sum(isinstance(r, Observation) for r in existing.records))
-    print(f"wrote {out}: {kept} observations added")
+    print(f"wrote {out}: {kept} observations added" + (f" ({removed} earlier ones removed)" if removed else ""))
     print(stats.summary())
-    if dropped.get("no_pose_at_frame_time"):
-        print(f"  ({dropped['no_pose_at_frame_time']} frames had no pose within {args.max_pose_gap:g} s: record "
-              "odometry at each camera frame, or raise --max-pose-gap if the robot was still)")
+    if dropped.get("no_pose_at_frame_time") or dropped.get("before_log_start"):
+        print("  " + clock_hint(existing, raw_stamps, offset_s, dropped, args.max_pose_gap))
     if show is not None:
         print(f"annotated frames in {show}/")
     return 0
@@ -271,6 +354,12 @@ def add_parser(verbs) -> argparse.ArgumentParser:
                         help="landmarks to look for (default apriltag)")
     detect.add_argument("--static", action="store_true",
                         help="LOG does not exist yet: start one for a camera that did not move (pose 0 only)")
+    detect.add_argument("--replace", action="store_true",
+                        help="LOG already has observations: remove them (odometry and truth are kept) and add the new "
+                        "ones; without it such a log is refused, as detecting twice would add everything twice")
+    detect.add_argument("--time-offset", default="0", metavar="S",
+                        help="seconds added to every frame's stamp to put it on the log's clock (default 0); 'start': "
+                        "the first frame is at the log's start (only if the camera and the robot started together)")
     detect.add_argument("--max-pose-gap", type=float, default=DEFAULT_MAX_POSE_GAP_S, metavar="S",
                         help=f"largest gap between a frame and the pose it joins (default {DEFAULT_MAX_POSE_GAP_S} s)")
     detect.add_argument("--tag-family", default="tag36h11", help="AprilTag family (default tag36h11)")
@@ -280,6 +369,9 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     detect.add_argument("--quad-decimate", type=float, default=1.0,
                         help="AprilTag quad_decimate (default 1.0: finds small tags; 2.0 is faster)")
     detect.add_argument("--threads", type=int, default=1, help="AprilTag detector threads (default 1)")
+    detect.add_argument("--landmarks", default=None, metavar="FILE",
+                        help="colour: the landmark file (YAML/JSON: colours, ids, shapes, sizes, check tolerances; "
+                        "default seed 000's red/green/blue cylinders; fgslam tune-colours writes one)")
     detect.add_argument("--bearing", choices=("exact", "linear"), default="exact",
                         help="colour: bearing through the intrinsics (default) or seed 000's linear map")
     detect.add_argument("--height", choices=("pinhole", "gheight"), default="pinhole",

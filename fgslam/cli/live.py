@@ -74,6 +74,11 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     live.add_argument("--camera", default=None, metavar="CAM.yaml", help="camera_info YAML (real camera)")
     live.add_argument("--frames", default="camera:0", help="frame source: camera:N or kinect:N (default camera:0)")
     live.add_argument("--tag-size", type=float, default=0.16, metavar="M", help="AprilTag size (default 0.16 m)")
+    live.add_argument("--kind", choices=("apriltag", "colour"), default="apriltag",
+                      help="landmarks: AprilTags (default) or Kinect colour landmarks (with --port sim: seed 000's "
+                      "cylinders in three corners of the arena)")
+    live.add_argument("--landmarks", default=None, metavar="FILE",
+                      help="colour: the landmark file (default seed 000's red/green/blue cylinders)")
     live.add_argument("--out", required=True, metavar="LOG", help="run log to write; an existing one is kept")
     add_overwrite_option(live, "an existing LOG")
     live.add_argument("--map-png", default=None, metavar="PNG", help="rewrite a map picture here every 2 s")
@@ -99,6 +104,10 @@ def cmd_live(args: argparse.Namespace) -> int:
     from slamio.create.link import CreateLink
 
     check_new_file(args.out, overwrite=args.overwrite)  # before the robot moves: an existing log is kept
+    if args.landmarks and args.kind != "colour":
+        raise FgslamError("--landmarks describes colour landmarks: add --kind colour")
+    sensor = ({"kind": "range-bearing", "landmark_kind": "coloured-cylinder", "source": "fgslam live"}
+              if args.kind == "colour" else None)
     waypoints = _waypoints(args)
     start_pose = tuple(args.start_pose) if args.start_pose else start_pose_facing(waypoints)
     settings = LiveSettings(speed_m_s=args.speed)
@@ -134,7 +143,13 @@ def cmd_live(args: argparse.Namespace) -> int:
 
             sim = SimulatedCreate(args.model, seed=args.sim_seed, time_scale=args.sim_time_scale,
                                   start_pose=start_pose).start()
-            grab_for, front_end, truth_landmarks = simulated_camera(sim, seed=args.sim_seed, tag_size_m=args.tag_size)
+            if args.kind == "colour":
+                from fgslam.live_colour import simulated_kinect
+
+                grab_for, front_end, truth_landmarks = simulated_kinect(sim, _colour_options(args), seed=args.sim_seed)
+            else:
+                grab_for, front_end, truth_landmarks = simulated_camera(sim, seed=args.sim_seed,
+                                                                        tag_size_m=args.tag_size)
             port, clock, truth = sim.port, sim.clock, (lambda: sim.true_pose)
             odometry_noise = sim.odometry_noise  # the log states what the simulated encoders do
             if args.sim_unplug_after is not None:
@@ -152,7 +167,7 @@ def cmd_live(args: argparse.Namespace) -> int:
         link.open()  # a port that does not open is a user error (exit 1), before the log exists
         result = run_live(link, args.out, waypoints, start_pose=start_pose, grab_for=grab_for, front_end=front_end,
                           settings=settings, truth=truth, truth_landmarks=truth_landmarks, clock=clock,
-                          odometry_noise=odometry_noise, on_step=on_step)
+                          odometry_noise=odometry_noise, on_step=on_step, sensor=sensor)
     finally:
         status.close()
         if "link" in locals():
@@ -204,4 +219,15 @@ def _real_camera(args):
         raise FgslamError(f"--frames must be camera:N or kinect:N, got {args.frames!r}")
     frames = video_frames(int(number)) if kind == "camera" else kinect_frames(int(number))
     latest = LatestFrame(frames)
+    if args.kind == "colour":
+        from fgslam.live_colour import colour_front_end
+
+        return latest.grab_for, colour_front_end(camera, _colour_options(args))
     return latest.grab_for, FrontEnd(camera, FrontEndConfig(tag_size_m=args.tag_size))
+
+
+def _colour_options(args):
+    from slamio.camera.colour import ColourOptions
+    from slamio.camera.landmark_file import load_landmarks
+
+    return load_landmarks(args.landmarks) if args.landmarks else ColourOptions()

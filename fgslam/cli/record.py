@@ -104,12 +104,48 @@ def add_parser(verbs) -> argparse.ArgumentParser:
                      help="damage this fraction of the robot's bytes (default 0)")
     sim.add_argument("--sim-drop", type=_fraction, default=0.0, metavar="P",
                      help="drop this fraction of the robot's bytes (default 0)")
+    cam = p.add_argument_group("camera frames (fgslam detect FOLDER --out LOG adds their landmarks afterwards)")
+    cam.add_argument("--save-frames", default=None, metavar="FOLDER",
+                     help="save a camera frame at each odometry record, stamped on the log's clock, as a TUM RGB-D "
+                     "folder (a new or empty folder)")
+    cam.add_argument("--frames", default=None, metavar="SOURCE",
+                     help="camera:N (OpenCV) or kinect:N (RGB + registered depth); with --port sim the default is "
+                     "the simulated camera (seed 004's arena tags rendered from the true pose, camera.yaml written)")
     p.set_defaults(func=cmd_record)
     return p
 
 
 def _status_path(out: Path) -> Path:
     return out.with_name(out.stem + ".status.json") if out.suffix else out.with_name(out.name + ".status.json")
+
+
+def _frame_saver(args, sim, settings):
+    """A :class:`fgslam.record_frames.FrameSaver` for --save-frames (the simulated camera with --port sim)."""
+    from fgslam.record_frames import FrameSaver
+
+    folder = Path(args.save_frames)
+    if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
+        raise FgslamError(f"--save-frames {folder}: give a new or empty folder (frames already there would mix)")
+    source = args.frames or ("sim" if sim is not None else None)
+    if source == "sim":
+        if sim is None:
+            raise FgslamError("--frames sim needs --port sim")
+        from fgslam.live import simulated_camera
+        from slamio.camera.model import save_camera
+
+        grab_for, front_end, _ = simulated_camera(sim, seed=args.sim_seed)
+        folder.mkdir(parents=True, exist_ok=True)
+        save_camera(folder / "camera.yaml", front_end.camera, comment="the simulated camera of fgslam record")
+    else:
+        from fgslam.live import LatestFrame
+        from slamio.camera.sources import kinect_frames, video_frames
+
+        kind, _, number = (source or "").partition(":")
+        if kind not in ("camera", "kinect") or not number.isdigit():
+            raise FgslamError(f"--save-frames needs --frames camera:N or kinect:N, got {source!r}")
+        frames = video_frames(int(number)) if kind == "camera" else kinect_frames(int(number))
+        grab_for = LatestFrame(frames).grab_for
+    return FrameSaver(folder, grab_for, settings.record_period_s)
 
 
 def cmd_record(args: argparse.Namespace) -> int:
@@ -163,11 +199,15 @@ def cmd_record(args: argparse.Namespace) -> int:
         port, clock = sim.port, sim.clock
         source["simulator"] = {"seed": args.sim_seed, "time_scale": args.sim_time_scale,
                                "corrupt_fraction": args.sim_corrupt, "drop_fraction": args.sim_drop}
+    saver = None
     try:
+        if args.save_frames:
+            saver = _frame_saver(args, sim, settings)
+            source["frames"] = str(args.save_frames)
         link = CreateLink(port, args.model, baud=args.baud)
         link.open()  # a port that does not open is a user error (exit 1), before the log exists
         kwargs = dict(settings=settings, noise=noise, source=source, observation_noise=observation,
-                      calibration=trials)
+                      calibration=trials, hooks=saver)
         if clock is not None:
             kwargs["clock"] = clock
         if args.path == "teleop":
@@ -180,6 +220,8 @@ def cmd_record(args: argparse.Namespace) -> int:
     finally:
         if "link" in locals():
             link.close()
+        if saver is not None:
+            saver.close()
         if sim is not None:
             sim.close()
     write_status(result, _status_path(out))
@@ -202,6 +244,9 @@ def cmd_record(args: argparse.Namespace) -> int:
                else f"{stats.get('answers', 0)} answers, {stats.get('lost_answers', 0)} lost")
     print(f"wrote {out}: {result.records} odometry records over {result.duration_s:.1f} s, "
           f"{result.distance_m:.3f} m driven, {result.angle_rad:.2f} rad turned ({quality})")
+    if saver is not None:
+        print(f"saved {saver.saved} camera frames to {args.save_frames}/ ({saver.skipped} skipped: the writer was "
+              f"behind; {saver.missing} without an image)")
     if result.shutdown is not None and not result.shutdown.stopped:
         print(f"fgslam record: WARNING: {result.shutdown.detail}", file=sys.stderr)
     if result.reason.kind == "interrupted":

@@ -31,7 +31,7 @@ from slamio.camera.apriltag import (
     refine_tag_corners,
     tag_geometry,
 )
-from slamio.camera.colour import Blob, ColourOptions, detect_colour_landmarks
+from slamio.camera.colour import BLOB_REJECTIONS, Blob, ColourOptions, detect_colour_landmarks
 from slamio.camera.model import CameraModel
 from slamio.camera.sources import Frame
 from slamio.errors import FgslamError
@@ -48,9 +48,8 @@ REASONS = {
     "under_exposed": "the frame is nearly black",
     "no_landmark": "no tag or colour blob in the frame",
     "no_depth_image": "colour landmarks need a registered depth image and the frame has none",
-    "missing_depth": "a colour blob whose middle has too few valid depth pixels (0 mm / raw 2047 / NaN)",
     "tag_at_image_border": "a tag whose corners are too close to the image border to be trusted",
-    "blob_at_image_border": "a colour blob cut by the image's left or right side (its bearing would be off)",
+    **BLOB_REJECTIONS,
     "tag_not_allowed": "a tag id outside the allowed ids",
     "pose_failed": "no pose could be computed for a tag",
     "out_of_range": "a landmark measured outside [min_range_m, max_range_m]",
@@ -65,7 +64,7 @@ NOTES = {
     "pose_ambiguous": "a tag pose whose two IPPE solutions fit almost equally well (yaw σ inflated)",
     "corners_not_refined": "a tag whose edges could not be located to sub-pixel accuracy (tiny, oblique or "
     "blurred): the detector's corners were used",
-    "extra_blobs": "more than one blob of a colour; the largest was kept",
+    "extra_blobs": "more than one blob of a colour passed every check; the one whose width fits best was kept",
     "height_cut_off": "a blob touching the image's top border: no height",
     "height_no_depth": "no depth at a blob's top edge: no height",
     "height_top_above_floor": "a blob cut at the image's bottom: height of its top above the floor",
@@ -358,6 +357,8 @@ class FrontEnd:
         result.blobs.extend(blobs)
         for r in rejected:
             result.rejections.append(Rejection(r.reason, r.colour, r.detail))
+            if r.blob is not None:
+                result.labels.append(((r.blob.left, r.blob.bottom + 14), f"{r.colour}: {r.reason}"))
         n = self.noise
         for m in measured:
             if m.extra_blobs:
@@ -376,9 +377,8 @@ class FrontEnd:
                 height_m=m.height_m if has_height else None,
                 sigma_height_m=n.sigma_height_m if has_height else None,
             ))
-            blob = next(b for b in blobs if b.colour.name == m.colour)
             height = f" h {m.height_m:.2f} m" if m.height_m is not None else ""
-            result.labels.append(((blob.left, max(blob.top - 6, 10)),
+            result.labels.append(((m.blob.left, max(m.blob.top - 6, 10)),
                                   f"{m.colour} {m.range_m:.2f} m {math.degrees(m.bearing_rad):+.1f} deg{height}"))
 
 
@@ -394,6 +394,15 @@ def _label(image: np.ndarray, text: str, org: tuple[int, int], colour: tuple[int
     x, y = org
     cv2.rectangle(image, (x - 2, y - h - 3), (x + w + 2, y + base + 1), (0, 0, 0), -1)
     cv2.putText(image, text, (x, y), font, scale, colour, 1, cv2.LINE_AA)
+
+
+def _rejection_lines(rejections: list[Rejection], max_lines: int = 8) -> list[str]:
+    """One line per rejection (with its detail), or per reason and colour/tag with a count when
+    there are many (a cluttered frame rejects dozens of blobs; their reasons are drawn at them)."""
+    if len(rejections) <= max_lines:
+        return [f"{r.reason} {r.what} {r.detail}".strip() for r in rejections]
+    counts = Counter((r.reason, r.what) for r in rejections)
+    return [f"{reason} {what} x{n}".strip() for (reason, what), n in counts.most_common()]
 
 
 def annotate(bgr: np.ndarray | None, result: FrameResult, camera: CameraModel | None = None) -> np.ndarray:
@@ -420,7 +429,7 @@ def annotate(bgr: np.ndarray | None, result: FrameResult, camera: CameraModel | 
         _label(image, text, (int(x), int(y)), (255, 255, 255))
     y = 16
     header = f"{result.frame_name}  t={result.stamp_s:.3f} s  {len(result.observations)} obs"
-    for text in [header] + [f"{r.reason} {r.what} {r.detail}".strip() for r in result.rejections]:
+    for text in [header] + _rejection_lines(result.rejections):
         _label(image, text[:90], (5, y), (0, 255, 255))
         y += 18
     return image
