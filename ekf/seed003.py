@@ -48,8 +48,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ekf.se3 import adjoint, exp_se3, hat
-from ekf.stereo import point_from_stereo, projection, projection_jacobian, stereo_matrix
+from slamio.se3 import adjoint, exp_se3, hat
+from slamio.stereo import point_from_stereo, projection, projection_jacobian, stereo_matrix
 from slamio.datasets.seed003 import StereoImuNoise
 
 __all__ = ["AS_THE_FIGURES_SHOW", "EkfS003", "expm_series"]

@@ -8,7 +8,7 @@ metres). Covariance over ``(δ, m_1, …, m_n)`` with ``δ = (ρ, φ)`` the *rig
   ``T ← T exp(τ u^)``, ``Σ_δδ ← F Σ_δδ Fᵀ + G Σ_u Gᵀ``, ``Σ_δm ← F Σ_δm`` with
   ``F = Ad(exp(−τ u^)) = exp(−τ Û)`` (seed 003's 6×6 matrix) and ``G = τ J_r(τ u)``.
 * **Observation** of landmark m: ``p = T⁻¹ m`` (IMU frame), ``q = ₒT_I p``,
-  ``z = M π(q)`` (ekf.stereo), with Jacobians
+  ``z = M π(q)`` (slamio.stereo), with Jacobians
   ``∂z/∂δ = −M π′(q) ₒT_I p⊙`` and ``∂z/∂m = M π′(q) ₒT_I T⁻¹ D``.
 * **Update**: every known landmark seen now is gated alone (NIS against χ²₄ at
   ``gate``, χ²₄ at 0.999 by default; rejected ones are counted), the survivors are stacked and applied
@@ -25,8 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ekf.se3 import adjoint, curly_hat, exp_se3, inverse, log_se3, odot, skew
-from ekf.stereo import (
+from slamio.se3 import adjoint, curly_hat, exp_se3, inverse, log_se3, odot, skew
+from slamio.stereo import (
     point_from_stereo,
     point_from_stereo_jacobian,
     projection,

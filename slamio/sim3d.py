@@ -14,7 +14,7 @@ How a drive is made
    returns to its start. The body twist of step t is constant over [t, t + 1]:
    forward speed, yaw rate from the path's curvature, plus small roll/pitch wobbles
    (``wobble_rad``) and a gentle vertical velocity (the road is not flat), so the
-   trajectory is genuinely 3-D. Truth: ``T_{t+1} = T_t exp(τ û_t)`` exactly (ekf.se3).
+   trajectory is genuinely 3-D. Truth: ``T_{t+1} = T_t exp(τ û_t)`` exactly (slamio.se3).
 2. **World.** Points on both sides of the road every ``landmark_spacing_m`` of path
    length, ``road_half_width_m`` + U(0, ``facade_depth_m``) to the side and
    U(−1, ``max_height_m``) m above the IMU.
@@ -39,9 +39,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ekf.se3 import exp_se3, inverse
 from slamio.datasets.seed003 import StereoImuDrive, StereoImuNoise
-from ekf.stereo import stereo_matrix, stereo_pixels
+from slamio.se3 import exp_se3, inverse
+from slamio.stereo import stereo_matrix, stereo_pixels
 
 __all__ = ["KITTI_LIKE_CAM_T_IMU", "KITTI_LIKE_K", "DriveScenario", "simulate_drive"]
 

@@ -1,11 +1,11 @@
-"""ekf.se3 and ekf.stereo against scipy's matrix exponential and numerical derivatives."""
+"""slamio.se3 and slamio.stereo against scipy's matrix exponential and numerical derivatives."""
 
 import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from ekf.se3 import adjoint, curly_hat, exp_se3, hat, inverse, log_se3, odot, skew
-from ekf.stereo import (
+from slamio.se3 import adjoint, curly_hat, exp_se3, hat, inverse, log_se3, odot, skew
+from slamio.stereo import (
     point_from_stereo,
     point_from_stereo_jacobian,
     projection,

@@ -5,9 +5,9 @@ import pytest
 from scipy.linalg import expm
 
 from ekf.drive3d import position_errors_m, run_drive
-from ekf.se3 import curly_hat, exp_se3, hat, inverse
+from slamio.se3 import curly_hat, exp_se3, hat, inverse
 from ekf.seed003 import AS_THE_FIGURES_SHOW, EkfS003, expm_series
-from ekf.stereo import projection, stereo_matrix, stereo_pixels
+from slamio.stereo import projection, stereo_matrix, stereo_pixels
 from slamio.datasets.seed003 import StereoImuNoise
 from slamio.sim3d import KITTI_LIKE_CAM_T_IMU, KITTI_LIKE_K, DriveScenario, simulate_drive
 

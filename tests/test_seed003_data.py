@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from ekf.se3 import exp_se3, inverse
-from ekf.stereo import stereo_matrix, stereo_pixels
+from slamio.se3 import exp_se3, inverse
+from slamio.stereo import stereo_matrix, stereo_pixels
 from slamio.datasets.seed003 import DriveFormatError, load_drive, save_drive
 from slamio.sim3d import DriveScenario, simulate_drive
 

@@ -6,8 +6,8 @@ import pytest
 from gtsam.symbol_shorthand import L, X
 
 from ekf.drive3d import position_errors_m, run_drive
-from ekf.se3 import exp_se3, inverse
-from ekf.stereo import stereo_matrix
+from slamio.se3 import exp_se3, inverse
+from slamio.stereo import stereo_matrix
 from ekf.vio import VioEkf, predict_stereo
 from fgslam.smoother3d import StereoIsam2, batch_solve, gtsam_covariance, imu_increment_covariance
 from slamio.datasets.seed003 import StereoImuNoise

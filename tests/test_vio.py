@@ -5,8 +5,8 @@ import pytest
 from scipy.linalg import expm
 
 from ekf.drive3d import position_errors_m, run_drive, steps_of
-from ekf.se3 import adjoint, curly_hat, exp_se3, log_se3, skew
-from ekf.stereo import point_from_stereo, stereo_matrix, stereo_pixels
+from slamio.se3 import adjoint, curly_hat, exp_se3, log_se3, skew
+from slamio.stereo import point_from_stereo, stereo_matrix, stereo_pixels
 from ekf.vio import VioEkf, observation_jacobians, pose_nees, predict_stereo, right_jacobian_se3
 from slamio.sim3d import KITTI_LIKE_CAM_T_IMU, KITTI_LIKE_K, DriveScenario, simulate_drive
 
