@@ -43,8 +43,8 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import L, X
 
-from ekf.se3 import exp_se3, inverse
-from ekf.stereo import point_from_stereo
+from slamio.se3 import exp_se3, inverse
+from slamio.stereo import point_from_stereo
 from ekf.vio import right_jacobian_se3
 from slamio.datasets.seed003 import StereoImuNoise
 
