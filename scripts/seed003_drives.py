@@ -111,11 +111,18 @@ def top_view(path, title, results, drive, reference_name):
         right.plot(tr[:, 0, 3], tr[:, 1, 3], color=colour, ls=style, lw=1.2, label=name)
     right.set_title(f"all estimators (reference: {reference_name})")
     for ax in (left, right):
-        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_aspect("equal", adjustable="box")
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
         ax.legend(fontsize=7, loc="best")
         ax.plot([0], [0], "k^", ms=8)
+    # frame the trajectories (a few far landmarks would otherwise shrink the drive to a line)
+    all_xy = np.vstack([results[n][0][:, :2, 3] for n in styles if n != "ekf-s003 as written"])
+    lo, hi = all_xy.min(axis=0), all_xy.max(axis=0)
+    margin = 0.15 * float(np.max(hi - lo)) + 20.0
+    for ax in (left, right):
+        ax.set_xlim(lo[0] - margin, hi[0] + margin)
+        ax.set_ylim(lo[1] - margin, hi[1] + margin)
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=90)
