@@ -184,6 +184,14 @@ class StereoIsam2:
                 break
             previous = current
 
+    @property
+    def n_steps(self) -> int:
+        """Steps consumed so far (= poses in the graph)."""
+        return self._t + 1
+
+    def landmark_ids(self) -> list[int]:
+        return sorted(self._landmarks)
+
     def current_pose(self) -> np.ndarray:
         return self._pose.copy()
 
@@ -203,7 +211,7 @@ class StereoIsam2:
 
     def smoothed_trajectory(self) -> np.ndarray:
         values = self.estimate()
-        return np.array([values.atPose3(X(t)).matrix() for t in range(self._t + 1)])
+        return np.array([values.atPose3(X(t)).matrix() for t in range(self.n_steps)])
 
     def landmarks(self) -> dict[int, np.ndarray]:
         values = self.estimate()
@@ -240,4 +248,4 @@ def batch_solve(smoother: StereoIsam2, *, max_iterations: int = 100) -> BatchRes
     params.setAbsoluteErrorTol(1e-10)
     values = gtsam.LevenbergMarquardtOptimizer(smoother.graph, smoother.estimate(), params).optimize()
     seconds = time.perf_counter() - start
-    return BatchResult(values, smoother._t + 1, smoother._landmarks, float(smoother.graph.error(values)), seconds)
+    return BatchResult(values, smoother.n_steps, smoother.landmark_ids(), float(smoother.graph.error(values)), seconds)

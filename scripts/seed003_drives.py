@@ -1,6 +1,7 @@
 """Every seed-003 estimator on the seed's real drives and on simulated drives: tables + top views.
 
     python scripts/seed003_drives.py [--data /work/shared/data/seed003] [--seeds 1-10] [--out docs]
+    python scripts/seed003_drives.py --scaling      # time per step as the map grows
 
 For each drive: ``ekf-s003`` as written and with its typos read as the paper's figures
 require (``AS_THE_FIGURES_SHOW``; its pose is the IMU dead reckoning), ``ekf-vio``,
@@ -137,6 +138,36 @@ def flaw_costs(drive, ref_traj, ref_landmarks):
     return rows
 
 
+def scaling(seed: int = 1) -> None:
+    """ms per step of ekf-vio and isam2-vio against the number of landmarks mapped so far,
+    on one large simulated drive (a 0.9 km loop, about 1 000 landmarks)."""
+    from slamio.sim3d import DriveScenario
+
+    drive = simulate_drive(seed, DriveScenario(straight_m=300.0, side_m=120.0))
+    estimators = {
+        "ekf-vio": VioEkf(drive.K, drive.baseline_m, drive.cam_T_imu),
+        "isam2-vio": StereoIsam2(drive.K, drive.baseline_m, drive.cam_T_imu),
+    }
+    counts, seconds = {n: [] for n in estimators}, {n: [] for n in estimators}
+    for args in steps_of(drive):
+        for name, est in estimators.items():
+            start = time.perf_counter()
+            est.step(*args)
+            seconds[name].append(time.perf_counter() - start)
+            counts[name].append(est.landmarks_added)
+    print(f"Time per step against landmarks mapped ({drive.n_steps} steps, {drive.n_landmarks} landmarks in the world):\n")
+    print("| landmarks mapped | ekf-vio ms/step | isam2-vio ms/step |")
+    print("|---|---|---|")
+    n = np.array(counts["ekf-vio"])
+    edges = [0, 100, 200, 400, 600, 800, 1000, 1200, 10**6]
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        sel = (n >= lo) & (n < hi)
+        if sel.any():
+            ekf_ms = 1e3 * np.median(np.array(seconds["ekf-vio"])[sel])
+            isam_ms = 1e3 * np.median(np.array(seconds["isam2-vio"])[sel])
+            print(f"| {lo}–{min(hi, int(n.max()))} | {ekf_ms:.1f} | {isam_ms:.1f} |")
+
+
 def parse_seeds(text: str) -> list[int]:
     if "-" in text:
         a, b = text.split("-")
@@ -149,7 +180,11 @@ def main(argv=None) -> int:
     parser.add_argument("--data", default="/work/shared/data/seed003")
     parser.add_argument("--seeds", default="1-10")
     parser.add_argument("--out", default="docs")
+    parser.add_argument("--scaling", action="store_true", help="only the time-per-step table on a large simulated drive")
     args = parser.parse_args(argv)
+    if args.scaling:
+        scaling()
+        return 0
     out_dir = Path(args.out)
 
     drives = [(p.stem, load_drive(p)) for p in sorted(Path(args.data).glob("*.npz"))]

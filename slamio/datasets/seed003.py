@@ -101,22 +101,6 @@ class StereoImuDrive:
         """τ from stamp ``step`` to ``step + 1``."""
         return float(self.stamps_s[step + 1] - self.stamps_s[step])
 
-    def head(self, n_steps: int) -> "StereoImuDrive":
-        """The first ``n_steps`` steps (a shorter drive with the same calibration)."""
-        n = int(n_steps)
-        return StereoImuDrive(
-            stamps_s=self.stamps_s[:n],
-            features_px=self.features_px[:n],
-            linear_velocity_mps=self.linear_velocity_mps[:n],
-            angular_velocity_radps=self.angular_velocity_radps[:n],
-            K=self.K,
-            baseline_m=self.baseline_m,
-            cam_T_imu=self.cam_T_imu,
-            truth_world_T_imu=None if self.truth_world_T_imu is None else self.truth_world_T_imu[:n],
-            truth_landmarks_m=self.truth_landmarks_m,
-            source=self.source,
-        )
-
 
 def _finite(path, key, a):
     if not np.all(np.isfinite(a)):
@@ -154,9 +138,10 @@ def load_drive(path) -> StereoImuDrive:
         if not np.issubdtype(arrays[key].dtype, np.number):
             raise DriveFormatError(path, key, f"dtype {arrays[key].dtype} is not numeric")
 
-    stamps = arrays["time_stamps"].astype(float).reshape(-1) if arrays["time_stamps"].ndim <= 2 else None
-    if stamps is None or arrays["time_stamps"].size != stamps.size or (arrays["time_stamps"].ndim == 2 and arrays["time_stamps"].shape[0] != 1):
-        raise DriveFormatError(path, "time_stamps", f"shape {arrays['time_stamps'].shape}, expected (1, T)")
+    raw_stamps = arrays["time_stamps"]
+    if not (raw_stamps.ndim == 1 or (raw_stamps.ndim == 2 and raw_stamps.shape[0] == 1)):
+        raise DriveFormatError(path, "time_stamps", f"shape {raw_stamps.shape}, expected (1, T)")
+    stamps = raw_stamps.astype(float).reshape(-1)
     T = stamps.size
     if T < 2:
         raise DriveFormatError(path, "time_stamps", f"{T} stamp(s); a drive needs at least 2 steps")
