@@ -1,9 +1,10 @@
 """ekf: the independent reference estimators — EKF-SLAM, the seed papers' filters, dead reckoning.
 
 ``EkfSlam`` is the textbook EKF-SLAM (with NN/JCBB data association and optional 3-D
-landmark heights); ``EkfS000``, ``EkfS001`` and ``EkfS004`` reproduce the seed papers'
-filters as written, flaws included (docs/estimators.md); ``g_height`` is seed 002's
-landmark-height formula.
+landmark heights); ``EkfS000``, ``EkfS001``, ``EkfS003`` and ``EkfS004`` reproduce the seed
+papers' filters as written, flaws included (docs/estimators.md); ``g_height`` is seed 002's
+landmark-height formula. ``VioEkf`` is the textbook stereo + IMU EKF-SLAM on SE(3) for
+seed 003's drives (``ekf.drive3d`` feeds them; ``slamio.se3`` and ``slamio.stereo`` hold the maths).
 
 This package never imports gtsam, so it can check the factor-graph estimators
 independently. Estimators here are pure: they consume ``slamio.log.Step`` objects and
@@ -22,13 +23,16 @@ from ekf.models import (
 from ekf.seed000 import EkfS000
 from ekf.seed001 import EkfS001
 from ekf.seed002 import exact_height_m, g_height
+from ekf.seed003 import EkfS003
 from ekf.seed004 import EkfS004
 from ekf.slam import EkfSlam, joseph_update, kalman_gain
+from ekf.vio import VioEkf
 
 __all__ = [
     "DeadReckoning",
     "EkfS000",
     "EkfS001",
+    "EkfS003",
     "EkfS004",
     "EkfSlam",
     "exact_height_m",
@@ -41,4 +45,5 @@ __all__ = [
     "predict_pose",
     "range_bearing",
     "range_bearing_jacobians",
+    "VioEkf",
 ]

@@ -1,0 +1,52 @@
+"""How a 3-D stereo + IMU estimator consumes a drive, one step at a time.
+
+Every estimator of seed 003's drives (``ekf.seed003.EkfS003``, ``ekf.vio.VioEkf``,
+``fgslam.smoother3d``) implements::
+
+    step(dt_s, twist, ids, pixels)   # predict with the previous step's twist over dt_s
+                                     # (None at the first step), then use the stereo
+                                     # pixels (n, 4) of landmarks ``ids`` (n,) seen now
+    current_pose() -> (4, 4)         # world_T_imu right after the last step
+    trajectory()   -> (T, 4, 4)      # its estimate of every step so far (filter: online)
+    landmarks()    -> {id: (3,)}     # world points
+
+The world frame is the IMU frame at the first step (pose 0 = identity), as in the seed.
+:func:`run_drive` feeds a whole drive; it never prints or reads files.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["position_errors_m", "run_drive", "steps_of"]
+
+
+def steps_of(drive):
+    """Yield ``(dt_s, twist, ids, pixels)`` for every step of ``drive``."""
+    for t in range(drive.n_steps):
+        ids = drive.seen(t)
+        pixels = drive.features_px[t, ids]
+        if t == 0:
+            yield None, None, ids, pixels
+        else:
+            yield drive.dt_s(t - 1), drive.twist(t - 1), ids, pixels
+
+
+def run_drive(estimator, drive, n_steps: int | None = None):
+    """Feed the first ``n_steps`` (all by default) steps of ``drive``; return the estimator."""
+    for t, (dt, twist, ids, pixels) in enumerate(steps_of(drive)):
+        if n_steps is not None and t >= n_steps:
+            break
+        estimator.step(dt, twist, ids, pixels)
+    return estimator
+
+
+def position_errors_m(estimate, truth) -> tuple[float, float]:
+    """(3-D RMSE, top-view 2-D RMSE) of the positions of two (T, 4, 4) pose sequences.
+
+    Both start at the same known first pose (the world frame is the IMU at step 0), so no
+    alignment is done.
+    """
+    d = np.asarray(estimate)[:, :3, 3] - np.asarray(truth)[:, :3, 3]
+    return float(np.sqrt(np.mean(np.sum(d**2, axis=1)))), float(np.sqrt(np.mean(np.sum(d[:, :2] ** 2, axis=1))))
+

@@ -1,0 +1,234 @@
+"""``ekf-vio``: a textbook visual-inertial EKF-SLAM on SE(3) for seed 003's drives (numpy only).
+
+State: the IMU pose ``T = world_T_imu`` and every initialised landmark ``m_j`` (world,
+metres). Covariance over ``(δ, m_1, …, m_n)`` with ``δ = (ρ, φ)`` the *right* perturbation
+``T = T̂ exp(δ^)``. Unlike seed 003, the camera corrects the pose and the landmarks jointly.
+
+* **Prediction** with the IMU twist ``u = (v, ω)`` held over τ:
+  ``T ← T exp(τ u^)``, ``Σ_δδ ← F Σ_δδ Fᵀ + G Σ_u Gᵀ``, ``Σ_δm ← F Σ_δm`` with
+  ``F = Ad(exp(−τ u^)) = exp(−τ Û)`` (seed 003's 6×6 matrix) and ``G = τ J_r(τ u)``.
+* **Observation** of landmark m: ``p = T⁻¹ m`` (IMU frame), ``q = ₒT_I p``,
+  ``z = M π(q)`` (slamio.stereo), with Jacobians
+  ``∂z/∂δ = −M π′(q) ₒT_I p⊙`` and ``∂z/∂m = M π′(q) ₒT_I T⁻¹ D``.
+* **Update**: every known landmark seen now is gated alone (NIS against χ²₄ at
+  ``gate``, χ²₄ at 0.999 by default; rejected ones are counted), the survivors are stacked and applied
+  in one update ``Σ ← Σ − K S Kᵀ`` (symmetrised; O(n² m)); the pose takes ``T ← T exp(δ̂^)``.
+* **New landmarks** (disparity ≥ ``min_disparity_px``): back-projected through the
+  current pose, with the cross-covariance of a proper EKF-SLAM augmentation
+  ``Σ_mm = A Σ_δδ Aᵀ + B R Bᵀ``, ``Σ_mx = A Σ_δx``, ``A = R_wi [I, −p^]``,
+  ``B = R_wi R_ic ∂(back-projection)/∂z``.
+
+The pixel noise is ``σ_px²`` on each of (u_L, v_L, u_R, v_R) (StereoImuNoise).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from slamio.se3 import adjoint, curly_hat, exp_se3, inverse, log_se3, odot, skew
+from slamio.stereo import (
+    point_from_stereo,
+    point_from_stereo_jacobian,
+    projection,
+    projection_jacobian,
+    stereo_matrix,
+)
+from slamio.datasets.seed003 import StereoImuNoise
+
+__all__ = [
+    "CHI2_4_999",
+    "VioEkf",
+    "observation_jacobians",
+    "pose_nees",
+    "predict_stereo",
+    "right_jacobian_se3",
+]
+
+POSE_DIM = 6
+CHI2_4_999 = 18.4668  # χ²₄ quantile at 0.999
+
+
+def right_jacobian_se3(xi, terms: int = 12) -> np.ndarray:
+    """SE(3) right Jacobian ``J_r(ξ) = Σ_k (−ξ⋏)^k / (k+1)!`` (series; |ξ| here is small)."""
+    A = -curly_hat(xi)
+    out = np.eye(6)
+    term = np.eye(6)
+    for k in range(1, terms):
+        term = term @ A / (k + 1)
+        out = out + term
+    return out
+
+
+def predict_stereo(world_T_imu, m_world, cam_T_imu, M) -> np.ndarray:
+    """Predicted pixels (u_L, v_L, u_R, v_R) of world point ``m_world`` from pose ``world_T_imu``."""
+    q = cam_T_imu @ inverse(world_T_imu) @ np.append(m_world, 1.0)
+    return M @ projection(q)
+
+
+def observation_jacobians(world_T_imu, m_world, cam_T_imu, M) -> tuple[np.ndarray, np.ndarray]:
+    """(4×6 ∂z/∂δ for the right pose perturbation, 4×3 ∂z/∂m)."""
+    T_inv = inverse(world_T_imu)
+    p = T_inv @ np.append(m_world, 1.0)
+    q = cam_T_imu @ p
+    A = M @ projection_jacobian(q) @ cam_T_imu
+    return -A @ odot(p), A[:, :3] @ T_inv[:3, :3]
+
+
+class VioEkf:
+    """Joint pose + landmark EKF (implements the ``ekf.drive3d`` step protocol).
+
+    ``VioEkf(K, baseline_m, cam_T_imu, noise=StereoImuNoise(), min_disparity_px=4.0,
+    gate=CHI2_4_999)`` (``gate=None``: no gating). Counters: ``updates``, ``landmarks_added``,
+    ``rejected`` (gated out), ``skipped_small_disparity``, ``skipped_behind``.
+    """
+
+    name = "ekf-vio"
+
+    def __init__(
+        self,
+        K,
+        baseline_m: float,
+        cam_T_imu,
+        noise: StereoImuNoise = StereoImuNoise(),
+        *,
+        min_disparity_px: float = 4.0,
+        gate: float | None = CHI2_4_999,
+        start_sigma: float = 1e-6,
+    ):
+        self.K = np.asarray(K, dtype=float)
+        self.baseline_m = float(baseline_m)
+        self.cam_T_imu = np.asarray(cam_T_imu, dtype=float)
+        self.imu_T_cam = inverse(self.cam_T_imu)
+        self.M = stereo_matrix(self.K, self.baseline_m)
+        self.noise = noise
+        self.min_disparity_px = float(min_disparity_px)
+        self.gate = gate
+        self._R = noise.sigma_px**2 * np.eye(4)
+        self._T = np.eye(4)
+        self._x = np.zeros(0)  # landmark coordinates, 3 per landmark in slot order
+        self._P = start_sigma**2 * np.eye(POSE_DIM)
+        self._slot: dict[int, int] = {}
+        self._trajectory: list[np.ndarray] = []
+        self._nis: list[float] = []
+        self.updates = 0
+        self.landmarks_added = 0
+        self.rejected = 0
+        self.skipped_small_disparity = 0
+        self.skipped_behind = 0
+
+    # ------------------------------------------------------------------ protocol
+
+    def step(self, dt_s, twist, ids, pixels) -> None:
+        if dt_s is not None:
+            self._predict(float(dt_s), np.asarray(twist, dtype=float))
+        ids = [int(i) for i in ids]
+        pixels = np.asarray(pixels, dtype=float).reshape(-1, 4)
+        known = [(lid, z) for lid, z in zip(ids, pixels) if lid in self._slot]
+        if known:
+            self._update(known)
+        for lid, z in zip(ids, pixels):
+            if lid not in self._slot:
+                self._add(lid, z)
+        self._trajectory.append(self._T.copy())
+
+    def current_pose(self) -> np.ndarray:
+        return self._T.copy()
+
+    def current_covariance(self) -> np.ndarray:
+        """6×6 covariance of the right perturbation (ρ, φ) of the current pose."""
+        return self._P[:POSE_DIM, :POSE_DIM].copy()
+
+    def trajectory(self) -> np.ndarray:
+        return np.array(self._trajectory).reshape(-1, 4, 4)
+
+    def landmarks(self) -> dict[int, np.ndarray]:
+        return {lid: self._x[3 * s : 3 * s + 3].copy() for lid, s in self._slot.items()}
+
+    def nis(self) -> np.ndarray:
+        """NIS of every accepted single-landmark innovation (χ²₄ if consistent)."""
+        return np.array(self._nis)
+
+    # ------------------------------------------------------------------ the steps
+
+    def _predict(self, tau: float, u: np.ndarray) -> None:
+        self._T = self._T @ exp_se3(tau * u)
+        F = adjoint(exp_se3(-tau * u))
+        G = tau * right_jacobian_se3(tau * u)
+        P = self._P
+        P[:POSE_DIM, :] = F @ P[:POSE_DIM, :]
+        P[:, :POSE_DIM] = P[:, :POSE_DIM] @ F.T
+        P[:POSE_DIM, :POSE_DIM] += G @ self.noise.velocity_cov() @ G.T
+
+    def _landmark(self, lid: int) -> np.ndarray:
+        s = 3 * self._slot[lid]
+        return self._x[s : s + 3]
+
+    def _update(self, known) -> None:
+        n = self._P.shape[0]
+        rows_H, rows_r = [], []
+        for lid, z in known:
+            m = self._landmark(lid)
+            q = self.cam_T_imu @ inverse(self._T) @ np.append(m, 1.0)
+            if not q[2] > 0.0:
+                self.skipped_behind += 1
+                continue
+            J_pose, J_m = observation_jacobians(self._T, m, self.cam_T_imu, self.M)
+            H = np.zeros((4, n))
+            H[:, :POSE_DIM] = J_pose
+            s = POSE_DIM + 3 * self._slot[lid]
+            H[:, s : s + 3] = J_m
+            r = z - self.M @ projection(q)
+            idx = np.r_[0:POSE_DIM, s : s + 3]
+            S = H[:, idx] @ self._P[np.ix_(idx, idx)] @ H[:, idx].T + self._R
+            nis = float(r @ np.linalg.solve(S, r))
+            if self.gate is not None and nis > self.gate:
+                self.rejected += 1
+                continue
+            self._nis.append(nis)
+            rows_H.append(H)
+            rows_r.append(r)
+        if not rows_H:
+            return
+        H = np.vstack(rows_H)
+        r = np.concatenate(rows_r)
+        cols = np.flatnonzero(np.any(H != 0.0, axis=0))  # the pose and the landmarks seen
+        Hc = H[:, cols]
+        PHt = self._P[:, cols] @ Hc.T  # n × m: H is sparse, so this is O(n m)
+        S = Hc @ PHt[cols] + self.noise.sigma_px**2 * np.eye(H.shape[0])
+        K = np.linalg.solve(S, PHt.T).T
+        dx = K @ r
+        # Σ − K S Kᵀ (= the Joseph form for this optimal gain), O(n² m), kept symmetric
+        self._P = self._P - K @ PHt.T
+        self._P = 0.5 * (self._P + self._P.T)
+        self._T = self._T @ exp_se3(dx[:POSE_DIM])
+        self._x = self._x + dx[POSE_DIM:]
+        self.updates += 1
+
+    def _add(self, lid: int, z: np.ndarray) -> None:
+        if not z[0] - z[2] >= self.min_disparity_px:
+            self.skipped_small_disparity += 1
+            return
+        p_cam = point_from_stereo(z, self.K, self.baseline_m)
+        p_imu = self.imu_T_cam[:3, :3] @ p_cam + self.imu_T_cam[:3, 3]
+        R_wi = self._T[:3, :3]
+        m = R_wi @ p_imu + self._T[:3, 3]
+        A = R_wi @ np.hstack([np.eye(3), -skew(p_imu)])  # ∂m/∂δ
+        B = R_wi @ self.imu_T_cam[:3, :3] @ point_from_stereo_jacobian(z, self.K, self.baseline_m)
+        n = self._P.shape[0]
+        cross = A @ self._P[:POSE_DIM, :]  # 3 × n
+        P = np.zeros((n + 3, n + 3))
+        P[:n, :n] = self._P
+        P[n:, :n] = cross
+        P[:n, n:] = cross.T
+        P[n:, n:] = A @ self._P[:POSE_DIM, :POSE_DIM] @ A.T + B @ self._R @ B.T
+        self._P = P
+        self._x = np.concatenate([self._x, m])
+        self._slot[lid] = len(self._slot)
+        self.landmarks_added += 1
+
+
+def pose_nees(estimate, covariance, truth) -> float:
+    """NEES of one pose: ``e = log(T̂⁻¹ T_true)`` (right perturbation), ``eᵀ Σ⁻¹ e`` (χ²₆)."""
+    e = log_se3(inverse(estimate) @ truth)
+    return float(e @ np.linalg.solve(covariance, e))
+

@@ -1,0 +1,238 @@
+"""Seed 003's stereo + IMU drives (npz) → typed arrays, and the writer the simulator uses.
+
+The layout (seed 003 §II.A, §III.A; the course project's ``load_data``), numpy arrays:
+
+* ``time_stamps`` (1, T) s;
+* ``features`` (4, M, T): landmark j at step t seen at stereo pixels (u_L, v_L, u_R, v_R),
+  or −1 in all four where it is not seen (ids are the column index j);
+* ``linear_velocity`` (3, T) m/s and ``rotational_velocity`` (3, T) rad/s, in the IMU frame;
+* ``K`` (3, 3) left-camera intrinsics; ``b`` the baseline in metres;
+* ``cam_T_imu`` (4, 4): the IMU's pose in the left camera's *optical* frame (x right,
+  y down, z forward): ``p_cam = cam_T_imu · p_imu``.
+
+Simulated drives (``slamio.sim3d``) add the truth under two optional keys:
+``truth_world_T_imu`` (T, 4, 4) and ``truth_landmarks`` (M, 3) metres in the world frame.
+
+Inside the product, :class:`StereoImuDrive` holds them step-major: ``features_px[t, j]`` is
+the 4-vector of landmark j at step t (NaN where unseen), velocities are (T, 3). The velocity
+at step t acts from stamp t to stamp t + 1 (the seed's prediction uses τ = t_{t+1} − t_t).
+
+The seed's own three drives derive from KITTI (CC BY-NC-SA 3.0): they never go into the
+package or its tests; tests use simulated drives.
+"""
+
+from __future__ import annotations
+
+import os
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from slamio.errors import FgslamError
+
+__all__ = ["DriveFormatError", "StereoImuDrive", "StereoImuNoise", "load_drive", "save_drive"]
+
+UNSEEN = -1.0
+_REQUIRED = ("time_stamps", "features", "linear_velocity", "rotational_velocity", "K", "b", "cam_T_imu")
+
+
+class DriveFormatError(FgslamError):
+    """A seed-003 npz that cannot be read: ``path: key 'k': what is wrong; how to fix it``."""
+
+    def __init__(self, path, key: str | None, message: str):
+        where = f"{path}: key '{key}'" if key else f"{path}"
+        super().__init__(f"{where}: {message}")
+        self.path = str(path)
+        self.key = key
+
+
+@dataclass(frozen=True)
+class StereoImuNoise:
+    """White noise of the layout's two sensors, one σ per axis.
+
+    The simulator draws with it; the estimators assume it (the seed's drives carry no noise
+    figures, so the same defaults are used there: 1 px per pixel coordinate, 0.05 m/s and
+    0.005 rad/s per velocity axis and step).
+    """
+
+    sigma_px: float = 1.0
+    sigma_v_mps: float = 0.05
+    sigma_w_radps: float = 0.005
+
+    def velocity_cov(self) -> np.ndarray:
+        """6×6 covariance of the twist u = (v, ω)."""
+        return np.diag([self.sigma_v_mps**2] * 3 + [self.sigma_w_radps**2] * 3)
+
+
+@dataclass(frozen=True)
+class StereoImuDrive:
+    """One drive: T steps, M feature tracks (see the module docstring for frames and units)."""
+
+    stamps_s: np.ndarray  # (T,)
+    features_px: np.ndarray  # (T, M, 4) u_L, v_L, u_R, v_R; NaN where unseen
+    linear_velocity_mps: np.ndarray  # (T, 3) IMU frame
+    angular_velocity_radps: np.ndarray  # (T, 3) IMU frame
+    K: np.ndarray  # (3, 3)
+    baseline_m: float
+    cam_T_imu: np.ndarray  # (4, 4)
+    truth_world_T_imu: np.ndarray | None = None  # (T, 4, 4)
+    truth_landmarks_m: np.ndarray | None = None  # (M, 3)
+    source: str = ""
+
+    @property
+    def n_steps(self) -> int:
+        return int(self.stamps_s.shape[0])
+
+    @property
+    def n_landmarks(self) -> int:
+        return int(self.features_px.shape[1])
+
+    def seen(self, step: int) -> np.ndarray:
+        """Ids of the landmarks seen at ``step`` (ascending)."""
+        return np.flatnonzero(~np.isnan(self.features_px[step, :, 0]))
+
+    def twist(self, step: int) -> np.ndarray:
+        """The IMU input ``u = (v, ω)`` at ``step`` (6-vector, translation first)."""
+        return np.concatenate([self.linear_velocity_mps[step], self.angular_velocity_radps[step]])
+
+    def dt_s(self, step: int) -> float:
+        """τ from stamp ``step`` to ``step + 1``."""
+        return float(self.stamps_s[step + 1] - self.stamps_s[step])
+
+
+def _finite(path, key, a):
+    if not np.all(np.isfinite(a)):
+        bad = np.argwhere(~np.isfinite(a))[0]
+        raise DriveFormatError(path, key, f"non-finite value at index {tuple(int(i) for i in bad)}; every entry must be a number")
+
+
+def _shape(path, key, a, shape, meaning):
+    if a.shape != shape:
+        raise DriveFormatError(path, key, f"shape {a.shape}, expected {shape} ({meaning})")
+
+
+def _check_rigid(path, key, T):
+    R = T[:3, :3]
+    if not np.allclose(T[3], [0.0, 0.0, 0.0, 1.0], atol=1e-9):
+        raise DriveFormatError(path, key, f"last row {T[3].tolist()} is not [0, 0, 0, 1]; expected a 4×4 rigid transform")
+    if not np.allclose(R @ R.T, np.eye(3), atol=1e-3) or np.linalg.det(R) < 0.0:
+        raise DriveFormatError(path, key, "the 3×3 block is not a rotation (RᵀR ≠ I or det < 0)")
+
+
+def load_drive(path) -> StereoImuDrive:
+    """Read a seed-003 npz (and its truth, if a simulated drive); errors are :class:`DriveFormatError`."""
+    path = Path(path)
+    if not path.is_file():
+        raise DriveFormatError(path, None, "no such file; give the path of a seed-003 .npz drive")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {k: np.asarray(data[k]) for k in data.files}
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
+        raise DriveFormatError(path, None, f"not a readable numpy .npz archive ({exc})") from None
+    missing = [k for k in _REQUIRED if k not in arrays]
+    if missing:
+        raise DriveFormatError(path, missing[0], f"missing (the file has {sorted(arrays)}); a seed-003 drive needs {list(_REQUIRED)}")
+    for key in arrays:
+        if not np.issubdtype(arrays[key].dtype, np.number):
+            raise DriveFormatError(path, key, f"dtype {arrays[key].dtype} is not numeric")
+
+    raw_stamps = arrays["time_stamps"]
+    if not (raw_stamps.ndim == 1 or (raw_stamps.ndim == 2 and raw_stamps.shape[0] == 1)):
+        raise DriveFormatError(path, "time_stamps", f"shape {raw_stamps.shape}, expected (1, T)")
+    stamps = raw_stamps.astype(float).reshape(-1)
+    T = stamps.size
+    if T < 2:
+        raise DriveFormatError(path, "time_stamps", f"{T} stamp(s); a drive needs at least 2 steps")
+    _finite(path, "time_stamps", stamps)
+    steps = np.diff(stamps)
+    if np.any(steps <= 0.0):
+        k = int(np.argmax(steps <= 0.0))
+        raise DriveFormatError(path, "time_stamps", f"not strictly increasing at step {k + 1} ({stamps[k]!r} → {stamps[k + 1]!r})")
+
+    features = arrays["features"].astype(float)
+    if features.ndim != 3 or features.shape[0] != 4 or features.shape[2] != T:
+        raise DriveFormatError(path, "features", f"shape {features.shape}, expected (4, M, {T}): (u_L, v_L, u_R, v_R) × landmarks × steps")
+    _finite(path, "features", features)
+    unseen = features == UNSEEN
+    partial = unseen.any(axis=0) & ~unseen.all(axis=0)
+    if partial.any():
+        j, t = (int(i) for i in np.argwhere(partial)[0])
+        raise DriveFormatError(path, "features", f"landmark {j} at step {t} has −1 in some of its four pixels but not all; use −1 in all four for 'not seen'")
+    if np.any(features[~unseen] < 0.0):
+        raise DriveFormatError(path, "features", "negative pixel coordinate other than the −1 'not seen' marker")
+    features_px = np.where(unseen, np.nan, features).transpose(2, 1, 0).copy()
+
+    velocities = {}
+    for key in ("linear_velocity", "rotational_velocity"):
+        v = arrays[key].astype(float)
+        _shape(path, key, v, (3, T), "3 axes × steps")
+        _finite(path, key, v)
+        velocities[key] = v.T.copy()
+
+    K = arrays["K"].astype(float)
+    _shape(path, "K", K, (3, 3), "camera intrinsics")
+    _finite(path, "K", K)
+    if not (K[0, 0] > 0.0 and K[1, 1] > 0.0) or not np.allclose(K[2], [0.0, 0.0, 1.0]):
+        raise DriveFormatError(path, "K", "not an intrinsics matrix (needs fx, fy > 0 and last row [0, 0, 1])")
+    b = arrays["b"].astype(float)
+    if b.size != 1:
+        raise DriveFormatError(path, "b", f"shape {b.shape}, expected a scalar baseline in metres")
+    baseline = float(b.reshape(-1)[0])
+    if not (np.isfinite(baseline) and baseline > 0.0):
+        raise DriveFormatError(path, "b", f"baseline {baseline!r} must be a positive number of metres")
+    cam_T_imu = arrays["cam_T_imu"].astype(float)
+    _shape(path, "cam_T_imu", cam_T_imu, (4, 4), "IMU pose in the left optical frame")
+    _finite(path, "cam_T_imu", cam_T_imu)
+    _check_rigid(path, "cam_T_imu", cam_T_imu)
+
+    truth_poses = truth_landmarks = None
+    if "truth_world_T_imu" in arrays:
+        truth_poses = arrays["truth_world_T_imu"].astype(float)
+        _shape(path, "truth_world_T_imu", truth_poses, (T, 4, 4), "one IMU pose per step")
+        _finite(path, "truth_world_T_imu", truth_poses)
+    if "truth_landmarks" in arrays:
+        truth_landmarks = arrays["truth_landmarks"].astype(float)
+        _shape(path, "truth_landmarks", truth_landmarks, (features.shape[1], 3), "one world point per landmark")
+        _finite(path, "truth_landmarks", truth_landmarks)
+
+    return StereoImuDrive(
+        stamps_s=stamps,
+        features_px=features_px,
+        linear_velocity_mps=velocities["linear_velocity"],
+        angular_velocity_radps=velocities["rotational_velocity"],
+        K=K,
+        baseline_m=baseline,
+        cam_T_imu=cam_T_imu,
+        truth_world_T_imu=truth_poses,
+        truth_landmarks_m=truth_landmarks,
+        source=str(path),
+    )
+
+
+def save_drive(path, drive: StereoImuDrive, *, overwrite: bool = False) -> None:
+    """Write ``drive`` in the seed's layout (plus the truth keys when it has truth).
+
+    Refuses to replace an existing file unless ``overwrite`` is true.
+    """
+    path = Path(path)
+    if path.exists() and not overwrite:
+        raise DriveFormatError(path, None, "exists; pass overwrite=True (--overwrite) to replace it")
+    features = np.where(np.isnan(drive.features_px), UNSEEN, drive.features_px).transpose(2, 1, 0)
+    arrays = {
+        "time_stamps": drive.stamps_s.reshape(1, -1),
+        "features": features,
+        "linear_velocity": drive.linear_velocity_mps.T,
+        "rotational_velocity": drive.angular_velocity_radps.T,
+        "K": drive.K,
+        "b": np.array(drive.baseline_m),
+        "cam_T_imu": drive.cam_T_imu,
+    }
+    if drive.truth_world_T_imu is not None:
+        arrays["truth_world_T_imu"] = drive.truth_world_T_imu
+    if drive.truth_landmarks_m is not None:
+        arrays["truth_landmarks"] = drive.truth_landmarks_m
+    tmp = path.with_name(path.name + ".tmp.npz")
+    np.savez_compressed(tmp, **arrays)
+    os.replace(tmp, path)
