@@ -105,9 +105,11 @@ def test_octagon_log_is_a_valid_run_log_with_the_robot_in_the_header(octagon):
     assert log.header.robot["model"] in ("create1", "create2") and log.header.start_pose == (0, 0, 0)
     assert log.header.source["generator"] == "slamio.create.record"
     turned_rad = sum(r.angle_rad for r in odometry)
-    # 2π turned; the Create 2's counts give it to 3°, the Create 1's angle packet truncates to
-    # 1° per read (about 80 reads turning) and the command picks the point inside: 6°
-    tolerance_rad = 0.05 if log.header.robot["model"] == "create2" else 0.1
+    # 2π turned; the Create 2's counts give it to 3°. The Create 1's angle packet truncates to
+    # 1° per read and the command picks the point inside, which misses the encoders' own noise
+    # (σ ≈ 0.5° a read, about 80 reads turning: σ ≈ 0.08 rad, so 3σ). Dropping the fraction
+    # the packet throws away, the old fault, would lose about 0.8 rad.
+    tolerance_rad = 0.05 if log.header.robot["model"] == "create2" else 0.25
     assert turned_rad == pytest.approx(true_turn_rad, abs=tolerance_rad)
     assert true_turn_rad > 2 * math.pi - 0.3
 
