@@ -210,7 +210,7 @@ def _wait_for(predicate, timeout_s=30.0):
 def test_a_hold_stops_the_clock_at_its_time_and_commands_are_still_obeyed():
     sim = SimulatedCreate("create2", time_scale=50.0, arena_m=None)
     token = sim.hold(at_s=0.3)  # before the clock starts: on a busy machine 0.3 s pass in no time at 50×
-    with sim.start():
+    with sim:  # starts the clock
         port = serial.serial_for_url(sim.port, baudrate=115200, timeout=0.5)
         try:
             assert _wait_for(lambda: sim.clock() >= 0.3)

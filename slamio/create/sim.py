@@ -257,7 +257,10 @@ class SimulatedCreate:
     # ------------------------------------------------------------------ life cycle
 
     def start(self, *, thread: bool = True) -> "SimulatedCreate":
-        """Open the pseudo-terminal (:attr:`port`) and, with ``thread``, start the clock."""
+        """Open the pseudo-terminal (:attr:`port`) and, with ``thread``, start the clock.
+        Once only (``with sim:`` starts it too): two clocks would step the robot twice."""
+        if self.port is not None:
+            raise RuntimeError("SimulatedCreate.start(): already started (use either start() or with)")
         if self._port_dir is None:
             self._own_dir = tempfile.TemporaryDirectory(prefix="create-sim-")
             self._port_dir = self._own_dir.name
