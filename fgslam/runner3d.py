@@ -38,9 +38,10 @@ ESTIMATORS_3D: dict[str, Callable[[StereoImuDrive, StereoImuNoise], object]] = {
     "ekf-s003-figures": lambda d, n: _named(EkfS003(d.K, d.baseline_m, d.cam_T_imu, n, **AS_THE_FIGURES_SHOW),
                                             "ekf-s003-figures"),
     "ekf-vio": lambda d, n: VioEkf(d.K, d.baseline_m, d.cam_T_imu, n),
+    "ekf-vio-fej": lambda d, n: VioEkf(d.K, d.baseline_m, d.cam_T_imu, n, first_estimates=True),
     "isam2-3d": None,  # built in run_log3d: the batch solve needs it (fgslam.smoother3d imports gtsam)
 }
-DEFAULT_ESTIMATORS_3D = ("ekf-s003", "ekf-vio", "isam2-3d")
+DEFAULT_ESTIMATORS_3D = ("ekf-s003", "ekf-vio", "ekf-vio-fej", "isam2-3d")
 POSE_DOF = 6
 STEREO_DOF = 4
 

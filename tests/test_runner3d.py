@@ -45,7 +45,7 @@ def small_log(tmp_path_factory):
 def run_dir(small_log, tmp_path_factory):
     out = tmp_path_factory.mktemp("run3d")
     assert main(["run", str(small_log), "--out", str(out),
-                 "--estimators", "ekf-s003,ekf-s003-figures,ekf-vio,isam2-3d"]) == 0
+                 "--estimators", "ekf-s003,ekf-s003-figures,ekf-vio,ekf-vio-fej,isam2-3d"]) == 0
     return out
 
 
@@ -53,7 +53,7 @@ def evo_trajectory(path):
     return file_interface.read_tum_trajectory_file(str(path))
 
 
-@pytest.mark.parametrize("name", ["ekf-s003-figures", "ekf-vio", "isam2-3d", "batch"])
+@pytest.mark.parametrize("name", ["ekf-s003-figures", "ekf-vio", "ekf-vio-fej", "isam2-3d", "batch"])
 def test_evo_reads_our_se3_tum_files_and_agrees_on_the_3d_ate(run_dir, name):
     metrics = json.loads((run_dir / "metrics.json").read_text())
     ref, est = sync.associate_trajectories(evo_trajectory(run_dir / "reference.tum"),
@@ -85,6 +85,8 @@ def test_the_comparison_shows_what_seed_003_is_about(run_dir):
     # iSAM2 after finish() reaches the batch solution on a simulated drive
     assert m["isam2_graph_error"] == pytest.approx(m["batch_graph_error"], rel=1e-3)
     assert e["ekf-vio"]["nis_mean"] == pytest.approx(4.0, abs=1.0)
+    # first-estimate Jacobians make the joint EKF consistent (docs/seed003.md, *Consistency*)
+    assert e["ekf-vio-fej"]["nees_in_band"] >= 0.9 > e["ekf-vio"]["nees_in_band"]
     assert 0.0 <= e["isam2-3d"]["nees_in_band"] <= 1.0 and e["batch"].get("nees_mean") is None
     assert (run_dir / "report.html").exists() and (run_dir / "top_view.png").stat().st_size > 10_000
     assert "top view" in (run_dir / "report.html").read_text()
@@ -121,7 +123,7 @@ def test_estimator_names_and_help_are_in_step():
     from fgslam.cli.estimators import ESTIMATOR_HELP_3D
 
     assert list(ESTIMATOR_HELP_3D) == list(ESTIMATORS_3D)
-    assert parse_estimator_names_3d(None) == ["ekf-s003", "ekf-vio", "isam2-3d"]
+    assert parse_estimator_names_3d(None) == ["ekf-s003", "ekf-vio", "ekf-vio-fej", "isam2-3d"]
     with pytest.raises(FgslamError, match=r"unknown estimator\(s\) for a 3-D log: ekf;"):
         parse_estimator_names_3d("ekf,isam2-3d")
     with pytest.raises(FgslamError, match="keep isam2-3d"):

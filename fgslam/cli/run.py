@@ -63,7 +63,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
         default=None,
         metavar="LIST",
         help="comma-separated estimators to run (default ekf,isam2,dead_reckoning; on a 3-D log "
-        "ekf-s003,ekf-vio,isam2-3d; all names below); the batch solve always runs from isam2's "
+        "ekf-s003,ekf-vio,ekf-vio-fej,isam2-3d; all names below); the batch solve always runs from isam2's "
         "(isam2-3d's) result",
     )
     run.add_argument("--noise", default=None, metavar="FILE",
