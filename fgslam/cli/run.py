@@ -152,16 +152,23 @@ def cmd_run(args: argparse.Namespace) -> int:
             out, metrics, result.runs, result.reference, result.stamps_s, title=f"fgslam run {Path(args.log).name}"
         )
         written.insert(1, html.name)
+    return finish_run(args, results, log, written, replaced, format_table(metrics))
+
+
+def finish_run(args: argparse.Namespace, results, log, written: list[str], replaced, table: str) -> int:
+    """Seal the results folder (its manifest), print the table and say what was written."""
+    from fgslam.runner import TIMING
+
     results.finish(command=command_line(args, "run"), log=str(args.log))
     written.append("manifest.json")
     print()
-    print(format_table(metrics))
+    print(table)
     print(f"time: {TIMING['what']}")
     stale = sorted(set(replaced) - set(results.finish_names) - {"manifest.json"})
     note = f" (replacing the earlier results; {len(stale)} of its files not written again were removed: " \
            f"{', '.join(stale[:4])}{', ...' if len(stale) > 4 else ''})" if stale else \
            (" (replacing the earlier results)" if replaced else "")
-    print(f"\nwrote {', '.join(written)} to {out}/{note}")
+    print(f"\nwrote {', '.join(written)} to {Path(args.out)}/{note}")
     if log.truncated:
         print(f"note: {log.truncated}")
     return 0

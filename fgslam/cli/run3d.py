@@ -54,13 +54,6 @@ def cmd_run3d(args: argparse.Namespace, results, log) -> int:
         html = write_report_3d(out, metrics, result.runs, result.reference, title=f"fgslam run {Path(args.log).name}",
                                table_header=header, table_rows=rows, reference_text=reference_line_3d(metrics))
         written.insert(1, html.name)
-    results.finish(command=command_line(args, "run"), log=str(args.log))
-    written.append("manifest.json")
-    print()
-    print(format_table_3d(metrics))
-    print(f"time: {TIMING['what']}")
-    note = " (replacing the earlier results)" if replaced else ""
-    print(f"\nwrote {', '.join(written)} to {out}/{note}")
-    if log.truncated:
-        print(f"note: {log.truncated}")
-    return 0
+    from fgslam.cli.run import finish_run
+
+    return finish_run(args, results, log, written, replaced, format_table_3d(metrics))
