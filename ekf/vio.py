@@ -19,6 +19,21 @@ metres). Covariance over ``(δ, m_1, …, m_n)`` with ``δ = (ρ, φ)`` the *rig
   ``B = R_wi R_ic ∂(back-projection)/∂z``.
 
 The pixel noise is ``σ_px²`` on each of (u_L, v_L, u_R, v_R) (StereoImuNoise).
+
+**First-estimate Jacobians** (``first_estimates=True``, the estimator ``ekf-vio-fej``;
+Huang, Mourikis & Roumeliotis' FEJ-EKF carried to this right-perturbation SE(3) state).
+The system is invariant under a global rigid motion of the world (no gravity here), so
+the linearised system should have the 6-D unobservable subspace
+``N = [Ad(T⁻¹); m⊙ …]``; the EKF loses it because each Jacobian is evaluated at a
+different estimate, and then gains information along it (the NEES grows). With FEJ:
+
+* every landmark's Jacobians use its *first* estimate ``m_fe`` (its back-projection);
+* the pose's Jacobians use the prior ``T_{k|k−1}`` (``T_fe``), and the propagation
+  Jacobian becomes ``F = Ad(T_fe,k+1⁻¹ T_fe,k) = Ad(exp(−τ u^) T_{k|k}⁻¹ T_{k|k−1})``
+  (equal to the usual one when step k had no update), so that ``F N_k = N_{k+1}``;
+* a new landmark's ``∂m/∂δ`` is evaluated at ``T_fe`` too.
+
+Residuals still use the current estimates; only the Jacobians change.
 """
 
 from __future__ import annotations
@@ -94,7 +109,13 @@ class VioEkf:
         min_disparity_px: float = 4.0,
         gate: float | None = CHI2_4_999,
         start_sigma: float = 1e-6,
+        first_estimates: bool = False,
     ):
+        self.first_estimates = bool(first_estimates)
+        if self.first_estimates:
+            self.name = "ekf-vio-fej"
+        self._T_fe = np.eye(4)  # the pose's prior T_{k|k−1} (first-estimate Jacobians)
+        self._m_fe: dict[int, np.ndarray] = {}  # each landmark's first estimate
         self.K = np.asarray(K, dtype=float)
         self.baseline_m = float(baseline_m)
         self.cam_T_imu = np.asarray(cam_T_imu, dtype=float)
@@ -151,8 +172,12 @@ class VioEkf:
     # ------------------------------------------------------------------ the steps
 
     def _predict(self, tau: float, u: np.ndarray) -> None:
+        if self.first_estimates:  # F N_k = N_{k+1} with N at the priors (module docstring)
+            F = adjoint(exp_se3(-tau * u) @ inverse(self._T) @ self._T_fe)
+        else:
+            F = adjoint(exp_se3(-tau * u))
         self._T = self._T @ exp_se3(tau * u)
-        F = adjoint(exp_se3(-tau * u))
+        self._T_fe = self._T.copy()
         G = tau * right_jacobian_se3(tau * u)
         P = self._P
         P[:POSE_DIM, :] = F @ P[:POSE_DIM, :]
@@ -172,7 +197,8 @@ class VioEkf:
             if not q[2] > 0.0:
                 self.skipped_behind += 1
                 continue
-            J_pose, J_m = observation_jacobians(self._T, m, self.cam_T_imu, self.M)
+            m_lin = self._m_fe[lid] if self.first_estimates else m  # the pose: self._T is still the prior
+            J_pose, J_m = observation_jacobians(self._T, m_lin, self.cam_T_imu, self.M)
             H = np.zeros((4, n))
             H[:, :POSE_DIM] = J_pose
             s = POSE_DIM + 3 * self._slot[lid]
@@ -212,7 +238,11 @@ class VioEkf:
         p_imu = self.imu_T_cam[:3, :3] @ p_cam + self.imu_T_cam[:3, 3]
         R_wi = self._T[:3, :3]
         m = R_wi @ p_imu + self._T[:3, 3]
-        A = R_wi @ np.hstack([np.eye(3), -skew(p_imu)])  # ∂m/∂δ
+        if self.first_estimates:  # ∂m/∂δ at the pose's prior, so that A Ad(T_fe⁻¹) = m⊙
+            p_fe = inverse(self._T_fe) @ np.append(m, 1.0)
+            A = self._T_fe[:3, :3] @ np.hstack([np.eye(3), -skew(p_fe[:3])])
+        else:
+            A = R_wi @ np.hstack([np.eye(3), -skew(p_imu)])  # ∂m/∂δ
         B = R_wi @ self.imu_T_cam[:3, :3] @ point_from_stereo_jacobian(z, self.K, self.baseline_m)
         n = self._P.shape[0]
         cross = A @ self._P[:POSE_DIM, :]  # 3 × n
@@ -223,6 +253,7 @@ class VioEkf:
         P[n:, n:] = A @ self._P[:POSE_DIM, :POSE_DIM] @ A.T + B @ self._R @ B.T
         self._P = P
         self._x = np.concatenate([self._x, m])
+        self._m_fe[lid] = m.copy()
         self._slot[lid] = len(self._slot)
         self.landmarks_added += 1
 

@@ -1,6 +1,7 @@
-"""Run-log format v1: one JSON Lines file per run (specified in docs/log-format.md).
+"""Run-log format v1 and v2: one JSON Lines file per run (specified in docs/log-format.md).
 
-Line 1 is a header; every later line is one record with a ``"type"``:
+Line 1 is a header; every later line is one record with a ``"type"``. A planar log
+(version 1, or version 2 with a planar start pose) holds:
 
 * ``odometry``        — an SE(2) increment since the previous reading (and, optionally, the
                         Create's raw distance/angle reading it came from), with covariance;
@@ -9,6 +10,11 @@ Line 1 is a header; every later line is one record with a ``"type"``:
 * ``truth_pose``      — optional ground truth of the current pose;
 * ``truth_landmark``  — optional ground truth of one landmark;
 * ``live_step``       — written by ``fgslam live``: the smoother's wall time for one pose.
+
+A **3-D log** (version 2, start pose ``pose3``) holds ``velocity_odometry``,
+``stereo_observation``, ``truth_pose3``, ``truth_landmark3`` and ``live_step`` records
+instead (:mod:`slamio.log3d`); the reader refuses planar records in it and 3-D records in a
+planar log. Writers write version 1 for a planar log, so older readers still read it.
 
 Pose 0 is the header's start pose. Every odometry record starts a new pose; observations
 and truth poses belong to the latest pose (see :meth:`RunLog.steps`).
@@ -41,7 +47,11 @@ import numpy as np
 from slamio.errors import FgslamError
 
 FORMAT_NAME = "fgslam-run-log"
-FORMAT_VERSION = 1
+#: The newest version this reader reads; version 2 added the 3-D logs (slamio.log3d).
+FORMAT_VERSION = 2
+#: Every version it reads. A planar log is written as version 1.
+VERSIONS = (1, 2)
+PLANAR_VERSION = 1
 UNITS = {"length": "m", "angle": "rad", "time": "s"}
 
 # Bounds the reader enforces (docs/log-format.md, "Bounds"). Each is a physical limit with
@@ -101,6 +111,11 @@ class Header:
     which defines the world frame. ``robot``, ``sensor`` and ``noise`` describe the
     hardware and the noise models in JSON objects (required keys in docs/log-format.md);
     ``source`` says how the log was made (command line, seed, recorder version).
+
+    A 3-D log (version 2) has ``start_pose3`` = ``(x_m, y_m, z_m, qx, qy, qz, qw)`` of
+    world_T_imu at pose 0 and ``start_sigma3`` (3 lengths in m, 3 rotation angles in rad,
+    a right perturbation); its ``start_pose`` and ``start_sigma`` then hold the top view
+    ``(x, y, yaw)`` and ``(σx, σy, σ_rz)`` for code that only needs a planar summary.
     """
 
     stamp_s: float
@@ -110,7 +125,14 @@ class Header:
     sensor: dict[str, Any]
     noise: dict[str, Any]
     source: dict[str, Any] = field(default_factory=dict)
-    version: int = FORMAT_VERSION
+    version: int = PLANAR_VERSION
+    start_pose3: tuple[float, ...] | None = None
+    start_sigma3: tuple[float, ...] | None = None
+
+    @property
+    def is_3d(self) -> bool:
+        """True for a 3-D log (SE(3) poses, stereo observations, velocity odometry)."""
+        return self.start_pose3 is not None
 
 
 @dataclass(frozen=True)
@@ -204,7 +226,7 @@ class LiveStep:
     latency_s: float
 
 
-Record = Union[Odometry, Observation, TruthPose, TruthLandmark, LiveStep]
+Record = Union[Odometry, Observation, TruthPose, TruthLandmark, LiveStep, Any]  # Any: the 3-D records (slamio.log3d)
 
 _TYPE_OF = {
     Odometry: "odometry",
@@ -214,6 +236,9 @@ _TYPE_OF = {
     LiveStep: "live_step",
 }
 _CLASS_OF = {name: cls for cls, name in _TYPE_OF.items()}
+#: Record types of a planar log and of a 3-D log (live_step is in both).
+_PLANAR_TYPES = ("odometry", "observation", "truth_pose", "truth_landmark", "live_step")
+_TYPES_3D = ("velocity_odometry", "stereo_observation", "truth_pose3", "truth_landmark3", "live_step")
 
 
 # --------------------------------------------------------------------------- steps
@@ -296,16 +321,22 @@ class RunLog:
 
 
 def group_steps(header: Header, records: Iterable[Record]) -> list[Step]:
-    """Group records into steps: pose 0 at the header's start, one new pose per odometry."""
+    """Group records into steps: pose 0 at the header's start, one new pose per odometry.
+
+    In a 3-D log ``velocity_odometry`` starts a pose, ``stereo_observation`` records are
+    its observations and ``truth_pose3`` its truth.
+    """
+    from slamio.log3d import StereoObservation, TruthPose3, VelocityOdometry
+
     steps: list[Step] = []
     stamp, odometry, observations, truth = header.stamp_s, None, [], None
     for record in records:
-        if isinstance(record, Odometry):
+        if isinstance(record, (Odometry, VelocityOdometry)):
             steps.append(Step(len(steps), stamp, odometry, tuple(observations), truth))
             stamp, odometry, observations, truth = record.stamp_s, record, [], None
-        elif isinstance(record, Observation):
+        elif isinstance(record, (Observation, StereoObservation)):
             observations.append(record)
-        elif isinstance(record, TruthPose):
+        elif isinstance(record, (TruthPose, TruthPose3)):
             truth = record
     steps.append(Step(len(steps), stamp, odometry, tuple(observations), truth))
     return steps
@@ -327,11 +358,11 @@ def header_to_dict(header: Header) -> dict[str, Any]:
         "format": FORMAT_NAME,
         "version": header.version,
         "units": dict(UNITS),
-        "start": {
-            "stamp_s": header.stamp_s,
-            "pose": list(header.start_pose),
-            "sigma": list(header.start_sigma),
-        },
+        "start": (
+            {"stamp_s": header.stamp_s, "pose3": list(header.start_pose3), "sigma3": list(header.start_sigma3)}
+            if header.is_3d
+            else {"stamp_s": header.stamp_s, "pose": list(header.start_pose), "sigma": list(header.start_sigma)}
+        ),
         "robot": header.robot,
         "sensor": header.sensor,
         "noise": header.noise,
@@ -340,11 +371,16 @@ def header_to_dict(header: Header) -> dict[str, Any]:
 
 
 def record_to_dict(record: Record) -> dict[str, Any]:
-    out: dict[str, Any] = {"type": _TYPE_OF[type(record)]}
+    from slamio.log3d import TYPE_OF_3D
+
+    kind = _TYPE_OF.get(type(record)) or TYPE_OF_3D[type(record)]
+    out: dict[str, Any] = {"type": kind}
     for name in record.__dataclass_fields__:
         value = getattr(record, name)
         if name == "covariance":
             value = [list(row) for row in value]
+        elif isinstance(value, tuple):
+            value = list(value)
         out[name] = value
     return _drop_none(out)
 
@@ -629,16 +665,18 @@ def parse_header(d: dict) -> Header:
     version = d.get("version")
     if isinstance(version, bool) or not isinstance(version, int):
         raise _BadLine(
-            f"header field 'version' must be the integer {FORMAT_VERSION}, got {_show(version)}"
+            f"header field 'version' must be the integer 1 or 2, got {_show(version)}"
         )
-    if version != FORMAT_VERSION:
+    if version not in VERSIONS:
         raise _BadLine(
-            f"format version {_show(version)} is not supported; this fgslam reads version "
-            f"{FORMAT_VERSION} (upgrade fgslam to read newer logs)"
+            f"format version {_show(version)} is not supported; this fgslam reads versions "
+            f"{' and '.join(str(v) for v in VERSIONS)} (upgrade fgslam to read newer logs)"
         )
     _check_fields(d, ("format", "version", "units", "start", "robot", "sensor", "noise", "source"), "header")
     if d.get("units") != UNITS:
         raise _BadLine(f"header 'units' must be {json.dumps(UNITS)}: convert at the edge, store SI")
+    if isinstance(d.get("start"), dict) and "pose3" in d["start"]:
+        return _parse_header3(d, version)
     start = _object(d, "start", ("stamp_s", "pose", "sigma"))
     sigma = _vector3(start["sigma"], "start.sigma")
     if min(sigma) <= 0.0:
@@ -666,6 +704,32 @@ def parse_header(d: dict) -> Header:
     )
 
 
+def _parse_header3(d: dict, version: int) -> Header:
+    """The header of a 3-D log: ``start.pose3``/``sigma3`` and a stereo ``sensor``."""
+    from slamio import log3d
+
+    if version < 2:
+        raise _BadLine("'start.pose3' (a 3-D log) needs \"version\": 2; version 1 logs are planar")
+    start = _object(d, "start", ("stamp_s", "pose3", "sigma3"))
+    _check_fields(start, ("stamp_s", "pose3", "sigma3"), "header 'start' of a 3-D log")
+    pose3 = log3d.parse_pose3(start["pose3"], "start.pose3")
+    sigma3 = log3d.parse_sigma3(start["sigma3"], "start.sigma3")
+    sensor = _object(d, "sensor", ("kind",))
+    log3d.parse_stereo_sensor(sensor)
+    return Header(
+        stamp_s=_finite(start, "stamp_s"),  # type: ignore[arg-type]
+        start_pose=log3d.top_view(pose3),
+        start_sigma=(sigma3[0], sigma3[1], sigma3[5]),
+        robot=_object(d, "robot", ("name",)),
+        sensor=sensor,
+        noise=_object(d, "noise", ("odometry", "observation")),
+        source=_object(d, "source") if "source" in d else {},
+        version=version,
+        start_pose3=pose3,
+        start_sigma3=sigma3,
+    )
+
+
 def parse_record(d: dict) -> Record:
     kind = d.get("type")
     if not isinstance(kind, str):
@@ -673,12 +737,16 @@ def parse_record(d: dict) -> Record:
             f"field 'type' must be a string naming the record type, got {_show(kind)}; "
             f"expected one of {', '.join(sorted(_CLASS_OF))}"
         )
-    cls = _CLASS_OF.get(kind)
+    from slamio import log3d
+
+    cls = _CLASS_OF.get(kind) or log3d.RECORDS_3D.get(kind)
     if cls is None:
         raise _BadLine(
-            f"unknown record type {_show(kind)}; expected one of {', '.join(sorted(_CLASS_OF))}"
+            f"unknown record type {_show(kind)}; expected one of {', '.join(sorted(_PLANAR_TYPES + _TYPES_3D[:-1]))}"
         )
     _check_fields(d, cls.__dataclass_fields__, kind)
+    if kind in log3d.RECORDS_3D:
+        return log3d.parse_record3(kind, d)
     if cls is Odometry:
         distance, angle = _finite(d, "distance_m", optional=True), _finite(d, "angle_rad", optional=True)
         if (distance is None) != (angle is None):
@@ -819,6 +887,39 @@ def _lines(data: bytes) -> list[tuple[int, bytes, bool]]:
     ]
 
 
+def _check_dimension(kind: Any, header: Header) -> None:
+    """Planar records only in a planar log, 3-D records only in a 3-D log."""
+    if header.is_3d and kind in _PLANAR_TYPES and kind not in _TYPES_3D:
+        raise _BadLine(
+            f"a {kind} record in a 3-D log (the header has start.pose3); a 3-D log holds "
+            f"{', '.join(_TYPES_3D)}"
+        )
+    if not header.is_3d and kind in _TYPES_3D and kind not in _PLANAR_TYPES:
+        raise _BadLine(
+            f"a {kind} record in a planar log; 3-D records need a version-2 header with start.pose3 "
+            "and a stereo sensor (docs/log-format.md, \"3-D logs\")"
+        )
+
+
+#: How far a velocity record's ``dt_s`` may differ from the time since the previous pose (s).
+DT_TOLERANCE_S = 1e-6
+
+
+def _check_interval(record: Record, pose_stamp: float) -> float:
+    """A 3-D log's velocity record spans the time since the previous pose; the latest pose's stamp."""
+    from slamio.log3d import VelocityOdometry
+
+    if not isinstance(record, VelocityOdometry):
+        return pose_stamp
+    gap = record.stamp_s - pose_stamp
+    if abs(record.dt_s - gap) > DT_TOLERANCE_S + 1e-15 * abs(record.stamp_s):  # + the stamps' rounding
+        raise _BadLine(
+            f"field 'dt_s' is {record.dt_s!r} s but the previous pose is {gap!r} s earlier: the velocity is "
+            "held from the previous pose to this one, so dt_s must be the difference of their stamps"
+        )
+    return record.stamp_s
+
+
 def read_log(path: str | os.PathLike[str]) -> RunLog:
     """Read and validate a run log.
 
@@ -846,16 +947,18 @@ def read_log(path: str | os.PathLike[str]) -> RunLog:
     limits: tuple[float | None, float | None] = (None, None)
     last_stamp = -math.inf
     truncated: str | None = None
+    pose_stamp = -math.inf  # stamp of the latest pose (3-D logs: velocity_odometry.dt_s must span from it)
     for number, raw, ended in lines:
         try:
             d = _loads(_decode(raw, number))
             if header is None:
                 header = parse_header(d)
                 limits = sensor_range_limits(header)
-                last_stamp = header.stamp_s
+                last_stamp = pose_stamp = header.stamp_s
                 continue
             if d.get("type") == "header":
                 raise _BadLine("a second header; a log holds one run — split the file")
+            _check_dimension(d.get("type"), header)
             record = parse_record(d)
             stamp = getattr(record, "stamp_s", None)
             if stamp is not None:
@@ -865,6 +968,8 @@ def read_log(path: str | os.PathLike[str]) -> RunLog:
                         "records must be written in time order"
                     )
                 last_stamp = stamp
+            if header.is_3d:
+                pose_stamp = _check_interval(record, pose_stamp)
             if isinstance(record, Observation):
                 outside = _outside_sensor(record, *limits)
                 if outside is not None:

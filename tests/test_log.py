@@ -232,7 +232,7 @@ def test_complete_but_invalid_last_line_is_an_error(log_path):
     "mutate, expected",
     [
         (lambda h: {**h, "format": "something-else"}, "is this an fgslam run log"),
-        (lambda h: {**h, "version": 2}, "version 2 is not supported"),
+        (lambda h: {**h, "version": 3}, "version 3 is not supported"),
         (lambda h: {**h, "units": {"length": "mm", "angle": "rad", "time": "s"}}, "store SI"),
         (lambda h: {**h, "noise": {"odometry": {}}}, "lacks 'observation'"),
         (lambda h: {**h, "start": {**h["start"], "sigma": [0, 1, 1]}}, "start.sigma must be > 0"),

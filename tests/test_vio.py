@@ -106,3 +106,50 @@ def test_a_point_ahead_is_seen_where_the_stereo_model_says():
     assert np.allclose(f.landmarks()[3], m)
     f.step(0.1, np.zeros(6), [3, 4], np.vstack([z, [600.0, 100.0, 598.0, 100.0]]))
     assert f.skipped_small_disparity == 1 and f.updates == 1
+
+
+def _information_along_global_motions(ekf, *, first_estimates: bool) -> np.ndarray:
+    """Nᵀ Σ⁻¹ N (6×6) with N the directions of a rigid motion of the whole world: the pose's
+    right perturbation Ad(T⁻¹)δ and each landmark's [I, −m^]δ (no gravity: none observable).
+    With first-estimate Jacobians N is built at the first estimates, else at the current ones."""
+    T = ekf._T_fe if first_estimates else ekf._T
+    rows = [adjoint(np.linalg.inv(T))]
+    for lid, slot in sorted(ekf._slot.items(), key=lambda item: item[1]):
+        m = ekf._m_fe[lid] if first_estimates else ekf._x[3 * slot : 3 * slot + 3]
+        rows.append(np.hstack([np.eye(3), -skew(m)]))
+    N = np.vstack(rows)
+    return N.T @ np.linalg.solve(ekf._P, N)
+
+
+@pytest.mark.parametrize("first_estimates", [False, True])
+def test_first_estimate_jacobians_gain_no_information_on_unobservable_directions(first_estimates):
+    """The test behind ekf-vio-fej: the camera and the IMU cannot see where the world is, so
+    no update may add information along N (an exact property of the linearised system: its
+    prior information there, 100 = 1/0.1², must only fall). The standard EKF linearises at
+    moving estimates and gains millions; with first-estimate Jacobians nothing is gained."""
+    drive = simulate_drive(3, SMALL)
+    ekf = VioEkf(drive.K, drive.baseline_m, drive.cam_T_imu, start_sigma=0.1, first_estimates=first_estimates)
+    gained = []
+    for t, args in enumerate(steps_of(drive)):
+        ekf.step(*args)
+        if t == 0:
+            prior = _information_along_global_motions(ekf, first_estimates=first_estimates)
+        elif t in (20, 60):
+            info = _information_along_global_motions(ekf, first_estimates=first_estimates)
+            gained.append(np.linalg.eigvalsh(info - prior).max())
+        if t == 60:
+            break
+    if first_estimates:
+        assert max(gained) < 1e-6 * 100.0
+    else:
+        assert min(gained) > 1e3
+
+
+def test_first_estimate_jacobians_keep_the_estimate_close_to_the_standard_one():
+    drive = simulate_drive(2, SMALL)
+    standard = run_drive(VioEkf(drive.K, drive.baseline_m, drive.cam_T_imu), drive)
+    fej = run_drive(VioEkf(drive.K, drive.baseline_m, drive.cam_T_imu, first_estimates=True), drive)
+    assert fej.name == "ekf-vio-fej"
+    a_std, _ = position_errors_m(standard.trajectory(), drive.truth_world_T_imu)
+    a_fej, _ = position_errors_m(fej.trajectory(), drive.truth_world_T_imu)
+    assert a_fej < 2.0 * a_std + 0.05 and 3.0 < np.mean(fej.nis()) < 5.0

@@ -125,14 +125,15 @@ def add_overwrite_option(parser: argparse.ArgumentParser, what: str = "an existi
 def summary(log) -> str:
     """One line on what a run log holds."""
     from slamio.log import Observation
+    from slamio.log3d import StereoObservation, TruthLandmark3
 
     steps = log.steps()
-    observations = [r for r in log.records if isinstance(r, Observation)]
-    ids = {o.landmark_id for o in observations if o.landmark_id is not None}
-    unknown = sum(o.landmark_id is None for o in observations)
+    observations = [r for r in log.records if isinstance(r, (Observation, StereoObservation))]
+    ids = {getattr(o, "landmark_id", getattr(o, "track_id", None)) for o in observations} - {None}
+    unknown = sum(getattr(o, "landmark_id", 0) is None for o in observations)
     duration = steps[-1].stamp_s - steps[0].stamp_s
     with_truth = sum(s.truth is not None for s in steps)
-    surveyed = len(log.truth_landmarks())
+    surveyed = len(log.truth_landmarks()) + sum(isinstance(r, TruthLandmark3) for r in log.records)
     if with_truth == len(steps):
         truth = "ground truth for every pose"
     elif with_truth:

@@ -18,3 +18,12 @@ ESTIMATOR_HELP = {
     "isam2-dcs": "iSAM2 with dynamic covariance scaling: least squares within 3.7 sigma, outliers fade",
     "dead_reckoning": "odometry alone: the baseline",
 }
+
+#: The estimators of a 3-D log (fgslam.runner3d.ESTIMATORS_3D; a test keeps the two in step).
+ESTIMATOR_HELP_3D = {
+    "ekf-s003": "seed 003's EKF (stereo + IMU, pose from the IMU alone, per-landmark updates), as written",
+    "ekf-s003-figures": "the same with eq. 16's and eq. 1's typos read as its figures require",
+    "ekf-vio": "textbook visual-inertial EKF-SLAM on SE(3): pose and landmarks updated jointly",
+    "ekf-vio-fej": "the same with first-estimate Jacobians: consistent (NEES in band) over whole drives",
+    "isam2-3d": "GTSAM iSAM2 on Pose3 + stereo factors + IMU between factors (the batch solve starts from it)",
+}

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import argparse
 
-from fgslam.cli.common import add_overwrite_option, check_new_file, write_run_log
+from fgslam.cli.common import add_overwrite_option, check_new_file, command_line, write_run_log
 from slamio.errors import FgslamError
 
-DATASETS = ["victoria-park", "plaza1", "plaza2", "mrclam", "rosbag"]
+DATASETS = ["victoria-park", "plaza1", "plaza2", "mrclam", "rosbag", "seed003"]
 
 
 def add_parser(verbs) -> argparse.ArgumentParser:
@@ -28,12 +28,16 @@ def add_parser(verbs) -> argparse.ArgumentParser:
             "  rosbag         a ROS 1 .bag or ROS 2 bag folder (SOURCE) through the rosbags package:\n"
             "                 --odom-topic, --detections-topic or --tag-pose-topic, --truth-topic;\n"
             "                 a bag from `fgslam export rosbag` needs no topics.\n"
+            "  seed003        one of seed 003's stereo + IMU drives (SOURCE: its .npz): a 3-D log\n"
+            "                 with one velocity record per step and the stereo feature tracks;\n"
+            "                 --pixel-sigma, --speed-sigma, --turn-rate-sigma set the noise.\n"
             "See docs/datasets.md for what is converted and how. An existing OUT is kept unless\n"
             "--overwrite.\n\n"
             "usage: fgslam import DATASET [SOURCE] OUT   (SOURCE defaults to the gtsam wheel's copy)"
         ),
     )
-    imp.add_argument("dataset", choices=DATASETS, metavar="DATASET", help="victoria-park, plaza1, plaza2, mrclam or rosbag")
+    imp.add_argument("dataset", choices=DATASETS, metavar="DATASET",
+                     help="victoria-park, plaza1, plaza2, mrclam, rosbag or seed003")
     imp.add_argument("paths", nargs="+", metavar="[SOURCE] OUT",
                      help="the dataset file or folder (optional), then the run log to write (.jsonl)")
     imp.add_argument(
@@ -57,6 +61,12 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     imp.add_argument("--tag-pose-topic", default=None,
                      help="rosbag: prefix of one geometry_msgs/PoseStamped topic per tag, e.g. /tags/tag_")
     imp.add_argument("--truth-topic", default=None, help="rosbag: ground-truth pose topic (optional)")
+    imp.add_argument("--pixel-sigma", type=float, default=1.0, metavar="PX",
+                     help="seed003: σ of each stereo pixel coordinate (default 1 px)")
+    imp.add_argument("--speed-sigma", type=float, default=0.05, metavar="M/S",
+                     help="seed003: σ of each axis of the IMU's linear velocity (default 0.05 m/s)")
+    imp.add_argument("--turn-rate-sigma", type=float, default=0.005, metavar="RAD/S",
+                     help="seed003: σ of each axis of the IMU's angular velocity (default 0.005 rad/s)")
     imp.set_defaults(func=cmd_import, takes_extra_paths=True)
     return imp
 
@@ -66,7 +76,7 @@ def cmd_import(args: argparse.Namespace) -> int:
         raise FgslamError(f"import takes [SOURCE] OUT, got {len(args.paths)} paths: {' '.join(args.paths)}")
     source = args.paths[0] if len(args.paths) == 2 else args.source
     out = args.paths[-1]
-    needs_source = ("mrclam", "rosbag")
+    needs_source = ("mrclam", "rosbag", "seed003")
     if args.dataset in needs_source and source is None:
         raise FgslamError(f"import {args.dataset} needs SOURCE: fgslam import {args.dataset} SOURCE OUT")
     check_new_file(out, overwrite=args.overwrite, option="OUT")  # before the conversion
@@ -83,6 +93,8 @@ def cmd_import(args: argparse.Namespace) -> int:
 
             model = load_noise_model(args.noise)
         header, records = import_mrclam(source, args.robot, model=model)
+    elif args.dataset == "seed003":
+        header, records = _import_seed003(source, args)
     elif args.dataset == "rosbag":
         from slamio.datasets.rosbag import import_rosbag
 
@@ -97,3 +109,17 @@ def cmd_import(args: argparse.Namespace) -> int:
             args.dataset, source, range_sigma_m=args.range_sigma, range_bias_m=args.range_bias
         )
     return write_run_log(out, header, records, overwrite=args.overwrite, option="OUT")
+
+
+def _import_seed003(source: str, args: argparse.Namespace):
+    """A seed-003 npz as a 3-D log (slamio.datasets.seed003_log)."""
+    from slamio.datasets.seed003 import StereoImuNoise, load_drive
+    from slamio.datasets.seed003_log import drive_to_log
+
+    for flag, value in (("--pixel-sigma", args.pixel_sigma), ("--speed-sigma", args.speed_sigma),
+                        ("--turn-rate-sigma", args.turn_rate_sigma)):
+        if not (value > 0.0 and value < 1e3):
+            raise FgslamError(f"{flag} {value!r} must be a standard deviation > 0 (and below 1000)")
+    noise = StereoImuNoise(sigma_px=args.pixel_sigma, sigma_v_mps=args.speed_sigma, sigma_w_radps=args.turn_rate_sigma)
+    drive = load_drive(source)
+    return drive_to_log(drive, noise, source={"dataset": "seed003", "file": str(source), "command": command_line(args)})

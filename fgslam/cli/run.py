@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 
 from fgslam.cli.common import ResultsFolder, add_overwrite_option, command_line, read, summary
-from fgslam.cli.estimators import ESTIMATOR_HELP
+from fgslam.cli.estimators import ESTIMATOR_HELP, ESTIMATOR_HELP_3D
 from fgslam.cli.progress import Progress
 
 #: File names ``fgslam run`` writes besides <estimator>[_online].tum and the report's PNGs:
@@ -19,9 +19,10 @@ def own_names() -> list[str]:
     """Every file name ``fgslam run`` can write (for a folder without a manifest)."""
     from fgslam import report
     from fgslam.runner import ESTIMATORS
+    from fgslam.runner3d import ESTIMATORS_3D
 
     names = list(OWN_NAMES)
-    for name in [*ESTIMATORS, "batch"]:
+    for name in [*ESTIMATORS, *ESTIMATORS_3D, "batch"]:
         names += [f"{name}.tum", f"{name}_online.tum"]
     names += [value for key, value in vars(report).items()
               if key.endswith(("_PNG", "_HTML")) and isinstance(value, str)]
@@ -34,6 +35,8 @@ def add_parser(verbs) -> argparse.ArgumentParser:
         help="run the estimators on a log and write the comparison",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="estimators:\n" + "\n".join(f"  {name:<15} {text}" for name, text in ESTIMATOR_HELP.items())
+        + "\n\nestimators of a 3-D log (seed 003: stereo camera + IMU):\n"
+        + "\n".join(f"  {name:<16} {text}" for name, text in ESTIMATOR_HELP_3D.items())
         + "\n\ntiming: the wall time of each estimator.step (and finish() in the total), with\n"
           "BLAS/OpenMP pinned to one thread (threadpoolctl), so the figures compare the\n"
           "algorithms, not how many cores a BLAS grabs; NEES/NIS work is outside the timed region.",
@@ -57,10 +60,11 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     add_overwrite_option(run, "fgslam's files in a --out folder that holds other files too (they are left alone)")
     run.add_argument(
         "--estimators",
-        default="ekf,isam2,dead_reckoning",
+        default=None,
         metavar="LIST",
-        help="comma-separated estimators to run (default ekf,isam2,dead_reckoning; all "
-        "names below); the batch solve always runs from isam2's result",
+        help="comma-separated estimators to run (default ekf,isam2,dead_reckoning; on a 3-D log "
+        "ekf-s003,ekf-vio,ekf-vio-fej,isam2-3d; all names below); the batch solve always runs from isam2's "
+        "(isam2-3d's) result",
     )
     run.add_argument("--noise", default=None, metavar="FILE",
                      help="a noise model from `fgslam calibrate LOG... --out FILE`, applied to this log's "
@@ -94,10 +98,14 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     from fgslam.compare import compute_metrics, format_table, write_tum
     from fgslam.export import write_g2o
-    from fgslam.runner import TIMING, compare_log, parse_estimator_names
+    from fgslam.runner import DEFAULT_ESTIMATORS, TIMING, compare_log, parse_estimator_names
 
-    names = parse_estimator_names(args.estimators)
     log = read(args.log)
+    if log.header.is_3d:  # seed 003's stereo + IMU logs: their own estimators and table
+        from fgslam.cli.run3d import cmd_run3d
+
+        return cmd_run3d(args, results, log)
+    names = parse_estimator_names(args.estimators or ",".join(DEFAULT_ESTIMATORS))
     if args.noise is not None:
         from slamio.noise_apply import apply_noise_model
         from slamio.noise_model import load_noise_model
@@ -144,16 +152,23 @@ def cmd_run(args: argparse.Namespace) -> int:
             out, metrics, result.runs, result.reference, result.stamps_s, title=f"fgslam run {Path(args.log).name}"
         )
         written.insert(1, html.name)
+    return finish_run(args, results, log, written, replaced, format_table(metrics))
+
+
+def finish_run(args: argparse.Namespace, results, log, written: list[str], replaced, table: str) -> int:
+    """Seal the results folder (its manifest), print the table and say what was written."""
+    from fgslam.runner import TIMING
+
     results.finish(command=command_line(args, "run"), log=str(args.log))
     written.append("manifest.json")
     print()
-    print(format_table(metrics))
+    print(table)
     print(f"time: {TIMING['what']}")
     stale = sorted(set(replaced) - set(results.finish_names) - {"manifest.json"})
     note = f" (replacing the earlier results; {len(stale)} of its files not written again were removed: " \
            f"{', '.join(stale[:4])}{', ...' if len(stale) > 4 else ''})" if stale else \
            (" (replacing the earlier results)" if replaced else "")
-    print(f"\nwrote {', '.join(written)} to {out}/{note}")
+    print(f"\nwrote {', '.join(written)} to {Path(args.out)}/{note}")
     if log.truncated:
         print(f"note: {log.truncated}")
     return 0

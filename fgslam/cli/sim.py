@@ -5,6 +5,10 @@ from __future__ import annotations
 import argparse
 
 from fgslam.cli.common import add_overwrite_option, check_new_file, command_line, write_run_log
+from slamio.errors import FgslamError
+
+#: The 3-D scenario (slamio.sim3d): a stereo + IMU car, written as a 3-D log.
+STEREO_LOOP = "stereo-loop"
 
 
 def add_parser(verbs) -> argparse.ArgumentParser:
@@ -20,11 +24,15 @@ def add_parser(verbs) -> argparse.ArgumentParser:
             "  arena-square   seed 004's 10 ft x 10 ft arena, 8 AprilTags, square path\n"
             "  arena-octagon  the same arena, octagon path\n"
             "  cylinders      seed 000's three coloured cylinders seen by a Kinect\n"
-            "  grid           N landmarks on a grid (--landmarks N), a long loop with revisits"
+            "  grid           N landmarks on a grid (--landmarks N), a long loop with revisits\n"
+            "  stereo-loop    seed 003's car: a 435 m city loop seen by a stereo camera, with IMU\n"
+            "                 velocities; writes a 3-D log (--outliers moves that share of the\n"
+            "                 stereo measurements by up to 30 px)"
         ),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    sim.add_argument("scenario", choices=SCENARIOS, metavar="SCENARIO", help="one of: " + ", ".join(SCENARIOS))
+    scenarios = (*SCENARIOS, STEREO_LOOP)
+    sim.add_argument("scenario", choices=scenarios, metavar="SCENARIO", help="one of: " + ", ".join(scenarios))
     sim.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     sim.add_argument("--out", required=True, metavar="LOG", help="run log to write (.jsonl)")
     add_overwrite_option(sim, "an existing LOG")
@@ -59,6 +67,8 @@ def cmd_sim(args: argparse.Namespace) -> int:
     from slamio.sim import simulate
 
     check_new_file(args.out, overwrite=args.overwrite)  # before the work: nothing computed for nothing
+    if args.scenario == STEREO_LOOP:
+        return _sim_stereo_loop(args)
     header, records = simulate(
         args.scenario,
         args.seed,
@@ -69,4 +79,22 @@ def cmd_sim(args: argparse.Namespace) -> int:
         outlier_mode=args.outlier_mode,
         command=command_line(args),
     )
+    return write_run_log(args.out, header, records, overwrite=args.overwrite)
+
+
+def _sim_stereo_loop(args: argparse.Namespace) -> int:
+    """Seed 003's simulated drive (slamio.sim3d) as a 3-D run log, with truth."""
+    from slamio.datasets.seed003_log import drive_to_log
+    from slamio.sim3d import DriveScenario, simulate_drive
+
+    planar_only = [flag for flag, used in (("--hide-ids", args.hide_ids), ("--laps", args.laps is not None),
+                                           ("--outlier-mode add", args.outlier_mode != "replace")) if used]
+    if planar_only:
+        raise FgslamError(f"{', '.join(planar_only)}: not available for {STEREO_LOOP} (stereo tracks carry their ids)")
+    if not 0.0 <= args.outliers <= 1.0:
+        raise FgslamError(f"--outliers {args.outliers!r} must be a fraction between 0 and 1")
+    drive = simulate_drive(args.seed, DriveScenario(outlier_rate=args.outliers))
+    source = {"generator": "slamio.sim3d", "scenario": STEREO_LOOP, "seed": args.seed,
+              "outlier_rate": args.outliers, "command": command_line(args)}
+    header, records = drive_to_log(drive, source=source)
     return write_run_log(args.out, header, records, overwrite=args.overwrite)

@@ -21,10 +21,13 @@ def add_parser(verbs) -> argparse.ArgumentParser:
 
 def cmd_validate(args: argparse.Namespace) -> int:
     from slamio.log import Odometry
+    from slamio.log3d import VelocityOdometry
 
     log = read(args.log)
-    odometry = sum(isinstance(r, Odometry) for r in log.records)
-    print(f"{args.log}: valid fgslam run log v{log.header.version}: {summary(log)}; {odometry} odometry records")
+    odometry = sum(isinstance(r, (Odometry, VelocityOdometry)) for r in log.records)
+    kind = "3-D stereo + IMU " if log.header.is_3d else ""
+    what = "velocity odometry" if log.header.is_3d else "odometry"
+    print(f"{args.log}: valid fgslam {kind}run log v{log.header.version}: {summary(log)}; {odometry} {what} records")
     rejected = log.rejection_summary()
     if rejected:  # usable, but say what the estimators will not see, and where
         print(f"note: {rejected}")

@@ -118,6 +118,7 @@ from slamio.log import (
     format_line,
     read_log,
 )
+from slamio.se3 import quaternion_from_rotation, rotation_from_quaternion, yaw_from_quaternion
 
 __all__ = [
     "APRILTAG_DETECTION_ARRAY_MSG",
@@ -224,44 +225,6 @@ def apriltag_typestore(ros_version: int = 2):
 
 
 # --------------------------------------------------------------------------- pure maths
-
-
-def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:
-    """Heading (rotation about the vertical) of a quaternion, counter-clockwise."""
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-
-
-def rotation_from_quaternion(x: float, y: float, z: float, w: float) -> np.ndarray | None:
-    """3×3 rotation matrix of a quaternion (normalised first); None for a zero quaternion."""
-    n = math.sqrt(x * x + y * y + z * z + w * w)
-    if not n > 1e-12:
-        return None
-    x, y, z, w = x / n, y / n, z / n, w / n
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
-def quaternion_from_rotation(R: np.ndarray) -> tuple[float, float, float, float]:
-    """(x, y, z, w) of a 3×3 rotation matrix (Shepperd's method: stable for every rotation)."""
-    m = np.asarray(R, dtype=float)
-    trace = m[0, 0] + m[1, 1] + m[2, 2]
-    if trace > 0.0:
-        s = 2.0 * math.sqrt(trace + 1.0)
-        return ((m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s)
-    i = int(np.argmax([m[0, 0], m[1, 1], m[2, 2]]))
-    j, k = (i + 1) % 3, (i + 2) % 3
-    s = 2.0 * math.sqrt(max(1.0 + m[i, i] - m[j, j] - m[k, k], 0.0))
-    q = [0.0, 0.0, 0.0]
-    q[i] = 0.25 * s
-    q[j] = (m[j, i] + m[i, j]) / s
-    q[k] = (m[k, i] + m[i, k]) / s
-    w = (m[k, j] - m[j, k]) / s
-    return q[0], q[1], q[2], w
 
 
 def compose_jacobians(pose, increment) -> tuple[np.ndarray, np.ndarray]:

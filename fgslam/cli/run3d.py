@@ -1,0 +1,59 @@
+"""``fgslam run`` on a 3-D log (seed 003's stereo + IMU): the 3-D estimators, table, TUM files, report."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from fgslam.cli.common import command_line, summary
+from fgslam.cli.progress import Progress
+from slamio.errors import FgslamError
+
+
+def cmd_run3d(args: argparse.Namespace, results, log) -> int:
+    """Run the 3-D estimators on ``log`` and write into the checked ``results`` folder."""
+    from fgslam.provenance import provenance
+    from fgslam.runner import TIMING
+    from fgslam.runner3d import (
+        compute_metrics_3d,
+        format_table_3d,
+        parse_estimator_names_3d,
+        reference_line_3d,
+        run_log3d,
+        table_rows_3d,
+        write_tum3,
+    )
+
+    for flag, value in (("--noise", args.noise), ("--calibration", args.calibration)):
+        if value is not None:
+            raise FgslamError(f"{flag} applies to planar logs; {args.log} is a 3-D log (its records carry their noise)")
+    names = parse_estimator_names_3d(args.estimators)
+    print(f"{args.log}: 3-D log, {summary(log)}")
+    with Progress() as progress:
+        result = run_log3d(log, names, consistency=not args.no_consistency, progress=progress)
+    metrics = compute_metrics_3d(result, log_path=str(args.log))
+    metrics["timing"] = TIMING["what"]
+    if log.truncated:
+        metrics["log_truncated"] = log.truncated
+    metrics["provenance"] = provenance(args.log, [r.name for r in result.runs], command=command_line(args, "run"))
+
+    out = Path(args.out)
+    replaced = results.clear()
+    (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    write_tum3(out / "reference.tum", result.stamps_s, result.reference.trajectory)
+    for run in result.runs:
+        write_tum3(out / f"{run.name}.tum", result.stamps_s, run.final)
+        if run.online is not None and run.online is not run.final:
+            write_tum3(out / f"{run.name}_online.tum", result.stamps_s, run.online)
+    written = ["metrics.json", "*.tum"]
+    if not args.no_report:
+        from fgslam.report import write_report_3d
+
+        header, rows = table_rows_3d(metrics)
+        html = write_report_3d(out, metrics, result.runs, result.reference, title=f"fgslam run {Path(args.log).name}",
+                               table_header=header, table_rows=rows, reference_text=reference_line_3d(metrics))
+        written.insert(1, html.name)
+    from fgslam.cli.run import finish_run
+
+    return finish_run(args, results, log, written, replaced, format_table_3d(metrics))

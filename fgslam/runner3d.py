@@ -1,0 +1,348 @@
+"""Drive the 3-D estimators (seed 003: stereo camera + IMU) over one 3-D run log and score them.
+
+The 3-D counterpart of :mod:`fgslam.runner` and :mod:`fgslam.compare` for logs with SE(3)
+poses (docs/log-format.md, "3-D logs"). The log becomes the drive arrays every 3-D
+estimator consumes (:func:`slamio.datasets.seed003_log.log_to_drive`, the step protocol of
+:mod:`ekf.drive3d`); each estimator's ``step`` is timed with BLAS pinned to one thread, and
+the consistency work (the pose covariance for NEES) runs outside the timed region.
+
+The world frame is the IMU at pose 0 and every estimator starts there, so trajectories are
+compared without alignment. The reference is the log's truth when every pose has one
+(``truth_pose3``; the map against ``truth_landmark3``), else the batch solution of the
+factor graph (LM started from iSAM2's estimate), as in 2-D.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from ekf.drive3d import steps_of
+from ekf.seed003 import AS_THE_FIGURES_SHOW, EkfS003
+from ekf.vio import VioEkf, pose_nees
+from fgslam.compare import nees_band
+from fgslam.runner import pinned_threads
+from slamio.datasets.seed003 import StereoImuDrive, StereoImuNoise
+from slamio.datasets.seed003_log import log_to_drive
+from slamio.errors import FgslamError
+from slamio.log import RunLog, group_steps
+from slamio.log3d import pose3_from_matrix
+
+#: name → factory(drive, noise). What ``fgslam run --estimators`` accepts on a 3-D log.
+ESTIMATORS_3D: dict[str, Callable[[StereoImuDrive, StereoImuNoise], object]] = {
+    "ekf-s003": lambda d, n: EkfS003(d.K, d.baseline_m, d.cam_T_imu, n),
+    "ekf-s003-figures": lambda d, n: _named(EkfS003(d.K, d.baseline_m, d.cam_T_imu, n, **AS_THE_FIGURES_SHOW),
+                                            "ekf-s003-figures"),
+    "ekf-vio": lambda d, n: VioEkf(d.K, d.baseline_m, d.cam_T_imu, n),
+    "ekf-vio-fej": lambda d, n: VioEkf(d.K, d.baseline_m, d.cam_T_imu, n, first_estimates=True),
+    "isam2-3d": None,  # built in run_log3d: the batch solve needs it (fgslam.smoother3d imports gtsam)
+}
+DEFAULT_ESTIMATORS_3D = ("ekf-s003", "ekf-vio", "ekf-vio-fej", "isam2-3d")
+POSE_DOF = 6
+STEREO_DOF = 4
+
+
+def _named(estimator, name: str):
+    estimator.name = name
+    return estimator
+
+
+def parse_estimator_names_3d(text: str | None) -> list[str]:
+    """``"ekf-vio,isam2-3d"`` → names; unknown names and a missing isam2-3d are one-line errors."""
+    names = list(DEFAULT_ESTIMATORS_3D) if text is None else [n.strip() for n in text.split(",") if n.strip()]
+    unknown = [n for n in names if n not in ESTIMATORS_3D]
+    if unknown or not names:
+        raise FgslamError(
+            f"unknown estimator(s) for a 3-D log: {', '.join(unknown) or '(none given)'}; "
+            f"choose from {', '.join(ESTIMATORS_3D)} (comma-separated)"
+        )
+    if "isam2-3d" not in names:
+        raise FgslamError("the batch solve (the reference without truth) starts from iSAM2's result: keep isam2-3d")
+    return list(dict.fromkeys(names))
+
+
+def noise_of(log: RunLog) -> StereoImuNoise:
+    """The one noise level the 3-D estimators assume, read from the log's records.
+
+    Every ``stereo_observation`` must carry the same ``sigma_px`` and every
+    ``velocity_odometry`` the same diagonal covariance, equal on the three linear and on the
+    three angular axes (what ``fgslam import seed003`` and ``fgslam sim stereo-loop`` write).
+    """
+    steps = group_steps(log.header, log.records)
+    sigmas = {o.sigma_px for s in steps for o in s.observations}
+    covs = {s.odometry.covariance for s in steps if s.odometry is not None}
+    if len(sigmas) > 1 or len(covs) > 1:
+        raise FgslamError(
+            f"{log.path}: the 3-D estimators assume one noise level, but the records carry {len(sigmas)} pixel σ "
+            f"and {len(covs)} velocity covariances; write the same σ on every record"
+        )
+    sigma_px = sigmas.pop() if sigmas else StereoImuNoise().sigma_px
+    if not covs:
+        return StereoImuNoise(sigma_px=sigma_px)
+    cov = np.array(covs.pop())
+    diag = np.diag(cov)
+    if np.any(cov != np.diag(diag)) or np.ptp(diag[:3]) > 0 or np.ptp(diag[3:]) > 0:
+        raise FgslamError(
+            f"{log.path}: the 3-D estimators assume a diagonal velocity covariance with one variance for v and one "
+            f"for ω; this log's is {cov.tolist()}"
+        )
+    return StereoImuNoise(sigma_px=sigma_px, sigma_v_mps=math.sqrt(diag[0]), sigma_w_radps=math.sqrt(diag[3]))
+
+
+@dataclass(frozen=True)
+class Run3d:
+    """One estimator's result on a 3-D log (poses are world_T_imu, (T, 4, 4))."""
+
+    name: str
+    online: np.ndarray | None  # each pose as estimated at its own step (None for batch)
+    final: np.ndarray  # every pose as estimated after the last step
+    landmarks: dict[int, np.ndarray]
+    step_times_s: np.ndarray | None
+    total_time_s: float
+    covariances: np.ndarray | None = None  # (T, 6, 6) of the online pose, (ρ, φ), when taken
+    nis: np.ndarray | None = None  # per accepted stereo observation (χ²₄ when consistent)
+
+
+@dataclass(frozen=True)
+class Reference3d:
+    kind: str  # "ground_truth" or "batch"
+    trajectory: np.ndarray  # (T, 4, 4)
+    landmarks: dict[int, np.ndarray]
+
+
+@dataclass(frozen=True)
+class Comparison3d:
+    runs: list[Run3d]
+    reference: Reference3d
+    stamps_s: np.ndarray
+    smoother: object  # the StereoIsam2 the batch solve started from
+    batch_error: float
+    isam2_error: float
+
+
+def run_estimator_3d(estimator, drive: StereoImuDrive, *, covariances: bool = True, progress=None) -> Run3d:
+    """Feed every step of ``drive``; time each ``step`` (BLAS pinned to one thread)."""
+    n = drive.n_steps
+    times = np.empty(n)
+    covs = np.full((n, POSE_DOF, POSE_DOF), np.nan) if covariances else None
+    every = max(1, n // 200)
+    with pinned_threads():
+        for t, args in enumerate(steps_of(drive)):
+            start = time.perf_counter()
+            estimator.step(*args)
+            times[t] = time.perf_counter() - start
+            if covs is not None:  # outside the timed region
+                try:
+                    covs[t] = estimator.current_covariance()
+                except RuntimeError:  # gtsam.IndeterminateSystemException: no marginal this step
+                    pass
+            if progress is not None and (t % every == 0 or t == n - 1):
+                progress(t + 1, n, estimator.name)
+        online = np.asarray(estimator.trajectory(), dtype=float)
+        finish_s = 0.0
+        final = online
+        if hasattr(estimator, "finish"):
+            start = time.perf_counter()
+            estimator.finish()
+            final = np.asarray(estimator.smoothed_trajectory(), dtype=float)
+            finish_s = time.perf_counter() - start
+    nis = estimator.nis() if hasattr(estimator, "nis") else None
+    return Run3d(estimator.name, online, final, dict(estimator.landmarks()), times, float(times.sum() + finish_s),
+                 covs, nis)
+
+
+def run_log3d(log: RunLog, names: list[str], *, consistency: bool = True, progress=None) -> Comparison3d:
+    """Every named estimator on ``log``, then the batch solve from isam2-3d's graph."""
+    from fgslam.smoother3d import StereoIsam2, batch_solve
+
+    drive = log_to_drive(log)
+    noise = noise_of(log)
+    runs = []
+    smoother = None
+    for name in names:
+        if name == "isam2-3d":
+            smoother = _named(StereoIsam2(drive.K, drive.baseline_m, drive.cam_T_imu, noise), "isam2-3d")
+            runs.append(run_estimator_3d(smoother, drive, covariances=consistency, progress=progress))
+        else:
+            runs.append(run_estimator_3d(ESTIMATORS_3D[name](drive, noise), drive, covariances=consistency,
+                                         progress=progress))
+    assert smoother is not None  # parse_estimator_names_3d keeps it
+    with pinned_threads():
+        batch = batch_solve(smoother)
+    runs.append(Run3d("batch", None, batch.trajectory(), batch.landmarks(), None, batch.seconds))
+    if drive.truth_world_T_imu is not None:
+        truth_map = {} if drive.truth_landmarks_m is None else {j: p for j, p in enumerate(drive.truth_landmarks_m)}
+        reference = Reference3d("ground_truth", drive.truth_world_T_imu, truth_map)
+    else:
+        reference = Reference3d("batch", batch.trajectory(), batch.landmarks())
+    return Comparison3d(runs, reference, drive.stamps_s, smoother, float(batch.error), smoother.error())
+
+
+# --------------------------------------------------------------------------- metrics
+
+
+def position_rmse_m(estimate: np.ndarray, reference: np.ndarray, dims: int = 3) -> float:
+    """RMSE of the positions' first ``dims`` coordinates (3: in 3-D; 2: the top view)."""
+    d = estimate[:, :dims, 3] - reference[:, :dims, 3]
+    return float(np.sqrt(np.mean(np.sum(d**2, axis=1))))
+
+
+def map_errors_m(landmarks: dict, reference: dict) -> np.ndarray:
+    common = sorted(j for j in landmarks if j in reference)
+    return np.array([np.linalg.norm(np.asarray(landmarks[j]) - np.asarray(reference[j])) for j in common])
+
+
+def nees_values(run: Run3d, reference: Reference3d) -> np.ndarray | None:
+    """Pose NEES of the online estimate at every step (NaN where it cannot be computed)."""
+    if run.covariances is None or run.online is None or reference.kind != "ground_truth":
+        return None
+    out = np.full(len(run.online), np.nan)
+    for t, (T_hat, cov, T_true) in enumerate(zip(run.online, run.covariances, reference.trajectory)):
+        if not np.all(np.isfinite(cov)):
+            continue
+        try:
+            with np.errstate(all="ignore"):
+                value = pose_nees(T_hat, cov, T_true)
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError):
+            continue
+        out[t] = value if math.isfinite(value) else np.nan
+    return out
+
+
+def _finite_or_none(value) -> float | None:
+    return float(value) if value is not None and math.isfinite(float(value)) else None
+
+
+def compute_metrics_3d(result: Comparison3d, *, log_path: str) -> dict:
+    """metrics.json content for a 3-D log: one entry per estimator, plus what the reference is."""
+    reference = result.reference
+    low6, high6 = nees_band(POSE_DOF)
+    low4, high4 = nees_band(STEREO_DOF)
+    metrics: dict = {
+        "log": log_path,
+        "dimension": 3,
+        "reference": reference.kind,
+        "poses": int(len(result.stamps_s)),
+        "reference_landmarks": len(reference.landmarks),
+        "nees_band_95": [low6, high6],
+        "nis_band_95": [low4, high4],
+        "isam2_graph_error": result.isam2_error,
+        "batch_graph_error": result.batch_error,
+        "estimators": {},
+    }
+    for run in result.runs:
+        errors = map_errors_m(run.landmarks, reference.landmarks)
+        last = run.final[-1, :3, 3] - reference.trajectory[-1, :3, 3]
+        m = {
+            "ate_3d_m": position_rmse_m(run.final, reference.trajectory, 3),
+            "ate_2d_m": position_rmse_m(run.final, reference.trajectory, 2),
+            "ate_3d_online_m": None if run.online is None else position_rmse_m(run.online, reference.trajectory, 3),
+            "final_position_error_m": float(np.linalg.norm(last)),
+            "landmarks": len(run.landmarks),
+            "map_median_m": float(np.median(errors)) if len(errors) else None,
+            "map_rmse_m": float(np.sqrt(np.mean(errors**2))) if len(errors) else None,
+            "step_ms_mean": None if run.step_times_s is None else 1e3 * float(np.mean(run.step_times_s)),
+            "step_ms_median": None if run.step_times_s is None else 1e3 * float(np.median(run.step_times_s)),
+            "total_s": run.total_time_s,
+        }
+        nees = nees_values(run, reference)
+        if nees is not None and np.any(np.isfinite(nees)):
+            v = nees[np.isfinite(nees)]
+            m["nees_mean"] = float(np.mean(v))
+            m["nees_in_band"] = float(np.mean((v >= low6) & (v <= high6)))
+        if run.nis is not None and len(run.nis):
+            m["nis_mean"] = float(np.mean(run.nis))
+            m["nis_in_band"] = float(np.mean((run.nis >= low4) & (run.nis <= high4)))
+        metrics["estimators"][run.name] = {k: _finite_or_none(v) if isinstance(v, float) else v for k, v in m.items()}
+    return metrics
+
+
+COLUMNS_3D = (
+    ("ATE 3-D m", "ate_3d_m", 1.0, 3),
+    ("ATE 2-D m", "ate_2d_m", 1.0, 3),
+    ("online 3-D m", "ate_3d_online_m", 1.0, 3),
+    ("final m", "final_position_error_m", 1.0, 2),
+    ("map med m", "map_median_m", 1.0, 3),
+    ("landmarks", "landmarks", None, 0),
+    ("NEES", "nees_mean", 1.0, 1),
+    ("in band", "nees_in_band", 100.0, 0),
+    ("NIS", "nis_mean", 1.0, 2),
+    ("ms/step", "step_ms_mean", 1.0, 2),
+    ("total s", "total_s", 1.0, 2),
+)
+
+
+def table_rows_3d(metrics: dict) -> tuple[list[str], list[list[str]]]:
+    header = ["estimator"] + [c[0] for c in COLUMNS_3D]
+    rows = []
+    for name, m in metrics["estimators"].items():
+        cells = [name]
+        for _, key, scale, digits in COLUMNS_3D:
+            v = m.get(key)
+            if v is None:
+                cells.append("–")
+            elif scale is None:
+                cells.append(str(v))
+            else:
+                cells.append(f"{v * scale:.{digits}f}" + ("%" if scale == 100.0 else ""))
+        rows.append(cells)
+    return header, rows
+
+
+def reference_line_3d(metrics: dict) -> str:
+    if metrics["reference"] == "ground_truth":
+        what = f"ground truth at all {metrics['poses']} poses"
+        if metrics["reference_landmarks"]:
+            what += f" and {metrics['reference_landmarks']} landmarks"
+    else:
+        what = (f"the batch solution (LM from iSAM2; no ground truth), graph error {metrics['batch_graph_error']:.1f} "
+                f"against iSAM2's {metrics['isam2_graph_error']:.1f}")
+    band = metrics["nees_band_95"]
+    return (f"reference: {what}; positions compared without alignment (every estimator starts at the IMU's "
+            f"first pose); NEES on SE(3), 95 % band {band[0]:.2f}..{band[1]:.2f} (χ²₆)")
+
+
+def format_table_3d(metrics: dict) -> str:
+    header, rows = table_rows_3d(metrics)
+    widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
+    lines = [reference_line_3d(metrics), ""]
+    for r in [header, *rows]:
+        lines.append("  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths))))
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------- TUM
+
+
+def format_tum3(stamps_s, poses) -> str:
+    """SE(3) trajectory in TUM format: ``t x y z qx qy qz qw`` per pose (``repr`` floats)."""
+    stamps = np.asarray(stamps_s, dtype=float).reshape(-1)
+    poses = np.asarray(poses, dtype=float)
+    if poses.shape != (len(stamps), 4, 4):
+        raise FgslamError(f"format_tum3: {len(stamps)} stamps but poses of shape {poses.shape}")
+    lines = []
+    for t, T in zip(stamps, poses):
+        values = (float(t), *pose3_from_matrix(_nearest_rigid(T)))
+        lines.append(" ".join(repr(v) for v in values))
+    return "".join(line + "\n" for line in lines)
+
+
+def _nearest_rigid(T: np.ndarray) -> np.ndarray:
+    """``T`` with its rotation block projected onto SO(3) (the as-written ekf-s003's pose is not rigid)."""
+    if not np.all(np.isfinite(T)):
+        raise FgslamError("a trajectory holds a non-finite pose; cannot write it in TUM format")
+    U, _, Vt = np.linalg.svd(T[:3, :3])
+    R = U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))]) @ Vt
+    out = np.eye(4)
+    out[:3, :3], out[:3, 3] = R, T[:3, 3]
+    return out
+
+
+def write_tum3(path, stamps_s, poses) -> None:
+    from pathlib import Path
+
+    Path(path).write_text(format_tum3(stamps_s, poses), encoding="utf-8")

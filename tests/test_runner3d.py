@@ -1,0 +1,148 @@
+"""``fgslam run`` on a 3-D log: the 3-D estimators end to end, metrics against independent
+references (closed forms, evo as the oracle for the TUM files and the ATE), the report."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from evo.core import metrics as evo_metrics  # a dev extra (GPL-3.0): tests only, never shipped
+from evo.core import sync
+from evo.tools import file_interface
+
+from fgslam.cli import main
+from fgslam.runner3d import (
+    ESTIMATORS_3D,
+    Reference3d,
+    Run3d,
+    format_tum3,
+    nees_values,
+    noise_of,
+    parse_estimator_names_3d,
+    position_rmse_m,
+)
+from slamio.datasets.seed003_log import drive_to_log
+from slamio.errors import FgslamError
+from slamio.log import read_log, write_log
+from slamio.log3d import StereoObservation
+from slamio.se3 import exp_se3
+from slamio.sim3d import DriveScenario, simulate_drive
+
+SMALL = DriveScenario(straight_m=40.0, side_m=25.0)
+
+
+@pytest.fixture(scope="module")
+def small_log(tmp_path_factory):
+    path = tmp_path_factory.mktemp("log3d") / "small.jsonl"
+    header, records = drive_to_log(simulate_drive(5, SMALL), source={"generator": "test"})
+    write_log(path, header, records)
+    return path
+
+
+@pytest.fixture(scope="module")
+def run_dir(small_log, tmp_path_factory):
+    out = tmp_path_factory.mktemp("run3d")
+    assert main(["run", str(small_log), "--out", str(out),
+                 "--estimators", "ekf-s003,ekf-s003-figures,ekf-vio,ekf-vio-fej,isam2-3d"]) == 0
+    return out
+
+
+def evo_trajectory(path):
+    return file_interface.read_tum_trajectory_file(str(path))
+
+
+@pytest.mark.parametrize("name", ["ekf-s003-figures", "ekf-vio", "ekf-vio-fej", "isam2-3d", "batch"])
+def test_evo_reads_our_se3_tum_files_and_agrees_on_the_3d_ate(run_dir, name):
+    metrics = json.loads((run_dir / "metrics.json").read_text())
+    ref, est = sync.associate_trajectories(evo_trajectory(run_dir / "reference.tum"),
+                                           evo_trajectory(run_dir / f"{name}.tum"))
+    ape = evo_metrics.APE(evo_metrics.PoseRelation.translation_part)
+    ape.process_data((ref, est))
+    rmse = float(ape.get_statistic(evo_metrics.StatisticsType.rmse))
+    assert rmse == pytest.approx(metrics["estimators"][name]["ate_3d_m"], abs=1e-6)
+    # evo sees a genuinely 3-D trajectory: rotations about x and y and a changing height
+    poses = np.array(est.poses_se3)
+    assert np.ptp(poses[:, 2, 3]) > 0.1 and np.max(np.abs(poses[:, 2, 0])) > 1e-3
+
+
+def test_the_reference_tum_file_is_the_logs_truth(run_dir, small_log):
+    drive = simulate_drive(5, SMALL)
+    poses = np.array(evo_trajectory(run_dir / "reference.tum").poses_se3)
+    assert np.allclose(poses, drive.truth_world_T_imu, atol=1e-9)
+
+
+def test_the_comparison_shows_what_seed_003_is_about(run_dir):
+    m = json.loads((run_dir / "metrics.json").read_text())
+    e = m["estimators"]
+    assert m["dimension"] == 3 and m["reference"] == "ground_truth"
+    # the factor graph beats the joint EKF, which beats the IMU alone; the paper as written is lost
+    assert e["isam2-3d"]["ate_3d_m"] < e["ekf-vio"]["ate_3d_m"] < e["ekf-s003-figures"]["ate_3d_m"]
+    assert e["ekf-s003"]["ate_3d_m"] > 10.0 * e["ekf-s003-figures"]["ate_3d_m"]
+    for name, row in e.items():
+        assert row["ate_2d_m"] <= row["ate_3d_m"] + 1e-12, name
+    # iSAM2 after finish() reaches the batch solution on a simulated drive
+    assert m["isam2_graph_error"] == pytest.approx(m["batch_graph_error"], rel=1e-3)
+    assert e["ekf-vio"]["nis_mean"] == pytest.approx(4.0, abs=1.0)
+    # first-estimate Jacobians make the joint EKF consistent (docs/seed003.md, *Consistency*)
+    assert e["ekf-vio-fej"]["nees_in_band"] >= 0.9 > e["ekf-vio"]["nees_in_band"]
+    assert 0.0 <= e["isam2-3d"]["nees_in_band"] <= 1.0 and e["batch"].get("nees_mean") is None
+    assert (run_dir / "report.html").exists() and (run_dir / "top_view.png").stat().st_size > 10_000
+    assert "top view" in (run_dir / "report.html").read_text()
+
+
+def test_position_rmse_and_nees_against_closed_forms():
+    truth = np.array([exp_se3(np.array([t, 0.0, 0.0, 0.0, 0.0, 0.1 * t])) for t in range(5)])
+    shifted = truth.copy()
+    shifted[:, :3, 3] += [1.0, 2.0, 3.0]
+    assert position_rmse_m(shifted, truth, 3) == pytest.approx(math.sqrt(14.0))
+    assert position_rmse_m(shifted, truth, 2) == pytest.approx(math.sqrt(5.0))
+    e = np.array([0.1, -0.2, 0.05, 0.01, 0.02, -0.03])
+    estimate = np.array([T @ exp_se3(e) for T in truth])  # truth = estimate · exp(−e)
+    cov = np.diag([0.01, 0.04, 0.01, 1e-4, 4e-4, 9e-4])
+    run = Run3d("x", estimate, estimate, {}, None, 0.0, np.array([cov] * 5))
+    expected = float(np.sum(e**2 / np.diag(cov)))
+    assert nees_values(run, Reference3d("ground_truth", truth, {})) == pytest.approx([expected] * 5)
+    assert nees_values(run, Reference3d("batch", truth, {})) is None
+
+
+def test_tum3_writes_position_and_quaternion_and_projects_a_non_rigid_pose():
+    from slamio.log3d import pose3_matrix
+
+    T = exp_se3(np.array([1.0, 2.0, 3.0, 0.3, -0.2, 0.1]))
+    values = [float(v) for v in format_tum3([0.5], [T]).split()]
+    assert values[0] == 0.5 and np.allclose(pose3_matrix(tuple(values[1:])), T, atol=1e-12)
+    bent = T.copy()
+    bent[:3, :3] *= 1.01  # ekf-s003 as written: μ⁻¹ need not be rigid
+    bent_values = [float(v) for v in format_tum3([0.5], [bent]).split()]
+    assert np.allclose(bent_values, values, atol=1e-12)
+
+
+def test_estimator_names_and_help_are_in_step():
+    from fgslam.cli.estimators import ESTIMATOR_HELP_3D
+
+    assert list(ESTIMATOR_HELP_3D) == list(ESTIMATORS_3D)
+    assert parse_estimator_names_3d(None) == ["ekf-s003", "ekf-vio", "ekf-vio-fej", "isam2-3d"]
+    with pytest.raises(FgslamError, match=r"unknown estimator\(s\) for a 3-D log: ekf;"):
+        parse_estimator_names_3d("ekf,isam2-3d")
+    with pytest.raises(FgslamError, match="keep isam2-3d"):
+        parse_estimator_names_3d("ekf-vio")
+
+
+def test_one_noise_level_is_required(small_log, tmp_path):
+    log = read_log(small_log)
+    assert noise_of(log).sigma_px == 1.0 and noise_of(log).sigma_w_radps == pytest.approx(0.005)
+    records = list(log.records)
+    i = next(k for k, r in enumerate(records) if isinstance(r, StereoObservation))
+    records[i] = StereoObservation(**{**records[i].__dict__, "sigma_px": 2.0})
+    write_log(tmp_path / "mixed.jsonl", log.header, records)
+    with pytest.raises(FgslamError, match="one noise level"):
+        noise_of(read_log(tmp_path / "mixed.jsonl"))
+
+
+def test_user_errors_on_a_3d_log_are_one_line(small_log, tmp_path, capsys):
+    assert main(["run", str(small_log), "--out", str(tmp_path / "a"), "--estimators", "ekf,isam2"]) == 1
+    assert "unknown estimator(s) for a 3-D log: ekf, isam2" in capsys.readouterr().err
+    assert main(["run", str(small_log), "--out", str(tmp_path / "b"), "--noise", "n.json"]) == 1
+    assert "--noise applies to planar logs" in capsys.readouterr().err
