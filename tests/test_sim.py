@@ -599,3 +599,13 @@ def test_measured_tag_noise_only_for_tag_scenarios_and_names_checked():
         simulate("cylinders", 1, tag_noise="measured")
     with pytest.raises(FgslamError, match="tag_noise must be one of"):
         simulate("arena-square", 1, tag_noise="real")
+
+
+def test_grid_spacing_sets_the_landmark_spacing_and_is_checked():
+    header, records = sim("grid", 2, landmarks=9, grid_spacing_m=0.75)
+    xy = np.array([(r.x_m, r.y_m) for r in records if isinstance(r, TruthLandmark)])
+    gaps = np.linalg.norm(xy[:, None, :] - xy[None, :, :], axis=2)
+    assert np.min(gaps[gaps > 0]) == pytest.approx(0.75)
+    assert header.sensor["grid_spacing_m"] == 0.75
+    with pytest.raises(FgslamError, match="grid_spacing_m"):
+        simulate("grid", 1, grid_spacing_m=0.0)
