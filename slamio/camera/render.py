@@ -215,17 +215,25 @@ def _floor(origin, dirs, buf: _Buffer, colour_bgr, want_colour: bool) -> None:
     buf.offer((0, t.shape[0], 0, t.shape[1]), t, colour)  # the whole region
 
 
-def _tag(origin, dirs, box, buf: _Buffer, tag: TagSpec, want_colour: bool) -> None:
+def _plane_hits(origin, dirs, box, point, right, up, normal):
+    """Rays of ``box`` against the plane through ``point`` with ``normal``: (t, a, b, d·normal).
+
+    t is the ray parameter (inf when parallel), (a, b) the hit's coordinates along ``right``
+    and ``up`` from ``point``; d·normal < 0 means the ray meets the plane's front.
+    """
     r0, r1, c0, c1 = box
     d = dirs[r0:r1, c0:c1]
-    centre, right, up, normal = tag_axes_world(tag)
     denom = d @ normal
     with np.errstate(divide="ignore", invalid="ignore"):
-        t = ((centre - origin) @ normal) / denom
+        t = ((point - origin) @ normal) / denom
     t = np.where(np.abs(denom) > 1e-12, t, np.inf)
-    p = origin + t[..., None] * d
-    a = (p - centre) @ right
-    b = (p - centre) @ up
+    offset = origin + t[..., None] * d - point
+    return t, offset @ right, offset @ up, denom
+
+
+def _tag(origin, dirs, box, buf: _Buffer, tag: TagSpec, want_colour: bool) -> None:
+    centre, right, up, normal = tag_axes_world(tag)
+    t, a, b, denom = _plane_hits(origin, dirs, box, centre, right, up, normal)
     cell = tag.size_m / 8.0
     half_card = 0.5 * tag.size_m + tag.margin_cells * cell
     hit = (t > 0) & (np.abs(a) <= half_card) & (np.abs(b) <= half_card)
@@ -293,15 +301,9 @@ def _board_axes(board: BoardSpec) -> tuple[np.ndarray, np.ndarray, np.ndarray, n
 
 
 def _board(origin, dirs, box, buf: _Buffer, board: BoardSpec, light: np.ndarray, want_colour: bool) -> None:
-    r0, r1, c0, c1 = box
-    d = dirs[r0:r1, c0:c1]
     base, right, up, normal = _board_axes(board)
-    denom = d @ normal
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = ((base - origin) @ normal) / denom
-    t = np.where(np.abs(denom) > 1e-12, t, np.inf)
-    p = origin + t[..., None] * d
-    hit = (t > 0) & board_inside(board.shape, (p - base) @ right, (p - base) @ up, board.width_m, board.height_m)
+    t, a, b, _ = _plane_hits(origin, dirs, box, base, right, up, normal)
+    hit = (t > 0) & board_inside(board.shape, a, b, board.width_m, board.height_m)
     t = np.where(hit, t, np.inf)
     colour = None
     if want_colour:
