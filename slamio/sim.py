@@ -108,7 +108,9 @@ Scenarios and their numbers
     ≈ 0.043 rad per √m driven).
     Camera: FOV 1.2 rad (69°), range 0.15–3.5 m, tags seen up to 70° off their normal;
     σ_r = 0.01 m + 0.005 m⁻¹·r² (pose-from-tag-size error grows with r²),
-    σ_b = 0.01 rad, σ_tag_yaw = 0.05 rad.
+    σ_b = 0.01 rad, σ_tag_yaw = 0.05 rad. With ``tag_noise="measured"`` instead: each
+    observation's σ from :data:`ARENA_TAG_NOISE` (slamio/camera/tag_noise.py: a 0.16 m tag,
+    fx 468 px, corner σ 0.46 px; range σ ∝ r², yaw σ largest head on and far away).
 
 ``cylinders`` (seed 000)
     A 5 m × 5 m room with three coloured cylinders: red (id 0, height 0.40 m), green
@@ -121,7 +123,8 @@ Scenarios and their numbers
     Khoshelham & Elberink 2012), σ_b = 0.01 rad, σ_h = 0.02 m.
 
 ``grid`` (``landmarks`` = N)
-    N point landmarks on a square-ish grid, 3 m spacing: C = ⌈√N⌉ columns, id i at
+    N point landmarks on a square-ish grid, 3 m spacing (``grid_spacing_m`` changes it, and
+    the lanes with it): C = ⌈√N⌉ columns, id i at
     (3·(i mod C), 3·(i div C)). The robot mows lanes between landmark rows, every third gap
     (y = 1.5, 10.5, 19.5, … m: every landmark is within 4.5 m of a lane), each lane
     running 2 m past the outer columns, then drives straight back to the start (for a single
