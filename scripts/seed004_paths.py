@@ -27,6 +27,7 @@ import argparse  # noqa: E402
 import math  # noqa: E402
 import statistics  # noqa: E402
 import sys  # noqa: E402
+import tempfile  # noqa: E402
 from concurrent.futures import ProcessPoolExecutor  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -36,10 +37,7 @@ import numpy as np  # noqa: E402
 
 from fgslam.compare import compute_metrics  # noqa: E402
 from fgslam.runner import compare_log  # noqa: E402
-from slamio.camera.tag_noise import view_angle_rad  # noqa: E402
-import tempfile  # noqa: E402
-
-from slamio.log import Observation, read_log, write_log  # noqa: E402
+from slamio.log import Observation, TruthLandmark, TruthPose, read_log, write_log  # noqa: E402
 from slamio.sim import simulate  # noqa: E402
 
 ESTIMATORS = ("ekf-s004", "ekf", "isam2")
@@ -54,11 +52,21 @@ def parse_seeds(text: str) -> list[int]:
 
 
 def viewing_angles_deg(records) -> dict[int, list[float]]:
-    """Per tag, the signed viewing angles (degrees) of its observations: the mechanism's variable."""
+    """Per tag, the true signed viewing angles (degrees) of its sightings: the mechanism's variable.
+
+    The angle between the tag's face normal and the direction from the tag to the robot, from
+    the true pose and the true tag (not the noisy measurements, whose noise would widen it).
+    """
+    tags = {r.landmark_id: r for r in records if isinstance(r, TruthLandmark)}
     out: dict[int, list[float]] = {}
+    pose = None
     for r in records:
-        if isinstance(r, Observation) and r.tag_yaw_rad is not None:
-            d = r.tag_yaw_rad - (r.bearing_rad + math.pi)
+        if isinstance(r, TruthPose):
+            pose = r
+        elif isinstance(r, Observation):
+            tag = tags[r.landmark_id]
+            to_robot = math.atan2(pose.y_m - tag.y_m, pose.x_m - tag.x_m)
+            d = tag.yaw_rad - to_robot
             out.setdefault(r.landmark_id, []).append(math.degrees(math.atan2(math.sin(d), math.cos(d))))
     return out
 
