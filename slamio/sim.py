@@ -108,7 +108,9 @@ Scenarios and their numbers
     ≈ 0.043 rad per √m driven).
     Camera: FOV 1.2 rad (69°), range 0.15–3.5 m, tags seen up to 70° off their normal;
     σ_r = 0.01 m + 0.005 m⁻¹·r² (pose-from-tag-size error grows with r²),
-    σ_b = 0.01 rad, σ_tag_yaw = 0.05 rad.
+    σ_b = 0.01 rad, σ_tag_yaw = 0.05 rad. With ``tag_noise="measured"`` instead: each
+    observation's σ from :data:`ARENA_TAG_NOISE` (slamio/camera/tag_noise.py: a 0.16 m tag,
+    fx 468 px, corner σ 0.46 px; range σ ∝ r², yaw σ largest head on and far away).
 
 ``cylinders`` (seed 000)
     A 5 m × 5 m room with three coloured cylinders: red (id 0, height 0.40 m), green
@@ -121,7 +123,8 @@ Scenarios and their numbers
     Khoshelham & Elberink 2012), σ_b = 0.01 rad, σ_h = 0.02 m.
 
 ``grid`` (``landmarks`` = N)
-    N point landmarks on a square-ish grid, 3 m spacing: C = ⌈√N⌉ columns, id i at
+    N point landmarks on a square-ish grid, 3 m spacing (``grid_spacing_m`` changes it, and
+    the lanes with it): C = ⌈√N⌉ columns, id i at
     (3·(i mod C), 3·(i div C)). The robot mows lanes between landmark rows, every third gap
     (y = 1.5, 10.5, 19.5, … m: every landmark is within 4.5 m of a lane), each lane
     running 2 m past the outer columns, then drives straight back to the start (for a single
@@ -150,6 +153,7 @@ from typing import Any
 
 import numpy as np
 
+from slamio.camera.tag_noise import TagNoise, view_angle_rad
 from slamio.errors import FgslamError
 from slamio.geometry import arc_increment, compose_pose, wrap_angle
 from slamio.log import Header, Observation, Odometry, Record, TruthLandmark, TruthPose
@@ -173,6 +177,7 @@ __all__ = [
 ]
 
 SCENARIOS = ("arena-square", "arena-octagon", "cylinders", "grid")
+TAG_NOISE_MODELS = ("nominal", "measured")
 
 WHEEL_BASE_M = 0.235  # iRobot Create (Open Interface spec)
 MAX_WHEEL_SPEED_M_S = 0.5  # Drive Direct accepts ±500 mm/s per wheel
@@ -182,6 +187,10 @@ ARENA_SIDE_M = 3.048  # 10 ft
 ARENA_PATH_WIDTH_M = 1.8288  # 6 ft
 TAG_HEIGHT_M = 0.20
 TAG_FACING_LIMIT_RAD = math.radians(70.0)
+ARENA_TAG_SIZE_M = 0.16
+#: ``tag_noise="measured"``: the arena camera (640 px across its 1.2 rad FOV) and a 0.16 m tag
+#: with the corner precision measured on real photos (slamio/camera/tag_noise.py).
+ARENA_TAG_NOISE = TagNoise(fx_px=320.0 / math.tan(0.6), tag_size_m=ARENA_TAG_SIZE_M)
 GRID_SPACING_M = 3.0
 GRID_LANE_EVERY_ROWS = 3  # one lane per three landmark rows (9 m apart)
 GRID_MARGIN_M = 2.0
@@ -458,6 +467,17 @@ def visible_landmarks(poses: np.ndarray, world: World, sensor: SensorModel) -> S
     )
 
 
+def _observation_sigmas(seen: Sightings, sensor: SensorModel, tag_noise: str):
+    """Per-observation σ of range, bearing and tag yaw (None without tags) at the true values."""
+    if tag_noise == "measured":
+        view = view_angle_rad(seen.bearing_rad, seen.tag_yaw_rad)
+        return (ARENA_TAG_NOISE.sigma_range_m(seen.range_m, view), ARENA_TAG_NOISE.sigma_bearing_rad(seen.range_m),
+                ARENA_TAG_NOISE.sigma_tag_yaw_rad(seen.range_m, view))
+    count = len(seen.range_m)
+    yaw = None if sensor.sigma_tag_yaw_rad is None else np.full(count, sensor.sigma_tag_yaw_rad)
+    return range_sigma_m(seen.range_m, sensor), np.full(count, sensor.sigma_bearing_rad), yaw
+
+
 # --------------------------------------------------------------------------- worlds and paths
 
 
@@ -544,7 +564,7 @@ def grid_path(n_landmarks: int, spacing_m: float = GRID_SPACING_M) -> np.ndarray
     return np.array(points)
 
 
-def _scenario(name: str, n_landmarks: int) -> Scenario:
+def _scenario(name: str, n_landmarks: int, grid_spacing_m: float = GRID_SPACING_M) -> Scenario:
     centre = (0.5 * ARENA_SIDE_M, 0.5 * ARENA_SIDE_M)
     if name in ("arena-square", "arena-octagon"):
         sides = 4 if name == "arena-square" else 8
@@ -560,9 +580,9 @@ def _scenario(name: str, n_landmarks: int) -> Scenario:
             {"landmark_colours": list(CYLINDER_COLOURS), "room_m": [0.0, 0.0, 5.0, 5.0], "camera": "Kinect v1"},
         )
     return Scenario(
-        name, World(grid_landmarks_xy(n_landmarks)), grid_path(n_landmarks), 2,
+        name, World(grid_landmarks_xy(n_landmarks, grid_spacing_m)), grid_path(n_landmarks, grid_spacing_m), 2,
         _GRID_MOTION, _GRID_ODOMETRY, _GRID_SENSOR,
-        {"grid_spacing_m": GRID_SPACING_M},
+        {"grid_spacing_m": grid_spacing_m},
     )
 
 
@@ -748,6 +768,8 @@ def simulate(
     command: str | None = None,
     outliers: float = 0.0,
     outlier_mode: str = "replace",
+    tag_noise: str = "nominal",
+    grid_spacing_m: float = GRID_SPACING_M,
 ) -> tuple[Header, list[Record]]:
     """Simulate one run of ``scenario`` and return its log ``(header, records)``.
 
@@ -764,6 +786,10 @@ def simulate(
     step 6); the records do not say which. ``outlier_mode="add"`` keeps every observation
     and adds the misdetections instead (each observation is followed by one with
     probability p/(1 − p), so that a share p of all observations are outliers).
+    ``tag_noise="measured"`` (AprilTag scenarios only) draws each tag observation's range,
+    bearing and yaw noise from :data:`ARENA_TAG_NOISE`, which depends on the range and the
+    viewing angle, and writes that observation's own σ into its record.
+    ``grid_spacing_m`` sets the ``grid`` scenario's landmark spacing (and its lanes with it).
 
     Record order: a ``TruthLandmark`` per landmark (ids 0..N−1); ``TruthPose`` of pose 0
     and its observations; then per step ``Odometry``, ``TruthPose`` and the observations at
@@ -773,9 +799,13 @@ def simulate(
     _check_arguments(scenario, seed, landmarks, laps, noise_scale, outliers)
     if outlier_mode not in ("replace", "add"):
         raise FgslamError(f"outlier_mode must be 'replace' or 'add', got {outlier_mode!r}")
+    if tag_noise not in TAG_NOISE_MODELS:
+        raise FgslamError(f"tag_noise must be one of {', '.join(TAG_NOISE_MODELS)}, got {tag_noise!r}")
     noise_scale = float(noise_scale)
     outliers = float(outliers)
-    sc = _scenario(scenario, int(landmarks))
+    if not (isinstance(grid_spacing_m, numbers.Real) and math.isfinite(grid_spacing_m) and grid_spacing_m > 0):
+        raise FgslamError(f"grid_spacing_m must be a positive number of metres, got {grid_spacing_m!r}")
+    sc = _scenario(scenario, int(landmarks), float(grid_spacing_m))
     laps = sc.default_laps if laps is None else int(laps)
     # spawn(3)'s first two children are spawn(2)'s: the motion and sensor streams do not
     # depend on whether outliers are drawn.
@@ -783,7 +813,12 @@ def simulate(
 
     drive = _drive(sc, laps, noise_scale, motion_rng)
     start_pose = tuple(float(v) for v in drive.poses[0])
+    if tag_noise == "measured" and sc.sensor.facing_limit_rad is None:
+        raise FgslamError(f"tag_noise='measured' is for the AprilTag scenarios (arena-*), not {scenario!r}")
     header = _header(sc, start_pose, int(seed), laps, noise_scale, command)
+    if tag_noise == "measured":
+        noise = {**header.noise, "observation": ARENA_TAG_NOISE.describe()}
+        header = dataclasses.replace(header, noise=noise, source={**header.source, "tag_noise": "measured"})
     if hide_ids:
         header = dataclasses.replace(header, source={**header.source, "hide_ids": True})
     if outliers > 0.0:
@@ -800,9 +835,9 @@ def simulate(
     seen = visible_landmarks(drive.poses, sc.world, sc.sensor)
     s = sc.sensor
     n = noise_scale * sensor_rng.standard_normal((len(seen.pose_index), 4))
-    sigma_range = range_sigma_m(seen.range_m, s)
+    sigma_range, sigma_bearing, sigma_yaw = _observation_sigmas(seen, s, tag_noise)
     range_meas = seen.range_m + sigma_range * n[:, 0]
-    bearing_meas = wrap_angle(seen.bearing_rad + s.sigma_bearing_rad * n[:, 1])
+    bearing_meas = wrap_angle(seen.bearing_rad + sigma_bearing * n[:, 1])
     extra = None  # add mode: whether observation j is followed by a misdetection
     if outliers > 0.0:
         # Misdetections with a valid id (step 6); drawn for every observation so that the
@@ -822,8 +857,8 @@ def simulate(
     if s.sigma_height_m is not None:
         height_meas = (sc.world.heights_m[seen.landmark_id] + s.sigma_height_m * n[:, 2]).tolist()
     yaw_meas = None
-    if s.sigma_tag_yaw_rad is not None:
-        yaw_meas = wrap_angle(seen.tag_yaw_rad + s.sigma_tag_yaw_rad * n[:, 3]).tolist()
+    if sigma_yaw is not None:
+        yaw_meas = wrap_angle(seen.tag_yaw_rad + sigma_yaw * n[:, 3]).tolist()
 
     records: list[Record] = []
     world = sc.world
@@ -839,8 +874,9 @@ def simulate(
     bounds = np.searchsorted(seen.pose_index, np.arange(n_steps + 2)).tolist()
     ids = seen.landmark_id.tolist()
     ranges, bearings = range_meas.tolist(), bearing_meas.tolist()
-    sigmas_r = sigma_range.tolist()
-    sigma_b, sigma_h, sigma_yaw = s.sigma_bearing_rad, s.sigma_height_m, s.sigma_tag_yaw_rad
+    sigmas_r, sigmas_b = sigma_range.tolist(), sigma_bearing.tolist()
+    sigma_h = s.sigma_height_m
+    sigmas_yaw = None if sigma_yaw is None else sigma_yaw.tolist()
     poses = drive.poses.tolist()
     distances, angles = distance_m.tolist(), angle_rad.tolist()
     for k in range(n_steps + 1):
@@ -858,11 +894,11 @@ def simulate(
                 observed.append((range_out[j], bearing_out[j]))
             for range_m, bearing_rad in observed:
                 records.append(Observation(
-                    stamp, None if hide_ids else ids[j], range_m, bearing_rad, sigmas_r[j], sigma_b,
+                    stamp, None if hide_ids else ids[j], range_m, bearing_rad, sigmas_r[j], sigmas_b[j],
                     None if height_meas is None else height_meas[j],
                     sigma_h,
                     None if yaw_meas is None else yaw_meas[j],
-                    sigma_yaw,
+                    None if sigmas_yaw is None else sigmas_yaw[j],
                     ids[j] if hide_ids else None,
                 ))
     return header, records

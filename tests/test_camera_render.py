@@ -10,6 +10,8 @@ import pytest
 from slamio.camera.model import CameraModel, T_robot_camera_from_mount, kinect_v1_default
 from slamio.camera.render import (
     CYLINDER_BGR,
+    BoardSpec,
+    board_inside,
     CylinderSpec,
     Scene,
     TagSpec,
@@ -97,3 +99,30 @@ def test_distorted_camera_renders_through_its_lens():
     tl = project_world_points(cam, (0.0, 0.0, 0.0), tag_corners_world(tag))[0]
     u, v = int(round(tl[0] + 2)), int(round(tl[1] + 2))
     assert frame.bgr[v, u].max() < 60
+
+
+def test_board_shapes_inside_tests():
+    # rectangle 0.2 × 0.4, triangle base 0.2 height 0.3 (apex up), circle 0.2 across
+    assert board_inside("rectangle", 0.099, 0.399, 0.2, 0.4) and not board_inside("rectangle", 0.101, 0.2, 0.2, 0.4)
+    assert board_inside("triangle", 0.0, 0.299, 0.2, 0.3) and not board_inside("triangle", 0.06, 0.15, 0.2, 0.3)
+    assert board_inside("triangle", 0.049, 0.15, 0.2, 0.3)  # half width at mid height is 0.05
+    assert board_inside("circle", 0.0, 0.199, 0.2, 0.2) and not board_inside("circle", 0.08, 0.02, 0.2, 0.2)
+    with pytest.raises(ValueError, match="board shape"):
+        BoardSpec("hexagon", 1.0, 0.0, 0.2, 0.2, math.pi, (0, 0, 200))
+
+
+@pytest.mark.parametrize("shape, width, height", [("rectangle", 0.2, 0.4), ("triangle", 0.24, 0.3), ("circle", 0.24, 0.24)])
+def test_board_silhouette_and_depth_where_projected(shape, width, height):
+    board = BoardSpec(shape, 2.1, 0.0, width, height, math.pi, CYLINDER_BGR["blue"], bottom_m=0.1)
+    frame = render(CAM, (0.0, 0.0, 0.0), Scene(boards=(board,)), supersample=1)
+    blue = (frame.bgr[..., 0].astype(int) - frame.bgr[..., 2]) > 60
+    rows = np.nonzero(blue.any(axis=1))[0]
+    # its top and bottom project to these rows (the board faces the camera 2.0 m ahead of the lens)
+    top, bottom = project_world_points(CAM, (0.0, 0.0, 0.0), np.array([[2.1, 0.0, 0.1 + height], [2.1, 0.0, 0.1]]))
+    apex_px = 2.0 if shape == "triangle" else 1.0  # a triangle's last rows are narrower than a pixel
+    assert rows.min() == pytest.approx(top[1], abs=apex_px) and rows.max() == pytest.approx(bottom[1], abs=1.0)
+    middle = int(round(0.5 * (top[1] + bottom[1])))
+    assert frame.depth_m[middle, 320] == pytest.approx(2.0, abs=1e-3)  # a flat face: depth = distance
+    area = blue.sum() / (525.0 / 2.0) ** 2  # pixels → m² at 2 m
+    expected = {"rectangle": width * height, "triangle": 0.5 * width * height, "circle": math.pi * width**2 / 4}[shape]
+    assert area == pytest.approx(expected, rel=0.05)

@@ -222,3 +222,18 @@ def test_import_mrclam_fixture_and_run_it(tmp_path, capsys):
     assert "ekf" in capsys.readouterr().out
     assert main(["import", "mrclam", str(log)]) == 1  # no SOURCE: says how
     assert "needs SOURCE" in capsys.readouterr().err
+
+
+def test_measured_tag_noise_from_the_command_line_reaches_the_estimators(tmp_path, capsys):
+    log = tmp_path / "measured.jsonl"
+    assert main(["sim", "arena-square", "--seed", "2", "--laps", "1", "--tag-noise", "measured", "--out", str(log)]) == 0
+    from slamio.log import Observation, read_log
+
+    run_log = read_log(log)
+    sigmas = {o.sigma_tag_yaw_rad for o in run_log.records if isinstance(o, Observation)}
+    assert len(sigmas) > 100  # one σ per observation, not one for all
+    assert run_log.header.source["tag_noise"] == "measured"
+    out = tmp_path / "r"
+    assert main(["run", str(log), "--out", str(out), "--no-report", "--estimators", "ekf,isam2"]) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["ekf"]["ate_rmse_m"] < 0.05 and metrics["isam2"]["ate_rmse_m"] < 0.05

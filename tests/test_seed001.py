@@ -504,3 +504,23 @@ def test_fgslam_run_calibration_reaches_ekf_s001(tmp_path, capsys):
     assert metrics["trial_calibration"] == str(cal)
     assert "R and Q from the trial calibration" in capsys.readouterr().out
     assert ate["plain"] != ate["calibrated"]  # the filter did use the trials
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("spacing_m, noise_scale, low, high", [
+    (1.0, 1.0, 0.99, 1.0),  # spacing twice the gate, world-point errors ~0.1 m: right every time
+    (0.5, 1.0, 0.0, 0.7),  # spacing = the 0.5 m gate: unseen landmarks merge into mapped neighbours
+    (1.0, 4.0, 0.0, 0.5),  # world-point errors ~0.4 m + pose drift reach the gate: duplicates
+])
+def test_nearest_neighbour_fails_where_spacing_meets_the_gate_or_errors_reach_it(spacing_m, noise_scale, low, high):
+    # the boundary of scripts/seed001_association.py (docs/seeds.md), one seed per cell
+    from fgslam.compare import score_associations
+
+    header, records = simulate("grid", 1, landmarks=36, hide_ids=True, grid_spacing_m=spacing_m,
+                               noise_scale=noise_scale)
+    f, keys, true = EkfS001(header), [], []
+    for step in group_steps(header, records):
+        f.step(step)
+        keys += f.step_associations()
+        true += [o.truth_landmark_id for o in step.observations]
+    assert low <= score_associations(true, keys).rate <= high

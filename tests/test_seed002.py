@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -211,3 +212,31 @@ def test_the_papers_deviation_columns_recompute():
     # every measured height is an over-estimate (+1.0 … +10.4 %), while gHeight's geometry
     # alone reads low: the paper's errors came from elsewhere (pixel picking, depth noise)
     assert np.all(printed > 0)
+
+
+def test_seed002_shapes_on_rendered_frames_read_low_with_gheight_and_right_with_the_pinhole():
+    # the experiment of scripts/seed002_shapes.py, one frame per shape at 2 m (docs/seeds.md)
+    from slamio.camera.accuracy import ROBOT_POSE, kinect_camera, world_point
+    from slamio.camera.colour import DEFAULT_COLOURS, ColourOptions
+    from slamio.camera.detect import FrontEnd, FrontEndConfig
+    from slamio.camera.render import CYLINDER_BGR, BoardSpec, Scene, render
+    from slamio.camera.sources import Frame
+
+    shapes = (("circle", "red", 0.24, 0.240), ("triangle", "green", 0.24, 0.243), ("rectangle", "blue", 0.20, 0.405))
+    by_name = {c.name: c for c in DEFAULT_COLOURS}
+    specs = tuple(dataclasses.replace(by_name[c], shape=s, width_m=w, height_m=h) for s, c, w, h in shapes)
+    camera = kinect_camera()
+    fronts = {m: FrontEnd(camera, FrontEndConfig(kind="colour", colour=ColourOptions(colours=specs, height_method=m)))
+              for m in ("gheight", "pinhole")}
+    rng = np.random.default_rng(0)
+    x, y = world_point(2.0, 0.0)
+    facing = math.atan2(ROBOT_POSE[1] - y, ROBOT_POSE[0] - x)
+    for shape, colour, width, height in shapes:
+        board = BoardSpec(shape, x, y, width, height, facing, CYLINDER_BGR[colour])
+        image = render(camera, ROBOT_POSE, Scene(boards=(board,)), depth_model="kinect", noise_sigma=2.0, rng=rng,
+                       supersample=3)
+        frame = Frame(0.0, 0, "rendered", image.bgr, image.depth_m)
+        (g,) = fronts["gheight"].process(frame).observations
+        (p,) = fronts["pinhole"].process(frame).observations
+        assert -0.16 < g.height_m / height - 1 < -0.08, shape  # gHeight reads low (docs/estimators.md)
+        assert abs(p.height_m / height - 1) < 0.04, shape

@@ -302,7 +302,9 @@ def test_odometry_covariance_is_the_first_order_propagation():
 
 
 @pytest.mark.parametrize(
-    "scenario, kwargs", [("arena-square", {"laps": 4}), ("cylinders", {}), ("grid", {"landmarks": 40})]
+    "scenario, kwargs",
+    [("arena-square", {"laps": 4}), ("arena-octagon", {"laps": 4, "tag_noise": "measured"}), ("cylinders", {}),
+     ("grid", {"landmarks": 40})],
 )
 def test_observation_sigmas_match_the_actual_errors(scenario, kwargs):
     header, records = sim(scenario, 12, **kwargs)
@@ -563,3 +565,47 @@ def test_add_mode_keeps_every_observation_and_adds_misdetections():
 def test_bad_outlier_mode_raises():
     with pytest.raises(FgslamError, match="outlier_mode"):
         simulate("arena-square", 1, outliers=0.1, outlier_mode="swap")
+
+
+# --------------------------------------------------------------------------- measured tag noise
+
+
+def test_measured_tag_noise_sigmas_follow_range_and_viewing_angle():
+    header, records = sim("arena-square", 3, tag_noise="measured")
+    assert header.source["tag_noise"] == "measured"
+    obs = header.noise["observation"]
+    fx, size, px = obs["fx_px"], obs["tag_size_m"], obs["corner_sigma_px"]
+    landmarks = truth_map(records)
+    checked = 0
+    for step in group_steps(header, records):
+        pose = (step.truth.x_m, step.truth.y_m, step.truth.theta_rad)
+        for o in step.observations:
+            lm = landmarks[o.landmark_id]
+            _, range_m, bearing_rad = in_view(pose, lm, header.sensor)
+            # viewing angle from the world geometry: tag normal vs tag→robot direction
+            to_robot = math.atan2(pose[1] - lm.y_m, pose[0] - lm.x_m)
+            view = abs(wrap_angle(lm.yaw_rad - to_robot))
+            eps = px * range_m / (fx * size)
+            assert o.sigma_bearing_rad == pytest.approx(obs["g_b"] * px / fx)
+            assert o.sigma_range_m == pytest.approx(obs["g_r"] * range_m * eps / max(math.cos(view), 0.1) ** obs["p_r"])
+            g_eps = obs["g_y"] * eps
+            assert o.sigma_tag_yaw_rad == pytest.approx(g_eps / math.sqrt(math.sin(view) ** 2 + g_eps))
+            checked += 1
+    assert checked > 500
+
+
+def test_measured_tag_noise_only_for_tag_scenarios_and_names_checked():
+    with pytest.raises(FgslamError, match="AprilTag scenarios"):
+        simulate("cylinders", 1, tag_noise="measured")
+    with pytest.raises(FgslamError, match="tag_noise must be one of"):
+        simulate("arena-square", 1, tag_noise="real")
+
+
+def test_grid_spacing_sets_the_landmark_spacing_and_is_checked():
+    header, records = sim("grid", 2, landmarks=9, grid_spacing_m=0.75)
+    xy = np.array([(r.x_m, r.y_m) for r in records if isinstance(r, TruthLandmark)])
+    gaps = np.linalg.norm(xy[:, None, :] - xy[None, :, :], axis=2)
+    assert np.min(gaps[gaps > 0]) == pytest.approx(0.75)
+    assert header.sensor["grid_spacing_m"] == 0.75
+    with pytest.raises(FgslamError, match="grid_spacing_m"):
+        simulate("grid", 1, grid_spacing_m=0.0)

@@ -59,6 +59,14 @@ def add_parser(verbs) -> argparse.ArgumentParser:
         help="replace: misdetections take the place of observations (default); add: every "
         "observation is kept and the misdetections come on top (still FRACTION of all)",
     )
+    sim.add_argument(
+        "--tag-noise",
+        choices=("nominal", "measured"),
+        default="nominal",
+        help="arena scenarios: nominal = fixed sigmas (slamio/sim.py docstring; default); measured = "
+        "range, bearing and yaw noise growing with distance and viewing angle as measured on real "
+        "and rendered AprilTag images (docs/camera.md), each observation with its own sigmas",
+    )
     sim.set_defaults(func=cmd_sim)
     return sim
 
@@ -77,6 +85,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
         hide_ids=args.hide_ids,
         outliers=args.outliers,
         outlier_mode=args.outlier_mode,
+        tag_noise=args.tag_noise,
         command=command_line(args),
     )
     return write_run_log(args.out, header, records, overwrite=args.overwrite)

@@ -18,7 +18,8 @@ reports the largest error over them:
 The robot stands at (1.0 m, 2.0 m, 0.3 rad) in the world, so every frame conversion is
 exercised. Frames get Gaussian pixel noise (σ = 2 grey levels) from a seeded generator.
 
-:func:`read_corner_list` and :func:`match_detections` score a detector against listed tag
+:func:`real_corner_sigma_px` measures the corner precision on the real pupil-labs photos
+(slamio/camera/tag_noise.py uses it). :func:`read_corner_list` and :func:`match_detections` score a detector against listed tag
 corners (the real photos in ``tests/data/apriltag-photos``); ``scripts/bench_apriltag.py``
 and ``tests/test_camera_apriltag.py`` use them.
 """
@@ -159,6 +160,44 @@ def format_table(rows: list[tuple[Errors, Errors]]) -> str:
             f"| {f(cyl.third)} % ({cyl.third_count}) | {f(cyl.seed_bearing_deg)}° | {f(cyl.seed_height_pct, 1)} % |"
         )
     return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------- real photos
+
+
+#: fx, cx, fy, cy of the pupil-labs photos (tests/data/apriltag-photos/README.md); tags 0.065 m.
+PUPIL_K = {
+    "pupil_test_image.png": (336.7755634193813, 333.3575643300718, 336.02729840829176, 212.77376312080065),
+    **{f"pupil_test_image_multiple_{k:02d}.png": (338.563277422543, 336.45495347495824, 338.939280638548,
+                                                    230.486982216255) for k in range(1, 11)},
+}
+
+
+def real_corner_sigma_px(photos: str | os.PathLike[str]) -> tuple[float, int]:
+    """Corner precision (px) of the front-end on the pupil-labs photos in ``photos``, and the tag count.
+
+    Those photos have intrinsics but no pose truth. Each tag's corners, refined as the
+    front-end does, are fitted with a square (IPPE); the RMS residual over 8 coordinates
+    with 6 pose parameters fitted leaves 2 degrees of freedom, so the per-axis corner σ is
+    about residual·√(8/2). Returns the median over tags of that.
+    """
+    import cv2
+
+    from slamio.camera.apriltag import AprilTagDetector, estimate_tag_pose, refine_tag_corners
+
+    detector = AprilTagDetector()
+    residuals = []
+    for name, (fx, cx, fy, cy) in PUPIL_K.items():
+        cam = CameraModel(640, 480, np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]]))
+        grey = cv2.imread(os.path.join(photos, name), cv2.IMREAD_GRAYSCALE)
+        for d in detector.detect(grey):
+            corners = refine_tag_corners(grey, d.corners_px, cam)
+            if corners is None:  # as the front-end: the detector's corners
+                corners = d.corners_px
+            poses = estimate_tag_pose(corners, 0.065, cam)
+            if poses:
+                residuals.append(poses[0].reprojection_error_px)
+    return float(np.median(residuals)) * math.sqrt(8 / 2), len(residuals)
 
 
 # --------------------------------------------------------------------------- listed corners

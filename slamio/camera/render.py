@@ -14,6 +14,10 @@ camera delivers them.
   (the AprilTag "tag size"). The back of the card is white.
 - **Cylinders** (:class:`CylinderSpec`): vertical, standing on the floor, coloured, lit by
   a fixed directional light (Lambertian with ambient), top cap included.
+- **Boards** (:class:`BoardSpec`): seed 002's flat upright shapes — a circle, a triangle
+  (apex up) or a rectangle — of one colour, ``width_m`` wide and ``height_m`` tall, their
+  lowest point ``bottom_m`` above the floor, facing world direction ``yaw_rad``; both sides
+  coloured, flat-shaded by the same light.
 
 Each pixel's colour is the average of ``supersample``² sub-pixel rays in an n-rooks pattern
 (:func:`subpixel_offsets`: anti-aliased edges resolved to 1/``supersample``² pixel,
@@ -69,9 +73,31 @@ class CylinderSpec:
 
 
 @dataclass(frozen=True)
+class BoardSpec:
+    shape: str  # "circle" | "triangle" | "rectangle"
+    x_m: float
+    y_m: float
+    width_m: float  # circle: diameter (height_m must equal it); triangle: base
+    height_m: float
+    yaw_rad: float  # world direction the face points to
+    colour_bgr: tuple[int, int, int]
+    bottom_m: float = 0.0
+    name: str = ""
+    landmark_id: int | None = None
+
+    def __post_init__(self):
+        if self.shape not in BOARD_SHAPES:
+            raise ValueError(f"board shape must be one of {', '.join(BOARD_SHAPES)}, got {self.shape!r}")
+
+
+BOARD_SHAPES = ("circle", "triangle", "rectangle")
+
+
+@dataclass(frozen=True)
 class Scene:
     tags: tuple[TagSpec, ...] = ()
     cylinders: tuple[CylinderSpec, ...] = ()
+    boards: tuple[BoardSpec, ...] = ()
     floor_bgr: tuple[int, int, int] = (110, 115, 120)
     background_bgr: tuple[int, int, int] = (185, 185, 180)
     light_dir: tuple[float, float, float] = field(default=(0.4, 0.3, 0.85))
@@ -189,17 +215,25 @@ def _floor(origin, dirs, buf: _Buffer, colour_bgr, want_colour: bool) -> None:
     buf.offer((0, t.shape[0], 0, t.shape[1]), t, colour)  # the whole region
 
 
-def _tag(origin, dirs, box, buf: _Buffer, tag: TagSpec, want_colour: bool) -> None:
+def _plane_hits(origin, dirs, box, point, right, up, normal):
+    """Rays of ``box`` against the plane through ``point`` with ``normal``: (t, a, b, d·normal).
+
+    t is the ray parameter (inf when parallel), (a, b) the hit's coordinates along ``right``
+    and ``up`` from ``point``; d·normal < 0 means the ray meets the plane's front.
+    """
     r0, r1, c0, c1 = box
     d = dirs[r0:r1, c0:c1]
-    centre, right, up, normal = tag_axes_world(tag)
     denom = d @ normal
     with np.errstate(divide="ignore", invalid="ignore"):
-        t = ((centre - origin) @ normal) / denom
+        t = ((point - origin) @ normal) / denom
     t = np.where(np.abs(denom) > 1e-12, t, np.inf)
-    p = origin + t[..., None] * d
-    a = (p - centre) @ right
-    b = (p - centre) @ up
+    offset = origin + t[..., None] * d - point
+    return t, offset @ right, offset @ up, denom
+
+
+def _tag(origin, dirs, box, buf: _Buffer, tag: TagSpec, want_colour: bool) -> None:
+    centre, right, up, normal = tag_axes_world(tag)
+    t, a, b, denom = _plane_hits(origin, dirs, box, centre, right, up, normal)
     cell = tag.size_m / 8.0
     half_card = 0.5 * tag.size_m + tag.margin_cells * cell
     hit = (t > 0) & (np.abs(a) <= half_card) & (np.abs(b) <= half_card)
@@ -246,6 +280,43 @@ def _cylinder(origin, dirs, box, buf: _Buffer, cyl: CylinderSpec, light: np.ndar
         shade = np.where(t_top < t_side, 0.55 + 0.45 * light[2], 0.55 + 0.45 * np.nan_to_num(lambert_side))
         colour = (shade[..., None] * np.asarray(cyl.colour_bgr, dtype=np.float32)).astype(np.float32)
     buf.offer(box, t, colour)
+
+
+def board_inside(shape: str, a, b, width_m: float, height_m: float):
+    """Whether board coordinates (a across from the centre line, b up from the lowest point) are on the shape."""
+    a, b = np.asarray(a), np.asarray(b)
+    half = 0.5 * width_m
+    if shape == "rectangle":
+        return (np.abs(a) <= half) & (b >= 0.0) & (b <= height_m)
+    if shape == "triangle":  # apex up
+        return (b >= 0.0) & (b <= height_m) & (np.abs(a) <= half * (1.0 - b / height_m))
+    return a * a + (b - 0.5 * height_m) ** 2 <= half * half  # circle
+
+
+def _board_axes(board: BoardSpec) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(bottom-centre point, right, up, normal) of an upright board in the world frame."""
+    n = np.array([math.cos(board.yaw_rad), math.sin(board.yaw_rad), 0.0])
+    up = np.array([0.0, 0.0, 1.0])
+    return np.array([board.x_m, board.y_m, board.bottom_m]), np.cross(-n, up), up, n
+
+
+def _board(origin, dirs, box, buf: _Buffer, board: BoardSpec, light: np.ndarray, want_colour: bool) -> None:
+    base, right, up, normal = _board_axes(board)
+    t, a, b, _ = _plane_hits(origin, dirs, box, base, right, up, normal)
+    hit = (t > 0) & board_inside(board.shape, a, b, board.width_m, board.height_m)
+    t = np.where(hit, t, np.inf)
+    colour = None
+    if want_colour:
+        shade = 0.55 + 0.45 * abs(float(normal @ light))
+        colour = np.empty(t.shape + (3,), dtype=np.float32)
+        colour[:] = shade * np.asarray(board.colour_bgr, dtype=np.float32)
+    buf.offer(box, t, colour)
+
+
+def _board_bounds(board: BoardSpec) -> np.ndarray:
+    base, right, up, _ = _board_axes(board)
+    h = 0.5 * board.width_m
+    return np.array([base + sx * h * right + z * up for sx in (-1, 1) for z in (0.0, board.height_m)])
 
 
 def _cylinder_bounds(cyl: CylinderSpec) -> np.ndarray:
@@ -300,6 +371,8 @@ def _object_boxes(camera: CameraModel, T_world_camera: np.ndarray, scene: Scene)
         boxes.append((tag, _pixel_box(camera, T_camera_world, _tag_bounds(tag))))
     for cyl in scene.cylinders:
         boxes.append((cyl, _pixel_box(camera, T_camera_world, _cylinder_bounds(cyl))))
+    for board in scene.boards:
+        boxes.append((board, _pixel_box(camera, T_camera_world, _board_bounds(board))))
     return [(obj, box) for obj, box in boxes if box is not None]
 
 
@@ -326,6 +399,8 @@ def _cast(camera: CameraModel, T_world_camera: np.ndarray, scene: Scene, samples
         sub = (part[0] - region[0], part[1] - region[0], part[2] - region[2], part[3] - region[2])
         if isinstance(obj, TagSpec):
             _tag(origin, dirs, sub, buf, obj, want_colour)
+        elif isinstance(obj, BoardSpec):
+            _board(origin, dirs, sub, buf, obj, light, want_colour)
         else:
             _cylinder(origin, dirs, sub, buf, obj, light, want_colour)
     return buf
