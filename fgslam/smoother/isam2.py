@@ -34,10 +34,11 @@ import math
 
 import gtsam
 import numpy as np
-from gtsam.symbol_shorthand import H, X
+from gtsam.symbol_shorthand import H, L, X
 
 from ekf.range_only import DelayedInitRule
 from ekf.slam import has_height  # the same rule as the EKF's for a usable height
+from fgslam.smoother.correction import PoseCorrector
 from fgslam.smoother.factors import (
     DEFAULT_ROBUST_K,
     FactorBuilder,
@@ -187,6 +188,7 @@ class Isam2Smoother:
         tags: bool = False,
         keyframes: bool = False,
         max_keyframe_gap: int = 50,
+        online_correction: bool = True,
     ):
         threshold = _relinearize_threshold(relinearize_threshold)
         if relinearize_skip < 1 or final_updates < 0 or max_retries < 0:
@@ -250,6 +252,12 @@ class Isam2Smoother:
         self._held = HeldSteps()  # steps not yet given to iSAM2 (update_every / update_on)
         self._keyframes = Keyframes(self.keyframes, self.max_keyframe_gap)
         self._online = OnlinePose()  # the newest pose, for current_pose/current_covariance
+        self.online_correction = bool(online_correction)
+        self._corrector = (
+            PoseCorrector(header.start_pose, np.diag(np.square(np.asarray(header.start_sigma, dtype=float))))
+            if self.online_correction else None
+        )
+        self._landmark_xy: dict[int, tuple[float, float]] = {}  # iSAM2's landmark estimates at its last update
         self._num_poses = 0
         self._estimate_cache: gtsam.Values | None = None
 
@@ -278,6 +286,8 @@ class Isam2Smoother:
             assert self._online.pose is not None
             # latest iSAM2 estimate ⊕ the increments since, not dead reckoning from the start
             seed = self._online.pose.compose(increment)
+            if self._corrector is not None:  # … corrected by the observations of mapped landmarks
+                seed = self._corrected(odo, step.observations)
             self._online.moved(increment, odo)
             if self.keyframes:
                 observed = any(o.landmark_id is not None for o in step.observations)
@@ -326,7 +336,7 @@ class Isam2Smoother:
 
     def _due(self, k: int) -> bool:
         """Whether the held steps go to iSAM2 now (see ``update_every`` / ``update_on``)."""
-        if k == 0 or self._held.steps >= self.max_held_steps:
+        if k == 0 or self._held.steps >= self.max_held_steps or self._held.urgent:
             return True
         if self._held.steps < self.update_every:
             return False
@@ -346,6 +356,33 @@ class Isam2Smoother:
         last = self._keyframes.last
         pose = self._keyframes.latest_pose(self._isam.calculateEstimatePose2(X(last)))
         self._online.updated(pose, last, len(self._keyframes.open.links))
+        self._landmark_xy.clear()
+        if self._corrector is not None:
+            self._corrector.reset((pose.x(), pose.y(), pose.theta()))
+
+    def _corrected(self, odo, observations) -> gtsam.Pose2:
+        """The online correction (:mod:`fgslam.smoother.correction`): the corrector's pose
+        moved by ``odo`` and corrected by the observations of landmarks iSAM2 holds. A
+        landmark iSAM2 does not hold yet, or a surprising observation, makes the step urgent."""
+        corrector = self._corrector
+        corrector.predict((odo.dx_m, odo.dy_m, odo.dtheta_rad), odo.covariance)
+        for obs in observations:
+            lid = obs.landmark_id
+            if lid is None or obs.range_only:
+                continue
+            if lid not in self._landmarks.known:
+                self._held.urgent = True
+                continue
+            if lid in self._landmarks.tag_ids:
+                continue
+            xy = self._landmark_xy.get(lid)
+            if xy is None:
+                point = self._isam.calculateEstimatePoint2(L(lid))
+                xy = self._landmark_xy[lid] = (float(point[0]), float(point[1]))
+            R = ((obs.sigma_range_m**2, 0.0), (0.0, obs.sigma_bearing_rad**2))
+            if not corrector.correct(xy, obs.range_m, obs.bearing_rad, R):
+                self._held.urgent = True
+        return gtsam.Pose2(*corrector.mean)
 
     def current_pose(self) -> tuple[float, float, float]:
         """The online estimate of the latest pose (x_m, y_m, theta_rad).
@@ -366,6 +403,7 @@ class Isam2Smoother:
             return
         self._flush()
         self._estimate_cache = None
+        self._landmark_xy.clear()
         self._online.forget_marginal()  # the final updates below change iSAM2
         for _ in range(self.final_updates):
             try:

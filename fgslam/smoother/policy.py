@@ -43,7 +43,9 @@ class HeldSteps:
     Their odometry/prior/height factors and pose/height seeds (``core``, ``values``), their
     observation factors (``entries``), the range factors of range-only landmarks already
     placed (``ranges``), how many steps wait and whether any of them observed something:
-    run in one update later.
+    run in one update later. ``urgent`` marks a step that should not wait: it saw a
+    landmark iSAM2 does not hold yet, or an observation the online correction found
+    surprising (:mod:`fgslam.smoother.correction`).
     """
 
     def __init__(self):
@@ -53,13 +55,14 @@ class HeldSteps:
         self.ranges: list[PendingObservation] = []
         self.steps = 0
         self.observed = False
+        self.urgent = False
 
     def take(self) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values, list[PendingObservation],
                             list[PendingObservation]]:
         """(core, values, entries, ranges) of every held step; nothing is held afterwards."""
         taken = self.core, self.values, self.entries, self.ranges
         self.core, self.values, self.entries, self.ranges = gtsam.NonlinearFactorGraph(), gtsam.Values(), [], []
-        self.steps, self.observed = 0, False
+        self.steps, self.observed, self.urgent = 0, False, False
         return taken
 
 
