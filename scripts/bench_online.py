@@ -68,8 +68,17 @@ def logs(spec: str):
 
 
 def parse_sets(text: str) -> dict:
+    """``"a=1,b=(0.1,0.01)"`` → keywords (commas inside brackets belong to the value)."""
+    items, depth, current = [], 0, ""
+    for ch in text + ",":
+        depth += (ch in "([") - (ch in ")]")
+        if ch == "," and depth == 0:
+            items.append(current.strip())
+            current = ""
+        else:
+            current += ch
     out = {}
-    for item in filter(None, (t.strip() for t in text.split(","))):
+    for item in filter(None, items):
         key, _, value = item.partition("=")
         try:
             out[key] = ast.literal_eval(value)
@@ -92,6 +101,8 @@ def main(argv=None) -> int:
     ap.add_argument("--candidate", action="append", default=None, metavar="K=V,K=V",
                     help="Isam2Smoother keywords of one candidate (default: the defaults)")
     ap.add_argument("--reference-skip", type=int, default=1)
+    ap.add_argument("--no-reference", action="store_true",
+                    help="skip the every-step reference (ratios are then to the first candidate)")
     ap.add_argument("--robust", default=None, help="robust kernel for every iSAM2 (e.g. dcs)")
     args = ap.parse_args(argv)
     candidates = [parse_sets(c) for c in (args.candidate or [""])]
@@ -104,7 +115,7 @@ def main(argv=None) -> int:
             steps = group_steps(header, records)
             ekf, _ = run_estimator(EkfSlam(header), steps, covariances=False)
             reference = {"update_every": 1, "relinearize_skip": args.reference_skip, "online_correction": False}
-            rows = [("reference", reference)] + [(f"candidate {i}" if len(candidates) > 1 else "isam2", c)
+            rows = ([] if args.no_reference else [("reference", reference)]) + [(f"candidate {i}" if len(candidates) > 1 else "isam2", c)
                                                  for i, c in enumerate(candidates)]
             results = []
             batch = None

@@ -18,6 +18,7 @@ from gtsam.symbol_shorthand import L, T, X
 
 from ekf.models import range_bearing_nis
 from fgslam.smoother.chain import OdometryChain
+from fgslam.smoother.correction import correct, predict
 from fgslam.smoother.factors import odometry_noise_covariance
 from slamio.log import Odometry, Step
 
@@ -27,22 +28,27 @@ class OnlinePose:
 
     def __init__(self):
         self.pose: gtsam.Pose2 | None = None  # latest pose: iSAM2's after an update, else ⊕ odometry
-        # odometry records since the newest pose in iSAM2, for the online covariance; kept
-        # raw, so a step costs one list append
-        self._since: list[tuple[gtsam.Pose2, Odometry]] = []
+        # odometry records since the newest pose in iSAM2, for the online covariance, each
+        # with the observations the online correction used at that step; kept raw, so a
+        # step costs one list append
+        self._since: list[tuple[gtsam.Pose2, Odometry, tuple]] = []
+        self._anchor: gtsam.Pose2 | None = None  # iSAM2's estimate of its newest pose
         # current_covariance() is asked at every step (NEES): the marginal is kept until
         # iSAM2 changes, and the held odometry is propagated only once per record
         self._marginal: np.ndarray | None = None
         self._since_chain = OdometryChain(0)
 
-    def moved(self, increment: gtsam.Pose2, odometry: Odometry) -> None:
-        """Note one more step's odometry since the newest pose in iSAM2."""
-        self._since.append((increment, odometry))
+    def moved(self, increment: gtsam.Pose2, odometry: Odometry, used: tuple = ()) -> None:
+        """Note one more step's odometry since the newest pose in iSAM2, and the
+        observations the online correction used at it: ``(landmark_xy, range_m, bearing_rad, R)``."""
+        self._since.append((increment, odometry, used))
 
-    def updated(self, pose: gtsam.Pose2, newest_in_isam: int, steps_after: int) -> None:
+    def updated(self, pose: gtsam.Pose2, newest_in_isam: int, steps_after: int, anchor: gtsam.Pose2) -> None:
         """After an iSAM2 update: ``pose`` is the newest pose; the newest pose iSAM2 holds is
-        ``newest_in_isam`` and only the last ``steps_after`` steps (the open keyframe chain) follow it."""
+        ``newest_in_isam`` (estimated at ``anchor``) and only the last ``steps_after`` steps
+        (the open keyframe chain) follow it."""
         self.pose = pose
+        self._anchor = anchor
         self._since = self._since[len(self._since) - steps_after :] if steps_after else []
         self._since_chain = OdometryChain(newest_in_isam)
         self._marginal = None
@@ -54,7 +60,7 @@ class OnlinePose:
     def _caught_up_since_chain(self) -> OdometryChain:
         """The odometry since the newest iSAM2 pose, with the records held since the last call."""
         chain = self._since_chain
-        for increment, odo in self._since[len(chain.links) :]:
+        for increment, odo, _ in self._since[len(chain.links) :]:
             chain.append(increment, odometry_noise_covariance(odo))
         return chain
 
@@ -64,6 +70,12 @@ class OnlinePose:
         if self._marginal is None:
             self._marginal = np.asarray(isam.marginalCovariance(X(chain.start)), dtype=float)
         cov = self._marginal
+        if any(used for _, _, used in self._since):
+            cov = self._corrected_covariance()
+            if frame == "body":
+                J = body_to_world(self.pose.theta())
+                cov = J.T @ cov @ J
+            return 0.5 * (cov + cov.T)
         if chain.links:
             A = chain.compound.inverse().AdjointMap()
             cov = A @ cov @ A.T + chain.covariance()
@@ -71,6 +83,20 @@ class OnlinePose:
             J = body_to_world(self.pose.theta())
             cov = J @ cov @ J.T
         return 0.5 * (cov + cov.T)
+
+    def _corrected_covariance(self) -> np.ndarray:
+        """World-frame covariance of the corrected online pose: iSAM2's marginal of its newest
+        pose, then the online correction's predictions and updates replayed over the steps
+        since (:mod:`fgslam.smoother.correction`); only asked for, never on the step path."""
+        anchor = self._anchor
+        J = body_to_world(anchor.theta())
+        mean = (anchor.x(), anchor.y(), anchor.theta())
+        P = (J @ self._marginal @ J.T).tolist()
+        for increment, odo, used in self._since:
+            mean, P = predict(mean, P, (odo.dx_m, odo.dy_m, odo.dtheta_rad), odo.covariance)
+            for landmark_xy, range_m, bearing_rad, R in used:
+                mean, P, _ = correct(mean, P, landmark_xy, range_m, bearing_rad, R)
+        return np.array(P)
 
     def predicted_nis(self, isam: gtsam.ISAM2, step: Step, tag_ids: set[int]) -> list[float | None]:
         """NIS of each observation of ``step`` (see :meth:`Isam2Smoother.predicted_nis`)."""
@@ -89,7 +115,9 @@ class OnlinePose:
         increment = gtsam.Pose2(odo.dx_m, odo.dy_m, odo.dtheta_rad)
         compound, moved_cov = chain.extended(increment, odometry_noise_covariance(odo))
         A = compound.inverse().AdjointMap()
-        pose = self.pose.compose(increment)
+        # the prediction whose covariance this is: iSAM2's newest pose ⊕ the odometry since
+        # (not the corrected online pose, whose correlation with the landmarks is unknown)
+        pose = self._anchor.compose(compound)
         to_world = body_to_world(pose.theta())  # body → world at the new pose
         J = to_world @ A  # perturbation of the newest iSAM2 pose → world perturbation of the new pose
         x_key = X(chain.start)
