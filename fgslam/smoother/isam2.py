@@ -379,7 +379,7 @@ class Isam2Smoother:
     def _corrected(self, odo, observations) -> tuple[gtsam.Pose2, tuple]:
         """The online correction (:mod:`fgslam.smoother.correction`): the corrector's pose
         moved by ``odo`` and corrected by the observations of landmarks iSAM2 holds, and
-        those it used (``(landmark_xy, range_m, bearing_rad, R)``). A landmark iSAM2 does
+        those it used (``(landmark_id, landmark_xy, range_m, bearing_rad, R)``). A landmark iSAM2 does
         not hold yet, or a surprising observation, makes the step urgent."""
         corrector = self._corrector
         used = []
@@ -399,7 +399,7 @@ class Isam2Smoother:
                 xy = self._landmark_xy[lid] = (float(point[0]), float(point[1]))
             R = ((obs.sigma_range_m**2, 0.0), (0.0, obs.sigma_bearing_rad**2))
             if corrector.correct(xy, obs.range_m, obs.bearing_rad, R):
-                used.append((xy, obs.range_m, obs.bearing_rad, R))
+                used.append((lid, xy, obs.range_m, obs.bearing_rad, R))
             else:
                 self._held.urgent = True
         return gtsam.Pose2(*corrector.mean), tuple(used)

@@ -16,9 +16,15 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import L, T, X
 
-from ekf.models import range_bearing_nis
+from ekf.models import (
+    motion_jacobians,
+    predict_pose,
+    range_bearing,
+    range_bearing_jacobians,
+    range_bearing_nis,
+    wrap_angle,
+)
 from fgslam.smoother.chain import OdometryChain
-from fgslam.smoother.correction import correct, predict
 from fgslam.smoother.factors import odometry_noise_covariance
 from slamio.log import Odometry, Step
 
@@ -40,7 +46,7 @@ class OnlinePose:
 
     def moved(self, increment: gtsam.Pose2, odometry: Odometry, used: tuple = ()) -> None:
         """Note one more step's odometry since the newest pose in iSAM2, and the
-        observations the online correction used at it: ``(landmark_xy, range_m, bearing_rad, R)``."""
+        observations the online correction used at it: ``(landmark_id, landmark_xy, range_m, bearing_rad, R)``."""
         self._since.append((increment, odometry, used))
 
     def updated(self, pose: gtsam.Pose2, newest_in_isam: int, steps_after: int, anchor: gtsam.Pose2) -> None:
@@ -70,8 +76,8 @@ class OnlinePose:
         if self._marginal is None:
             self._marginal = np.asarray(isam.marginalCovariance(X(chain.start)), dtype=float)
         cov = self._marginal
-        if any(used for _, _, used in self._since):
-            cov = self._corrected_covariance()
+        if any(used for _, _, used in self._since):  # the online correction moved the pose
+            cov = self._corrected_covariance(isam)
             if frame == "body":
                 J = body_to_world(self.pose.theta())
                 cov = J.T @ cov @ J
@@ -84,19 +90,50 @@ class OnlinePose:
             cov = J @ cov @ J.T
         return 0.5 * (cov + cov.T)
 
-    def _corrected_covariance(self) -> np.ndarray:
-        """World-frame covariance of the corrected online pose: iSAM2's marginal of its newest
-        pose, then the online correction's predictions and updates replayed over the steps
-        since (:mod:`fgslam.smoother.correction`); only asked for, never on the step path."""
+    def _corrected_covariance(self, isam: gtsam.ISAM2) -> np.ndarray:
+        """World-frame covariance of the corrected online pose, asked for only (never on the
+        step path): the correction's steps replayed as a full EKF over the pose and the
+        landmarks it used, from iSAM2's joint marginal of its newest pose and those
+        landmarks, so the landmarks' uncertainty and their correlation with the pose count
+        (the correction itself takes them as known)."""
+        ids = list(dict.fromkeys(lid for _, _, used in self._since for lid, *_ in used))
+        x_key = X(self._since_chain.start)
+        joint = isam.jointMarginalCovariance(gtsam.KeyVector([x_key] + [L(i) for i in ids]))
         anchor = self._anchor
-        J = body_to_world(anchor.theta())
-        mean = (anchor.x(), anchor.y(), anchor.theta())
-        P = (J @ self._marginal @ J.T).tolist()
+        n = 3 + 2 * len(ids)
+        J = np.eye(n)
+        J[:3, :3] = body_to_world(anchor.theta())
+        P = np.empty((n, n))
+        keys = [x_key] + [L(i) for i in ids]
+        offsets = [0] + [3 + 2 * j for j in range(len(ids))]
+        for a, ka in zip(offsets, keys):
+            for b, kb in zip(offsets, keys):
+                block = joint.at(ka, kb)
+                P[a : a + block.shape[0], b : b + block.shape[1]] = block
+        P = J @ P @ J.T
+        column = {lid: 3 + 2 * j for j, lid in enumerate(ids)}
+        mean = np.array([anchor.x(), anchor.y(), anchor.theta()])
         for increment, odo, used in self._since:
-            mean, P = predict(mean, P, (odo.dx_m, odo.dy_m, odo.dtheta_rad), odo.covariance)
-            for landmark_xy, range_m, bearing_rad, R in used:
-                mean, P, _ = correct(mean, P, landmark_xy, range_m, bearing_rad, R)
-        return np.array(P)
+            u = (odo.dx_m, odo.dy_m, odo.dtheta_rad)
+            F, G = motion_jacobians(mean, u)
+            mean = predict_pose(mean, u)
+            P[:3, :] = F @ P[:3, :]
+            P[:, :3] = P[:, :3] @ F.T
+            P[:3, :3] += G @ np.asarray(odo.covariance) @ G.T
+            for lid, landmark_xy, range_m, bearing_rad, R in used:
+                H_pose, H_landmark = range_bearing_jacobians(mean, landmark_xy)
+                H = np.zeros((2, n))
+                H[:, :3] = H_pose
+                c = column[lid]
+                H[:, c : c + 2] = H_landmark
+                S = H @ P @ H.T + np.asarray(R)
+                K = P @ H.T @ np.linalg.inv(S)
+                predicted_range, predicted_bearing = range_bearing(mean, landmark_xy)
+                nu = np.array([range_m - predicted_range, wrap_angle(bearing_rad - predicted_bearing)])
+                mean = mean + (K @ nu)[:3]
+                P = P - K @ S @ K.T
+                P = 0.5 * (P + P.T)
+        return P[:3, :3]
 
     def predicted_nis(self, isam: gtsam.ISAM2, step: Step, tag_ids: set[int]) -> list[float | None]:
         """NIS of each observation of ``step`` (see :meth:`Isam2Smoother.predicted_nis`)."""
