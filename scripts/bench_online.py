@@ -25,7 +25,6 @@ os.environ["OPENBLAS_NUM_THREADS"] = "1"
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
-import ast  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -38,6 +37,9 @@ from fgslam.compare import ate_rmse_m  # noqa: E402
 from fgslam.runner import run_estimator  # noqa: E402
 from fgslam.smoother import Isam2Smoother, batch_solve  # noqa: E402
 from slamio.log import group_steps  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_victoria_park import parse_sets as parse_assignments  # noqa: E402
 
 
 def logs(spec: str):
@@ -77,14 +79,7 @@ def parse_sets(text: str) -> dict:
             current = ""
         else:
             current += ch
-    out = {}
-    for item in filter(None, items):
-        key, _, value = item.partition("=")
-        try:
-            out[key] = ast.literal_eval(value)
-        except (ValueError, SyntaxError):
-            out[key] = value
-    return out
+    return parse_assignments([item for item in items if item])
 
 
 def truth_of(steps) -> tuple[np.ndarray, np.ndarray] | None:
