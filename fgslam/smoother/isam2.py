@@ -1,10 +1,12 @@
 """The online smoother: :class:`Isam2Smoother`, which composes the pieces of this package.
 
-One ``ISAM2.update`` per step (by default; ``update_every`` and ``update_on`` can hold
-steps and update less often) with that step's new factors and new variables. A new pose
-is seeded from the *current iSAM2 estimate* of the previous pose composed with the
-odometry increment (seeding from dead reckoning makes iSAM2 diverge on real data, see
-DESIGN.md); a landmark seen for the first time is seeded from that seed pose and the
+Steps are held and go to iSAM2 in one ``ISAM2.update`` per 10 steps (``update_every``;
+at once for a step that sees a landmark iSAM2 does not hold yet or a surprising
+observation), with their new factors and new variables. A new pose is seeded from the
+*current iSAM2 estimate* of the previous pose composed with the odometry increment and
+corrected by the online correction (:mod:`fgslam.smoother.correction`, which is also the
+online pose between updates; seeding from dead reckoning makes iSAM2 diverge on real
+data, see DESIGN.md); a landmark seen for the first time is seeded from that seed pose and the
 observation (in robust mode only once two observations agree, see
 :meth:`.PendingObservations.confirm_first_sightings`, fgslam/smoother/pending.py). After the
 update only the newest pose is read back (``calculateEstimatePose2``); the full estimate
