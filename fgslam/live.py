@@ -682,7 +682,8 @@ def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front
              lockstep: Lockstep | None = None) -> LiveResult:
     """Drive ``waypoints`` on the robot behind ``link`` with iSAM2 in the loop; log to
     ``out_path``. ``grab_for``/``front_end`` give the camera (None: odometry only);
-    ``smoother`` defaults to :class:`fgslam.smoother.Isam2Smoother` (one update per pose).
+    ``smoother`` defaults to :class:`fgslam.smoother.Isam2Smoother` (its defaults: an update
+    every 10 poses, the online correction in between).
     ``on_step(index, smoother, latency_s, loop)`` is called in the smoother worker after
     each pose (the CLI's status line and map; ``loop`` is the :class:`LiveLoop` with its
     frame counts). ``odometry_noise`` (an :class:`slamio.create.odometry.OdometryNoise`) is

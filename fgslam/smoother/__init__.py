@@ -14,6 +14,8 @@ Where things are
                         sightings waiting for a second, unplaced range-only landmarks
 ``recovery.py``         rebuilding iSAM2 after an update failed (indeterminate system)
 ``online.py``           the online pose, its covariance, predicted NIS, landmark marginals
+``correction.py``       the online pose between updates: a pose-only EKF against the
+                        landmarks iSAM2 holds (scalar maths, microseconds a step)
 ``variables.py``        keys, the landmarks iSAM2 holds, reading ``gtsam.Values`` back
 ``batch.py``            :func:`batch_solve`: Levenberg–Marquardt on the whole graph
 ======================  ==================================================================

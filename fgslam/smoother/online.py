@@ -16,7 +16,14 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import L, T, X
 
-from ekf.models import range_bearing_nis
+from ekf.models import (
+    motion_jacobians,
+    predict_pose,
+    range_bearing,
+    range_bearing_jacobians,
+    range_bearing_nis,
+    wrap_angle,
+)
 from fgslam.smoother.chain import OdometryChain
 from fgslam.smoother.factors import odometry_noise_covariance
 from slamio.log import Odometry, Step
@@ -27,22 +34,27 @@ class OnlinePose:
 
     def __init__(self):
         self.pose: gtsam.Pose2 | None = None  # latest pose: iSAM2's after an update, else ⊕ odometry
-        # odometry records since the newest pose in iSAM2, for the online covariance; kept
-        # raw, so a step costs one list append
-        self._since: list[tuple[gtsam.Pose2, Odometry]] = []
+        # odometry records since the newest pose in iSAM2, for the online covariance, each
+        # with the observations the online correction used at that step; kept raw, so a
+        # step costs one list append
+        self._since: list[tuple[gtsam.Pose2, Odometry, tuple]] = []
+        self._anchor: gtsam.Pose2 | None = None  # iSAM2's estimate of its newest pose
         # current_covariance() is asked at every step (NEES): the marginal is kept until
         # iSAM2 changes, and the held odometry is propagated only once per record
         self._marginal: np.ndarray | None = None
         self._since_chain = OdometryChain(0)
 
-    def moved(self, increment: gtsam.Pose2, odometry: Odometry) -> None:
-        """Note one more step's odometry since the newest pose in iSAM2."""
-        self._since.append((increment, odometry))
+    def moved(self, increment: gtsam.Pose2, odometry: Odometry, used: tuple = ()) -> None:
+        """Note one more step's odometry since the newest pose in iSAM2, and the
+        observations the online correction used at it: ``(landmark_id, landmark_xy, range_m, bearing_rad, R)``."""
+        self._since.append((increment, odometry, used))
 
-    def updated(self, pose: gtsam.Pose2, newest_in_isam: int, steps_after: int) -> None:
+    def updated(self, pose: gtsam.Pose2, newest_in_isam: int, steps_after: int, anchor: gtsam.Pose2) -> None:
         """After an iSAM2 update: ``pose`` is the newest pose; the newest pose iSAM2 holds is
-        ``newest_in_isam`` and only the last ``steps_after`` steps (the open keyframe chain) follow it."""
+        ``newest_in_isam`` (estimated at ``anchor``) and only the last ``steps_after`` steps
+        (the open keyframe chain) follow it."""
         self.pose = pose
+        self._anchor = anchor
         self._since = self._since[len(self._since) - steps_after :] if steps_after else []
         self._since_chain = OdometryChain(newest_in_isam)
         self._marginal = None
@@ -54,7 +66,7 @@ class OnlinePose:
     def _caught_up_since_chain(self) -> OdometryChain:
         """The odometry since the newest iSAM2 pose, with the records held since the last call."""
         chain = self._since_chain
-        for increment, odo in self._since[len(chain.links) :]:
+        for increment, odo, _ in self._since[len(chain.links) :]:
             chain.append(increment, odometry_noise_covariance(odo))
         return chain
 
@@ -64,6 +76,12 @@ class OnlinePose:
         if self._marginal is None:
             self._marginal = np.asarray(isam.marginalCovariance(X(chain.start)), dtype=float)
         cov = self._marginal
+        if any(used for _, _, used in self._since):  # the online correction moved the pose
+            cov = self._corrected_covariance(isam)
+            if frame == "body":
+                J = body_to_world(self.pose.theta())
+                cov = J.T @ cov @ J
+            return 0.5 * (cov + cov.T)
         if chain.links:
             A = chain.compound.inverse().AdjointMap()
             cov = A @ cov @ A.T + chain.covariance()
@@ -71,6 +89,51 @@ class OnlinePose:
             J = body_to_world(self.pose.theta())
             cov = J @ cov @ J.T
         return 0.5 * (cov + cov.T)
+
+    def _corrected_covariance(self, isam: gtsam.ISAM2) -> np.ndarray:
+        """World-frame covariance of the corrected online pose, asked for only (never on the
+        step path): the correction's steps replayed as a full EKF over the pose and the
+        landmarks it used, from iSAM2's joint marginal of its newest pose and those
+        landmarks, so the landmarks' uncertainty and their correlation with the pose count
+        (the correction itself takes them as known)."""
+        ids = list(dict.fromkeys(lid for _, _, used in self._since for lid, *_ in used))
+        x_key = X(self._since_chain.start)
+        joint = isam.jointMarginalCovariance(gtsam.KeyVector([x_key] + [L(i) for i in ids]))
+        anchor = self._anchor
+        n = 3 + 2 * len(ids)
+        J = np.eye(n)
+        J[:3, :3] = body_to_world(anchor.theta())
+        P = np.empty((n, n))
+        keys = [x_key] + [L(i) for i in ids]
+        offsets = [0] + [3 + 2 * j for j in range(len(ids))]
+        for a, ka in zip(offsets, keys):
+            for b, kb in zip(offsets, keys):
+                block = joint.at(ka, kb)
+                P[a : a + block.shape[0], b : b + block.shape[1]] = block
+        P = J @ P @ J.T
+        column = {lid: 3 + 2 * j for j, lid in enumerate(ids)}
+        mean = np.array([anchor.x(), anchor.y(), anchor.theta()])
+        for increment, odo, used in self._since:
+            u = (odo.dx_m, odo.dy_m, odo.dtheta_rad)
+            F, G = motion_jacobians(mean, u)
+            mean = predict_pose(mean, u)
+            P[:3, :] = F @ P[:3, :]
+            P[:, :3] = P[:, :3] @ F.T
+            P[:3, :3] += G @ np.asarray(odo.covariance) @ G.T
+            for lid, landmark_xy, range_m, bearing_rad, R in used:
+                H_pose, H_landmark = range_bearing_jacobians(mean, landmark_xy)
+                H = np.zeros((2, n))
+                H[:, :3] = H_pose
+                c = column[lid]
+                H[:, c : c + 2] = H_landmark
+                S = H @ P @ H.T + np.asarray(R)
+                K = P @ H.T @ np.linalg.inv(S)
+                predicted_range, predicted_bearing = range_bearing(mean, landmark_xy)
+                nu = np.array([range_m - predicted_range, wrap_angle(bearing_rad - predicted_bearing)])
+                mean = mean + (K @ nu)[:3]
+                P = P - K @ S @ K.T
+                P = 0.5 * (P + P.T)
+        return P[:3, :3]
 
     def predicted_nis(self, isam: gtsam.ISAM2, step: Step, tag_ids: set[int]) -> list[float | None]:
         """NIS of each observation of ``step`` (see :meth:`Isam2Smoother.predicted_nis`)."""
@@ -89,7 +152,9 @@ class OnlinePose:
         increment = gtsam.Pose2(odo.dx_m, odo.dy_m, odo.dtheta_rad)
         compound, moved_cov = chain.extended(increment, odometry_noise_covariance(odo))
         A = compound.inverse().AdjointMap()
-        pose = self.pose.compose(increment)
+        # the prediction whose covariance this is: iSAM2's newest pose ⊕ the odometry since
+        # (not the corrected online pose, whose correlation with the landmarks is unknown)
+        pose = self._anchor.compose(compound)
         to_world = body_to_world(pose.theta())  # body → world at the new pose
         J = to_world @ A  # perturbation of the newest iSAM2 pose → world perturbation of the new pose
         x_key = X(chain.start)

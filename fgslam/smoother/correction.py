@@ -1,0 +1,139 @@
+"""The online pose between iSAM2 updates: a 3-state EKF against the mapped landmarks.
+
+iSAM2 updates only every few steps (:class:`~fgslam.smoother.isam2.Isam2Smoother`'s
+``update_every``). Between updates the newest pose would otherwise be the last iSAM2
+estimate ⊕ the odometry since (dead reckoning). :class:`PoseCorrector` does better for a
+few microseconds a step: it propagates that pose with the odometry and corrects it with
+each observation of a landmark iSAM2 already holds, treating the landmark's last iSAM2
+estimate as known (a pose-only EKF; the landmark's own uncertainty and its correlation
+with the pose are ignored). At every iSAM2 update its mean is replaced by iSAM2's estimate
+of the newest pose; its covariance carries on, so it stays the filter's own bookkeeping of
+how far odometry and observations are trusted. It is the online estimate only: the factor
+graph, and so the final estimate, never sees it (except that new poses are seeded from
+it, a better linearisation point than dead reckoning).
+
+Frames: the state is ``(x_m, y_m, theta_rad)`` in the world frame, its covariance in
+world (x, y, θ) coordinates — the EKF's (:mod:`ekf.models`), whose motion and observation
+models and Jacobians this reuses. An odometry record's covariance is over the increment's
+numbers in the robot frame, as in the log.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ekf.models import wrap_angle
+
+#: χ² with 2 degrees of freedom at 0.999: an observation whose innovation exceeds this
+#: (NIS against the pose-only prediction) is not used by the correction; the smoother then
+#: gives the held steps to iSAM2 at once (a surprise is what the full smoother is for).
+SURPRISE_NIS = 13.82
+
+# The maths below is written out in scalars: on 3×3 matrices numpy's per-call overhead is
+# ten times the arithmetic, and this runs for every observation of every step.
+# Covariances are 3×3 nested lists (symmetric), poses (x_m, y_m, theta_rad) tuples.
+
+
+def predict(mean, P, increment, Q_increment) -> tuple[tuple[float, float, float], list[list[float]]]:
+    """EKF prediction of a pose by one odometry increment: ``(mean ⊕ u, F P Fᵀ + G Q Gᵀ)``.
+
+    ``increment`` is ``(dx_m, dy_m, dtheta_rad)`` in the robot frame and ``Q_increment`` its
+    3×3 covariance over those numbers; ``F = ∂(mean ⊕ u)/∂mean`` and ``G = ∂(mean ⊕ u)/∂u``
+    are :func:`ekf.models.motion_jacobians`'s.
+    """
+    x, y, th = mean
+    dx, dy, dth = increment
+    c, s = math.cos(th), math.sin(th)
+    a, b = -s * dx - c * dy, c * dx - s * dy  # F = [[1, 0, a], [0, 1, b], [0, 0, 1]]
+    (p00, p01, p02), (_, p11, p12), (_, _, p22) = P
+    # F P Fᵀ
+    f00 = p00 + 2.0 * a * p02 + a * a * p22
+    f01 = p01 + a * p12 + b * p02 + a * b * p22
+    f02 = p02 + a * p22
+    f11 = p11 + 2.0 * b * p12 + b * b * p22
+    f12 = p12 + b * p22
+    # G Q Gᵀ with G = blockdiag(R(θ), 1)
+    (q00, q01, q02), (_, q11, q12), (_, _, q22) = Q_increment
+    g00 = c * c * q00 - 2.0 * c * s * q01 + s * s * q11
+    g11 = s * s * q00 + 2.0 * c * s * q01 + c * c * q11
+    g01 = c * s * (q00 - q11) + (c * c - s * s) * q01
+    g02 = c * q02 - s * q12
+    g12 = s * q02 + c * q12
+    m00, m01, m02, m11, m12, m22 = f00 + g00, f01 + g01, f02 + g02, f11 + g11, f12 + g12, p22 + q22
+    moved = (x + c * dx - s * dy, y + s * dx + c * dy, wrap_angle(th + dth))
+    return moved, [[m00, m01, m02], [m01, m11, m12], [m02, m12, m22]]
+
+
+def correct(mean, P, landmark_xy, range_m: float, bearing_rad: float, R) -> tuple[tuple, list[list[float]], float]:
+    """EKF update of a pose by one range-bearing observation of a landmark at a known point.
+
+    Innovation ν = z − h(mean, landmark) (bearing wrapped; h and its Jacobian H are
+    :func:`ekf.models.range_bearing` / ``range_bearing_jacobians``), S = H P Hᵀ + R,
+    K = P Hᵀ S⁻¹; returns ``(mean + K ν, P − K S Kᵀ, νᵀ S⁻¹ ν)``, the NIS of the
+    prediction. ``R`` is the 2×2 covariance of (range_m, bearing_rad).
+    """
+    x, y, th = mean
+    ex, ey = landmark_xy[0] - x, landmark_xy[1] - y
+    q = ex * ex + ey * ey
+    r = math.sqrt(q)
+    nu_r = range_m - r
+    nu_b = wrap_angle(bearing_rad - wrap_angle(math.atan2(ey, ex) - th))
+    # H = [[h0, h1, 0], [h2, h3, -1]]
+    h0, h1, h2, h3 = -ex / r, -ey / r, ey / q, -ex / q
+    (p00, p01, p02), (_, p11, p12), (_, _, p22) = P
+    # U = P Hᵀ (3×2)
+    u00 = p00 * h0 + p01 * h1
+    u10 = p01 * h0 + p11 * h1
+    u20 = p02 * h0 + p12 * h1
+    u01 = p00 * h2 + p01 * h3 - p02
+    u11 = p01 * h2 + p11 * h3 - p12
+    u21 = p02 * h2 + p12 * h3 - p22
+    # S = H U + R
+    s00 = h0 * u00 + h1 * u10 + R[0][0]
+    s01 = h0 * u01 + h1 * u11 + R[0][1]
+    s11 = h2 * u01 + h3 * u11 - u21 + R[1][1]
+    det = s00 * s11 - s01 * s01
+    if not det > 0.0:
+        return mean, P, math.inf
+    i00, i01, i11 = s11 / det, -s01 / det, s00 / det  # S⁻¹
+    nis = nu_r * (i00 * nu_r + i01 * nu_b) + nu_b * (i01 * nu_r + i11 * nu_b)
+    # K = U S⁻¹ (3×2)
+    k00, k01 = u00 * i00 + u01 * i01, u00 * i01 + u01 * i11
+    k10, k11 = u10 * i00 + u11 * i01, u10 * i01 + u11 * i11
+    k20, k21 = u20 * i00 + u21 * i01, u20 * i01 + u21 * i11
+    updated = (x + k00 * nu_r + k01 * nu_b, y + k10 * nu_r + k11 * nu_b, wrap_angle(th + k20 * nu_r + k21 * nu_b))
+    # P − K S Kᵀ = P − K Uᵀ
+    c00 = p00 - (k00 * u00 + k01 * u01)
+    c01 = p01 - (k00 * u10 + k01 * u11)
+    c02 = p02 - (k00 * u20 + k01 * u21)
+    c11 = p11 - (k10 * u10 + k11 * u11)
+    c12 = p12 - (k10 * u20 + k11 * u21)
+    c22 = p22 - (k20 * u20 + k21 * u21)
+    return updated, [[c00, c01, c02], [c01, c11, c12], [c02, c12, c22]], nis
+
+
+class PoseCorrector:
+    """The pose-only EKF that gives the online pose between iSAM2 updates (module docstring)."""
+
+    def __init__(self, start_pose, start_covariance_world):
+        self.mean = tuple(float(v) for v in start_pose)
+        self.P = [[float(v) for v in row] for row in start_covariance_world]
+        self.corrections = 0  # observations used
+        self.surprises = 0  # observations gated out (NIS > SURPRISE_NIS)
+
+    def reset(self, pose) -> None:
+        """iSAM2 has updated: its estimate of the newest pose replaces the mean."""
+        self.mean = (float(pose[0]), float(pose[1]), float(pose[2]))
+
+    def predict(self, increment, Q_increment) -> None:
+        self.mean, self.P = predict(self.mean, self.P, increment, Q_increment)
+
+    def correct(self, landmark_xy, range_m: float, bearing_rad: float, R) -> bool:
+        """Use one observation unless it is a surprise; return whether it was used."""
+        mean, P, nis = correct(self.mean, self.P, landmark_xy, range_m, bearing_rad, R)
+        if not nis <= SURPRISE_NIS:  # also NaN
+            self.surprises += 1
+            return False
+        self.mean, self.P = mean, P
+        self.corrections += 1
+        return True
