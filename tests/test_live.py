@@ -241,7 +241,9 @@ def test_hil_log_states_the_noise_its_camera_and_encoders_have(octagon_run):
     assert len(z_range) > 100
     for name, z in (("range", z_range), ("bearing", z_bearing)):
         rms = math.sqrt(np.mean(np.square(z)))
-        assert 0.6 < rms < 1.5, (name, rms)  # was 0.39 (range) and 0.05 (bearing): σ 2.5× and 20× too large
+        # One corner precision for both: the bearing's own runs 0.16–0.26 px, the range's
+        # 0.2–0.34 px (RENDERED_CORNER_SIGMA_PX = 0.3). Before: 0.39 (range) and 0.05 (bearing).
+        assert 0.5 < rms < 1.5, (name, rms)
 
 
 @pytest.mark.slow
