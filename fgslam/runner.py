@@ -184,7 +184,10 @@ def run_estimator(
         if covariances and hasattr(estimator, "landmark_covariances") else None
     )
     association = None
-    if any(k is not None and k < 0 for k in keys):  # it created landmarks itself: score it
+    if hasattr(estimator, "associations"):  # ids settled after their step (deferred first sightings)
+        keys = estimator.associations()  # type: ignore[attr-defined]
+    hidden = any(o.landmark_id is None and not o.range_only for step in steps for o in step.observations)
+    if hidden or any(k is not None and k < 0 for k in keys):  # it associated observations itself: score it
         association = score_associations(true_ids, keys)
         landmarks = relabel_landmarks(landmarks, association)
         heights = relabel_landmarks(heights, association) if heights else heights

@@ -31,6 +31,7 @@ holds (:mod:`~fgslam.smoother.variables`).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import gtsam
 import numpy as np
@@ -38,6 +39,7 @@ from gtsam.symbol_shorthand import H, X
 
 from ekf.range_only import DelayedInitRule
 from ekf.slam import has_height  # the same rule as the EKF's for a usable height
+from fgslam.smoother.association import SmootherAssociation, world_joint_marginal
 from fgslam.smoother.factors import (
     DEFAULT_ROBUST_K,
     FactorBuilder,
@@ -130,6 +132,12 @@ class Isam2Smoother:
         worst. Use DCS: on the 200-landmark grid the others move the map even on a clean log
         (docs/performance.md has the tables).
 
+    associate:
+        ``True`` (default): observations without a ``landmark_id`` are associated with the
+        landmarks the smoother holds, on its own marginals, with JCBB, new landmarks entering
+        only once a second sighting agrees (:mod:`fgslam.smoother.association`; counts in
+        :attr:`association_counts`, the ids used in :meth:`step_associations`). ``False``:
+        they are skipped and counted in ``skipped_unknown_observations``.
     tags:
         ``False`` (default): every landmark is a point, as in the EKF. ``True``: a landmark
         whose first observation carries a tag yaw is a ``Pose2`` tag observed through
@@ -140,7 +148,8 @@ class Isam2Smoother:
     Attributes
     ----------
     skipped_unknown_observations:
-        Observations ignored because their ``landmark_id`` was None.
+        Observations ignored because their ``landmark_id`` was None (only with
+        ``associate=False``, or folded into a keyframe chain).
     update_failures:
         Steps whose iSAM2 update raised (each recovered from by a rebuild).
     dropped_observations:
@@ -187,6 +196,7 @@ class Isam2Smoother:
         tags: bool = False,
         keyframes: bool = False,
         max_keyframe_gap: int = 50,
+        associate: bool = True,
     ):
         threshold = _relinearize_threshold(relinearize_threshold)
         if relinearize_skip < 1 or final_updates < 0 or max_retries < 0:
@@ -252,6 +262,8 @@ class Isam2Smoother:
         self._online = OnlinePose()  # the newest pose, for current_pose/current_covariance
         self._num_poses = 0
         self._estimate_cache: gtsam.Values | None = None
+        # id-less observations: associated (fgslam/smoother/association.py) or skipped
+        self._association = SmootherAssociation() if associate else None
 
     # ------------------------------------------------------------------ Estimator protocol
 
@@ -280,7 +292,7 @@ class Isam2Smoother:
             seed = self._online.pose.compose(increment)
             self._online.moved(increment, odo)
             if self.keyframes:
-                observed = any(o.landmark_id is not None for o in step.observations)
+                observed = any(o.landmark_id is not None or self._association is not None for o in step.observations)
                 chain = self._keyframes.fold(k, increment, odometry_noise_covariance(odo), observed)
                 if chain is not None:  # a keyframe: the chain since the last one becomes one compound factor
                     noise = gtsam.noiseModel.Gaussian.Covariance(chain.covariance())
@@ -301,20 +313,51 @@ class Isam2Smoother:
 
     def _add_observations(self, k: int, seed: gtsam.Pose2, observations) -> None:
         """Hold the factors of pose ``k``'s observations (and their heights)."""
+        if self._association is not None:
+            observations = self._associate(k, seed, observations)
         for obs in observations:
-            if obs.landmark_id is None:
-                self.skipped_unknown_observations += 1
-                continue
-            if obs.range_only:
-                self._landmarks.is_tag(obs.landmark_id, False)  # a range-only landmark is a point
-                self._held.ranges += self._ranges.add(k, seed, obs, self._factors)
-                self._held.observed = True
-                continue
-            if has_height(obs):
-                self._add_height(obs)
-            is_tag = self._landmarks.is_tag(obs.landmark_id, self.tags and has_tag_yaw(obs))
-            self._held.entries.append(self._factors.observation(k, seed, obs, is_tag))
+            self._add_observation(k, seed, obs)
+
+    def _associate(self, k: int, seed: gtsam.Pose2, observations) -> list[Observation]:
+        """The step's observations with the id-less ones given the id association chose
+        (:mod:`fgslam.smoother.association`); those it did not place are left out. First
+        sightings confirmed now are held too, at their own poses."""
+        self._association.begin_step(observations)
+        unknown = [(i, o) for i, o in enumerate(observations) if o.landmark_id is None and not o.range_only]
+        if not unknown:
+            return list(observations)
+        since = self._online._caught_up_since_chain()
+        points = [i for i in self._landmarks.ids if i not in self._landmarks.tag_ids]
+        decision = self._association.associate(
+            k, seed, unknown, self._isam, lambda ids: world_joint_marginal(self._isam, since, seed, ids), points)
+        for lid, sightings in decision.confirmed.items():
+            self._landmarks.is_tag(lid, False)
+            for s in sightings:
+                self._add_observation(s.pose_index, s.seed, replace(s.observation, landmark_id=lid))
+        out = []
+        for i, obs in enumerate(observations):
+            if obs.landmark_id is None and i in decision.paired:
+                self._landmarks.is_tag(decision.paired[i], False)
+                out.append(replace(obs, landmark_id=decision.paired[i]))
+            elif obs.landmark_id is not None or obs.range_only:
+                out.append(obs)
+        return out
+
+    def _add_observation(self, k: int, seed: gtsam.Pose2, obs: Observation) -> None:
+        """Hold the factor of one observation made from pose ``k`` (and its height)."""
+        if obs.landmark_id is None:
+            self.skipped_unknown_observations += 1
+            return
+        if obs.range_only:
+            self._landmarks.is_tag(obs.landmark_id, False)  # a range-only landmark is a point
+            self._held.ranges += self._ranges.add(k, seed, obs, self._factors)
             self._held.observed = True
+            return
+        if has_height(obs):
+            self._add_height(obs)
+        is_tag = self._landmarks.is_tag(obs.landmark_id, self.tags and has_tag_yaw(obs))
+        self._held.entries.append(self._factors.observation(k, seed, obs, is_tag))
+        self._held.observed = True
 
     def _add_height(self, obs: Observation) -> None:
         """Hold a height observation's factor (:meth:`FactorBuilder.height`), and the height's
@@ -342,6 +385,8 @@ class Isam2Smoother:
         entries = self._pending.screen(fresh, self._isam, self._landmarks) + fresh + ranges
         self._update_with_recovery(core, core_values, entries)
         self.updates += 1
+        if self._association is not None:
+            self._association.entered(self._landmarks.known)
         # the newest pose in iSAM2 is the last keyframe; only the open chain's steps follow it
         last = self._keyframes.last
         pose = self._keyframes.latest_pose(self._isam.calculateEstimatePose2(X(last)))
@@ -365,6 +410,8 @@ class Isam2Smoother:
         if self._num_poses == 0:
             return
         self._flush()
+        if self._association is not None:
+            self._association.finish()
         self._estimate_cache = None
         self._online.forget_marginal()  # the final updates below change iSAM2
         for _ in range(self.final_updates):
@@ -524,6 +571,31 @@ class Isam2Smoother:
     def rejected_first_sightings(self) -> int:
         """Robust mode: first sightings no later observation agreed with (dropped)."""
         return self._pending.rejected_first_sightings
+
+    def step_associations(self) -> list[int | None]:
+        """Per observation of the last step: the landmark id it was used as (the log's id,
+        or one the smoother chose, :mod:`fgslam.smoother.association`), or None (not used
+        yet: rejected, or a first sighting waiting; see :meth:`associations`)."""
+        return self._association.step_keys() if self._association is not None else []
+
+    def associations(self) -> list[int | None]:
+        """Per observation of the whole run, in log order: the id it was finally used as
+        (first sightings confirmed later included), or None (not used)."""
+        return self._association.keys() if self._association is not None else []
+
+    @property
+    def association_counts(self) -> dict[str, int]:
+        """What became of the id-less observations: ``paired`` (to a landmark, new ones
+        included), ``created`` landmarks, ``rejected`` (ambiguous: near a landmark but not
+        jointly compatible), ``unconfirmed`` (first sightings nothing agreed with), and
+        ``skipped`` (observations ignored because they had no id, with ``associate=False``
+        or inside a keyframe chain)."""
+        a = self._association
+        counts = {"skipped": self.skipped_unknown_observations}
+        if a is not None:
+            counts.update(paired=a.paired, created=a.created, rejected=a.rejected, unconfirmed=a.unconfirmed,
+                          waiting=len(a.waiting))
+        return counts
 
     # ------------------------------------------------------------------ internals
 
