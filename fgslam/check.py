@@ -50,7 +50,7 @@ from pathlib import Path
 import numpy as np
 
 from fgslam.compare import ate_rmse_m, nees_band, nees_over_truth
-from fgslam.runner import ESTIMATORS, run_estimator, truth_reference
+from fgslam.runner import ESTIMATORS, require_usable_reference, run_estimator, truth_reference
 from fgslam.smoother import Isam2Smoother, batch_solve
 from slamio.errors import FgslamError
 from slamio.log import read_log
@@ -168,6 +168,7 @@ def check_estimator(
     else:
         smoother = Isam2Smoother(log.header)
         run_estimator(smoother, steps, covariances=False)  # only its graph is needed
+        require_usable_reference(smoother, steps, str(log_path))
         reference_poses = batch_solve(smoother).trajectory
         has_pose = np.ones(len(reference_poses), dtype=bool)
 

@@ -263,7 +263,8 @@ class Isam2Smoother:
         self._num_poses = 0
         self._estimate_cache: gtsam.Values | None = None
         # id-less observations: associated (fgslam/smoother/association.py) or skipped
-        self._association = SmootherAssociation() if associate else None
+        self.associate = bool(associate)
+        self._association = SmootherAssociation()
 
     # ------------------------------------------------------------------ Estimator protocol
 
@@ -277,6 +278,7 @@ class Isam2Smoother:
         k = step.index
         if k != self._num_poses:
             raise FgslamError(f"Isam2Smoother: expected step {self._num_poses}, got step {k}; feed steps in order")
+        self._association.begin_step(step.observations)  # for step_associations()
         if k == 0:
             if step.odometry is not None:
                 raise FgslamError("Isam2Smoother: step 0 is the start pose and cannot have odometry")
@@ -292,7 +294,7 @@ class Isam2Smoother:
             seed = self._online.pose.compose(increment)
             self._online.moved(increment, odo)
             if self.keyframes:
-                observed = any(o.landmark_id is not None or self._association is not None for o in step.observations)
+                observed = any(o.landmark_id is not None or self.associate for o in step.observations)
                 chain = self._keyframes.fold(k, increment, odometry_noise_covariance(odo), observed)
                 if chain is not None:  # a keyframe: the chain since the last one becomes one compound factor
                     noise = gtsam.noiseModel.Gaussian.Covariance(chain.covariance())
@@ -313,7 +315,7 @@ class Isam2Smoother:
 
     def _add_observations(self, k: int, seed: gtsam.Pose2, observations) -> None:
         """Hold the factors of pose ``k``'s observations (and their heights)."""
-        if self._association is not None:
+        if self.associate:
             observations = self._associate(k, seed, observations)
         for obs in observations:
             self._add_observation(k, seed, obs)
@@ -322,7 +324,6 @@ class Isam2Smoother:
         """The step's observations with the id-less ones given the id association chose
         (:mod:`fgslam.smoother.association`); those it did not place are left out. First
         sightings confirmed now are held too, at their own poses."""
-        self._association.begin_step(observations)
         unknown = [(i, o) for i, o in enumerate(observations) if o.landmark_id is None and not o.range_only]
         if not unknown:
             return list(observations)
@@ -385,7 +386,7 @@ class Isam2Smoother:
         entries = self._pending.screen(fresh, self._isam, self._landmarks) + fresh + ranges
         self._update_with_recovery(core, core_values, entries)
         self.updates += 1
-        if self._association is not None:
+        if self.associate:
             self._association.entered(self._landmarks.known)
         # the newest pose in iSAM2 is the last keyframe; only the open chain's steps follow it
         last = self._keyframes.last
@@ -410,8 +411,7 @@ class Isam2Smoother:
         if self._num_poses == 0:
             return
         self._flush()
-        if self._association is not None:
-            self._association.finish()
+        self._association.finish()
         self._estimate_cache = None
         self._online.forget_marginal()  # the final updates below change iSAM2
         for _ in range(self.final_updates):
@@ -576,12 +576,12 @@ class Isam2Smoother:
         """Per observation of the last step: the landmark id it was used as (the log's id,
         or one the smoother chose, :mod:`fgslam.smoother.association`), or None (not used
         yet: rejected, or a first sighting waiting; see :meth:`associations`)."""
-        return self._association.step_keys() if self._association is not None else []
+        return self._association.step_keys()
 
     def associations(self) -> list[int | None]:
         """Per observation of the whole run, in log order: the id it was finally used as
         (first sightings confirmed later included), or None (not used)."""
-        return self._association.keys() if self._association is not None else []
+        return self._association.keys()
 
     @property
     def association_counts(self) -> dict[str, int]:
@@ -592,7 +592,7 @@ class Isam2Smoother:
         or inside a keyframe chain)."""
         a = self._association
         counts = {"skipped": self.skipped_unknown_observations}
-        if a is not None:
+        if self.associate:
             counts.update(paired=a.paired, created=a.created, rejected=a.rejected, unconfirmed=a.unconfirmed,
                           waiting=len(a.waiting))
         return counts
