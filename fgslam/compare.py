@@ -673,20 +673,28 @@ def score_associations(true_ids, keys) -> AssociationScore:
 
     ``true_ids[i]`` is the true landmark of observation ``i`` (None when unknown: not
     scored) and ``keys[i]`` the estimator's landmark key it was used as (None: rejected),
-    in the order the observations were made. A key stands for the true landmark of the
-    observation that first used it (the one that created it). An observation is correct
-    when its key stands for its true landmark and is not a duplicate: a key created for a
-    true landmark that already had one is a duplicate, and every use of it is wrong. A
-    rejected observation is not correct.
+    in the order the observations were made. A key stands for the true landmark most of its
+    scored observations saw (ties: the one seen first) — not merely the first one, so a
+    landmark whose first sighting was a misdetection that happened to fall near it is still
+    the landmark it maps. When several keys stand for the same true landmark, the one with
+    the most observations of it (ties: the first created) is that landmark and the others
+    are duplicates, every use of which is wrong. An observation is correct when its key
+    stands for its true landmark and is not a duplicate; a rejected observation is not correct.
     """
-    identity: dict[int, int] = {}
-    duplicates: set[int] = set()
+    votes: dict[int, dict[int, int]] = {}  # key → true id → observations (insertion order = first seen)
+    for true_id, key in zip(true_ids, keys, strict=True):
+        if key is not None and true_id is not None:
+            counts = votes.setdefault(key, {})
+            counts[true_id] = counts.get(true_id, 0) + 1
+    identity = {key: max(counts, key=counts.get) for key, counts in votes.items()}  # max keeps the first of ties
+    primary: dict[int, int] = {}  # true id → its key
+    for key, true_id in identity.items():  # keys in order of first use
+        best = primary.get(true_id)
+        if best is None or votes[key][true_id] > votes[best][true_id]:
+            primary[true_id] = key
+    duplicates = {key for key, true_id in identity.items() if primary[true_id] != key}
     observations = correct = rejected = 0
     for true_id, key in zip(true_ids, keys, strict=True):
-        if key is not None and key not in identity and true_id is not None:
-            if true_id in identity.values():
-                duplicates.add(key)
-            identity[key] = true_id
         if true_id is None:
             continue
         observations += 1

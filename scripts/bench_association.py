@@ -1,7 +1,9 @@
 """Smoother data association on logs without ids: association score and ATE vs the same log with ids.
 
-Usage: python scripts/bench_association.py OUTDIR SCENARIO[,SCENARIO...] SEEDS [OUTLIERS]
+Usage: python scripts/bench_association.py OUTDIR SCENARIO[,SCENARIO...] SEEDS [OUTLIERS [ESTIMATOR]]
 (e.g. ``/tmp/a arena-octagon,cylinders 1-5 0.1``). Makes the logs with ``fgslam sim``.
+Or: python scripts/bench_association.py --pair IDS.jsonl HIDDEN.jsonl ESTIMATOR[,ESTIMATOR...]
+for two existing logs (e.g. ``fgslam import mrclam ... [--hide-ids]``).
 """
 
 from __future__ import annotations
@@ -36,7 +38,19 @@ def ate(path: Path, estimator: str):
     return ate_rmse_m(run.final, truth, has_pose=has), run.association, est
 
 
+def pair(ids: str, hidden: str, estimators: str) -> None:
+    for estimator in estimators.split(","):
+        ids_ate, _, _ = ate(Path(ids), estimator)
+        hid_ate, score, est = ate(Path(hidden), estimator)
+        print(f"{Path(hidden).name} {estimator} | {ids_ate:.4f} | {hid_ate:.4f} | {hid_ate / ids_ate:.3f} | "
+              f"{score.observations} {score.correct} {score.wrong} {score.rejected} {score.landmarks_created} "
+              f"{len(score.duplicate_keys)} {getattr(est, 'association_counts', '')}", flush=True)
+
+
 def main() -> None:
+    if sys.argv[1] == "--pair":
+        pair(*sys.argv[2:5])
+        return
     out = Path(sys.argv[1])
     out.mkdir(parents=True, exist_ok=True)
     scenarios = sys.argv[2].split(",")

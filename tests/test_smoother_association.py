@@ -73,8 +73,8 @@ def _observation(range_m, bearing_rad, truth=None):
     return Observation(0.0, None, range_m, bearing_rad, 0.05, 0.02, truth_landmark_id=truth)
 
 
-def test_a_single_sighting_never_makes_a_landmark_and_two_that_agree_do():
-    assoc = SmootherAssociation(max_wait_steps=5)
+def test_a_single_sighting_never_makes_a_landmark_and_agreeing_ones_do():
+    assoc = SmootherAssociation(max_wait_steps=5, min_sightings=2)  # the default is 3
     pose = gtsam.Pose2(0.0, 0.0, 0.0)
     no_marginal = lambda ids: None  # noqa: E731  (no landmark yet: never asked)
 

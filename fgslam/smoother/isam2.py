@@ -135,7 +135,7 @@ class Isam2Smoother:
     associate:
         ``True`` (default): observations without a ``landmark_id`` are associated with the
         landmarks the smoother holds, on its own marginals, with JCBB, new landmarks entering
-        only once a second sighting agrees (:mod:`fgslam.smoother.association`; counts in
+        only once three sightings agree (:mod:`fgslam.smoother.association`; counts in
         :attr:`association_counts`, the ids used in :meth:`step_associations`). ``False``:
         they are skipped and counted in ``skipped_unknown_observations``.
     tags:
@@ -594,7 +594,7 @@ class Isam2Smoother:
         counts = {"skipped": self.skipped_unknown_observations}
         if self.associate:
             counts.update(paired=a.paired, created=a.created, rejected=a.rejected, unconfirmed=a.unconfirmed,
-                          waiting=len(a.waiting))
+                          waiting=sum(len(g) for g in a.waiting))
         return counts
 
     # ------------------------------------------------------------------ internals
