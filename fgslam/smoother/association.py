@@ -17,7 +17,10 @@ functions it calls) but on the smoother's own uncertainty:
    association gate ``gate_probability`` for the joint test and the wider new-landmark gate
    ``new_landmark_probability`` for the candidate pairs, exactly as ``EkfSlam`` does.
 4. An unpaired observation inside the new-landmark gate of some landmark is **rejected**
-   (ambiguous). One outside every gate is a **first sighting**: it waits (it tells nothing
+   (ambiguous), and asked once more after the next update, from its pose's new estimate
+   (:meth:`SmootherAssociation.retry_rejected`: the first re-observations of a loop
+   closure are often outside the joint gate until the closure corrects the pose; measured
+   on grid 200 ...). One outside every gate is a **first sighting**: it waits (it tells nothing
    about the poses yet) until later observations, also unpaired and outside every gate,
    agree with it (each one's range and bearing from its seed pose against the point the
    previous sighting implies, ½‖whitened residual‖² ≤ ``confirm_gate``, as the robust
@@ -145,7 +148,8 @@ class SmootherAssociation:
         self.held: dict[int, np.ndarray] = {}  # created, not yet in iSAM2 → its point
         self._keys: list[int | None] = []
         self._step_start = 0
-        self.paired = self.created = self.rejected = self.unconfirmed = 0
+        self.retry: list[FirstSighting] = []  # rejected observations to ask once more
+        self.paired = self.created = self.rejected = self.unconfirmed = self.retried = 0
         self.jcbb_nodes_max = 0
 
     # -------------------------------------------------------------- bookkeeping
@@ -183,12 +187,38 @@ class SmootherAssociation:
         if not observations:
             return decision
         obs = [o for _, o in observations]
+        found = self._pairing(seed, obs, isam, joint_marginal, known_points)
+        if found is None:  # no marginal this step: use nothing, create nothing
+            self.rejected += len(obs)
+            return decision
+        pairing, near, points, spreads = found
+        for a, (position, _) in enumerate(observations):
+            slot = self._step_start + position
+            if pairing[a] is not None:
+                decision.paired[position] = pairing[a]
+                self._keys[slot] = pairing[a]
+                self.paired += 1
+            elif near[a]:  # ambiguous now; asked once more after the update (retry_rejected)
+                self._keys[slot] = None
+                self.rejected += 1
+                self.retry.append(FirstSighting(slot, k, seed, obs[a], points[a], spreads[a]))
+            else:
+                self._keys[slot] = None
+                sighting = FirstSighting(slot, k, seed, obs[a], points[a], spreads[a])
+                self._first_sighting(sighting, decision, position)
+        return decision
+
+    def _pairing(self, seed: gtsam.Pose2, obs: list[Observation], isam: gtsam.ISAM2, joint_marginal,
+                 known_points: list[int]):
+        """JCBB of ``obs`` made from ``seed`` against the candidate landmarks (steps 1–3 of
+        the module docstring): ``(pairing, near, points, spreads)`` — the landmark id of each
+        observation or None, whether some landmark is inside its new-landmark gate, the world
+        point it implies and that point's spread — or None when iSAM2 cannot form the marginal."""
         points = [observation_point(seed, o) for o in obs]
         pose_world = np.array([seed.x(), seed.y(), seed.theta()])
         pose_only = joint_marginal([]) if known_points else None
         pose_cov = pose_only if pose_only is not None else np.zeros((3, 3))
         spreads = [point_spread_m(pose_cov, o) for o in obs]
-
         near = np.zeros(len(obs), dtype=bool)
         pairing: list[int | None] = [None] * len(obs)
         candidates: list[int] = []
@@ -199,36 +229,47 @@ class SmootherAssociation:
             if any(np.linalg.norm(points[i] - means[lid]) <= reach[i] for i in range(len(obs))):
                 candidates.append(lid)
         if candidates and pose_only is not None:
-            joint = joint_marginal(candidates)
-            if joint is None:  # no marginal this step: use nothing, create nothing
-                self.rejected += len(obs)
-                return decision
-            P = joint
+            P = joint_marginal(candidates)
+            if P is None:
+                return None
             nu, H, R = association_problem(pose_world, P, [means[c] for c in candidates], obs)
             S = H @ P @ np.swapaxes(H, -1, -2) + R[:, None]
             d2 = mahalanobis_squared(nu, 0.5 * (S + np.swapaxes(S, -1, -2)))
-            compatible = d2 <= chi2_gate(2, self.new_landmark_probability)
-            near = compatible.any(axis=1)
+            near = (d2 <= chi2_gate(2, self.new_landmark_probability)).any(axis=1)
             if near.any():
                 result = jcbb(nu, H, P, R, probability=self.gate_probability,
                               candidate_probability=self.new_landmark_probability)
                 self.jcbb_nodes_max = max(self.jcbb_nodes_max, result.nodes)
                 pairing = [None if c is None else candidates[c] for c in result.pairing]
+        return pairing, near, points, spreads
 
-        for a, (position, _) in enumerate(observations):
-            slot = self._step_start + position
-            if pairing[a] is not None:
-                decision.paired[position] = pairing[a]
-                self._keys[slot] = pairing[a]
-                self.paired += 1
-            elif near[a]:
-                self._keys[slot] = None
-                self.rejected += 1
-            else:
-                self._keys[slot] = None
-                sighting = FirstSighting(slot, k, seed, obs[a], points[a], spreads[a])
-                self._first_sighting(sighting, decision, position)
-        return decision
+    def retry_rejected(self, k: int, isam: gtsam.ISAM2, joint_marginal_at, known_points: list[int]):
+        """Rejected observations of earlier poses that iSAM2 now holds, associated once more
+        from the pose's updated estimate (``joint_marginal_at(pose_index, pose, ids)``):
+        a loop closure's first re-observations often fall outside the joint gate while the
+        pose is still uncorrected, and the closure itself (the observations that did pair)
+        corrects it. Returns ``(sighting, landmark id)`` for those that pair now; the others
+        stay rejected."""
+        due = [r for r in self.retry if r.pose_index < k and isam.valueExists(X(r.pose_index))]
+        if not due:
+            return []
+        self.retry = [r for r in self.retry if not any(r is d for d in due)]
+        out = []
+        for p in sorted({r.pose_index for r in due}):
+            group = [r for r in due if r.pose_index == p]
+            pose = isam.calculateEstimatePose2(X(p))
+            found = self._pairing(pose, [r.observation for r in group], isam,
+                                  lambda ids, p=p, pose=pose: joint_marginal_at(p, pose, ids), known_points)
+            if found is None:
+                continue
+            for r, lid in zip(group, found[0]):
+                if lid is not None:
+                    self._keys[r.index] = lid
+                    self.rejected -= 1
+                    self.paired += 1
+                    self.retried += 1
+                    out.append((r, lid))
+        return out
 
     def _first_sighting(self, sighting: FirstSighting, decision: Decision, position: int) -> None:
         """Pair a new landmark's sighting with one waiting (or a created landmark not yet in

@@ -40,6 +40,7 @@ from gtsam.symbol_shorthand import H, X
 from ekf.range_only import DelayedInitRule
 from ekf.slam import has_height  # the same rule as the EKF's for a usable height
 from fgslam.smoother.association import SmootherAssociation, world_joint_marginal
+from fgslam.smoother.chain import OdometryChain
 from fgslam.smoother.factors import (
     DEFAULT_ROBUST_K,
     FactorBuilder,
@@ -324,11 +325,14 @@ class Isam2Smoother:
         """The step's observations with the id-less ones given the id association chose
         (:mod:`fgslam.smoother.association`); those it did not place are left out. First
         sightings confirmed now are held too, at their own poses."""
+        points = [i for i in self._landmarks.ids if i not in self._landmarks.tag_ids]
+        for s, lid in self._association.retry_rejected(
+                k, self._isam, lambda p, pose, ids: world_joint_marginal(self._isam, OdometryChain(p), pose, ids), points):
+            self._add_observation(s.pose_index, s.seed, replace(s.observation, landmark_id=lid))
         unknown = [(i, o) for i, o in enumerate(observations) if o.landmark_id is None and not o.range_only]
         if not unknown:
             return list(observations)
         since = self._online._caught_up_since_chain()
-        points = [i for i in self._landmarks.ids if i not in self._landmarks.tag_ids]
         decision = self._association.associate(
             k, seed, unknown, self._isam, lambda ids: world_joint_marginal(self._isam, since, seed, ids), points)
         for lid, sightings in decision.confirmed.items():
@@ -593,7 +597,8 @@ class Isam2Smoother:
         a = self._association
         counts = {"skipped": self.skipped_unknown_observations}
         if self.associate:
-            counts.update(paired=a.paired, created=a.created, rejected=a.rejected, unconfirmed=a.unconfirmed,
+            counts.update(paired=a.paired, created=a.created, rejected=a.rejected, retried=a.retried,
+                          unconfirmed=a.unconfirmed,
                           waiting=sum(len(g) for g in a.waiting))
         return counts
 
