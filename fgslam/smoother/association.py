@@ -19,10 +19,9 @@ functions it calls) but on the smoother's own uncertainty:
 4. An unpaired observation inside the new-landmark gate of some landmark is **rejected**
    (ambiguous), and asked once more after the next update, from its pose's new estimate
    (:meth:`SmootherAssociation.retry_rejected`: the first re-observations of a loop
-   closure are often outside the joint gate until the closure corrects the pose; measured
-   on grid 200 ...). One outside every gate is a **first sighting**: it waits (it tells nothing
-   about the poses yet) until later observations, also unpaired and outside every gate,
-   agree with it (each one's range and bearing from its seed pose against the point the
+   closure can be outside the joint gate until the closure corrects the pose).
+5. One outside every gate is a **first sighting**: it waits (it tells nothing about the
+   poses yet) until later observations, also unpaired and outside every gate, agree with it (each one's range and bearing from its seed pose against the point the
    previous sighting implies, ½‖whitened residual‖² ≤ ``confirm_gate``, as the robust
    first-sighting check in :mod:`fgslam.smoother.pending`). Once ``min_sightings`` (3)
    agree they all enter under a new key. Sightings nothing agrees with within
@@ -246,7 +245,7 @@ class SmootherAssociation:
     def retry_rejected(self, k: int, isam: gtsam.ISAM2, joint_marginal_at, known_points: list[int]):
         """Rejected observations of earlier poses that iSAM2 now holds, associated once more
         from the pose's updated estimate (``joint_marginal_at(pose_index, pose, ids)``):
-        a loop closure's first re-observations often fall outside the joint gate while the
+        a loop closure's first re-observations can fall outside the joint gate while the
         pose is still uncorrected, and the closure itself (the observations that did pair)
         corrects it. Returns ``(sighting, landmark id)`` for those that pair now; the others
         stay rejected."""
