@@ -21,6 +21,13 @@ gaps in their motion capture): the ATE is over them and the NEES share is of the
 whose truth covers fewer than half of its poses, or fewer than 10 poses, is refused
 (:func:`require_enough_truth`): check it ``--against smoothed``.
 
+Against the smoothed solution, a reference no better constrained than odometry (its graph
+holds no landmark, or no landmark observed twice, e.g. observations the smoother could
+neither read an id from nor associate) is refused with the reason and the fix
+(:func:`fgslam.runner.require_usable_reference`) instead of grading the estimator against
+dead reckoning. Observations without ids are associated by the smoother itself
+(:mod:`fgslam.smoother.association`), so hidden-id logs are checked like logs with ids.
+
 Tolerances come, in this order of precedence, from the call (or the command line), from a
 TOML file next to the log (``<log>.check.toml``, or the file given), and from the defaults
 (0.5 m, 0.1)::
