@@ -352,7 +352,8 @@ def compare_log(
     The reference (:func:`choose_reference`) is the log's ground truth wherever it has some
     (poses without truth are not scored), otherwise the batch Levenberg–Marquardt solution
     started from iSAM2's result (the "smoothed ground truth"), with the log's surveyed
-    landmarks for the map error when it has them. The batch solve starts from plain
+    landmarks for the map error when it has them; a smoothed reference no better than
+    odometry is refused (:func:`require_usable_reference`). The batch solve starts from plain
     ``isam2`` when it ran, else from the first robust iSAM2 (whose graph, and so whose
     batch solve, is robust too). ``consistency`` is :func:`run_estimator`'s ``covariances``
     (NEES, NIS and covariance ellipses).
