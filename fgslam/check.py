@@ -21,6 +21,13 @@ gaps in their motion capture): the ATE is over them and the NEES share is of the
 whose truth covers fewer than half of its poses, or fewer than 10 poses, is refused
 (:func:`require_enough_truth`): check it ``--against smoothed``.
 
+Against the smoothed solution, a reference no better constrained than odometry (its graph
+holds no landmark, or no landmark observed twice, e.g. observations the smoother could
+neither read an id from nor associate) is refused with the reason and the fix
+(:func:`fgslam.runner.require_usable_reference`) instead of grading the estimator against
+dead reckoning. Observations without ids are associated by the smoother itself
+(:mod:`fgslam.smoother.association`), so hidden-id logs are checked like logs with ids.
+
 Tolerances come, in this order of precedence, from the call (or the command line), from a
 TOML file next to the log (``<log>.check.toml``, or the file given), and from the defaults
 (0.5 m, 0.1)::
@@ -50,7 +57,7 @@ from pathlib import Path
 import numpy as np
 
 from fgslam.compare import ate_rmse_m, nees_band, nees_over_truth
-from fgslam.runner import ESTIMATORS, run_estimator, truth_reference
+from fgslam.runner import ESTIMATORS, require_usable_reference, run_estimator, truth_reference
 from fgslam.smoother import Isam2Smoother, batch_solve
 from slamio.errors import FgslamError
 from slamio.log import read_log
@@ -168,6 +175,7 @@ def check_estimator(
     else:
         smoother = Isam2Smoother(log.header)
         run_estimator(smoother, steps, covariances=False)  # only its graph is needed
+        require_usable_reference(smoother, steps, str(log_path))
         reference_poses = batch_solve(smoother).trajectory
         has_pose = np.ones(len(reference_poses), dtype=bool)
 

@@ -160,6 +160,10 @@ class EstimatorRun:
     nis_steps: np.ndarray | None = None
     peak_memory_bytes: int | None = None
     landmark_covariances: dict[int, np.ndarray] | None = None
+    #: what became of observations the estimator did not use as a landmark (e.g. ``skipped``:
+    #: no id and no association; ``rejected``: ambiguous; ``unconfirmed``: a first sighting
+    #: nothing agreed with), from the estimator's own counters; None when it keeps none
+    unused_observations: dict[str, int] | None = None
 
 
 @dataclass(frozen=True)
@@ -658,26 +662,39 @@ class AssociationScore:
     def landmarks_created(self) -> int:
         return len(self.identity)
 
+    @property
+    def wrong(self) -> int:
+        """Observations used as the wrong landmark (or as a duplicate of a mapped one)."""
+        return self.observations - self.correct - self.rejected
+
 
 def score_associations(true_ids, keys) -> AssociationScore:
     """Score one run's data association.
 
     ``true_ids[i]`` is the true landmark of observation ``i`` (None when unknown: not
     scored) and ``keys[i]`` the estimator's landmark key it was used as (None: rejected),
-    in the order the observations were made. A key stands for the true landmark of the
-    observation that first used it (the one that created it). An observation is correct
-    when its key stands for its true landmark and is not a duplicate: a key created for a
-    true landmark that already had one is a duplicate, and every use of it is wrong. A
-    rejected observation is not correct.
+    in the order the observations were made. A key stands for the true landmark most of its
+    scored observations saw (ties: the one seen first) — not merely the first one, so a
+    landmark whose first sighting was a misdetection that happened to fall near it is still
+    the landmark it maps. When several keys stand for the same true landmark, the one with
+    the most observations of it (ties: the first created) is that landmark and the others
+    are duplicates, every use of which is wrong. An observation is correct when its key
+    stands for its true landmark and is not a duplicate; a rejected observation is not correct.
     """
-    identity: dict[int, int] = {}
-    duplicates: set[int] = set()
+    votes: dict[int, dict[int, int]] = {}  # key → true id → observations (insertion order = first seen)
+    for true_id, key in zip(true_ids, keys, strict=True):
+        if key is not None and true_id is not None:
+            counts = votes.setdefault(key, {})
+            counts[true_id] = counts.get(true_id, 0) + 1
+    identity = {key: max(counts, key=counts.get) for key, counts in votes.items()}  # max keeps the first of ties
+    primary: dict[int, int] = {}  # true id → its key
+    for key, true_id in identity.items():  # keys in order of first use
+        best = primary.get(true_id)
+        if best is None or votes[key][true_id] > votes[best][true_id]:
+            primary[true_id] = key
+    duplicates = {key for key, true_id in identity.items() if primary[true_id] != key}
     observations = correct = rejected = 0
     for true_id, key in zip(true_ids, keys, strict=True):
-        if key is not None and key not in identity and true_id is not None:
-            if true_id in identity.values():
-                duplicates.add(key)
-            identity[key] = true_id
         if true_id is None:
             continue
         observations += 1
@@ -727,6 +744,7 @@ METRIC_KEYS = (
     "landmarks_found",
     "landmarks_missed",
     "association",
+    "unused_observations",
     "aligned",
     "time_total_s",
     "time_step_p50_s",
@@ -840,9 +858,12 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
              "landmarks_estimated": int,
              "landmarks_found": int,         # reference landmarks it estimated
              "landmarks_missed": int,        # reference landmarks it never put in its map
-             "association": dict|None,       # only for estimators that associate themselves:
-                                             # observations, correct, rate, rejected,
-                                             # landmarks_created, duplicate_landmarks
+             "association": dict|None,       # when the log has observations without ids (or the
+                                             # estimator created landmarks): observations,
+                                             # correct, wrong, rate, rejected, new (=
+                                             # landmarks_created), duplicate_landmarks
+             "unused_observations": dict|None, # the estimator's own counts of observations it
+                                             # did not use (skipped, rejected, unconfirmed, ...)
              "aligned": bool,                # SE(2) alignment applied (first poses differ)
              "time_total_s": float,
              "time_step_p50_s": float|None,  # median step time; None for batch
@@ -936,6 +957,7 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
             "landmarks_found": int(found),
             "landmarks_missed": int(len(reference.landmarks) - found),
             "association": _association_dict(run.association),
+            "unused_observations": None if run.unused_observations is None else dict(run.unused_observations),
             "aligned": bool(aligned),
             "time_total_s": _json_float(run.total_time_s),
             "time_step_p50_s": _json_float(p50),
@@ -961,8 +983,10 @@ def _association_dict(score: AssociationScore | None) -> dict | None:
     return {
         "observations": score.observations,
         "correct": score.correct,
+        "wrong": score.wrong,
         "rate": _json_float(score.rate),
         "rejected": score.rejected,
+        "new": score.landmarks_created,
         "landmarks_created": score.landmarks_created,
         "duplicate_landmarks": len(score.duplicate_keys),
     }
@@ -992,10 +1016,24 @@ def _association_cell(m: dict) -> str:
     return "-" if a is None or a.get("rate") is None else f"{100 * a['rate']:.2f}"
 
 
+def _association_counts_cell(m: dict) -> str:
+    a = m.get("association")
+    return "-" if a is None else f"{a.get('wrong', 0)}/{a.get('new', a.get('landmarks_created', 0))}/{a['rejected']}"
+
+
+def _unused_cell(m: dict) -> str:
+    u = m.get("unused_observations")
+    if u is None:
+        return "-"
+    return " ".join(f"{v} {k}" for k, v in u.items() if v) or "0"
+
+
 #: (header, metrics key, cell formatter) of the columns shown only when some run has them.
 OPTIONAL_COLUMNS = (
     ("height RMSE m", "map_height_rmse_m", lambda m: _fmt(m.get("map_height_rmse_m"))),
     ("assoc %", "association", _association_cell),
+    ("assoc wrong/new/rej", "association", _association_counts_cell),
+    ("unused obs", "unused_observations", _unused_cell),
     ("NEES in %", "nees_inside_95", lambda m: _fmt(m.get("nees_inside_95"), 100.0, 1)),
     ("NIS in %", "nis_inside_95", lambda m: _fmt(m.get("nis_inside_95"), 100.0, 1)),
     ("peak MB", "peak_memory_mb", lambda m: _fmt(m.get("peak_memory_mb"), 1.0, 1)),
@@ -1018,6 +1056,13 @@ COLUMN_MEANINGS = {
     "height RMSE m": "RMS error of the landmark heights, metres, for estimators with a 3-D map",
     "assoc %": "share of observations associated with the right landmark, for estimators that "
     "associate observations themselves (rejected ones count as wrong)",
+    "assoc wrong/new/rej": "observations associated with the wrong landmark (or a duplicate), "
+    "landmarks the estimator created, and observations it rejected (left unused), scored "
+    "against the log's truth_landmark_id",
+    "unused obs": "observations the estimator did not use, by reason, from its own counters: "
+    "skipped (no id and no association), rejected (ambiguous), unconfirmed (a new landmark's "
+    "first sighting no later one agreed with), gated (outside the gate of its id), dropped "
+    "(withheld after a failed update); 0 when it used every observation",
     "NEES in %": "share of steps whose NEES (online pose error against ground truth, weighted by "
     "the covariance the estimator stated) lies inside the 95 % chi-square(3) band; about 95 for "
     "a consistent estimator, less when it is over-confident (only with ground truth, over the "

@@ -24,6 +24,7 @@ import time
 from dataclasses import dataclass
 from typing import Callable, Iterator, Sequence
 
+import gtsam
 import numpy as np
 import scipy.linalg  # noqa: F401  (scipy's own BLAS is loaded now, so the thread limit below covers it)
 from threadpoolctl import threadpool_limits
@@ -184,7 +185,10 @@ def run_estimator(
         if covariances and hasattr(estimator, "landmark_covariances") else None
     )
     association = None
-    if any(k is not None and k < 0 for k in keys):  # it created landmarks itself: score it
+    if hasattr(estimator, "associations"):  # ids settled after their step (deferred first sightings)
+        keys = estimator.associations()  # type: ignore[attr-defined]
+    hidden = any(o.landmark_id is None and not o.range_only for step in steps for o in step.observations)
+    if associating and (hidden or any(k is not None and k < 0 for k in keys)):  # it associated observations itself: score it
         association = score_associations(true_ids, keys)
         landmarks = relabel_landmarks(landmarks, association)
         heights = relabel_landmarks(heights, association) if heights else heights
@@ -204,8 +208,30 @@ def run_estimator(
         nis_steps=np.array(nis_steps, dtype=int) if with_nis else None,
         peak_memory_bytes=memory.peak_bytes,
         landmark_covariances=landmark_covariances or None,
+        unused_observations=unused_observations(estimator),
     )
     return run, estimator
+
+
+def unused_observations(estimator) -> dict[str, int] | None:
+    """The estimator's own counts of observations it did not use, by reason (None when it
+    keeps no such counters): always shown, so a run that ignored its observations says so."""
+    counters = {  # attribute → reason
+        "skipped_unknown_id": "skipped",  # EkfSlam
+        "rejected_observations": "rejected",
+        "gated_known_id": "gated",
+        "dropped_observations": "dropped",  # Isam2Smoother
+        "rejected_first_sightings": "unconfirmed",
+    }
+    out: dict[str, int] = {}
+    for attribute, reason in counters.items():
+        value = getattr(estimator, attribute, None)
+        if isinstance(value, int):
+            out[reason] = out.get(reason, 0) + value
+    for reason, value in (getattr(estimator, "association_counts", None) or {}).items():
+        if reason in ("skipped", "rejected", "unconfirmed"):
+            out[reason] = out.get(reason, 0) + int(value)
+    return out or None
 
 
 def _true_id(observation) -> int | None:
@@ -269,6 +295,51 @@ def choose_reference(log: RunLog, smoothed_trajectory, smoothed_landmarks, smoot
     return Reference("smoothed", smoothed_trajectory, dict(smoothed_landmarks), smoothed_heights)
 
 
+class UnusableReferenceError(FgslamError):
+    """The smoothed solution is too weak to grade an estimator against (see
+    :func:`require_usable_reference`)."""
+
+
+def reference_landmark_observations(smoother: Isam2Smoother) -> int:
+    """How many landmark observation factors the smoother's graph holds (factors on a
+    landmark or tag variable, heights excluded)."""
+    count = 0
+    graph = smoother.graph()
+    for i in range(graph.size()):
+        factor = graph.at(i)
+        if factor is None:
+            continue
+        if any(chr(gtsam.Symbol(key).chr()) in "lt" for key in factor.keys()):
+            count += 1
+    return count
+
+
+def require_usable_reference(smoother: Isam2Smoother, steps: Sequence[Step], log_name: str) -> None:
+    """Refuse a smoothed reference that is no better constrained than odometry.
+
+    A landmark constrains the trajectory only from its second observation on, so the
+    reference is dead reckoning when its graph holds no landmark, or no more landmark
+    observations than landmarks. Raises :class:`UnusableReferenceError` saying why (how
+    many observations the log has, how many the smoother used, and what it did with the
+    others) and how to fix it.
+    """
+    observations = sum(len(step.observations) for step in steps)
+    used = reference_landmark_observations(smoother)
+    landmarks = len(smoother.landmarks())
+    if observations == 0 or used > landmarks:
+        return
+    unused = ", ".join(f"{v} {k}" for k, v in (unused_observations(smoother) or {}).items() if v) or "none counted"
+    without_id = sum(1 for step in steps for o in step.observations if o.landmark_id is None)
+    what = "maps no landmark" if landmarks == 0 else f"maps {landmarks} landmarks but observes none of them twice"
+    raise UnusableReferenceError(
+        f"{log_name}: the smoothed reference {what} (the log has {observations} observations, "
+        f"{without_id} without a landmark id; the smoother used {used}; not used: {unused}), so it is no "
+        f"better constrained than odometry and grading an estimator against it would be meaningless. "
+        f"Fix: record landmark ids, or observations the smoother can associate (landmarks seen more than "
+        f"once, with sensible sigma_range_m/sigma_bearing_rad), or grade against ground truth (--against truth)"
+    )
+
+
 def compare_log(
     log: RunLog,
     estimator_names: Sequence[str] = DEFAULT_ESTIMATORS,
@@ -281,7 +352,8 @@ def compare_log(
     The reference (:func:`choose_reference`) is the log's ground truth wherever it has some
     (poses without truth are not scored), otherwise the batch Levenberg–Marquardt solution
     started from iSAM2's result (the "smoothed ground truth"), with the log's surveyed
-    landmarks for the map error when it has them. The batch solve starts from plain
+    landmarks for the map error when it has them; a smoothed reference no better than
+    odometry is refused (:func:`require_usable_reference`). The batch solve starts from plain
     ``isam2`` when it ran, else from the first robust iSAM2 (whose graph, and so whose
     batch solve, is robust too). ``consistency`` is :func:`run_estimator`'s ``covariances``
     (NEES, NIS and covariance ellipses).
@@ -289,30 +361,37 @@ def compare_log(
     steps = log.steps()
     runs: list[EstimatorRun] = []
     smoother: Isam2Smoother | None = None
+    smoother_run: EstimatorRun | None = None
     for name in estimator_names:
         run, estimator = run_estimator(ESTIMATORS[name](log.header), steps, progress, covariances=consistency)
         runs.append(run)
         if isinstance(estimator, Isam2Smoother) and (smoother is None or name == "isam2"):
-            smoother = estimator
+            smoother, smoother_run = estimator, run
     if smoother is None:
         raise FgslamError("the batch solve needs iSAM2's result: keep isam2 in the estimators")
+    if not log.truth_landmarks() and truth_reference(log) is None:  # the smoothed solution will be the reference
+        require_usable_reference(smoother, steps, getattr(log, "path", "the log"))
     if progress is not None:
         progress(0, 1, "batch")
     with pinned_threads():
         batch = batch_solve(smoother)
     if progress is not None:
         progress(1, 1, "batch")
+    batch_landmarks, batch_heights = dict(batch.landmarks), batch.landmark_heights
+    if smoother_run is not None and smoother_run.association is not None:  # the smoother's own keys → true ids
+        batch_landmarks = relabel_landmarks(batch_landmarks, smoother_run.association)
+        batch_heights = relabel_landmarks(batch_heights, smoother_run.association) if batch_heights else batch_heights
     runs.append(
         EstimatorRun(
             name="batch",
             online=None,
             final=batch.trajectory,
-            landmarks=dict(batch.landmarks),
+            landmarks=batch_landmarks,
             step_times_s=None,
             total_time_s=batch.time_s,
-            landmark_heights=batch.landmark_heights,
+            landmark_heights=batch_heights,
         )
     )
     stamps_s = np.array([s.stamp_s for s in steps])
-    reference = choose_reference(log, batch.trajectory, dict(batch.landmarks), batch.landmark_heights)
+    reference = choose_reference(log, batch.trajectory, batch_landmarks, batch_heights)
     return Comparison(runs, reference, stamps_s, smoother)

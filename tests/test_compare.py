@@ -387,6 +387,16 @@ def test_score_associations_by_hand():
     assert relabel_landmarks({-1: (1.0, 2.0), -2: (3.0, 4.0), -3: (5.0, 6.0)}, score) == {5: (1.0, 2.0), 7: (3.0, 4.0)}
 
 
+def test_a_key_stands_for_the_landmark_most_of_its_observations_saw():
+    from fgslam.compare import score_associations
+
+    # key -1 was created by a misdetection (true id 4) that fell where landmark 5 is
+    score = score_associations([4, 5, 5, 5, 4, 4, 4], [-1, -1, -1, -1, -2, -2, -3])
+    assert score.identity == {-1: 5, -2: 4, -3: 4}
+    assert score.duplicate_keys == {-3}  # -2 holds more observations of 4
+    assert (score.correct, score.wrong) == (5, 2)
+
+
 def test_metrics_report_association_and_heights():
     from fgslam.compare import score_associations
 
@@ -396,7 +406,7 @@ def test_metrics_report_association_and_heights():
     ref = Reference("ground_truth", traj, {1: (0.0, 0.0)}, {1: 0.4})
     m = compute_metrics([run], ref, log_path="x")["ekf-nn"]
     assert m["association"] == {
-        "observations": 3, "correct": 2, "rate": 2 / 3, "rejected": 1,
+        "observations": 3, "correct": 2, "wrong": 0, "rate": 2 / 3, "rejected": 1, "new": 1,
         "landmarks_created": 1, "duplicate_landmarks": 0,
     }
     assert m["map_height_rmse_m"] == pytest.approx(0.1)

@@ -261,3 +261,28 @@ def test_hil_colour_landmarks_with_the_simulated_kinect(tmp_path):
         assert math.dist(np.asarray(xy)[:2], truth[landmark_id]) < 0.1
     heights = [o.height_m for o in read_log(out).records if getattr(o, "height_m", None) is not None]
     assert heights  # the cylinders' heights are measured on the way
+
+
+@pytest.mark.slow
+def test_hil_colour_landmarks_without_ids(tmp_path):
+    """The same colour run with a landmark file that names no ids: the observations carry
+    none, and iSAM2 associates them itself (fgslam/smoother/association.py)."""
+    import dataclasses
+
+    from fgslam.live_colour import ARENA_CYLINDER_XY, simulated_kinect
+    from slamio.camera.colour import ColourOptions
+
+    options = ColourOptions()
+    options = dataclasses.replace(options, colours=tuple(dataclasses.replace(c, landmark_id=None)
+                                                         for c in options.colours))
+    out = tmp_path / "colour_noid.jsonl"
+    result, true_pose, stopped, _ = hil_octagon(out, 2, lambda sim: simulated_kinect(sim, options))
+    assert stopped and result.completed and pose_error_m(result.final_pose, true_pose) < 0.1
+    from slamio.log import Observation
+
+    observations = [o for o in read_log(out).records if isinstance(o, Observation)]
+    assert observations and all(o.landmark_id is None for o in observations)
+    assert len(result.landmarks) == 3  # the three cylinders, under the smoother's own keys
+    truth = list(ARENA_CYLINDER_XY.values())
+    for xy in result.landmarks.values():
+        assert min(math.dist(np.asarray(xy)[:2], t) for t in truth) < 0.1

@@ -268,7 +268,7 @@ def test_step0_observations_unknown_ids_and_length():
     assert steps[0].observations, "the log should observe landmarks from the start pose"
     unknown = sum(1 for s in steps for o in s.observations if o.landmark_id is None)
     assert unknown == 8
-    smoother = Isam2Smoother(header)
+    smoother = Isam2Smoother(header, associate=False)  # id-less observations skipped and counted
     smoother.step(steps[0])
     seen_at_0 = {o.landmark_id for o in steps[0].observations if o.landmark_id is not None}
     assert set(smoother.landmarks()) == seen_at_0
@@ -280,6 +280,16 @@ def test_step0_observations_unknown_ids_and_length():
     assert smoother.num_poses == len(steps)
     assert pose_difference(smoother.trajectory(), truth)[0] < 1e-6
     assert smoother.update_failures == 0
+    # by default they are associated; these (the same range and bearing from poses along a
+    # circle) fit no landmark and no fixed point, so none is used and no landmark is made
+    associating = Isam2Smoother(header)
+    for step in steps:
+        associating.step(step)
+    associating.finish()
+    counts = associating.association_counts
+    assert counts["skipped"] == 0 and counts["paired"] + counts["rejected"] + counts["unconfirmed"] == unknown
+    assert counts["unconfirmed"] == unknown and counts["created"] == 0
+    assert set(associating.landmarks()) == set(smoother.landmarks())
 
 
 def test_steps_must_come_in_order():

@@ -55,6 +55,9 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     imp.add_argument("--noise", default=None, metavar="FILE",
                      help="MRCLAM: a noise model from `fgslam calibrate LOG... --out FILE` (odometry lag and "
                           "scale, range/bearing correction and sigmas); default: round, unfitted values")
+    imp.add_argument("--hide-ids", action="store_true",
+                     help="write observations without landmark ids (the estimators must associate them); "
+                          "the dataset's id is kept in truth_landmark_id to score the association")
     imp.add_argument("--odom-topic", default=None, help="rosbag: nav_msgs/Odometry topic")
     imp.add_argument("--detections-topic", default=None,
                      help="rosbag: apriltag_ros/AprilTagDetectionArray topic")
@@ -108,6 +111,8 @@ def cmd_import(args: argparse.Namespace) -> int:
         header, records = import_plaza(
             args.dataset, source, range_sigma_m=args.range_sigma, range_bias_m=args.range_bias
         )
+    if args.hide_ids:
+        header, records = hide_landmark_ids(header, records)
     return write_run_log(out, header, records, overwrite=args.overwrite, option="OUT")
 
 
@@ -123,3 +128,18 @@ def _import_seed003(source: str, args: argparse.Namespace):
     noise = StereoImuNoise(sigma_px=args.pixel_sigma, sigma_v_mps=args.speed_sigma, sigma_w_radps=args.turn_rate_sigma)
     drive = load_drive(source)
     return drive_to_log(drive, noise, source={"dataset": "seed003", "file": str(source), "command": command_line(args)})
+
+
+def hide_landmark_ids(header, records):
+    """The log with every observation's ``landmark_id`` moved to ``truth_landmark_id``
+    (range-only observations keep theirs: a range alone cannot be associated)."""
+    from dataclasses import replace
+
+    from slamio.log import Observation
+
+    hidden = [
+        replace(r, landmark_id=None, truth_landmark_id=r.landmark_id)
+        if isinstance(r, Observation) and r.landmark_id is not None and not r.range_only else r
+        for r in records
+    ]
+    return replace(header, source={**header.source, "hide_ids": True}), hidden

@@ -33,6 +33,7 @@ holds (:mod:`~fgslam.smoother.variables`).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import gtsam
 import numpy as np
@@ -41,6 +42,8 @@ from gtsam.symbol_shorthand import H, L, X
 from ekf.range_only import DelayedInitRule
 from ekf.slam import has_height  # the same rule as the EKF's for a usable height
 from fgslam.smoother.correction import PoseCorrector
+from fgslam.smoother.association import SmootherAssociation, world_joint_marginal
+from fgslam.smoother.chain import OdometryChain
 from fgslam.smoother.factors import (
     DEFAULT_ROBUST_K,
     FactorBuilder,
@@ -147,6 +150,12 @@ class Isam2Smoother:
         worst. Use DCS: on the 200-landmark grid the others move the map even on a clean log
         (docs/performance.md has the tables).
 
+    associate:
+        ``True`` (default): observations without a ``landmark_id`` are associated with the
+        landmarks the smoother holds, on its own marginals, with JCBB, new landmarks entering
+        only once three sightings agree (:mod:`fgslam.smoother.association`; counts in
+        :attr:`association_counts`, the ids used in :meth:`step_associations`). ``False``:
+        they are skipped and counted in ``skipped_unknown_observations``.
     tags:
         ``False`` (default): every landmark is a point, as in the EKF. ``True``: a landmark
         whose first observation carries a tag yaw is a ``Pose2`` tag observed through
@@ -157,7 +166,8 @@ class Isam2Smoother:
     Attributes
     ----------
     skipped_unknown_observations:
-        Observations ignored because their ``landmark_id`` was None.
+        Observations ignored because their ``landmark_id`` was None (only with
+        ``associate=False``, or folded into a keyframe chain).
     update_failures:
         Steps whose iSAM2 update raised (each recovered from by a rebuild).
     dropped_observations:
@@ -205,6 +215,7 @@ class Isam2Smoother:
         keyframes: bool = False,
         max_keyframe_gap: int = 50,
         online_correction: bool = True,
+        associate: bool = True,
     ):
         threshold = _relinearize_threshold(relinearize_threshold)
         if relinearize_skip < 1 or final_updates < 0 or max_retries < 0:
@@ -276,6 +287,9 @@ class Isam2Smoother:
         self._landmark_xy: dict[int, tuple[float, float]] = {}  # iSAM2's landmark estimates at its last update
         self._num_poses = 0
         self._estimate_cache: gtsam.Values | None = None
+        # id-less observations: associated (fgslam/smoother/association.py) or skipped
+        self.associate = bool(associate)
+        self._association = SmootherAssociation()
 
     # ------------------------------------------------------------------ Estimator protocol
 
@@ -289,6 +303,7 @@ class Isam2Smoother:
         k = step.index
         if k != self._num_poses:
             raise FgslamError(f"Isam2Smoother: expected step {self._num_poses}, got step {k}; feed steps in order")
+        self._association.begin_step(step.observations)  # for step_associations()
         if k == 0:
             if step.odometry is not None:
                 raise FgslamError("Isam2Smoother: step 0 is the start pose and cannot have odometry")
@@ -307,7 +322,7 @@ class Isam2Smoother:
                 seed, used = self._corrected(odo, step.observations)
             self._online.moved(increment, odo, used)
             if self.keyframes:
-                observed = any(o.landmark_id is not None for o in step.observations)
+                observed = any(o.landmark_id is not None or self.associate for o in step.observations)
                 chain = self._keyframes.fold(k, increment, odometry_noise_covariance(odo), observed)
                 if chain is not None:  # a keyframe: the chain since the last one becomes one compound factor
                     noise = gtsam.noiseModel.Gaussian.Covariance(chain.covariance())
@@ -328,20 +343,53 @@ class Isam2Smoother:
 
     def _add_observations(self, k: int, seed: gtsam.Pose2, observations) -> None:
         """Hold the factors of pose ``k``'s observations (and their heights)."""
+        if self.associate:
+            observations = self._associate(k, seed, observations)
         for obs in observations:
-            if obs.landmark_id is None:
-                self.skipped_unknown_observations += 1
-                continue
-            if obs.range_only:
-                self._landmarks.is_tag(obs.landmark_id, False)  # a range-only landmark is a point
-                self._held.ranges += self._ranges.add(k, seed, obs, self._factors)
-                self._held.observed = True
-                continue
-            if has_height(obs):
-                self._add_height(obs)
-            is_tag = self._landmarks.is_tag(obs.landmark_id, self.tags and has_tag_yaw(obs))
-            self._held.entries.append(self._factors.observation(k, seed, obs, is_tag))
+            self._add_observation(k, seed, obs)
+
+    def _associate(self, k: int, seed: gtsam.Pose2, observations) -> list[Observation]:
+        """The step's observations with the id-less ones given the id association chose
+        (:mod:`fgslam.smoother.association`); those it did not place are left out. First
+        sightings confirmed now are held too, at their own poses."""
+        points = [i for i in self._landmarks.ids if i not in self._landmarks.tag_ids]
+        for s, lid in self._association.retry_rejected(
+                k, self._isam, lambda p, pose, ids: world_joint_marginal(self._isam, OdometryChain(p), pose, ids), points):
+            self._add_observation(s.pose_index, s.seed, replace(s.observation, landmark_id=lid))
+        unknown = [(i, o) for i, o in enumerate(observations) if o.landmark_id is None and not o.range_only]
+        if not unknown:
+            return list(observations)
+        since = self._online._caught_up_since_chain()
+        decision = self._association.associate(
+            k, seed, unknown, self._isam, lambda ids: world_joint_marginal(self._isam, since, seed, ids), points)
+        for lid, sightings in decision.confirmed.items():
+            self._landmarks.is_tag(lid, False)
+            for s in sightings:
+                self._add_observation(s.pose_index, s.seed, replace(s.observation, landmark_id=lid))
+        out = []
+        for i, obs in enumerate(observations):
+            if obs.landmark_id is None and i in decision.paired:
+                self._landmarks.is_tag(decision.paired[i], False)
+                out.append(replace(obs, landmark_id=decision.paired[i]))
+            elif obs.landmark_id is not None or obs.range_only:
+                out.append(obs)
+        return out
+
+    def _add_observation(self, k: int, seed: gtsam.Pose2, obs: Observation) -> None:
+        """Hold the factor of one observation made from pose ``k`` (and its height)."""
+        if obs.landmark_id is None:
+            self.skipped_unknown_observations += 1
+            return
+        if obs.range_only:
+            self._landmarks.is_tag(obs.landmark_id, False)  # a range-only landmark is a point
+            self._held.ranges += self._ranges.add(k, seed, obs, self._factors)
             self._held.observed = True
+            return
+        if has_height(obs):
+            self._add_height(obs)
+        is_tag = self._landmarks.is_tag(obs.landmark_id, self.tags and has_tag_yaw(obs))
+        self._held.entries.append(self._factors.observation(k, seed, obs, is_tag))
+        self._held.observed = True
 
     def _add_height(self, obs: Observation) -> None:
         """Hold a height observation's factor (:meth:`FactorBuilder.height`), and the height's
@@ -369,6 +417,8 @@ class Isam2Smoother:
         entries = self._pending.screen(fresh, self._isam, self._landmarks) + fresh + ranges
         self._update_with_recovery(core, core_values, entries)
         self.updates += 1
+        if self.associate:
+            self._association.entered(self._landmarks.known)
         # the newest pose in iSAM2 is the last keyframe; only the open chain's steps follow it
         last = self._keyframes.last
         anchor = self._isam.calculateEstimatePose2(X(last))
@@ -424,6 +474,7 @@ class Isam2Smoother:
         if self._num_poses == 0:
             return
         self._flush()
+        self._association.finish()
         self._estimate_cache = None
         self._landmark_xy.clear()
         self._online.forget_marginal()  # the final updates below change iSAM2
@@ -584,6 +635,32 @@ class Isam2Smoother:
     def rejected_first_sightings(self) -> int:
         """Robust mode: first sightings no later observation agreed with (dropped)."""
         return self._pending.rejected_first_sightings
+
+    def step_associations(self) -> list[int | None]:
+        """Per observation of the last step: the landmark id it was used as (the log's id,
+        or one the smoother chose, :mod:`fgslam.smoother.association`), or None (not used
+        yet: rejected, or a first sighting waiting; see :meth:`associations`)."""
+        return self._association.step_keys()
+
+    def associations(self) -> list[int | None]:
+        """Per observation of the whole run, in log order: the id it was finally used as
+        (first sightings confirmed later included), or None (not used)."""
+        return self._association.keys()
+
+    @property
+    def association_counts(self) -> dict[str, int]:
+        """What became of the id-less observations: ``paired`` (to a landmark, new ones
+        included), ``created`` landmarks, ``rejected`` (ambiguous: near a landmark but not
+        jointly compatible), ``unconfirmed`` (first sightings nothing agreed with), and
+        ``skipped`` (observations ignored because they had no id, with ``associate=False``
+        or inside a keyframe chain)."""
+        a = self._association
+        counts = {"skipped": self.skipped_unknown_observations}
+        if self.associate:
+            counts.update(paired=a.paired, created=a.created, rejected=a.rejected, retried=a.retried,
+                          unconfirmed=a.unconfirmed,
+                          waiting=sum(len(g) for g in a.waiting))
+        return counts
 
     # ------------------------------------------------------------------ internals
 
