@@ -639,12 +639,14 @@ def _sensor_limit(sensor: dict, key: str) -> float | None:
     if key not in sensor or sensor[key] is None:
         return None
     value = sensor[key]
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+    # a 400-digit integer is a number too, but no float: float() would raise OverflowError
+    metres = float(value) if isinstance(value, float) or (isinstance(value, int) and abs(value) < 1e300) else None
+    if isinstance(value, bool) or metres is None or not math.isfinite(metres) or metres < 0:
         raise _BadLine(
             f"header field 'sensor.{key}' must be a number of metres ≥ 0, got {_show(value)}; "
             "it bounds the ranges the sensor reports (leave it out if there is no limit)"
         )
-    return float(value)
+    return metres
 
 
 def sensor_range_limits(header: Header) -> tuple[float | None, float | None]:

@@ -406,6 +406,7 @@ def test_rejections_are_kept_in_the_partial_log(tmp_path):
         ({"kind": "k", "max_range_m": True}, "'sensor.max_range_m' must be a number"),
         ({"kind": "k", "min_range_m": -1}, "'sensor.min_range_m' must be a number of metres ≥ 0"),
         ({"kind": "k", "min_range_m": 3.0, "max_range_m": 1.0}, "must be below 'sensor.max_range_m'"),
+        ({"kind": "k", "max_range_m": 10**400}, "'sensor.max_range_m' must be a number of metres"),  # was OverflowError
     ],
 )
 def test_bad_sensor_limits_in_the_header(tmp_path, sensor, words):
