@@ -230,6 +230,7 @@ def test_a_hold_stops_the_clock_at_its_time_and_commands_are_still_obeyed():
             port.close()
 
 
+@pytest.mark.slow
 def test_encoder_errors_follow_the_stated_noise_model_whatever_the_step():
     """The encoders err like the odometry noise model a recording from the simulator states:
     over a drive of length L with turn Δθ the (distance, heading) error has covariance

@@ -489,6 +489,7 @@ def test_trial_calibration_in_the_header_gives_the_filter_its_R_and_Q(tmp_path):
     assert EkfS001(header, q_sigmas=(0.1, 0.2, 0.3)).q_sigmas == (0.1, 0.2, 0.3)  # a keyword still wins
 
 
+@pytest.mark.slow
 def test_fgslam_run_calibration_reaches_ekf_s001(tmp_path, capsys):
     from fgslam.cli import main
 
