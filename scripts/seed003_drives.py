@@ -5,6 +5,7 @@
 
 For each drive: ``ekf-s003`` as written and with its typos read as the paper's figures
 require (``AS_THE_FIGURES_SHOW``; its pose is the IMU dead reckoning), ``ekf-vio``,
+``ekf-vio-fej`` (the same with first-estimate Jacobians),
 ``isam2-vio`` (online trajectory) and ``batch`` (LM on the same graph, the reference where
 there is no truth). Prints markdown tables: ATE 3-D and top-view 2-D against truth
 (simulated) or against the batch solution (real), median landmark error, mean time per
@@ -66,6 +67,7 @@ def run_all(drive):
         ("ekf-s003 as written", lambda: EkfS003(drive.K, drive.baseline_m, drive.cam_T_imu)),
         ("ekf-s003 figures' reading (= IMU dead reckoning)", lambda: EkfS003(drive.K, drive.baseline_m, drive.cam_T_imu, **AS_THE_FIGURES_SHOW)),
         ("ekf-vio", lambda: VioEkf(drive.K, drive.baseline_m, drive.cam_T_imu)),
+        ("ekf-vio-fej", lambda: VioEkf(drive.K, drive.baseline_m, drive.cam_T_imu, first_estimates=True)),
     ):
         est, sec = timed_run(make(), drive)
         out[name] = (est.trajectory(), est.landmarks(), 1e3 * sec)
@@ -99,6 +101,7 @@ def top_view(path, title, results, drive, reference_name):
         "ekf-s003 as written": ("tab:orange", ":"),
         "ekf-s003 figures' reading (= IMU dead reckoning)": ("tab:red", "--"),
         "ekf-vio": ("tab:green", "-"),
+        "ekf-vio-fej": ("tab:olive", "-."),
         "isam2-vio (online)": ("tab:purple", "-"),
         "batch (LM)": ("k", "-"),
     }
