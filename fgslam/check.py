@@ -40,6 +40,10 @@ TOML file next to the log (``<log>.check.toml``, or the file given), and from th
     [ekf-nn]            # per estimator
     max_ate_m = 0.8
 
+A 3-D log (seed 003's stereo camera + IMU) is checked the same way with its own
+estimators (:mod:`fgslam.check3d`): the ATE in 3-D, the pose NEES on SE(3) against χ²₆'s
+band [1.24, 14.45], the smoothed solution from the stereo factor graph.
+
 In pytest::
 
     from fgslam.check import assert_estimator_close
@@ -146,17 +150,29 @@ def require_enough_truth(log_path, poses_with_truth: int, poses: int) -> None:
 def check_estimator(
     log_path: str | os.PathLike[str],
     *,
-    estimator: str = "ekf",
+    estimator: str | None = None,
     against: str = "smoothed",
     max_ate_m: float | None = None,
     max_nees_outside: float | None = None,
     tolerances_file: str | os.PathLike[str] | None = None,
 ) -> CheckResult:
-    """Run ``estimator`` on the log at ``log_path`` and check it against the reference."""
-    if estimator not in ESTIMATORS:
-        raise FgslamError(f"unknown estimator {estimator!r}; choose from {', '.join(ESTIMATORS)}")
+    """Run ``estimator`` on the log at ``log_path`` and check it against the reference.
+
+    ``estimator`` defaults to ``ekf`` on a planar log and to :data:`fgslam.check3d.DEFAULT_ESTIMATOR_3D`
+    on a 3-D log (seed 003's stereo + IMU; :mod:`fgslam.check3d`)."""
     if against not in AGAINST:
         raise FgslamError(f"--against must be one of {', '.join(AGAINST)}, got {against!r}")
+    log = read_log(log_path)
+    if log.header.is_3d:
+        from fgslam.check3d import DEFAULT_ESTIMATOR_3D, score_3d
+        from fgslam.runner3d import ESTIMATORS_3D as known
+
+        estimator = estimator or DEFAULT_ESTIMATOR_3D
+    else:
+        known, estimator = ESTIMATORS, estimator or "ekf"
+    if estimator not in known:
+        kind = "a 3-D log" if log.header.is_3d else "a planar log"
+        raise FgslamError(f"unknown estimator {estimator!r} for {kind}; choose from {', '.join(known)}")
     file = tolerance_file_for(log_path) if tolerances_file is None else Path(tolerances_file)
     if tolerances_file is not None and not file.exists():
         raise FgslamError(f"{file}: no such tolerance file")
@@ -166,7 +182,26 @@ def check_estimator(
     if max_nees_outside is not None:
         tol["max_nees_outside"] = float(max_nees_outside)
 
-    log = read_log(log_path)
+    if log.header.is_3d:
+        score = score_3d(log, log_path, estimator, against)
+    else:
+        score = _score_planar(log, log_path, estimator, against)
+    return _judge(score, log_path, estimator, against, tol)
+
+
+@dataclass(frozen=True)
+class Score:
+    """What a check measured: the ATE over the scored poses, the NEES of those poses (None:
+    the estimator states no covariance) with its 95 % band, and how many poses were scored."""
+
+    ate_m: float
+    nees: np.ndarray | None
+    band: tuple[float, float]
+    poses_scored: int
+    poses: int
+
+
+def _score_planar(log, log_path, estimator: str, against: str) -> Score:
     steps = log.steps()
     if against == "truth":
         reference = truth_reference(log)
@@ -182,15 +217,23 @@ def check_estimator(
     run, _ = run_estimator(ESTIMATORS[estimator](log.header), steps)
     m = len(run.final)
     ate = ate_rmse_m(run.final, reference_poses[:m], has_pose=has_pose[:m])
-    outside = None
+    values = None
     if run.online_covariances is not None:
         values = nees_over_truth(run.online, run.online_covariances, reference_poses, has_pose)
-        low, high = nees_band()
-        finite = np.isfinite(values)
+    return Score(ate, values, nees_band(), int(np.count_nonzero(has_pose[:m])), len(steps))
+
+
+def _judge(score: Score, log_path, estimator: str, against: str, tol: dict[str, float]) -> CheckResult:
+    """PASS or FAIL on the two tolerances, and the one line that says why."""
+    ate = score.ate_m
+    outside = None
+    if score.nees is not None:
+        low, high = score.band
+        finite = np.isfinite(score.nees)
         if against == "smoothed":  # only overconfidence counts (module docstring)
-            outside = float(np.mean(~finite | (values > high)))
+            outside = float(np.mean(~finite | (score.nees > high)))
         else:
-            outside = float(np.mean(~finite | (values < low) | (values > high)))
+            outside = float(np.mean(~finite | (score.nees < low) | (score.nees > high)))
 
     ate_ok = math.isfinite(ate) and ate <= tol["max_ate_m"]
     nees_ok = outside is None or outside <= tol["max_nees_outside"]
@@ -201,14 +244,14 @@ def check_estimator(
         else f"NEES {'above' if against == 'smoothed' else 'outside'} the 95 % band at {100 * outside:.1f} % of steps "
         f"{'<=' if nees_ok else '>'} {100 * tol['max_nees_outside']:.1f} %"
     )
-    scored = int(np.count_nonzero(has_pose[:m]))
-    coverage = "" if scored == len(steps) else f" ({scored} of {len(steps)} poses have truth; only they are scored)"
+    scored, poses = score.poses_scored, score.poses
+    coverage = "" if scored == poses else f" ({scored} of {poses} poses have truth; only they are scored)"
     verdict = (
         f"{'PASS' if passed else 'FAIL'} {estimator} vs {against} on {Path(log_path).name}: "
         f"ATE {ate:.4f} m {'<=' if ate_ok else '>'} {tol['max_ate_m']:g} m, {nees_text}{coverage}"
     )
     return CheckResult(passed, verdict, estimator, against, ate, outside, tol["max_ate_m"], tol["max_nees_outside"],
-                       scored, len(steps))
+                       scored, poses)
 
 
 def assert_estimator_close(log_path: str | os.PathLike[str], **kwargs) -> CheckResult:

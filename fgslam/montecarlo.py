@@ -10,6 +10,9 @@ The runs go through any :class:`concurrent.futures.Executor`: a process pool by 
 or a Dask cluster's executor (``dask.distributed.Client(address).get_executor()``), since
 each run is an independent, picklable task (:func:`run_one`).
 
+The scenario ``stereo-loop`` is seed 003's simulated car (stereo camera + IMU) with the 3-D
+estimators; its NEES is on SE(3), 6 DoF (:mod:`fgslam.montecarlo3d`).
+
 Simulated logs have truth at every pose. Should a run lack truth at some poses, its NEES is
 NaN there, its ATE is over the poses with truth, and the per-step average (with its band for
 N runs) is only judged at the steps where every run has truth (``scored_steps``).
@@ -19,6 +22,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import contextlib
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -55,6 +59,7 @@ class MonteCarloResult:
     average_nees: dict[str, np.ndarray]  # (steps,) over the runs (truncated to the shortest run)
     band: tuple[float, float]
     scored_steps: np.ndarray | None = None  # (steps,) True where every run has truth; None: all
+    dof: int = 3  # of one pose's NEES: 3 on SE(2), 6 on SE(3) (stereo-loop)
 
     def _scored(self, estimator: str) -> np.ndarray:
         a = self.average_nees[estimator]
@@ -126,26 +131,44 @@ def monte_carlo(
     scenario: str,
     runs: int,
     *,
-    estimators: tuple[str, ...] = ("ekf", "isam2"),
+    estimators: tuple[str, ...] | None = None,
     first_seed: int = 0,
     jobs: int = 2,
     landmarks: int = 200,
     laps: int | None = None,
     executor: concurrent.futures.Executor | None = None,
     progress=None,
+    drive_scenario=None,
 ) -> MonteCarloResult:
     """Run seeds ``first_seed .. first_seed + runs − 1`` through ``executor`` (default: a
-    process pool with ``jobs`` workers) and average each estimator's NEES per step."""
+    process pool with ``jobs`` workers) and average each estimator's NEES per step.
+
+    ``estimators`` default to ekf and isam2, and on ``stereo-loop`` to
+    :data:`fgslam.montecarlo3d.DEFAULT_BENCH_ESTIMATORS_3D`; ``drive_scenario`` (a
+    :class:`slamio.sim3d.DriveScenario`) changes the stereo-loop's geometry."""
+    from slamio.sim3d import STEREO_LOOP
+
     if runs < 1:
         raise FgslamError(f"runs must be >= 1, got {runs}")
-    unknown = [e for e in estimators if e not in ESTIMATORS]
+    if scenario == STEREO_LOOP:
+        from fgslam.montecarlo3d import DEFAULT_BENCH_ESTIMATORS_3D, POSE_DOF_3D, run_one_3d
+        from fgslam.runner3d import ESTIMATORS_3D
+
+        known, dof = ESTIMATORS_3D, POSE_DOF_3D
+        estimators = tuple(estimators or DEFAULT_BENCH_ESTIMATORS_3D)
+        task = functools.partial(run_one_3d, estimators=estimators, scenario=drive_scenario)  # task(seed)
+    else:
+        known, dof = ESTIMATORS, 3
+        estimators = tuple(estimators or ("ekf", "isam2"))
+        task = functools.partial(run_one, scenario, estimators=estimators, landmarks=landmarks, laps=laps)
+    unknown = [e for e in estimators if e not in known]
     if unknown:
-        raise FgslamError(f"unknown estimator(s) {', '.join(unknown)}; choose from {', '.join(ESTIMATORS)}")
+        raise FgslamError(f"unknown estimator(s) {', '.join(unknown)}; choose from {', '.join(known)}")
     seeds = range(first_seed, first_seed + runs)
     own = executor is None
     pool = concurrent.futures.ProcessPoolExecutor(max_workers=max(1, jobs)) if own else executor
     try:
-        futures = [pool.submit(run_one, scenario, s, tuple(estimators), landmarks, laps) for s in seeds]
+        futures = [pool.submit(task, s) for s in seeds]
         results = []
         for i, future in enumerate(concurrent.futures.as_completed(futures)):
             results.append(future.result())
@@ -160,4 +183,4 @@ def monte_carlo(
     scored = None
     if any(r.has_pose is not None for r in results):  # judge only steps where every run has truth
         scored = np.all([np.ones(n, bool) if r.has_pose is None else r.has_pose[:n] for r in results], axis=0)
-    return MonteCarloResult(scenario, results, average, nees_band(3, runs), scored)
+    return MonteCarloResult(scenario, results, average, nees_band(dof, runs), scored, dof)

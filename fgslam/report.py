@@ -996,10 +996,10 @@ def write_monte_carlo_figures(out_dir: str | os.PathLike[str], result) -> list[s
         ax.plot(result.average_nees[name], lw=1, label=f"{name} ({100 * result.share_inside(name):.0f} % inside)")
     ax.axhline(low, color="k", ls="--", lw=0.8, label=f"95 % band [{low:.2f}, {high:.2f}]")
     ax.axhline(high, color="k", ls="--", lw=0.8)
-    ax.axhline(3.0, color="0.6", ls=":", lw=0.8)
+    ax.axhline(float(result.dof), color="0.6", ls=":", lw=0.8)
     ax.set_xlabel("step")
     ax.set_ylabel(f"average NEES over {len(result.runs)} runs")
-    ax.set_title(f"{result.scenario}: NEES of the online pose (3 DoF)")
+    ax.set_title(f"{result.scenario}: NEES of the online pose ({result.dof} DoF)")
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(out / "nees.png", dpi=110)
@@ -1050,7 +1050,7 @@ def plot_top_view_3d(path, runs, reference, *, zoom_out_of: Sequence[str] = ("ek
         if run.name not in zoom_out_of:
             framed.append(xy)
     xy = np.vstack(framed)
-    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    lo, hi = np.nanmin(xy, axis=0), np.nanmax(xy, axis=0)  # NaN: gaps in the reference's truth
     margin = 0.1 * float(np.max(hi - lo)) + 5.0
     ax.set_xlim(lo[0] - margin, hi[0] + margin)
     ax.set_ylim(lo[1] - margin, hi[1] + margin)

@@ -7,9 +7,11 @@ estimator consumes (:func:`slamio.datasets.seed003_log.log_to_drive`, the step p
 the consistency work (the pose covariance for NEES) runs outside the timed region.
 
 The world frame is the IMU at pose 0 and every estimator starts there, so trajectories are
-compared without alignment. The reference is the log's truth when every pose has one
-(``truth_pose3``; the map against ``truth_landmark3``), else the batch solution of the
-factor graph (LM started from iSAM2's estimate), as in 2-D.
+compared without alignment. The reference is the log's truth wherever it has some
+(``truth_pose3``; the map against ``truth_landmark3``): with gaps in the truth only the
+poses that have it are scored (ATE, final error, NEES), and the table's reference line says
+how many ("ground truth, N of M poses"). Without any pose truth it is the batch solution
+of the factor graph (LM started from iSAM2's estimate), as in 2-D.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from slamio.datasets.seed003 import StereoImuDrive, StereoImuNoise
 from slamio.datasets.seed003_log import log_to_drive
 from slamio.errors import FgslamError
 from slamio.log import RunLog, group_steps
-from slamio.log3d import pose3_from_matrix
+from slamio.log3d import TruthLandmark3, pose3_from_matrix
 
 #: name → factory(drive, noise). What ``fgslam run --estimators`` accepts on a 3-D log.
 ESTIMATORS_3D: dict[str, Callable[[StereoImuDrive, StereoImuNoise], object]] = {
@@ -49,6 +51,15 @@ STEREO_DOF = 4
 def _named(estimator, name: str):
     estimator.name = name
     return estimator
+
+
+def make_estimator_3d(name: str, drive: StereoImuDrive, noise: StereoImuNoise):
+    """A fresh estimator ``name`` of :data:`ESTIMATORS_3D` for ``drive``, named ``name``."""
+    if name == "isam2-3d":
+        from fgslam.smoother3d import StereoIsam2  # imports gtsam
+
+        return _named(StereoIsam2(drive.K, drive.baseline_m, drive.cam_T_imu, noise), name)
+    return _named(ESTIMATORS_3D[name](drive, noise), name)
 
 
 def parse_estimator_names_3d(text: str | None) -> list[str]:
@@ -110,8 +121,35 @@ class Run3d:
 @dataclass(frozen=True)
 class Reference3d:
     kind: str  # "ground_truth" or "batch"
-    trajectory: np.ndarray  # (T, 4, 4)
+    trajectory: np.ndarray  # (T, 4, 4); NaN where a pose has no truth
     landmarks: dict[int, np.ndarray]
+    has_pose: np.ndarray | None = None  # (T,) True where ``trajectory`` holds a pose; None: every pose
+
+    @property
+    def mask(self) -> np.ndarray:
+        """(T,) booleans: the poses that are scored."""
+        if self.has_pose is None:
+            return np.ones(len(self.trajectory), dtype=bool)
+        return np.asarray(self.has_pose, dtype=bool)
+
+    @property
+    def poses_with_truth(self) -> int:
+        return int(np.count_nonzero(self.mask)) if self.kind == "ground_truth" else 0
+
+
+def truth_reference_3d(log: RunLog) -> Reference3d | None:
+    """The log's ground truth as a :class:`Reference3d` (NaN poses and ``has_pose`` False in
+    its gaps), with every ``truth_landmark3`` as the map; None when no pose has truth."""
+    steps = group_steps(log.header, log.records)
+    trajectory = np.full((len(steps), 4, 4), np.nan)
+    has_pose = np.array([s.truth is not None for s in steps], dtype=bool)
+    if not has_pose.any():
+        return None
+    for t, step in enumerate(steps):
+        if step.truth is not None:
+            trajectory[t] = step.truth.matrix()
+    landmarks = {r.landmark_id: np.array([r.x_m, r.y_m, r.z_m]) for r in log.records if isinstance(r, TruthLandmark3)}
+    return Reference3d("ground_truth", trajectory, landmarks, has_pose)
 
 
 @dataclass(frozen=True)
@@ -157,38 +195,41 @@ def run_estimator_3d(estimator, drive: StereoImuDrive, *, covariances: bool = Tr
 
 def run_log3d(log: RunLog, names: list[str], *, consistency: bool = True, progress=None) -> Comparison3d:
     """Every named estimator on ``log``, then the batch solve from isam2-3d's graph."""
-    from fgslam.smoother3d import StereoIsam2, batch_solve
+    from fgslam.smoother3d import batch_solve
 
     drive = log_to_drive(log)
     noise = noise_of(log)
     runs = []
     smoother = None
     for name in names:
+        estimator = make_estimator_3d(name, drive, noise)
         if name == "isam2-3d":
-            smoother = _named(StereoIsam2(drive.K, drive.baseline_m, drive.cam_T_imu, noise), "isam2-3d")
-            runs.append(run_estimator_3d(smoother, drive, covariances=consistency, progress=progress))
-        else:
-            runs.append(run_estimator_3d(ESTIMATORS_3D[name](drive, noise), drive, covariances=consistency,
-                                         progress=progress))
+            smoother = estimator
+        runs.append(run_estimator_3d(estimator, drive, covariances=consistency, progress=progress))
     assert smoother is not None  # parse_estimator_names_3d keeps it
     with pinned_threads():
         batch = batch_solve(smoother)
     runs.append(Run3d("batch", None, batch.trajectory(), batch.landmarks(), None, batch.seconds))
-    if drive.truth_world_T_imu is not None:
-        truth_map = {} if drive.truth_landmarks_m is None else {j: p for j, p in enumerate(drive.truth_landmarks_m)}
-        reference = Reference3d("ground_truth", drive.truth_world_T_imu, truth_map)
-    else:
-        reference = Reference3d("batch", batch.trajectory(), batch.landmarks())
+    reference = truth_reference_3d(log) or Reference3d("batch", batch.trajectory(), batch.landmarks())
     return Comparison3d(runs, reference, drive.stamps_s, smoother, float(batch.error), smoother.error())
 
 
 # --------------------------------------------------------------------------- metrics
 
 
-def position_rmse_m(estimate: np.ndarray, reference: np.ndarray, dims: int = 3) -> float:
-    """RMSE of the positions' first ``dims`` coordinates (3: in 3-D; 2: the top view)."""
+def position_rmse_m(estimate: np.ndarray, reference: np.ndarray, dims: int = 3, has_pose=None) -> float:
+    """RMSE of the positions' first ``dims`` coordinates (3: in 3-D; 2: the top view), over
+    the poses ``has_pose`` marks (default: all)."""
     d = estimate[:, :dims, 3] - reference[:, :dims, 3]
+    if has_pose is not None:
+        d = d[np.asarray(has_pose, dtype=bool)]
     return float(np.sqrt(np.mean(np.sum(d**2, axis=1))))
+
+
+def final_position_error_m(estimate: np.ndarray, reference: Reference3d) -> float:
+    """Distance between the estimate and the reference at the last pose the reference has."""
+    last = int(np.flatnonzero(reference.mask)[-1])
+    return float(np.linalg.norm(estimate[last, :3, 3] - reference.trajectory[last, :3, 3]))
 
 
 def map_errors_m(landmarks: dict, reference: dict) -> np.ndarray:
@@ -197,12 +238,19 @@ def map_errors_m(landmarks: dict, reference: dict) -> np.ndarray:
 
 
 def nees_values(run: Run3d, reference: Reference3d) -> np.ndarray | None:
-    """Pose NEES of the online estimate at every step (NaN where it cannot be computed)."""
+    """Pose NEES of the online estimate at every step against the truth (NaN where it
+    cannot be computed or the pose has no truth); None without truth or covariances."""
     if run.covariances is None or run.online is None or reference.kind != "ground_truth":
         return None
-    out = np.full(len(run.online), np.nan)
-    for t, (T_hat, cov, T_true) in enumerate(zip(run.online, run.covariances, reference.trajectory)):
-        if not np.all(np.isfinite(cov)):
+    return pose_nees_series(run.online, run.covariances, reference.trajectory)
+
+
+def pose_nees_series(online: np.ndarray, covariances: np.ndarray, reference_trajectory: np.ndarray) -> np.ndarray:
+    """(T,) pose NEES (χ²₆ when consistent) of each online pose against the reference pose
+    of the same step; NaN where the covariance or the reference pose is missing or singular."""
+    out = np.full(len(online), np.nan)
+    for t, (T_hat, cov, T_true) in enumerate(zip(online, covariances, reference_trajectory)):
+        if not (np.all(np.isfinite(cov)) and np.all(np.isfinite(T_true))):
             continue
         try:
             with np.errstate(all="ignore"):
@@ -227,6 +275,7 @@ def compute_metrics_3d(result: Comparison3d, *, log_path: str) -> dict:
         "dimension": 3,
         "reference": reference.kind,
         "poses": int(len(result.stamps_s)),
+        "reference_poses_with_truth": reference.poses_with_truth,
         "reference_landmarks": len(reference.landmarks),
         "nees_band_95": [low6, high6],
         "nis_band_95": [low4, high4],
@@ -236,12 +285,13 @@ def compute_metrics_3d(result: Comparison3d, *, log_path: str) -> dict:
     }
     for run in result.runs:
         errors = map_errors_m(run.landmarks, reference.landmarks)
-        last = run.final[-1, :3, 3] - reference.trajectory[-1, :3, 3]
+        scored = reference.mask
         m = {
-            "ate_3d_m": position_rmse_m(run.final, reference.trajectory, 3),
-            "ate_2d_m": position_rmse_m(run.final, reference.trajectory, 2),
-            "ate_3d_online_m": None if run.online is None else position_rmse_m(run.online, reference.trajectory, 3),
-            "final_position_error_m": float(np.linalg.norm(last)),
+            "ate_3d_m": position_rmse_m(run.final, reference.trajectory, 3, scored),
+            "ate_2d_m": position_rmse_m(run.final, reference.trajectory, 2, scored),
+            "ate_3d_online_m": None if run.online is None else position_rmse_m(run.online, reference.trajectory, 3,
+                                                                                scored),
+            "final_position_error_m": final_position_error_m(run.final, reference),
             "landmarks": len(run.landmarks),
             "map_median_m": float(np.median(errors)) if len(errors) else None,
             "map_rmse_m": float(np.sqrt(np.mean(errors**2))) if len(errors) else None,
@@ -294,7 +344,14 @@ def table_rows_3d(metrics: dict) -> tuple[list[str], list[list[str]]]:
 
 
 def reference_line_3d(metrics: dict) -> str:
-    if metrics["reference"] == "ground_truth":
+    with_truth = metrics.get("reference_poses_with_truth", metrics["poses"])
+    if metrics["reference"] == "ground_truth" and with_truth < metrics["poses"]:
+        missing = metrics["poses"] - with_truth
+        what = (f"ground truth, {with_truth} of {metrics['poses']} poses (gaps in the truth: {missing} "
+                f"{'pose' if missing == 1 else 'poses'} without truth not scored)")
+        if metrics["reference_landmarks"]:
+            what += f" and {metrics['reference_landmarks']} landmarks"
+    elif metrics["reference"] == "ground_truth":
         what = f"ground truth at all {metrics['poses']} poses"
         if metrics["reference_landmarks"]:
             what += f" and {metrics['reference_landmarks']} landmarks"

@@ -43,7 +43,10 @@ from slamio.datasets.seed003 import StereoImuDrive, StereoImuNoise
 from slamio.se3 import exp_se3, inverse
 from slamio.stereo import stereo_matrix, stereo_pixels
 
-__all__ = ["KITTI_LIKE_CAM_T_IMU", "KITTI_LIKE_K", "DriveScenario", "simulate_drive"]
+__all__ = ["KITTI_LIKE_CAM_T_IMU", "KITTI_LIKE_K", "STEREO_LOOP", "DriveScenario", "simulate_drive"]
+
+#: The scenario's name in ``fgslam sim`` and ``fgslam bench``.
+STEREO_LOOP = "stereo-loop"
 
 KITTI_LIKE_K = np.array([[707.09, 0.0, 601.89], [0.0, 707.09, 183.11], [0.0, 0.0, 1.0]])
 KITTI_LIKE_BASELINE_M = 0.537

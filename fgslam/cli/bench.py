@@ -15,7 +15,9 @@ OWN_NAMES = ("montecarlo.json", "nees.png", "ate.png")
 
 def add_parser(verbs) -> argparse.ArgumentParser:
     from slamio.sim import SCENARIOS
+    from slamio.sim3d import STEREO_LOOP
 
+    scenarios = (*SCENARIOS, STEREO_LOOP)
     bench = verbs.add_parser(
         "bench",
         help="Monte Carlo: many seeded simulations, average NEES per step against its chi-square band",
@@ -24,17 +26,21 @@ def add_parser(verbs) -> argparse.ArgumentParser:
             "pool, or on a Dask cluster), and report for each estimator the share of steps at which\n"
             "the NEES averaged over the runs lies inside its 95 % chi-square band (N = 50: [2.36, 3.72]),\n"
             "the ATE over the runs and the time (BLAS pinned to one thread in each worker).\n"
-            "Simulations have ground truth at every pose."
+            "Simulations have ground truth at every pose.\n\n"
+            f"{STEREO_LOOP}: seed 003's simulated car (stereo camera + IMU) with the 3-D estimators\n"
+            "(default ekf-vio,ekf-vio-fej,isam2-3d); the NEES is on SE(3), 6 DoF (N = 10: [4.05, 8.33]),\n"
+            "the ATE in 3-D."
         ),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    bench.add_argument("scenario", choices=SCENARIOS, metavar="SCENARIO", help=", ".join(SCENARIOS))
+    bench.add_argument("scenario", choices=scenarios, metavar="SCENARIO", help=", ".join(scenarios))
     bench.add_argument("--runs", type=int, default=50, help="number of runs (default 50)")
     bench.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     bench.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
-    bench.add_argument("--estimators", default="ekf,isam2", help="comma-separated (default ekf,isam2)")
-    bench.add_argument("--landmarks", type=int, default=200, help="landmarks of the grid scenario")
-    bench.add_argument("--laps", type=int, default=None, help="laps (default: the scenario's)")
+    bench.add_argument("--estimators", default=None,
+                       help=f"comma-separated (default ekf,isam2; on {STEREO_LOOP} ekf-vio,ekf-vio-fej,isam2-3d)")
+    bench.add_argument("--landmarks", type=int, default=None, help="landmarks of the grid scenario (default 200)")
+    bench.add_argument("--laps", type=int, default=None, help="laps (default: the scenario's; not for stereo-loop)")
     bench.add_argument("--out", default=None, metavar="DIR",
                        help="write montecarlo.json, nees.png, ate.png here (a new or empty folder, or an "
                             "earlier bench's: its files are replaced)")
@@ -52,12 +58,24 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
     from fgslam.runner import ESTIMATORS
     from slamio.errors import FgslamError
+    from slamio.sim3d import STEREO_LOOP
 
-    estimators = tuple(n.strip() for n in args.estimators.split(",") if n.strip())
-    unknown = [e for e in estimators if e not in ESTIMATORS]
+    if args.scenario == STEREO_LOOP:
+        from fgslam.montecarlo3d import DEFAULT_BENCH_ESTIMATORS_3D as default
+        from fgslam.runner3d import ESTIMATORS_3D as known
+
+        planar_only = [flag for flag, value in (("--landmarks", args.landmarks), ("--laps", args.laps))
+                       if value is not None]
+        if planar_only:
+            raise FgslamError(f"{', '.join(planar_only)}: not available for {STEREO_LOOP} (its drive is one fixed loop)")
+    else:
+        known, default = ESTIMATORS, ("ekf", "isam2")
+    text = ",".join(default) if args.estimators is None else args.estimators
+    estimators = tuple(n.strip() for n in text.split(",") if n.strip())
+    unknown = [e for e in estimators if e not in known]
     if unknown or not estimators:
-        raise FgslamError(f"unknown estimator(s) {', '.join(unknown) or '(none given)'}; "
-                          f"choose from {', '.join(ESTIMATORS)} (comma-separated)")
+        raise FgslamError(f"unknown estimator(s) {', '.join(unknown) or '(none given)'} for {args.scenario}; "
+                          f"choose from {', '.join(known)} (comma-separated)")
     if args.runs < 1:
         raise FgslamError(f"--runs must be >= 1, got {args.runs}")
     results = None
@@ -68,7 +86,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
         progress(0, args.runs, "monte carlo")
         result = monte_carlo(
             args.scenario, args.runs, estimators=estimators, first_seed=args.seed, jobs=args.jobs,
-            landmarks=args.landmarks, laps=args.laps, executor=executor, progress=progress,
+            landmarks=200 if args.landmarks is None else args.landmarks, laps=args.laps, executor=executor,
+            progress=progress,
         )
     low, high = result.band
     steps = len(next(iter(result.average_nees.values())))
@@ -80,7 +99,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
              f"{'ATE final m (median, max)':>28}{'time s (mean)':>15}"
     print(header)
     summary = {"scenario": args.scenario, "runs": args.runs, "first_seed": args.seed, "steps": steps,
-               "band": [low, high], "estimators": {}}
+               "nees_dof": result.dof, "band": [low, high], "estimators": {}}
     for name in estimators:
         finals = np.array([r.ate_final_m[name] for r in result.runs])
         times = np.array([r.time_s[name] for r in result.runs])

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from fgslam.cli.estimators import ESTIMATOR_HELP
+from fgslam.cli.estimators import ESTIMATOR_HELP, ESTIMATOR_HELP_3D
 
 
 def add_parser(verbs) -> argparse.ArgumentParser:
@@ -20,7 +20,10 @@ def add_parser(verbs) -> argparse.ArgumentParser:
             "Fails when the ATE exceeds --max-ate, or when the share of steps whose NEES is outside\n"
             "the 95 % chi-square band (above it, against the smoothed solution) exceeds\n"
             "--max-nees-outside. Tolerances not given here come from LOG.check.toml (or --tolerances),\n"
-            "else the defaults 0.5 m and 0.1."
+            "else the defaults 0.5 m and 0.1.\n\n"
+            "A 3-D log (seed 003: stereo camera + IMU) is checked with its own estimators (default\n"
+            "ekf-vio-fej): ATE in 3-D, pose NEES on SE(3) against the chi-square band with 6 degrees of\n"
+            "freedom, the smoothed solution from the stereo factor graph (isam2-3d, then batch LM)."
         ),
         epilog=(
             "tolerance file (TOML):\n"
@@ -29,7 +32,8 @@ def add_parser(verbs) -> argparse.ArgumentParser:
         ),
     )
     check.add_argument("log", metavar="LOG", help="run log (.jsonl)")
-    check.add_argument("--estimator", default="ekf", choices=list(ESTIMATOR_HELP), help="estimator to check (default ekf)")
+    check.add_argument("--estimator", default=None, choices=[*ESTIMATOR_HELP, *ESTIMATOR_HELP_3D],
+                       help="estimator to check (default ekf; ekf-vio-fej on a 3-D log)")
     check.add_argument("--against", default="smoothed", choices=["smoothed", "truth"],
                        help="reference: the smoothed solution (default) or the log's ground truth "
                             "(the poses that have it; at least half of them and at least 10)")

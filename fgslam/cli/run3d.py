@@ -41,7 +41,8 @@ def cmd_run3d(args: argparse.Namespace, results, log) -> int:
     out = Path(args.out)
     replaced = results.clear()
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
-    write_tum3(out / "reference.tum", result.stamps_s, result.reference.trajectory)
+    has_pose = result.reference.mask  # TUM files are stamped: leave the poses without truth out
+    write_tum3(out / "reference.tum", result.stamps_s[has_pose], result.reference.trajectory[has_pose])
     for run in result.runs:
         write_tum3(out / f"{run.name}.tum", result.stamps_s, run.final)
         if run.online is not None and run.online is not run.final:

@@ -6,9 +6,7 @@ import argparse
 
 from fgslam.cli.common import add_overwrite_option, check_new_file, command_line, write_run_log
 from slamio.errors import FgslamError
-
-#: The 3-D scenario (slamio.sim3d): a stereo + IMU car, written as a 3-D log.
-STEREO_LOOP = "stereo-loop"
+from slamio.sim3d import STEREO_LOOP  # the 3-D scenario: a stereo + IMU car, written as a 3-D log
 
 
 def add_parser(verbs) -> argparse.ArgumentParser:
