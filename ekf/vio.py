@@ -27,13 +27,23 @@ the linearised system should have the 6-D unobservable subspace
 ``N = [Ad(T⁻¹); m⊙ …]``; the EKF loses it because each Jacobian is evaluated at a
 different estimate, and then gains information along it (the NEES grows). With FEJ:
 
-* every landmark's Jacobians use its *first* estimate ``m_fe`` (its back-projection);
-* the pose's Jacobians use the prior ``T_{k|k−1}`` (``T_fe``), and the propagation
-  Jacobian becomes ``F = Ad(T_fe,k+1⁻¹ T_fe,k) = Ad(exp(−τ u^) T_{k|k}⁻¹ T_{k|k−1})``
+* the unobservable subspace is the one at the first estimates: ``N = [Ad(T_fe⁻¹); [I, −m_fe^] …]``
+  with ``m_fe`` each landmark's first estimate (its back-projection) and ``T_fe`` the
+  pose's prior ``T_{k|k−1}``;
+* the propagation Jacobian becomes ``F = Ad(T_fe,k+1⁻¹ T_fe,k) = Ad(exp(−τ u^) T_{k|k}⁻¹ T_{k|k−1})``
   (equal to the usual one when step k had no update), so that ``F N_k = N_{k+1}``;
-* a new landmark's ``∂m/∂δ`` is evaluated at ``T_fe`` too.
+* a new landmark's ``∂m/∂δ`` is evaluated at ``T_fe`` too, so its rows of N are ``[I, −m_fe^]``;
+* each observation's Jacobian ``H = [∂z/∂δ, ∂z/∂m]`` is evaluated at the prior pose and the
+  landmark's *current* estimate, then projected so that it is blind to N
+  (:func:`constrained_jacobians`: ``H (I − U (UᵀU)⁻¹ Uᵀ)``, ``U`` the pose's and this
+  landmark's rows of N; the observability-constrained EKF of Huang, Mourikis & Roumeliotis
+  2010 and Hesch et al. 2014). ``projected_jacobians=False`` evaluates H at ``m_fe``
+  instead (plain FEJ), which satisfies ``H U = 0`` too but keeps a landmark's first depth
+  error in its Jacobian for good: a far point back-projected 5 m too near or too far scales
+  the translation columns by ±15 % against the rotation ones, and the filter then separates
+  pitch and roll from height more sharply than the data allow (measured in docs/seed003.md).
 
-Residuals still use the current estimates; only the Jacobians change.
+Residuals always use the current estimates; only the Jacobians change.
 """
 
 from __future__ import annotations
@@ -53,6 +63,7 @@ from slamio.datasets.seed003 import StereoImuNoise
 __all__ = [
     "CHI2_4_999",
     "VioEkf",
+    "constrained_jacobians",
     "observation_jacobians",
     "pose_nees",
     "predict_stereo",
@@ -89,11 +100,24 @@ def observation_jacobians(world_T_imu, m_world, cam_T_imu, M) -> tuple[np.ndarra
     return -A @ odot(p), A[:, :3] @ T_inv[:3, :3]
 
 
+def constrained_jacobians(world_T_imu, m_world, m_first, cam_T_imu, M) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`observation_jacobians` at ``(world_T_imu, m_world)``, projected (least change in
+    the Frobenius norm) onto the matrices blind to a rigid motion of the world linearised at
+    ``(world_T_imu, m_first)``: ``H U = 0`` with ``U = [Ad(T⁻¹); [I, −m_first^]]`` (9×6)."""
+    J_pose, J_m = observation_jacobians(world_T_imu, m_world, cam_T_imu, M)
+    U = np.vstack([adjoint(inverse(world_T_imu)), np.hstack([np.eye(3), -skew(m_first)])])
+    H = np.hstack([J_pose, J_m])
+    H = H - (H @ U) @ np.linalg.solve(U.T @ U, U.T)
+    return H[:, :POSE_DIM], H[:, POSE_DIM:]
+
+
 class VioEkf:
     """Joint pose + landmark EKF (implements the ``ekf.drive3d`` step protocol).
 
     ``VioEkf(K, baseline_m, cam_T_imu, noise=StereoImuNoise(), min_disparity_px=4.0,
-    gate=CHI2_4_999)`` (``gate=None``: no gating). Counters: ``updates``, ``landmarks_added``,
+    gate=CHI2_4_999)`` (``gate=None``: no gating). ``first_estimates=True`` is ``ekf-vio-fej``
+    (module docstring), with its observation Jacobians projected unless
+    ``projected_jacobians=False``. Counters: ``updates``, ``landmarks_added``,
     ``rejected`` (gated out), ``skipped_small_disparity``, ``skipped_behind``.
     """
 
@@ -110,8 +134,10 @@ class VioEkf:
         gate: float | None = CHI2_4_999,
         start_sigma: float = 1e-6,
         first_estimates: bool = False,
+        projected_jacobians: bool = True,
     ):
         self.first_estimates = bool(first_estimates)
+        self.projected_jacobians = bool(projected_jacobians)  # with first_estimates (module docstring)
         if self.first_estimates:
             self.name = "ekf-vio-fej"
         self._T_fe = np.eye(4)  # the pose's prior T_{k|k−1} (first-estimate Jacobians)
@@ -197,8 +223,13 @@ class VioEkf:
             if not q[2] > 0.0:
                 self.skipped_behind += 1
                 continue
-            m_lin = self._m_fe[lid] if self.first_estimates else m  # the pose: self._T is still the prior
-            J_pose, J_m = observation_jacobians(self._T, m_lin, self.cam_T_imu, self.M)
+            # the pose's Jacobian at self._T, which is still the prior T_fe
+            if not self.first_estimates:
+                J_pose, J_m = observation_jacobians(self._T, m, self.cam_T_imu, self.M)
+            elif self.projected_jacobians:
+                J_pose, J_m = constrained_jacobians(self._T, m, self._m_fe[lid], self.cam_T_imu, self.M)
+            else:
+                J_pose, J_m = observation_jacobians(self._T, self._m_fe[lid], self.cam_T_imu, self.M)
             H = np.zeros((4, n))
             H[:, :POSE_DIM] = J_pose
             s = POSE_DIM + 3 * self._slot[lid]

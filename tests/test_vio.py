@@ -7,7 +7,14 @@ from scipy.linalg import expm
 from ekf.drive3d import position_errors_m, run_drive, steps_of
 from slamio.se3 import adjoint, curly_hat, exp_se3, log_se3, skew
 from slamio.stereo import point_from_stereo, stereo_matrix, stereo_pixels
-from ekf.vio import VioEkf, observation_jacobians, pose_nees, predict_stereo, right_jacobian_se3
+from ekf.vio import (
+    VioEkf,
+    constrained_jacobians,
+    observation_jacobians,
+    pose_nees,
+    predict_stereo,
+    right_jacobian_se3,
+)
 from slamio.sim3d import KITTI_LIKE_CAM_T_IMU, KITTI_LIKE_K, DriveScenario, simulate_drive
 
 SMALL = DriveScenario(straight_m=40.0, side_m=20.0, turn_radius_m=8.0)
@@ -121,14 +128,32 @@ def _information_along_global_motions(ekf, *, first_estimates: bool) -> np.ndarr
     return N.T @ np.linalg.solve(ekf._P, N)
 
 
-@pytest.mark.parametrize("first_estimates", [False, True])
-def test_first_estimate_jacobians_gain_no_information_on_unobservable_directions(first_estimates):
+def test_projected_jacobians_are_blind_to_a_rigid_motion_and_exact_at_the_first_estimate():
+    T = exp_se3(np.array([3.0, -1.0, 0.2, 0.02, -0.01, 0.4]))
+    m_first = T[:3, :3] @ np.array([25.0, 4.0, 1.0]) + T[:3, 3]
+    m_now = m_first + T[:3, :3] @ np.array([3.0, 0.3, -0.2])  # the depth corrected by 3 m since
+    U = np.vstack([adjoint(np.linalg.inv(T)), np.hstack([np.eye(3), -skew(m_first)])])
+    J_pose, J_m = constrained_jacobians(T, m_now, m_first, KITTI_LIKE_CAM_T_IMU, M)
+    assert np.allclose(np.hstack([J_pose, J_m]) @ U, 0.0, atol=1e-9)
+    # the exact Jacobians at one point are blind already (z depends on T⁻¹m only): unchanged
+    exact = observation_jacobians(T, m_first, KITTI_LIKE_CAM_T_IMU, M)
+    same = constrained_jacobians(T, m_first, m_first, KITTI_LIKE_CAM_T_IMU, M)
+    assert np.allclose(same[0], exact[0], atol=1e-9) and np.allclose(same[1], exact[1], atol=1e-9)
+    # of the Jacobians blind to N (plain FEJ's among them), the projection is the nearest to the
+    # Jacobian at the current estimate
+    now = np.hstack(observation_jacobians(T, m_now, KITTI_LIKE_CAM_T_IMU, M))
+    assert np.linalg.norm(np.hstack([J_pose, J_m]) - now) < np.linalg.norm(np.hstack(exact) - now)
+
+
+@pytest.mark.parametrize(("first_estimates", "projected"), [(False, True), (True, True), (True, False)])
+def test_first_estimate_jacobians_gain_no_information_on_unobservable_directions(first_estimates, projected):
     """The test behind ekf-vio-fej: the camera and the IMU cannot see where the world is, so
     no update may add information along N (an exact property of the linearised system: its
     prior information there, 100 = 1/0.1², must only fall). The standard EKF linearises at
     moving estimates and gains millions; with first-estimate Jacobians nothing is gained."""
     drive = simulate_drive(3, SMALL)
-    ekf = VioEkf(drive.K, drive.baseline_m, drive.cam_T_imu, start_sigma=0.1, first_estimates=first_estimates)
+    ekf = VioEkf(drive.K, drive.baseline_m, drive.cam_T_imu, start_sigma=0.1, first_estimates=first_estimates,
+                 projected_jacobians=projected)
     gained = []
     for t, args in enumerate(steps_of(drive)):
         ekf.step(*args)
