@@ -24,6 +24,7 @@ ESTIMATOR_HELP_3D = {
     "ekf-s003": "seed 003's EKF (stereo + IMU, pose from the IMU alone, per-landmark updates), as written",
     "ekf-s003-figures": "the same with eq. 16's and eq. 1's typos read as its figures require",
     "ekf-vio": "textbook visual-inertial EKF-SLAM on SE(3): pose and landmarks updated jointly",
-    "ekf-vio-fej": "the same with first-estimate Jacobians: consistent (NEES in band) over whole drives",
+    "ekf-vio-fej": "the same keeping the unobservable directions of its first estimates (FEJ, projected "
+                   "Jacobians): NEES in band on most drives",
     "isam2-3d": "GTSAM iSAM2 on Pose3 + stereo factors + IMU between factors (the batch solve starts from it)",
 }
