@@ -10,6 +10,7 @@ position RMSE without alignment (every estimator starts at the IMU's first pose)
 
 from __future__ import annotations
 
+from fgslam.runner3d import POSE_DOF as POSE_DOF_3D
 from fgslam.runner3d import make_estimator_3d, pose_nees_series, position_rmse_m, run_estimator_3d
 from slamio.datasets.seed003 import StereoImuNoise
 from slamio.sim3d import DriveScenario, simulate_drive
@@ -18,7 +19,6 @@ __all__ = ["DEFAULT_BENCH_ESTIMATORS_3D", "POSE_DOF_3D", "run_one_3d"]
 
 #: What ``fgslam bench stereo-loop`` runs when no estimator is named.
 DEFAULT_BENCH_ESTIMATORS_3D = ("ekf-vio", "ekf-vio-fej", "isam2-3d")
-POSE_DOF_3D = 6
 
 
 def run_one_3d(seed: int, estimators: tuple[str, ...], scenario: DriveScenario | None = None):
