@@ -76,6 +76,7 @@ from ekf.models import (
     range_bearing_nis,
 )
 from ekf.range_only import DelayedInitRule, try_initialise
+from ekf.reading_error import gauss_markov_step, reading_error_model
 from slamio.geometry import wrap_angle
 from slamio.log import Header, Observation, Step
 
@@ -353,6 +354,13 @@ class EkfSlam:
     and is counted in ``gated_known_id`` (``None`` turns the gate off, the plain textbook
     filter that trusts every id).
 
+    Readings whose errors are correlated in time: when the header's noise model has a
+    ``correlated_share`` ρ > 0 (``fgslam calibrate`` fits it), each range-bearing landmark
+    carries its readings' Gauss–Markov error (range, bearing) as two more states after its
+    position, and each reading's white part is ``(1 − ρ)·R`` (:mod:`ekf.reading_error`).
+    Association (NN, JCBB) still scores pairs with the whole R and without those states, a
+    slightly wider gate; the update of an associated reading uses them.
+
     ``landmark_capacity`` is only the initial room for landmarks; the storage doubles
     whenever it is full, so it never limits the map.
     """
@@ -419,6 +427,12 @@ class EkfSlam:
         self._range_buffer: dict[int, list[tuple[float, float, float, float]]] = {}  # id → (x, y, r, σ)
         self.range_updates = 0
         self.range_landmarks_initialised = 0
+        # readings' Gauss–Markov errors (see ekf.reading_error): key → index, time, σ at that time
+        self.reading_error = reading_error_model(header.noise)
+        self._error_index: dict[int, int] = {}
+        self._error_time: dict[int, float] = {}
+        self._error_sigma: dict[int, np.ndarray] = {}
+        self._time = float(header.stamp_s)
 
     # ------------------------------------------------------------------ protocol
 
@@ -427,6 +441,7 @@ class EkfSlam:
         turn, then associate and apply the observations without one (see the class docstring)."""
         if step.odometry is not None:
             self._predict(step.odometry)
+        self._time = step.stamp_s
         associations: list[int | None] = [None] * len(step.observations)
         unknown: list[int] = []
         for k, observation in enumerate(step.observations):
@@ -525,6 +540,9 @@ class EkfSlam:
             if i is None or observation.range_only:
                 out.append(None)
                 continue
+            if observation.landmark_id in self._error_index:
+                out.append(self._nis_with_reading_error(pose, P_rr, F, observation))
+                continue
             joint = np.empty((5, 5))
             joint[:3, :3] = P_rr
             joint[:3, 3:] = F @ self._cov[:ROBOT_DIM, i : i + 2]
@@ -538,13 +556,61 @@ class EkfSlam:
             )
         return out
 
+    def _nis_with_reading_error(self, pose, P_rr, F, observation: Observation) -> float:
+        """NIS of a reading of a landmark that carries reading-error states (nothing changes):
+        the errors decayed to the reading's time, then ``ν = z − h − e`` and
+        ``S = H Σ Hᵀ + (1 − ρ)R`` over (pose, landmark, errors)."""
+        key = observation.landmark_id
+        i, j = self._slot[key], self._error_index[key]
+        scale, added = self._error_transition(key, observation)
+        rows = [i, i + 1, j, j + 1]
+        joint = np.empty((7, 7))
+        joint[:3, :3] = P_rr
+        joint[:3, 3:] = F @ self._cov[:ROBOT_DIM, rows]
+        joint[3:, :3] = joint[:3, 3:].T
+        joint[3:, 3:] = self._cov[np.ix_(rows, rows)]
+        A = np.diag(np.r_[np.ones(5), scale])  # the decay of the two errors
+        joint = A @ joint @ A + np.diag(np.r_[np.zeros(5), added])
+        predicted_range, predicted_bearing = range_bearing(pose, self._mean[i : i + 2])
+        error = scale * self._mean[j : j + 2]
+        nu = np.array([observation.range_m - predicted_range - error[0],
+                       wrap_angle(observation.bearing_rad - predicted_bearing - error[1])])
+        H_pose, H_landmark = range_bearing_jacobians(pose, self._mean[i : i + 2])
+        H = np.hstack([H_pose, H_landmark, np.eye(2)])
+        S = H @ joint @ H.T + (1.0 - self.reading_error.share) * measurement_covariance(observation)
+        try:
+            L = np.linalg.cholesky(0.5 * (S + S.T))
+        except np.linalg.LinAlgError:
+            return float("nan")
+        w = np.linalg.solve(L, nu)
+        return float(w @ w)
+
     def state_mean(self) -> np.ndarray:
-        """The full state vector ``[x, y, θ, l1x, l1y, (l1h,) ...]`` (a copy)."""
-        return self._mean[: self._dim].copy()
+        """The full state vector ``[x, y, θ, l1x, l1y, (l1h,) (l1 range error, l1 bearing error,) ...]``
+        (a copy; the reading errors only with a ``correlated_share`` in the header's noise,
+        carried to the last step's time)."""
+        if not self._error_index:
+            return self._mean[: self._dim].copy()
+        scale, _ = self._errors_to_now()
+        return self._mean[: self._dim] * scale
 
     def state_covariance(self) -> np.ndarray:
-        """The full n×n joint covariance (a copy; O(n²))."""
-        return self._cov[: self._dim, : self._dim].copy()
+        """The full n×n joint covariance (a copy; O(n²); reading errors as in :meth:`state_mean`)."""
+        if not self._error_index:
+            return self._cov[: self._dim, : self._dim].copy()
+        scale, added = self._errors_to_now()
+        return self._cov[: self._dim, : self._dim] * np.outer(scale, scale) + np.diag(added)
+
+    def _errors_to_now(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per state entry: the scale and added variance that carry each landmark's reading
+        errors from its last reading to the last step (ones and zeros elsewhere)."""
+        scale, added = np.ones(self._dim), np.zeros(self._dim)
+        for key, j in self._error_index.items():
+            sigma = self._error_sigma[key]
+            scale[j : j + 2], added[j : j + 2] = gauss_markov_step(
+                self._time - self._error_time[key], self.reading_error.time_s, sigma, sigma, self.reading_error.share
+            )
+        return scale, added
 
     def landmark_index(self, landmark_id: int) -> int:
         """Index of the landmark's x coordinate in :meth:`state_mean` (y, then h if any, follow it)."""
@@ -583,7 +649,7 @@ class EkfSlam:
         n = self._dim
         with_height = has_height(observation)
         k = 3 if with_height else LANDMARK_DIM
-        self._reserve(n + k)
+        self._reserve(n + k + (2 if self.reading_error is not None else 0))
         pose = self._mean[:ROBOT_DIM]
         R = measurement_covariance(observation, with_height)
         self._mean[n : n + k] = landmark_from_observation(
@@ -594,6 +660,53 @@ class EkfSlam:
         )
         augment_covariance(self._cov, n, G_pose, G_measurement, R)
         self._register_landmark(key, n, with_height)
+        if self.reading_error is not None:
+            self._add_reading_error(key, observation, G_measurement)
+
+    def _add_reading_error(self, key: int, observation: Observation, G_measurement: np.ndarray) -> None:
+        """Append the landmark's reading errors (range, bearing) just after it.
+
+        The landmark was placed from ``z = h + e + w``, so it carries ``−G_z·e``: its
+        covariance (already ``G_z R G_zᵀ``, R the whole reading variance) stays, and it is
+        correlated with the errors by ``−G_z·ρR``; the errors start at 0 with variance ρR
+        and are independent of everything else."""
+        j = self._dim
+        rho = self.reading_error.share
+        sigma = np.array([observation.sigma_range_m, observation.sigma_bearing_rad])
+        P_ee = np.diag(rho * sigma**2)
+        i, k = self._slot[key], self._landmark_dim(key)
+        self._mean[j : j + 2] = 0.0
+        self._cov[j : j + 2, :j] = 0.0
+        self._cov[:j, j : j + 2] = 0.0
+        P_le = -G_measurement[:, :2] @ P_ee
+        self._cov[i : i + k, j : j + 2] = P_le
+        self._cov[j : j + 2, i : i + k] = P_le.T
+        self._cov[j : j + 2, j : j + 2] = P_ee
+        self._error_index[key] = j
+        self._error_time[key] = observation.stamp_s
+        self._error_sigma[key] = sigma
+        self._dim = j + 2
+
+    def _error_transition(self, key: int, observation: Observation) -> tuple[np.ndarray, np.ndarray]:
+        """(scale, added variance) from the landmark's last reading to ``observation``."""
+        sigma = np.array([observation.sigma_range_m, observation.sigma_bearing_rad])
+        return gauss_markov_step(
+            observation.stamp_s - self._error_time[key], self.reading_error.time_s,
+            self._error_sigma[key], sigma, self.reading_error.share,
+        )
+
+    def _decay_reading_error(self, key: int, observation: Observation) -> None:
+        """Carry the landmark's reading errors to ``observation``'s time, in place, O(n)."""
+        j = self._error_index[key]
+        n = self._dim
+        scale, added = self._error_transition(key, observation)
+        self._mean[j : j + 2] *= scale
+        self._cov[j : j + 2, :n] *= scale[:, None]
+        self._cov[:n, j : j + 2] *= scale[None, :]
+        self._cov[j, j] += added[0]
+        self._cov[j + 1, j + 1] += added[1]
+        self._error_time[key] = observation.stamp_s
+        self._error_sigma[key] = np.array([observation.sigma_range_m, observation.sigma_bearing_rad])
 
     def _register_landmark(self, key: int, n: int, with_height: bool) -> None:
         """Book a landmark just placed at state index ``n`` (its mean and covariance are set)."""
@@ -631,6 +744,17 @@ class EkfSlam:
                 [observation.range_m - predicted_range, wrap_angle(observation.bearing_rad - predicted_bearing)]
             )
         H_cols = np.hstack([H_pose, H_landmark])
+        if key in self._error_index:  # the reading's error: its correlated part is in the state
+            self._decay_reading_error(key, observation)
+            j = self._error_index[key]
+            innovation[:2] -= self._mean[j : j + 2]
+            innovation[1] = wrap_angle(float(innovation[1]))
+            cols = np.r_[cols, j, j + 1]
+            E = np.zeros((len(innovation), 2))
+            E[0, 0] = E[1, 1] = 1.0
+            H_cols = np.hstack([H_cols, E])
+            R = R.copy()
+            R[:2, :2] *= 1.0 - self.reading_error.share
         K, S, _ = kalman_gain(P, cols, H_cols, R)
         if gate and self.known_id_gate_probability is not None:
             d2 = float(innovation @ np.linalg.solve(S, innovation))

@@ -30,6 +30,11 @@ What is fitted, and how (every step is least squares on residuals against the tr
    filter's σ must describe). σ² of range is regressed on ``[1, r²]`` and σ² of bearing on
    ``[1, ω²]`` (ω, the odometry's turn rate at the picture), after a 5σ gate that counts
    the outliers.
+4. **Readings' error in time.** Two readings of one landmark taken close together err
+   alike. The residuals divided by their σ are paired per landmark and run, binned by the
+   time between them, and ``ρ·exp(−Δt/τ)`` is fitted to the bins' correlations
+   (:func:`fit_reading_correlation`): the model's ``correlated_share`` ρ and
+   ``correlation_time_s`` τ.
 
 Robust statistics (median absolute deviation, 5σ gate) keep misread barcodes and motion
 capture glitches out of the fit; their share is the model's ``outlier_rate``.
@@ -49,7 +54,7 @@ from slamio.geometry import wrap_angle
 from slamio.log import RunLog
 from slamio.noise_model import NoiseModel, ObservationModel, OdometryModel, OdometryNoiseRates, carries_fitted_model
 
-__all__ = ["CalibrationError", "OdometryChain", "fit_noise_model", "turn_rate_radps"]
+__all__ = ["CalibrationError", "OdometryChain", "ReadingCorrelation", "fit_noise_model", "fit_reading_correlation", "turn_rate_radps"]
 
 #: Floor of the per-second variance rates (they must be > 0): 1 mm, 1 mrad per √s.
 MIN_RATE_PER_S = 1e-6
@@ -287,11 +292,12 @@ def _fit_odometry(datas: Sequence[_LogData], window_s: float, lag_grid_s: np.nda
 # --------------------------------------------------------------------------- observation fit
 
 
-def _true_range_bearing(data: _LogData, latency_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(measured range, measured bearing, true range, true bearing, picture times) with truth."""
+def _true_range_bearing(data: _LogData, latency_s: float) -> tuple[np.ndarray, ...]:
+    """(measured range, measured bearing, true range, true bearing, picture times, landmark
+    positions (n, 2)) of the readings with truth."""
     if not data.observations:
         empty = np.zeros(0)
-        return empty, empty, empty, empty, empty
+        return empty, empty, empty, empty, empty, np.zeros((0, 2))
     obs = data.observations
     t = np.array([o[0] for o in obs]) - latency_s
     poses, ok = _truth_at(data, t)
@@ -301,7 +307,7 @@ def _true_range_bearing(data: _LogData, latency_s: float) -> tuple[np.ndarray, n
     b = wrap_angle(np.arctan2(dy, dx) - poses[:, 2])
     rm = np.array([o[1] for o in obs])
     bm = np.array([o[2] for o in obs])
-    return rm[ok], bm[ok], r[ok], b[ok], t[ok]
+    return rm[ok], bm[ok], r[ok], b[ok], t[ok], lm[ok]
 
 
 def _line_fit(x: np.ndarray, y: np.ndarray) -> tuple[float, float, np.ndarray]:
@@ -333,6 +339,7 @@ def _fit_observations(datas: Sequence[_LogData], odometry: OdometryModel, latenc
     latency = best[1]
     parts = [_true_range_bearing(d, latency) for d in datas]
     rm, bm, r, b, t = (np.concatenate([p[j] for p in parts]) for j in range(5))
+    landmark = np.unique(np.vstack([p[5] for p in parts]), axis=0, return_inverse=True)[1].ravel()
     omega = np.concatenate([
         odometry.turn_scale * turn_rate_radps(d.chain, p[4] - odometry.lag_s) for d, p in zip(datas, parts)  # |ω|
     ])
@@ -360,6 +367,10 @@ def _fit_observations(datas: Sequence[_LogData], odometry: OdometryModel, latenc
     inlier = (np.abs(res_r) <= gate_r) & (np.abs(res_b) <= gate_b)
     r_rates = _nnls_rates(res_r[inlier], np.column_stack([np.ones(inlier.sum()), r[inlier] ** 2]))
     b_rates = _nnls_rates(res_b[inlier], np.column_stack([np.ones(inlier.sum()), omega[inlier] ** 2]))
+    sigma_r = np.sqrt(np.column_stack([np.ones(len(r)), r**2]) @ r_rates)
+    sigma_b = np.sqrt(np.column_stack([np.ones(len(r)), omega**2]) @ b_rates)
+    normalised = np.column_stack([res_r / np.maximum(sigma_r, 1e-9), res_b / np.maximum(sigma_b, 1e-12)])
+    correlation = fit_reading_correlation(t[inlier], (own * (landmark.max() + 1) + landmark)[inlier], normalised[inlier])
     model = ObservationModel(
         range_is_depth=bool(is_depth),
         range_scale=range_scale,
@@ -372,14 +383,96 @@ def _fit_observations(datas: Sequence[_LogData], odometry: OdometryModel, latenc
         bearing_sigma_s=math.sqrt(b_rates[1]),
         camera_latency_s=latency,
         outlier_rate=float(1.0 - inlier.mean()),
+        correlated_share=correlation.share,
+        correlation_time_s=correlation.time_s,
     )
     report = {
         "observations": int(len(r)),
         "outliers": int((~inlier).sum()),
         "range_residual_mad_m": {"range": round(fits["range"][0], 6), "depth": round(fits["depth"][0], 6)},
         "bearing_residual_mad_rad": round(_mad_sigma(res_b), 6),
+        "reading_correlation": correlation.report(),
     }
     return model, report
+
+
+@dataclass(frozen=True)
+class ReadingCorrelation:
+    """ρ·exp(−Δt/τ) fitted to the correlation of two readings of one landmark Δt apart."""
+
+    share: float  # ρ, 0 when the readings look white (or there are too few pairs)
+    time_s: float  # τ
+    lags_s: tuple[float, ...] = ()  # mean Δt of each bin
+    correlations: tuple[float, ...] = ()  # measured correlation of each bin
+    pairs: tuple[int, ...] = ()
+
+    def report(self) -> dict:
+        return {
+            "share": round(self.share, 4), "time_s": round(self.time_s, 3),
+            "lag_s": [round(v, 3) for v in self.lags_s], "correlation": [round(v, 4) for v in self.correlations],
+            "pairs": list(self.pairs),
+        }
+
+
+#: Edges (s) of the Δt bins over which reading-error correlations are measured.
+CORRELATION_BINS_S = (0.0, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0)
+#: Readings whose errors correlate less than this over the shortest lag measured are white.
+WHITE_CORRELATION = 0.05
+#: Pairs per reading: each reading is paired with at most this many later readings of its landmark.
+MAX_PAIRS_PER_READING = 80
+
+
+def fit_reading_correlation(stamps_s: np.ndarray, landmark: np.ndarray, normalised: np.ndarray) -> ReadingCorrelation:
+    """Fit the Gauss–Markov part of the reading errors.
+
+    ``normalised`` (n, k) are residuals divided by their σ (range and bearing: k = 2), each
+    run's own bias already removed; ``landmark`` (n,) says which series a reading belongs
+    to (one per landmark and run), ``stamps_s`` when it was taken. For every pair of
+    readings of one series less than 64 s apart, the product of their residuals is binned
+    by Δt; each bin's correlation (averaged over the k components) is fitted by
+    ``ρ·exp(−Δt/τ)`` (least squares on the bins, weighted by their pair counts; τ at least
+    the first bin's mean Δt). A correlation at most 0.05 over the first bin, or fewer than
+    100 pairs there, means white readings (ρ = 0).
+    """
+    from scipy.optimize import curve_fit
+
+    edges = np.asarray(CORRELATION_BINS_S)
+    sums = np.zeros((len(edges) - 1, normalised.shape[1]))
+    square_a = np.zeros_like(sums)
+    square_b = np.zeros_like(sums)
+    lag_sum = np.zeros(len(edges) - 1)
+    count = np.zeros(len(edges) - 1, dtype=int)
+    order = np.lexsort((stamps_s, landmark))
+    t, series, z = stamps_s[order], landmark[order], normalised[order]
+    for shift in range(1, MAX_PAIRS_PER_READING + 1):
+        if shift >= len(t):
+            break
+        same = series[shift:] == series[:-shift]
+        dt = t[shift:] - t[:-shift]
+        ok = same & (dt < edges[-1])
+        if not ok.any():
+            break
+        bins = np.searchsorted(edges, dt[ok], side="right") - 1
+        a, b = z[:-shift][ok], z[shift:][ok]
+        np.add.at(sums, bins, a * b)
+        np.add.at(square_a, bins, a * a)
+        np.add.at(square_b, bins, b * b)
+        np.add.at(lag_sum, bins, dt[ok])
+        np.add.at(count, bins, 1)
+    used = count > 0
+    lags = lag_sum[used] / count[used]
+    corr = (sums[used] / np.sqrt(np.maximum(square_a[used] * square_b[used], 1e-300))).mean(axis=1)
+    white = ReadingCorrelation(0.0, 0.0, tuple(lags), tuple(corr), tuple(int(c) for c in count[used]))
+    if used.sum() < 3 or count[0] < 100 or corr[0] <= WHITE_CORRELATION:
+        return white
+    try:  # τ no shorter than the first bin's lag: nothing shorter is measured
+        (rho, tau), _ = curve_fit(lambda x, r, s: r * np.exp(-x / s), lags, corr, p0=(corr[0], 10.0),
+                                  sigma=1.0 / np.sqrt(count[used]), bounds=([0.0, lags[0]], [0.95, 1e4]))
+    except (RuntimeError, ValueError):
+        return white
+    if rho * math.exp(-lags[0] / tau) <= WHITE_CORRELATION:
+        return white
+    return ReadingCorrelation(float(rho), float(tau), tuple(lags), tuple(corr), tuple(int(c) for c in count[used]))
 
 
 # --------------------------------------------------------------------------- entry point

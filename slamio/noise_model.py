@@ -29,6 +29,13 @@ Observations (:class:`ObservationModel`)
     ``camera_latency_s``: a reading is stamped that long after its picture was taken.
     ``outlier_rate``: the share of readings beyond the fit's 5σ gate (misread barcodes,
     reflections); estimators should down-weight or gate them.
+    ``correlated_share`` and ``correlation_time_s``: a reading's error is not independent of
+    the last reading of the same landmark. Of each reading's variance, the share ρ =
+    ``correlated_share`` is a Gauss–Markov error per landmark (normalised by the reading's
+    σ, its correlation decays as ``exp(−Δt / correlation_time_s)``), the rest is white. (A
+    camera seeing the same barcode from nearly the same place makes nearly the same error:
+    on MRCLAM ρ ≈ 0.7 and τ ≈ 17 s.) 0 means white readings; :mod:`ekf.reading_error` says
+    how the EKF uses it.
 
 The model is applied by :func:`correct_observation`: a reading is turned into the
 Euclidean range and bearing the estimators expect, with its own σ. All functions are pure.
@@ -153,6 +160,8 @@ class ObservationModel:
     bearing_sigma_s: float = 0.0
     camera_latency_s: float = 0.0
     outlier_rate: float = 0.0
+    correlated_share: float = 0.0
+    correlation_time_s: float = 0.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.range_is_depth, bool):
@@ -167,6 +176,18 @@ class ObservationModel:
             raise NoiseModelError(f"observation.outlier_rate must be below 1, got {self.outlier_rate!r}")
         if abs(self.camera_latency_s) > 5.0:
             raise NoiseModelError(f"observation.camera_latency_s must be within ±5 s, got {self.camera_latency_s!r}")
+        for name in ("correlated_share", "correlation_time_s"):
+            _check_finite("observation", name, getattr(self, name), non_negative=True)
+        if self.correlated_share >= 1.0:
+            raise NoiseModelError(
+                f"observation.correlated_share must be below 1 (some of each reading's error is white), "
+                f"got {self.correlated_share!r}"
+            )
+        if self.correlated_share > 0.0 and not self.correlation_time_s > 0.0:
+            raise NoiseModelError(
+                "observation.correlation_time_s must be > 0 when correlated_share is above 0, "
+                f"got {self.correlation_time_s!r}"
+            )
 
     def sigma_range_m(self, range_m: float) -> float:
         """σ of a range at ``range_m`` metres."""

@@ -141,6 +141,13 @@ def test_the_fit_recovers_the_model(dataset, fitted, raw_logs):
     assert mad["depth"] < 0.5 * mad["range"]
 
 
+def test_white_readings_fit_no_correlation(fitted):
+    """The synthetic camera's errors are independent: nothing to model in time."""
+    report = fitted.fit_report["observation"]["reading_correlation"]
+    assert fitted.observation.correlated_share == 0.0, report
+    assert abs(report["correlation"][0]) < 0.1
+
+
 def test_a_pooled_fit_of_two_robots_recovers_the_model(dataset, raw_logs):
     _, runs = dataset
     model = fit_noise_model([raw_logs[1], raw_logs[2]])

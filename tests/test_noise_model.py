@@ -121,6 +121,9 @@ BAD_FIELDS = [
     (("observation",), "outlier_rate", -0.1, "observation.outlier_rate"),
     (("observation",), "outlier_rate", 1.0, "observation.outlier_rate"),
     (("observation",), "camera_latency_s", 6.0, "observation.camera_latency_s"),
+    (("observation",), "correlated_share", 1.0, "observation.correlated_share"),
+    (("observation",), "correlated_share", -0.1, "observation.correlated_share"),
+    (("observation",), "correlation_time_s", -1.0, "observation.correlation_time_s"),
     (("observation",), "range_bias_m", "0.02", "observation.range_bias_m"),
     (("observation",), "range_scale", True, "observation.range_scale"),
     (("observation",), "range_scale", None, "observation.range_scale"),
@@ -151,6 +154,12 @@ def test_a_bad_field_is_named(tmp_path, section, name, value, words):
     assert words in message
     assert message.startswith(path)  # and the file
     assert "\n" not in message
+
+
+def test_correlated_readings_need_a_correlation_time():
+    with pytest.raises(NoiseModelError, match=r"observation\.correlation_time_s must be > 0"):
+        ObservationModel(correlated_share=0.5)
+    assert ObservationModel(correlated_share=0.5, correlation_time_s=10.0).correlated_share == 0.5
 
 
 @pytest.mark.parametrize("section, name, value, words", BAD_FIELDS)
