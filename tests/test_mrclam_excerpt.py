@@ -95,7 +95,8 @@ def test_calibrate_then_import_then_run_from_the_command_line(tmp_path, capsys):
         logs.append(str(out))
     noise = tmp_path / "noise.json"
     assert main(["calibrate", *logs, "--out", str(noise)]) == 0
-    assert "range is depth" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "range is depth" in printed and "readings of one landmark: " in printed
     assert json.loads(noise.read_text())["fitted_on"] == logs
     assert main(["calibrate", *logs, "--out", str(noise)]) == 1  # never overwrites
     assert "exists" in capsys.readouterr().err
@@ -103,6 +104,9 @@ def test_calibrate_then_import_then_run_from_the_command_line(tmp_path, capsys):
     assert main(["import", "mrclam", EXCERPT, str(r1), "--robot", "1", "--noise", str(noise)]) == 0
     header = read_log(r1).header
     assert header.noise["fitted_on"] == logs
+    # the fitted time correlation of the readings reaches the EKF through the header
+    share = json.loads(noise.read_text())["observation"]["correlated_share"]
+    assert header.noise["observation"]["correlated_share"] == share
     assert main(["calibrate", str(r1)]) == 1  # a fitted log is not raw data to fit on
     assert "--noise" in capsys.readouterr().err
     assert main(["run", str(r1), "--out", str(tmp_path / "res"), "--no-report", "--estimators", "ekf,isam2"]) == 0

@@ -117,4 +117,7 @@ def noise_model_summary(model) -> str:
         f"  sigma range = hypot({z.range_sigma_m:.4f} m, {z.range_sigma_per_m:.4f} x range); "
         f"sigma bearing = hypot({z.bearing_sigma_rad:.4f} rad, {z.bearing_sigma_s:.4f} s x turn rate); "
         f"outliers {100 * z.outlier_rate:.2f} %",
+        f"  readings of one landmark: {100 * z.correlated_share:.0f} % of the variance correlated in time, "
+        f"correlation time {z.correlation_time_s:.1f} s" if z.correlated_share > 0 else
+        "  readings of one landmark: errors independent in time",
     ])
