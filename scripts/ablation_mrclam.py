@@ -37,7 +37,8 @@ VARIANTS = {
     "round default noise (no model)": None,
     "+ fitted odometry (lag, scales, turn per metre, variance rates)": "odometry",
     "+ fitted camera model (depth, scale, bias, sigmas), no outlier handling": "no_outliers",
-    "+ outlier handling (EKF gate, iSAM2 DCS): the full model": "full",
+    "+ outlier handling (EKF gate, iSAM2 DCS), white readings": "white",
+    "+ readings' error in time (the EKF's Gauss–Markov states): the full model": "full",
     "full model, EKF without its gate": "full_no_gate",
     "full model, zero-command blips integrated": "full_blips",
 }
@@ -56,8 +57,11 @@ def one_robot(args) -> dict:
     model = None if variant is None else fit_noise_model([raw[j] for j in mrclam.ROBOT_SUBJECTS if j != k])
     if variant == "odometry":
         model = dataclasses.replace(model, observation=ObservationModel())
-    elif variant == "no_outliers":
-        model = dataclasses.replace(model, observation=dataclasses.replace(model.observation, outlier_rate=0.0))
+    elif variant in ("no_outliers", "white"):
+        white = dataclasses.replace(model.observation, correlated_share=0.0, correlation_time_s=0.0)
+        if variant == "no_outliers":
+            white = dataclasses.replace(white, outlier_rate=0.0)
+        model = dataclasses.replace(model, observation=white)
     log = raw[k] if model is None else _log(folder, k, model)
     steps = log.steps()
     mask = np.array([s.truth is not None for s in steps])
