@@ -3,17 +3,16 @@
 Detector
 ========
 
-The default back-end is the AprilTag 3 library through ``pupil-apriltags``, chosen by
-measurement on the real photos in ``tests/data/apriltag-photos`` (``scripts/bench_apriltag.py``,
-docs/camera.md): with ``quad_decimate=1.0`` and ``refine_edges`` off it finds 46 of the 47
-listed tags in the NASA photos with no false detection and a corner error of at most
-0.14 px against the listed corners; ``cv2.aruco``'s AprilTag dictionary finds far fewer.
-``backend="aruco"`` keeps OpenCV's detector for comparison.
+The default back-end is the AprilTag 3 library through ``pupil-apriltags`` with
+``quad_decimate=1.0`` and ``refine_edges`` off, chosen by measurement on the real photos in
+``tests/data/apriltag-photos`` (``scripts/bench_apriltag.py``, docs/camera.md).
+``backend="aruco"`` runs OpenCV's detector with the family's AprilTag dictionary instead.
 
 ``upsample`` (1.0 by default) enlarges the image (bilinear) before the detector sees it and
-maps the corners back: at 2.0 the detector finds tags of 11–17 pixels and steeply foreshortened
-ones that it misses at the camera's resolution (53 instead of 46 of the 61 tags that any
-detector finds on the NASA photos), at about three times the time per frame.
+maps the corners back (:func:`corners_from_upsampled`): enlarged, AprilTag 3 finds tags of
+11–17 pixels and steeply foreshortened ones that it misses at the camera's resolution. The
+front-end combines an enlarged AprilTag 3 pass with a cheap aruco pass
+(:mod:`slamio.camera.tag_passes`).
 
 Corners
 =======

@@ -7,11 +7,13 @@ Measured on the NASA photos against every tag that any of eight detector set-ups
   tags of 11–17 pixels and tags seen so obliquely that their black border is a pixel thin:
   its quad search does not even find their outlines (its own quads cover 1 of the 16 it
   misses), so a second pass around its failed quads has nothing to work on.
-- The same detector on the image **enlarged 2×** (bilinear) finds 53, and
+- The same detector on the image **enlarged 1.75×** (bilinear) finds 51 (2×: 53), and
 - **cv2.aruco** with one 3-pixel adaptive-threshold window and candidates of at least a
-  tenth of the image's side in perimeter — cheap: about a third of the first pass's time —
-  decodes large tags on cube tops and sides that AprilTag 3 rejects at any scale. Together:
-  59 of 61, none outside the union, at about 2.9× the time of the single pass.
+  tenth of the image's side in perimeter — cheap: about a quarter of the first pass's time —
+  decodes tags on cube tops and sides that AprilTag 3 rejects at any scale. Together: 57 of
+  61 (2×: 59), none outside the union, at about 2.6× the CPU time of the single pass at the
+  camera's resolution (2×: 3.0×), which keeps a 640×480 frame within 40 ms on this project's
+  2-core machine when it is not shared.
 
 Tags found by the first pass keep its corners; the second pass only adds tags whose centre is
 not within half a side of one already found. The front-end refines every tag's corners on the

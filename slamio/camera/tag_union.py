@@ -71,22 +71,27 @@ def write_union(path: str | os.PathLike[str], union: list[ListedTag], header: st
                     f"{' '.join(t.found_by)}\n")
 
 
-def read_union(path: str | os.PathLike[str]) -> list[ListedTag]:
-    """Read a listing written by :func:`write_union`; a malformed line is a ValueError naming it."""
-    out = []
+def listing_lines(path: str | os.PathLike[str]):
+    """(line number, stripped text) of every line of a listing that is neither blank nor a ``#`` comment."""
     with open(path, encoding="utf-8") as f:
         for number, line in enumerate(f, start=1):
             text = line.strip()
-            if not text or text.startswith("#"):
-                continue
-            parts = [p.strip() for p in text.split(",")]
-            try:
-                if len(parts) != 6:
-                    raise ValueError
-                image, tag_id, x, y, side, found_by = parts
-                out.append(ListedTag(image, int(tag_id), np.array([float(x), float(y)]), float(side), found_by.split()))
-            except ValueError:
-                raise ValueError(f"{path}:{number}: expected 'image, id, x, y, side, found by', got {text!r}") from None
+            if text and not text.startswith("#"):
+                yield number, text
+
+
+def read_union(path: str | os.PathLike[str]) -> list[ListedTag]:
+    """Read a listing written by :func:`write_union`; a malformed line is a ValueError naming it."""
+    out = []
+    for number, text in listing_lines(path):
+        parts = [p.strip() for p in text.split(",")]
+        try:
+            if len(parts) != 6:
+                raise ValueError
+            image, tag_id, x, y, side, found_by = parts
+            out.append(ListedTag(image, int(tag_id), np.array([float(x), float(y)]), float(side), found_by.split()))
+        except ValueError:
+            raise ValueError(f"{path}:{number}: expected 'image, id, x, y, side, found by', got {text!r}") from None
     return out
 
 
