@@ -1,8 +1,8 @@
 """Build the union listing of the NASA AprilTag photos: every tag that any of eight detector set-ups finds.
 
 The NASA photos' own listing (``nasa_*.txt``) was made by the AprilTag 3 reference detector
-at decimate 1 without edge refinement — the front-end's own detector — so it cannot show
-what that detector misses. This script runs eight set-ups on the three photos, merges their
+at decimate 1 without edge refinement — the front-end's AprilTag 3 pass at the camera's
+resolution — so it cannot show what that detector misses. This script runs eight set-ups on the three photos, merges their
 detections by id and centre (``slamio.camera.tag_union``), adds the reference listing's tags
 and the tags listed in ``SEEN_BY_EYE``, and writes
 ``tests/data/apriltag-photos/nasa_union.txt``.
@@ -35,7 +35,7 @@ PHOTOS = Path(__file__).resolve().parents[1] / "tests" / "data" / "apriltag-phot
 
 #: The eight set-ups, by the name the listing's "found by" column uses.
 SETUPS = {
-    "apriltag3": dict(),  # decimate 1, refine_edges off: the front-end's first pass
+    "apriltag3": dict(),  # decimate 1, refine_edges off: the single pass at the camera's resolution
     "apriltag3-edges": dict(refine_edges=True),
     "apriltag3-decimate2": dict(quad_decimate=2.0, refine_edges=True),  # the library's default
     "apriltag3-sigma0.8": dict(quad_sigma=0.8),

@@ -51,7 +51,7 @@ FIRST_PASS = dict(backend="apriltag3", quad_decimate=1.0)  # decimate 1, no upsa
 ARUCO_PASS = dict(backend="aruco", aruco_refinement="none", aruco_window_px=3, aruco_min_perimeter=0.1)
 
 CONFIGS = [
-    ("apriltag3 decimate 1, refine_edges off (first pass)", [FIRST_PASS]),
+    ("apriltag3 decimate 1, refine_edges off (single pass)", [FIRST_PASS]),
     ("apriltag3 decimate 1, refine_edges on", [dict(refine_edges=True)]),
     ("apriltag3 decimate 2 (library default)", [dict(quad_decimate=2.0, refine_edges=True)]),
     ("apriltag3 decimate 1, quad_sigma -0.8 (sharpen)", [dict(quad_sigma=-0.8)]),
