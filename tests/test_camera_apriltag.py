@@ -272,6 +272,9 @@ def test_unknown_family_is_a_user_error():
         AprilTagDetector(upsample=0.5)
     with pytest.raises(TagDetectorError, match="second pass"):
         front_end_detector(second_pass="magic")
+    # a family OpenCV's aruco does not know: AprilTag 3 alone
+    assert len(front_end_detector("tagStandard41h12").detectors) == 1
+    assert len(front_end_detector().detectors) == 2
 
 
 def test_detectors_can_be_made_and_dropped_repeatedly():

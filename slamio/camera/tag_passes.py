@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from slamio.camera.apriltag import AprilTagDetector, TagDetection, TagDetectorError
+from slamio.camera.apriltag import ARUCO_DICTIONARIES, AprilTagDetector, TagDetection, TagDetectorError
 
 #: Second passes the front-end knows.
 SECOND_PASSES = ("aruco", "none")
@@ -57,12 +57,15 @@ def already_found(tag: TagDetection, other: TagDetection) -> bool:
 
 def front_end_detector(family: str = "tag36h11", *, upsample: float = 1.75, second_pass: str = "aruco",
                        quad_decimate: float = 1.0, refine_edges: bool = False, nthreads: int = 1) -> TagPasses:
-    """The front-end's detector: AprilTag 3 on the image enlarged ``upsample`` times, then the second pass."""
+    """The front-end's detector: AprilTag 3 on the image enlarged ``upsample`` times, then the second pass.
+
+    The aruco pass needs OpenCV's dictionary of the family (tag36h11, tag36h10, tag25h9,
+    tag16h5); for other families AprilTag 3 runs alone."""
     if second_pass not in SECOND_PASSES:
         raise TagDetectorError(f"unknown second pass {second_pass!r}; use one of {', '.join(SECOND_PASSES)}")
     passes = [AprilTagDetector(family, quad_decimate=quad_decimate, refine_edges=refine_edges, nthreads=nthreads,
                                upsample=upsample)]
-    if second_pass == "aruco":
+    if second_pass == "aruco" and family in ARUCO_DICTIONARIES:
         passes.append(AprilTagDetector(family, backend="aruco", aruco_refinement="none", aruco_window_px=3,
                                        aruco_min_perimeter=0.1))
     return TagPasses(passes)
