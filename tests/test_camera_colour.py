@@ -269,3 +269,22 @@ def test_height_survives_depth_misregistration(shift):
     m = measured[0]
     assert m.height_m == pytest.approx(0.4, rel=0.03)
     assert m.range_m == pytest.approx(2.0, rel=0.02)
+
+
+@pytest.mark.parametrize("shift", [(0, 0), (2, 0)])
+def test_height_ignores_a_thin_corner_of_its_colour_touching_the_top(shift):
+    """A red picture frame's corner on the wall (7 m) touches the top of a red cylinder at 4 m: two
+    rows a few pixels wide join the blob within the misregistration margin; they are not the landmark."""
+    from slamio.camera.composite import composite, landmark_layer
+
+    cyl = CylinderSpec(4.0, 0.0, 0.05, 0.4, CYLINDER_BGR["red"], "red", 0)
+    layer = landmark_layer(KINECT, (0.0, 0.0, 0.0), Scene(cylinders=(cyl,)), supersample=3)
+    rows = np.nonzero((layer.alpha > 0.5).any(axis=1))[0]
+    cols = np.nonzero((layer.alpha > 0.5).any(axis=0))[0]
+    background = np.full((480, 640, 3), 150, np.uint8)
+    u = int(cols.mean())
+    background[rows[0] - 3 : rows[0] + 1, u - 2 : u + 2] = (30, 30, 190)  # 4 px wide, red, at the wall's depth
+    image, depth = composite(background, np.full((480, 640), 7.0, np.float32), layer, depth_shift_px=shift)
+    measured, rejected, _ = detect_colour_landmarks(image, depth, KINECT)
+    assert not rejected and len(measured) == 1
+    assert measured[0].height_m == pytest.approx(0.4, rel=0.03)

@@ -118,6 +118,10 @@ def test_bad_configuration_is_a_user_error():
         FrontEnd(TAG_CAM, FrontEndConfig(tag_size_m=0.0))
     with pytest.raises(FrontEndError):
         FrontEnd(TAG_CAM, FrontEndConfig(tag_family="tag99h99"))
+    with pytest.raises(FrontEndError, match="upsample"):
+        FrontEnd(TAG_CAM, FrontEndConfig(tag_upsample=0.5))
+    with pytest.raises(FrontEndError, match="second pass"):
+        FrontEnd(TAG_CAM, FrontEndConfig(tag_second_pass="sift"))
 
 
 def _obs(stamp, landmark_id=0):

@@ -200,7 +200,8 @@ def _config_from_args(args):
         colour = load_landmarks(args.landmarks, base=colour)
     return FrontEndConfig(
         kind=args.kind, tag_family=args.tag_family, tag_size_m=args.tag_size, tag_ids=tag_ids,
-        quad_decimate=args.quad_decimate, nthreads=args.threads, colour=colour,
+        quad_decimate=args.quad_decimate, tag_upsample=args.tag_upsample, tag_second_pass=args.tag_second_pass,
+        nthreads=args.threads, colour=colour,
         min_range_m=args.min_range, max_range_m=args.max_range,
     )
 
@@ -298,7 +299,8 @@ def cmd_detect(args: argparse.Namespace) -> int:
         "noise": front.noise.describe(),
     }
     if config.kind == "apriltag":
-        settings.update(tag_family=config.tag_family, tag_size_m=config.tag_size_m)
+        settings.update(tag_family=config.tag_family, tag_size_m=config.tag_size_m,
+                        tag_upsample=config.tag_upsample, tag_second_pass=config.tag_second_pass)
     else:
         settings.update(bearing=config.colour.bearing_method, height=config.colour.height_method,
                         landmarks=landmark_settings(config.colour))
@@ -368,6 +370,11 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     detect.add_argument("--tag-ids", default=None, metavar="LIST", help="only these ids (comma-separated)")
     detect.add_argument("--quad-decimate", type=float, default=1.0,
                         help="AprilTag quad_decimate (default 1.0: finds small tags; 2.0 is faster)")
+    detect.add_argument("--tag-upsample", type=float, default=1.75, metavar="F",
+                        help="AprilTag 3 sees the image enlarged F times (default 1.75: finds 11-17 px and oblique "
+                        "tags; 1 is about 2.5x faster, 2 finds a few more)")
+    detect.add_argument("--tag-second-pass", choices=("aruco", "none"), default="aruco",
+                        help="aruco (default): cv2.aruco adds tags AprilTag 3 missed; none: AprilTag 3 only")
     detect.add_argument("--threads", type=int, default=1, help="AprilTag detector threads (default 1)")
     detect.add_argument("--landmarks", default=None, metavar="FILE",
                         help="colour: the landmark file (YAML/JSON: colours, ids, shapes, sizes, check tolerances; "

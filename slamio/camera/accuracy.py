@@ -39,6 +39,7 @@ from slamio.camera.detect import FrontEnd, FrontEndConfig
 from slamio.camera.model import CameraModel, T_robot_camera_from_mount, kinect_v1_default
 from slamio.camera.render import CYLINDER_BGR, CylinderSpec, Scene, TagSpec, render
 from slamio.camera.sources import Frame
+from slamio.camera.tag_union import listing_lines
 from slamio.geometry import wrap_angle
 
 ROBOT_POSE = (1.0, 2.0, 0.3)
@@ -214,20 +215,16 @@ def read_corner_list(path: str | os.PathLike[str]) -> list[tuple[int, np.ndarray
     :class:`~slamio.camera.apriltag.TagDetection`. Their order is kept (sets are matched).
     """
     out = []
-    with open(path, encoding="utf-8") as f:
-        for number, line in enumerate(f, start=1):
-            text = line.strip()
-            if not text or text.startswith("#"):
-                continue
-            head, _, rest = text.partition(",")
-            points = _POINT.findall(rest)
-            try:
-                tag_id = int(head)
-                if len(points) != 4:
-                    raise ValueError
-            except ValueError:
-                raise ValueError(f"{path}:{number}: expected 'id, (x y), (x y), (x y), (x y)', got {text!r}") from None
-            out.append((tag_id, np.array([[float(x), float(y)] for x, y in points]) - 0.5))
+    for number, text in listing_lines(path):
+        head, _, rest = text.partition(",")
+        points = _POINT.findall(rest)
+        try:
+            tag_id = int(head)
+            if len(points) != 4:
+                raise ValueError
+        except ValueError:
+            raise ValueError(f"{path}:{number}: expected 'id, (x y), (x y), (x y), (x y)', got {text!r}") from None
+        out.append((tag_id, np.array([[float(x), float(y)] for x, y in points]) - 0.5))
     return out
 
 

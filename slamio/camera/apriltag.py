@@ -3,12 +3,16 @@
 Detector
 ========
 
-The default back-end is the AprilTag 3 library through ``pupil-apriltags``, chosen by
-measurement on the real photos in ``tests/data/apriltag-photos`` (``scripts/bench_apriltag.py``,
-docs/camera.md): with ``quad_decimate=1.0`` and ``refine_edges`` off it finds 46 of the 47
-listed tags in the NASA photos with no false detection and a corner error of at most
-0.14 px against the listed corners; ``cv2.aruco``'s AprilTag dictionary finds far fewer.
-``backend="aruco"`` keeps OpenCV's detector for comparison.
+The default back-end is the AprilTag 3 library through ``pupil-apriltags`` with
+``quad_decimate=1.0`` and ``refine_edges`` off, chosen by measurement on the real photos in
+``tests/data/apriltag-photos`` (``scripts/bench_apriltag.py``, docs/camera.md).
+``backend="aruco"`` runs OpenCV's detector with the family's AprilTag dictionary instead.
+
+``upsample`` (1.0 by default) enlarges the image (bilinear) before the detector sees it and
+maps the corners back (:func:`corners_from_upsampled`): enlarged, AprilTag 3 finds tags of
+11–17 pixels and steeply foreshortened ones that it misses at the camera's resolution. The
+front-end combines an enlarged AprilTag 3 pass with a cheap aruco pass
+(:mod:`slamio.camera.tag_passes`).
 
 Corners
 =======
@@ -109,6 +113,15 @@ def apriltag_to_opencv_corners(corners_px: np.ndarray) -> np.ndarray:
     → OpenCV order (TL, TR, BR, BL) and convention (pixel-centre origin)."""
     c = np.asarray(corners_px, dtype=float).reshape(4, 2)
     return c[[1, 0, 3, 2]] - 0.5
+
+
+def corners_from_upsampled(corners_px: np.ndarray, factor: float) -> np.ndarray:
+    """Corners found in an image enlarged ``factor`` times by ``cv2.resize`` → the original image's pixels.
+
+    ``cv2.resize`` puts the centre of enlarged pixel x at original x' = (x + ½)/factor − ½ (both
+    in OpenCV's pixel-centre convention).
+    """
+    return (np.asarray(corners_px, dtype=float) + 0.5) / factor - 0.5
 
 
 def _fit_line(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -346,7 +359,10 @@ class AprilTagDetector:
     ``refine_edges``, ``decode_sharpening``, ``quad_sigma`` and ``nthreads`` passed through;
     ``max_hamming`` drops decodes with more corrected bits. ``backend="aruco"`` uses
     ``cv2.aruco`` with the AprilTag dictionary of the family and its AprilTag corner
-    refinement.
+    refinement (``aruco_refinement``), OpenCV's three adaptive-threshold windows or the one
+    given by ``aruco_window_px``, and candidates whose perimeter is at least
+    ``aruco_min_perimeter`` × the image's larger side. ``upsample`` > 1 enlarges the image
+    that many times (bilinear) before detection; corners are always in the given image's pixels.
     """
 
     def __init__(
@@ -361,9 +377,15 @@ class AprilTagDetector:
         nthreads: int = 1,
         max_hamming: int = 2,
         aruco_refinement: str = "apriltag",
+        aruco_window_px: int | None = None,
+        aruco_min_perimeter: float = 0.03,
+        upsample: float = 1.0,
     ):
         if backend not in BACKENDS:
             raise TagDetectorError(f"unknown AprilTag backend {backend!r}; use one of {', '.join(BACKENDS)}")
+        if not (1.0 <= upsample <= 4.0):
+            raise TagDetectorError(f"AprilTag upsample must be between 1 and 4, not {upsample}")
+        self.upsample = float(upsample)
         self.family = family
         self.backend = backend
         self.max_hamming = max_hamming
@@ -397,22 +419,30 @@ class AprilTagDetector:
             if aruco_refinement not in methods:
                 raise TagDetectorError(f"aruco_refinement must be one of {', '.join(methods)}")
             params.cornerRefinementMethod = methods[aruco_refinement]
+            if aruco_window_px is not None:  # one adaptive-threshold window instead of OpenCV's 3, 13, 23 px
+                params.adaptiveThreshWinSizeMin = params.adaptiveThreshWinSizeMax = int(aruco_window_px)
+            params.minMarkerPerimeterRate = float(aruco_min_perimeter)
             self._detector = cv2.aruco.ArucoDetector(dictionary, params)
 
     def detect(self, grey: np.ndarray) -> list[TagDetection]:
         """Tags in a 2-D uint8 image, sorted by id."""
         grey = np.ascontiguousarray(grey, dtype=np.uint8)
+        if self.upsample != 1.0:
+            import cv2
+
+            grey = cv2.resize(grey, None, fx=self.upsample, fy=self.upsample, interpolation=cv2.INTER_LINEAR)
         out: list[TagDetection] = []
         if self.backend == "apriltag3":
             for d in self._detector.detect(grey):
                 if d.hamming > self.max_hamming:
                     continue
-                out.append(TagDetection(int(d.tag_id), self.family, apriltag_to_opencv_corners(d.corners),
-                                        int(d.hamming), float(d.decision_margin)))
+                corners = corners_from_upsampled(apriltag_to_opencv_corners(d.corners), self.upsample)
+                out.append(TagDetection(int(d.tag_id), self.family, corners, int(d.hamming), float(d.decision_margin)))
         else:
             corners, ids, _ = self._detector.detectMarkers(grey)
             if ids is not None:
                 for c, i in zip(corners, ids.ravel()):
-                    out.append(TagDetection(int(i), self.family, np.asarray(c, dtype=float).reshape(4, 2)))
+                    c = corners_from_upsampled(np.asarray(c, dtype=float).reshape(4, 2), self.upsample)
+                    out.append(TagDetection(int(i), self.family, c))
         out.sort(key=lambda t: (t.tag_id, float(t.centre_px[0])))
         return out

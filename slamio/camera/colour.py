@@ -495,7 +495,8 @@ def _surface_rows(blob: Blob, depth_m: np.ndarray, camera: CameraModel, face_m: 
 
     Walking up (down) from the body's middle, rows of the middle third whose median distance
     is off the face by more than ``allowed_m`` end the landmark. The colour edge is kept when
-    the depth edge is within ``margin_px`` + 1 rows of it (misregistered depth)."""
+    the depth edge is within ``margin_px`` + 1 rows of it (misregistered depth), up to the
+    first of those rows narrower than a third of the blob's median row (:func:`_wide_rows_end`)."""
     c0, c1 = _middle_columns(blob)
     rows = np.arange(blob.top, blob.bottom + 1)
     status = np.zeros(len(rows), dtype=int)  # +1 on the face, -1 off it, 0 no depth
@@ -513,9 +514,23 @@ def _surface_rows(blob: Blob, depth_m: np.ndarray, camera: CameraModel, face_m: 
     down = middle
     while down < len(rows) - 1 and status[down + 1] != -1:
         down += 1
-    top = int(rows[up]) if up - 0 > margin_px + 1 else blob.top
-    bottom = int(rows[down]) if (len(rows) - 1 - down) > margin_px + 1 else blob.bottom
+    top = int(rows[up]) if up - 0 > margin_px + 1 else _wide_rows_end(blob, rows[: up + 1][::-1])
+    bottom = int(rows[down]) if (len(rows) - 1 - down) > margin_px + 1 else _wide_rows_end(blob, rows[down:])
     return top, bottom
+
+
+def _wide_rows_end(blob: Blob, rows: np.ndarray, fraction: float = 1 / 3) -> int:
+    """Walking ``rows`` outwards from the last row on the face, the last one before a row narrower
+    than ``fraction`` of the blob's median row: rows off the face kept because misregistered
+    depth may put the background on the landmark's edge are the landmark's only when they are
+    at least a third as wide as its body (the corner of a poster's frame touching its top is not)."""
+    median = float(np.median(blob.mask[blob.top : blob.bottom + 1].sum(axis=1)))
+    end = int(rows[0])
+    for v in rows:
+        if blob.mask[v].sum() < fraction * median:
+            break
+        end = int(v)
+    return end
 
 
 def _height(blob: Blob, camera: CameraModel, face_m: float, radius_m: float, top: int, bottom: int

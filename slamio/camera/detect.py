@@ -23,7 +23,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from slamio.camera.apriltag import (
-    AprilTagDetector,
     TagDetection,
     TagGeometry,
     choose_tag_pose,
@@ -34,6 +33,7 @@ from slamio.camera.apriltag import (
 from slamio.camera.colour import BLOB_REJECTIONS, Blob, ColourOptions, detect_colour_landmarks
 from slamio.camera.model import CameraModel
 from slamio.camera.sources import Frame
+from slamio.camera.tag_passes import front_end_detector
 from slamio.errors import FgslamError
 from slamio.log import Observation
 
@@ -143,6 +143,8 @@ class FrontEndConfig:
     tag_ids: frozenset[int] | None = None  # None = every id of the family
     quad_decimate: float = 1.0
     refine_edges: bool = False
+    tag_upsample: float = 1.75  # AprilTag 3 sees the image enlarged this many times (slamio/camera/tag_passes.py)
+    tag_second_pass: str = "aruco"  # then cv2.aruco adds the tags it missed; "none": no second pass
     nthreads: int = 1
     ambiguity_ratio: float = 2.0
     tags_upright: bool = True
@@ -252,9 +254,9 @@ class FrontEnd:
             from slamio.camera.apriltag import TagDetectorError
 
             try:
-                self.detector = AprilTagDetector(
-                    config.tag_family, quad_decimate=config.quad_decimate, refine_edges=config.refine_edges,
-                    nthreads=config.nthreads,
+                self.detector = front_end_detector(
+                    config.tag_family, upsample=config.tag_upsample, second_pass=config.tag_second_pass,
+                    quad_decimate=config.quad_decimate, refine_edges=config.refine_edges, nthreads=config.nthreads,
                 )
             except TagDetectorError as exc:
                 raise FrontEndError(str(exc)) from None
