@@ -293,6 +293,19 @@ DEFAULT_NEW_LANDMARK_PROBABILITY = 0.999999
 DEFAULT_KNOWN_ID_GATE_PROBABILITY = 0.9999
 
 
+def log_expects_outliers(header: Header) -> bool:
+    """Whether the log says some readings are outliers: a fitted noise model's
+    ``noise.observation.outlier_rate`` > 0 (``fgslam calibrate``), or a simulator's
+    ``source.outliers`` > 0 (``fgslam sim --outliers``)."""
+    noise, source = header.noise, header.source
+    observation = noise.get("observation") if isinstance(noise, dict) else None
+    rates = [
+        observation.get("outlier_rate") if isinstance(observation, dict) else None,
+        source.get("outliers") if isinstance(source, dict) else None,
+    ]
+    return any(isinstance(r, (int, float)) and not isinstance(r, bool) and r > 0 for r in rates)
+
+
 class EkfSlam:
     """Range-bearing EKF-SLAM with known or associated landmark ids
     (implements ``slamio.estimator.AssociatingEstimator``).
@@ -349,10 +362,14 @@ class EkfSlam:
     ``joint_test`` is passed to :func:`ekf.association.jcbb` ("final", or the paper's
     "prefix").
 
-    Observations with an id pass a validation gate first: an update whose innovation's
-    ``d²`` exceeds ``χ²_dof(known_id_gate_probability)`` (default 0.9999) is not applied
-    and is counted in ``gated_known_id`` (``None`` turns the gate off, the plain textbook
-    filter that trusts every id).
+    Observations with an id pass a validation gate when the log expects outliers
+    (:func:`log_expects_outliers`; ``known_id_gate_probability="auto"``, the default): an
+    update whose innovation's ``d²`` exceeds ``χ²_dof(0.9999)`` is not applied and is counted
+    in ``gated_known_id``. A number sets the gate's probability for any log; ``None`` turns
+    it off, the plain textbook filter that trusts every id. Where the log does not expect
+    outliers the gate would only cost: once a filter is off (Victoria Park's EKF), a gate
+    refuses the very readings that could bring it back (there it refused 2 577 of 3 489
+    re-observations and ended 192 m off instead of 15 m).
 
     Readings whose errors are correlated in time: when the header's noise model has a
     ``correlated_share`` ρ > 0 (``fgslam calibrate`` fits it), each range-bearing landmark
@@ -377,7 +394,7 @@ class EkfSlam:
         max_jcbb_nodes: int = DEFAULT_MAX_NODES,
         joint_test: str = "final",
         landmark_capacity: int = 16,
-        known_id_gate_probability: float | None = DEFAULT_KNOWN_ID_GATE_PROBABILITY,
+        known_id_gate_probability: float | str | None = "auto",
     ):
         if association not in ASSOCIATION_METHODS:
             raise ValueError(f"association must be one of {ASSOCIATION_METHODS}, got {association!r}")
@@ -390,8 +407,12 @@ class EkfSlam:
                 "need 0 < gate_probability ≤ new_landmark_probability < 1, got "
                 f"{gate_probability!r} and {new_landmark_probability!r}"
             )
+        if known_id_gate_probability == "auto":
+            known_id_gate_probability = DEFAULT_KNOWN_ID_GATE_PROBABILITY if log_expects_outliers(header) else None
         if known_id_gate_probability is not None and not 0.0 < known_id_gate_probability < 1.0:
-            raise ValueError(f"known_id_gate_probability must be in (0, 1) or None, got {known_id_gate_probability!r}")
+            raise ValueError(
+                f"known_id_gate_probability must be in (0, 1), None or 'auto', got {known_id_gate_probability!r}"
+            )
         self.known_id_gate_probability = known_id_gate_probability
         self.gated_known_id = 0
         self.association = association

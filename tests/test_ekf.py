@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 import ast
+import dataclasses
 import math
 import pathlib
 
@@ -954,8 +955,9 @@ def test_hidden_ids_jcbb_associates_at_least_99_percent_and_nn_no_more(scenario,
 
 
 def _gate_steps(second_range_m: float):
-    """See landmark 7 at (2, 0) from the origin, stand still, then read it at ``second_range_m``."""
-    header = make_header()
+    """See landmark 7 at (2, 0) from the origin, stand still, then read it at ``second_range_m``
+    (the header's noise model expects outliers, so the gate is on)."""
+    header = dataclasses.replace(make_header(), noise={"observation": {"outlier_rate": 0.01}})
     odo = Odometry(1.0, 0.0, 0.0, 0.0, as_matrix3(np.diag([1e-6, 1e-6, 1e-6])))
     first = Observation(0.0, 7, 2.0, 0.0, 0.05, 0.01)
     second = Observation(1.0, 7, second_range_m, 0.0, 0.05, 0.01)
@@ -984,6 +986,24 @@ def test_the_gate_passes_a_reading_inside_it_with_the_same_update_as_no_gate():
     assert gated.gated_known_id == 0
     np.testing.assert_allclose(gated.state_mean(), plain.state_mean(), atol=0)
     np.testing.assert_allclose(gated.state_covariance(), plain.state_covariance(), atol=0)
+
+
+def test_the_gate_is_on_only_where_the_log_expects_outliers():
+    header, steps = _gate_steps(3.0)
+    cases = {
+        "no outliers expected": (dataclasses.replace(header, noise={"observation": {}}), 0),
+        "fitted outlier rate": (header, 1),
+        "simulated outliers": (dataclasses.replace(header, noise={}, source={"outliers": 0.1}), 1),
+    }
+    for name, (h, gated) in cases.items():
+        ekf = EkfSlam(h)
+        for s in steps:
+            ekf.step(s)
+        assert ekf.gated_known_id == gated, name
+    forced = EkfSlam(cases["no outliers expected"][0], known_id_gate_probability=0.9999)
+    for s in steps:
+        forced.step(s)
+    assert forced.gated_known_id == 1
 
 
 def test_the_gate_probability_is_checked():
