@@ -59,7 +59,7 @@ def markdown_rows(table: str) -> dict[str, list[str]]:
     rows = {}
     for line in table.splitlines():
         cells = line.split("|")
-        if line.startswith("|") and len(cells) > 2 and not set(cells[1].strip()) <= set("-:"):
+        if line.startswith("|") and len(cells) > 2 and numbers_in(line):
             rows[cells[1].strip()] = numbers_in(line)
     return rows
 
