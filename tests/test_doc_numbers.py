@@ -18,6 +18,7 @@ SCRIPTS = Path(__file__).resolve().parents[1] / "scripts"
 sys.path.insert(0, str(SCRIPTS))
 
 from doc_numbers.quotes import ROOT, Checker, Context, Quote, Source, numbers_in, quote_in_doc  # noqa: E402
+from doc_numbers.readers import markdown_rows  # noqa: E402
 from doc_numbers.registry import QUOTES  # noqa: E402
 from doc_numbers.sources import SOURCES  # noqa: E402
 
@@ -40,6 +41,11 @@ def test_every_quote_has_a_source_and_sources_are_unique():
 def test_numbers_are_whole_numbers_of_the_text():
     assert numbers_in("ekf-s001 0.0110 m, −4.8 … +3.1 %, 6 621 poses, isam2 9/9") == \
         ["0.0110", "−4.8", "3.1", "6", "621", "9", "9"]
+
+
+def test_a_scripts_markdown_table_is_read_row_by_row_without_its_header():
+    table = "| distance | seed 000 | seed 002 |\n|---:|---:|---:|\n| 0.5 m | 1.58° | — |\n| 1.0 m | 2.77° | 12.3 % |"
+    assert markdown_rows(table) == {"0.5 m": ["0.5", "1.58"], "1.0 m": ["1.0", "2.77", "12.3"]}
 
 
 def _toy(tmp_path, measured, *, shared=None, text="ATE 0.0110 m"):

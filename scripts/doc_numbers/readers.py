@@ -56,10 +56,12 @@ def table_cell(first_cell: str, index: int):
 def markdown_rows(table: str) -> dict[str, list[str]]:
     """A markdown table printed by a script → first cell → the numbers of its row
     (:func:`~doc_numbers.quotes.numbers_in`)."""
-    rows = {}
+    rows, body = {}, False
     for line in table.splitlines():
         cells = line.split("|")
-        if line.startswith("|") and len(cells) > 2 and numbers_in(line):
+        if line.startswith("|---"):  # the rows after the separator; the header's numbers are names
+            body = True
+        elif body and line.startswith("|") and len(cells) > 2:
             rows[cells[1].strip()] = numbers_in(line)
     return rows
 
@@ -70,3 +72,24 @@ def same_row(doc: str, text: str, source: str, label: str) -> list[Quote]:
     first = text.split("|")[1].strip()
     return row(doc, text, source, f"{label} {first}",
                {i: (lambda result, i=i: parse_number(result[first][i])) for i in range(len(numbers_in(text)))})
+
+
+def scene(scenario: str, read):
+    """``read`` applied to one scenario's result of a source that runs several."""
+    return lambda result: read(result[scenario])
+
+
+def flaw(log: str, setting: str, key: str = "ate_rmse_m"):
+    """One setting of ``scripts/flaw_costs.py`` on one log (the ``flaw-costs`` source)."""
+    return lambda result: result[log][setting][key]
+
+
+def item(key, index: int):
+    """``result[key][index]``: one number of a tuple a source keeps per row or per setting."""
+    return lambda result: result[key][index]
+
+
+def median(values) -> float:
+    import statistics
+
+    return statistics.median(values)
