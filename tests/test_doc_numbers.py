@@ -17,7 +17,7 @@ import pytest
 SCRIPTS = Path(__file__).resolve().parents[1] / "scripts"
 sys.path.insert(0, str(SCRIPTS))
 
-from doc_numbers.quotes import ROOT, Checker, Context, Quote, Source, numbers_in, quote_in_doc  # noqa: E402
+from doc_numbers.quotes import ROOT, Checker, Context, Quote, Source, numbers_in, parse_number, quote_in_doc  # noqa: E402
 from doc_numbers.readers import markdown_rows  # noqa: E402
 from doc_numbers.registry import QUOTES  # noqa: E402
 from doc_numbers.sources import SOURCES  # noqa: E402
@@ -39,8 +39,9 @@ def test_every_quote_has_a_source_and_sources_are_unique():
 
 
 def test_numbers_are_whole_numbers_of_the_text():
-    assert numbers_in("ekf-s001 0.0110 m, −4.8 … +3.1 %, 6 621 poses, isam2 9/9") == \
-        ["0.0110", "−4.8", "3.1", "6", "621", "9", "9"]
+    assert numbers_in("ekf-s001 0.0110 m, −4.8 … +3.1 %, 6 621 poses, isam2 9/9, 8   447.8 ms, ends 6 969.") == \
+        ["0.0110", "−4.8", "3.1", "6 621", "9", "9", "8", "447.8", "6 969"]
+    assert parse_number("6 621") == 6621 and parse_number("−4.8") == -4.8
 
 
 def test_a_scripts_markdown_table_is_read_row_by_row_without_its_header():

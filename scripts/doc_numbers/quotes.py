@@ -22,8 +22,9 @@ from typing import Any, Callable
 ROOT = Path(__file__).resolve().parents[2]
 
 #: A number as docs write it: an optional minus (ASCII or U+2212), digits, an optional decimal
-#: part; not part of a word (``s001``) or of a longer number.
-NUMBER = re.compile(r"(?<![\w.])[-\u2212]?\d+(?:\.\d+)?(?![\d])")
+#: part; not part of a word (``s001``) or of a longer number. Thousands are grouped by a
+#: space ("6 621 poses"): a group of 1-3 digits followed by space-separated groups of 3 is one number.
+NUMBER = re.compile(r"(?<![\w.])[-\u2212]?(?:\d{1,3}(?: \d{3})+(?!\d|\.\d)|\d+(?:\.\d+)?(?!\d))")
 
 #: How expensive a source is. ``cheap``: seconds (the quick test suite runs it); ``slow``:
 #: up to a few minutes (CI runs it, ``@pytest.mark.slow``); ``long``: longer than CI can
@@ -97,7 +98,7 @@ class Outcome:
 
 
 def parse_number(text: str) -> float:
-    return float(text.replace("\u2212", "-"))
+    return float(text.replace("\u2212", "-").replace(" ", ""))
 
 
 def numbers_in(text: str) -> list[str]:

@@ -8,7 +8,7 @@ from doc_numbers.sources.experiments import (MRCLAM6, SEED003, apriltag_photos, 
                                              real_corner_sigma, seed002_shapes, seed003_drives, seed004_paths)
 from doc_numbers.sources.runs import (ASSOCIATING, DEFAULT, OUTLIERS, PAPERS, ROBUST, against_truth, bundled,
                                       check_smoothed, ekf_without_gate, flaw_costs, hidden_ids, monte_carlo_octagon,
-                                      seed_sweep, sim_then_run, trial_calibration)
+                                      seed_sweep, sim_then_run, trial_calibration, victoria_park)
 
 SOURCES = [
     Source("octagon", f"fgslam run data/arena_octagon.jsonl --estimators {DEFAULT},{PAPERS}", "cheap",
@@ -38,6 +38,8 @@ SOURCES = [
     Source("grid200-hidden", f"fgslam sim grid --landmarks 200 --seed 1 --hide-ids; fgslam run --estimators "
            f"{ASSOCIATING},isam2", "slow",
            against_truth("grid200_hidden", "grid", ASSOCIATING, landmarks=200, hide_ids=True)),
+    Source("victoria-park", "fgslam import victoria-park vp.jsonl; fgslam run vp.jsonl --estimators "
+           "ekf,isam2-fast,dead_reckoning", "slow", victoria_park),
     Source("octagon-outliers-ekf-no-gate", "fgslam sim arena-octagon --seed 1 --outliers 0.1 "
            "--outlier-mode add; EkfSlam(known_id_gate_probability=None)", "cheap", ekf_without_gate),
     Source("mrclam6", "python scripts/bench_mrclam.py ../shared/data/mrclam/MRCLAM_Dataset6", "slow",
