@@ -13,16 +13,22 @@ DEAD = "ate online final map landmarks - - - unused nees -"  # the same for dead
 BATCH = "ate final map landmarks -"
 ACCURACY = "ate online final map landmarks"  # a table row quoted up to its landmarks column
 
+
+def run_table(source: str, lines: dict[str, str]) -> list[Quote]:
+    """The rows of a table ``fgslam run`` printed with its NEES/NIS columns: estimator → its line."""
+    columns = {"dead_reckoning": DEAD, "batch": BATCH}
+    return [q for e, line in lines.items() for q in metric_row(R, line, source, e, columns.get(e, DEMO))]
+
+
 README_DEMO = [
-    *metric_row(R, "ekf                  0.0110        0.0110       0.0071      0.0144          8     447.8        "
-                "0.194        8.723           0       96.1      95.5      1.0", "octagon", "ekf", DEMO),
-    *metric_row(R, "isam2                0.0076        0.0108       0.0066      0.0125          8     374.0        "
-                "0.099        8.961           0       96.4      95.0      7.3", "octagon", "isam2", DEMO),
-    *metric_row(R, "dead_reckoning       0.0668        0.0668       0.0628      0.1171          8      14.1        "
-                "0.012        0.036           0       88.5         -      0.1", "octagon", "dead_reckoning",
-                DEAD),
-    *metric_row(R, "batch                0.0076             -       0.0066      0.0125          8      24.8",
-                "octagon", "batch", BATCH),
+    *run_table("octagon", {
+        "ekf": "ekf                  0.0110        0.0110       0.0071      0.0144          8     447.8        "
+               "0.194        8.723           0       96.1      95.5      1.0",
+        "isam2": "isam2                0.0076        0.0108       0.0066      0.0125          8     374.0        "
+                 "0.099        8.961           0       96.4      95.0      7.3",
+        "dead_reckoning": "dead_reckoning       0.0668        0.0668       0.0628      0.1171          8      14.1        "
+                          "0.012        0.036           0       88.5         -      0.1",
+        "batch": "batch                0.0076             -       0.0066      0.0125          8      24.8"}),
     Quote(R, "660 poses over 65.9 s, 789 observations of 8 landmarks", "660", "octagon",
           lambda m: m["poses"], "bundled log: poses"),
     *row(R, "On the bundled log: NEES inside the band ekf 96 %, isam2 96 %; NIS mean 1.93 (ekf) and\n"
@@ -33,19 +39,20 @@ README_DEMO = [
 ]
 
 README_GRID = [
-    *metric_row(R, "ekf                  0.4076        0.4076       0.0305      0.3451        200    8628.5        "
-                "0.828        6.378     3 gated       98.7      94.8      5.6", "grid200", "ekf", DEMO),
-    *metric_row(R, "isam2                0.1936        0.3086       0.0264      0.1834        200   11313.8        "
-                "0.184       27.636           0       98.8      95.0     76.9", "grid200", "isam2", DEMO),
-    *metric_row(R, "dead_reckoning      11.4031       11.4031      15.1154      4.6379        200      87.1        "
-                "0.012        0.022           0       88.2         -      0.8", "grid200", "dead_reckoning",
-                DEAD),
-    *metric_row(R, "batch                0.1936             -       0.0264      0.1834        200     212.9",
-                "grid200", "batch", BATCH),
+    *run_table("grid200", {
+        "ekf": "ekf                  0.4076        0.4076       0.0305      0.3451        200    8628.5        "
+               "0.828        6.378     3 gated       98.7      94.8      5.6",
+        "isam2": "isam2                0.1936        0.3086       0.0264      0.1834        200   11313.8        "
+                 "0.184       27.636           0       98.8      95.0     76.9",
+        "dead_reckoning": "dead_reckoning      11.4031       11.4031      15.1154      4.6379        200      87.1        "
+                          "0.012        0.022           0       88.2         -      0.8",
+        "batch": "batch                0.1936             -       0.0264      0.1834        200     212.9"}),
     Quote(R, "wrote runs/grid200.jsonl: 6621 poses over 1324.0 s, 21839 observations", "6621", "grid200",
           lambda m: m["poses"], "grid 200: poses"),
-    *row(R, "the same final estimate (0.1936 m);", "grid200", "isam2-fast final", {0: metric("isam2-fast", "ate_rmse_m")}),
-    *row(R, "its\n  online ATE is 0.300 m.", "grid200", "isam2-fast online", {0: metric("isam2-fast", "ate_online_rmse_m")}),
+    *row(R, "the same final estimate (0.1936 m);", "grid200", "isam2-fast final",
+         {0: metric("isam2-fast", "ate_rmse_m")}),
+    *row(R, "its\n  online ATE is 0.300 m.", "grid200", "isam2-fast online",
+         {0: metric("isam2-fast", "ate_online_rmse_m")}),
 ]
 
 README_SHOWS = [

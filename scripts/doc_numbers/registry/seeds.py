@@ -150,4 +150,26 @@ SEED004 = [
 ]
 
 
-QUOTES: list[Quote] = [*SEED000_001, *SEED002, *SEED003, *SEED004]
+SEED001_ROWS = (  # scripts/seed001_association.py: spacing, then "as written / NN only" per noise scale
+    "| 0.25 m | 13.7 % / 7.5 % | 14.0 % / 10.2 % | 16.1 % / 13.5 % | 8.8 % / 5.9 % |",
+    "| 0.50 m | 57.8 % / 19.9 % | 55.4 % / 23.7 % | 39.3 % / 18.3 % | 12.5 % / 10.0 % |",
+    "| 0.75 m | 100.0 % / 100.0 % | 99.9 % / 100.0 % | 81.1 % / 87.7 % | 17.1 % / 22.7 % |",
+    "| 1.00 m | 100.0 % / 100.0 % | 100.0 % / 100.0 % | 73.3 % / 76.7 % | 10.2 % / 23.7 % |",
+    "| 1.50 m | 100.0 % / 100.0 % | 98.1 % / 100.0 % | 54.0 % / 73.7 % | 11.6 % / 15.7 % |",
+    "| 2.00 m | 100.0 % / 100.0 % | 99.5 % / 100.0 % | 49.7 % / 67.9 % | 12.6 % / 14.8 % |",
+    "| 3.00 m | 100.0 % / 100.0 % | 99.4 % / 100.0 % | 37.7 % / 59.2 % | 11.5 % / 13.5 % |",
+)
+
+
+def seed001_row(text: str) -> list[Quote]:
+    spacing = parse_number(text.split("|")[1].split()[0])
+    cells = {}
+    for k, scale in enumerate((0.5, 1.0, 2.0, 4.0)):
+        for j, variant in enumerate(("as written", "NN only")):
+            cells[1 + 2 * k + j] = (lambda r, key=(spacing, scale), v=variant: r[key][v])
+    return row(S, text, "seed001-association", f"seed 001 association {spacing} m", cells)
+
+
+SEED001 = [q for text in SEED001_ROWS for q in seed001_row(text)]
+
+QUOTES: list[Quote] = [*SEED001, *SEED000_001, *SEED002, *SEED003, *SEED004]

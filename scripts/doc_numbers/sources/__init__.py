@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from doc_numbers.quotes import Source
 from doc_numbers.sources.experiments import (MRCLAM6, SEED003, apriltag_photos, camera_accuracy, mrclam_dataset6,
-                                             real_corner_sigma, seed002_shapes, seed003_drives, seed004_paths)
+                                             real_corner_sigma, seed001_association, seed002_shapes, seed003_drives,
+                                             seed004_paths)
 from doc_numbers.sources.runs import (ASSOCIATING, DEFAULT, OUTLIERS, PAPERS, ROBUST, against_truth, bundled,
                                       check_smoothed, ekf_without_gate, flaw_costs, hidden_ids, monte_carlo_octagon,
                                       seed_sweep, sim_then_run, trial_calibration, victoria_park)
@@ -53,6 +54,8 @@ SOURCES = [
            seed004_paths("measured")),
     Source("seed004-nominal", "python scripts/seed004_paths.py --seeds 1-20 --jobs 2 --tag-noise nominal", "long",
            seed004_paths("nominal")),
+    Source("seed001-association", "python scripts/seed001_association.py --spacings 0.25,0.5,0.75,1.0,1.5,2.0,3.0 "
+           "--jobs 2", "long", seed001_association),
     Source("seed003-real", "python scripts/seed003_drives.py --data ../shared/data/seed003 (real drives)", "slow",
            seed003_drives(("0020", "0027", "0042"), shared=True), shared=SEED003),
     Source("seed003-sim", "python scripts/seed003_drives.py --seeds 1-10 (simulated drives)", "long",

@@ -33,7 +33,7 @@ def apriltag_photos(context: Context) -> dict:
     import cv2
 
     from slamio.camera.accuracy import MatchResult, match_detections, read_corner_list
-    from slamio.camera.apriltag import AprilTagDetector, refine_tag_corners
+    from slamio.camera.apriltag import AprilTagDetector
 
     nasa = sorted((context.root / "tests" / "data" / "apriltag-photos").glob("nasa_*.jpg"))
     images = [cv2.imread(str(p), cv2.IMREAD_GRAYSCALE) for p in nasa]
@@ -46,14 +46,7 @@ def apriltag_photos(context: Context) -> dict:
             total.add(match_detections(found, tags, image=path.name))
         out[name] = (total.found, total.listed, len(total.false_detections), total.max_corner_error_px,
                      total.mean_corner_error_px)
-    detector, refined, kept = AprilTagDetector(), MatchResult(), 0
-    for image, tags, path in zip(images, listed, nasa):
-        pairs = []
-        for d in detector.detect(image):
-            corners = refine_tag_corners(image, d.corners_px)
-            kept += corners is None
-            pairs.append((d.tag_id, d.corners_px if corners is None else corners))
-        refined.add(match_detections(pairs, tags, image=path.name))
+    refined, kept = script.match_refined(images, listed, nasa)
     out["refined"] = (refined.found, refined.listed, refined.max_corner_error_px, refined.mean_corner_error_px, kept)
     return out
 
@@ -121,3 +114,24 @@ def mrclam_dataset6(context: Context) -> dict:
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
         script.main([str(context.shared / MRCLAM6), "--json", str(out)])
     return {int(k): v for k, v in json.loads(out.read_text(encoding="utf-8"))["results"].items()}
+
+
+def seed001_association(context: Context) -> dict:
+    """``scripts/seed001_association.py --spacings 0.25,0.5,0.75,1.0,1.5,2.0,3.0 --jobs 2``:
+    (spacing m, noise scale) → variant → median share correct (%) over seeds 1–3."""
+    import statistics
+    from concurrent.futures import ProcessPoolExecutor
+
+    import seed001_association as script
+
+    jobs = [(sp, ns, seed) for sp in SEED001_SPACINGS for ns in SEED001_SCALES for seed in (1, 2, 3)]
+    with ProcessPoolExecutor(max_workers=2) as pool:
+        rows = list(pool.map(script.one_run, *zip(*jobs), [36] * len(jobs)))
+    return {(sp, ns): {name: 100 * statistics.median(r[name][0] for r in rows
+                                                     if r["spacing_m"] == sp and r["noise_scale"] == ns)
+                       for name in script.VARIANTS}
+            for sp in SEED001_SPACINGS for ns in SEED001_SCALES}
+
+
+SEED001_SPACINGS = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0)
+SEED001_SCALES = (0.5, 1.0, 2.0, 4.0)
