@@ -118,7 +118,7 @@ def mrclam_dataset6(context: Context) -> dict:
 
 def seed001_association(context: Context) -> dict:
     """``scripts/seed001_association.py --spacings 0.25,0.5,0.75,1.0,1.5,2.0,3.0 --jobs 2``:
-    (spacing m, noise scale) → variant → median share correct (%) over seeds 1–3."""
+    (spacing m, noise scale) → variant → (share correct %, ATE m), medians over seeds 1–3."""
     import statistics
     from concurrent.futures import ProcessPoolExecutor
 
@@ -127,10 +127,13 @@ def seed001_association(context: Context) -> dict:
     jobs = [(sp, ns, seed) for sp in SEED001_SPACINGS for ns in SEED001_SCALES for seed in (1, 2, 3)]
     with ProcessPoolExecutor(max_workers=2) as pool:
         rows = list(pool.map(script.one_run, *zip(*jobs), [36] * len(jobs)))
-    return {(sp, ns): {name: 100 * statistics.median(r[name][0] for r in rows
-                                                     if r["spacing_m"] == sp and r["noise_scale"] == ns)
-                       for name in script.VARIANTS}
-            for sp in SEED001_SPACINGS for ns in SEED001_SCALES}
+    out = {}
+    for sp in SEED001_SPACINGS:
+        for ns in SEED001_SCALES:
+            cell = [r for r in rows if r["spacing_m"] == sp and r["noise_scale"] == ns]
+            out[(sp, ns)] = {name: (100 * statistics.median(r[name][0] for r in cell),
+                                    statistics.median(r[name][1] for r in cell)) for name in script.VARIANTS}
+    return out
 
 
 SEED001_SPACINGS = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0)
