@@ -191,7 +191,7 @@ def above_gate(sp):
 SEED001 = [
     *[q for text in SEED001_ROWS for q in seed001_row(text)],
     *row(S, "The as-written ATE at noise ×1 is 0.05–0.27 m, at ×2\n   0.09–1.29 m, at ×4 0.26–4.08 m; NN only "
-         "0.03–0.12 m where the spacing exceeds the gate (0.38–0.76 m below it), 0.06–0.52 and 0.40–3.36 m",
+         "0.03–0.12 m where the spacing exceeds the gate (0.38–0.76 m below it), 0.06–0.51 and 0.40–3.36 m",
          "seed001-association", "seed 001 ATE ranges",
          {1: seed001_range(min, 1.0, 1, ("as written",)), 2: seed001_range(max, 1.0, 1, ("as written",)),
           4: seed001_range(min, 2.0, 1, ("as written",)), 5: seed001_range(max, 2.0, 1, ("as written",)),
