@@ -143,13 +143,13 @@ class Checker:
     seconds: dict[str, float] = field(default_factory=dict)
 
     def skip_reason(self, source: Source) -> str:
-        if source.cost not in self.costs:
-            return f"{source.cost} (run with --{source.cost})" if source.cost == "long" else source.cost
         if source.shared is not None:
             if self.context.shared is None:
                 return f"needs the shared data ({source.shared}): give --shared FOLDER"
             if not (self.context.shared / source.shared).exists():
                 return f"{self.context.shared / source.shared} not found"
+        if source.cost not in self.costs:
+            return f"{source.cost} (run with --{source.cost})" if source.cost == "long" else source.cost
         return ""
 
     def result(self, source: Source) -> Any:
