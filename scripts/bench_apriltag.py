@@ -134,6 +134,21 @@ def ms(times):
     return f"{1e3 * np.median(times):5.1f} (p90 {1e3 * np.percentile(times, 90):5.1f})"
 
 
+def match_refined(images, listed, paths, detector=None) -> tuple[MatchResult, int]:
+    """The front-end detector's tags with ``refine_tag_corners``'s corners (the detector's own
+    where refinement declines) matched to the listed corners, and how many kept the detector's."""
+    detector = detector or FrontEnd(kinect_v1_default(), FrontEndConfig()).detector
+    refined, not_refined = MatchResult(), 0
+    for image, tags, path in zip(images, listed, paths):
+        pairs = []
+        for d in detector.detect(image):
+            c = refine_tag_corners(image, d.corners_px)
+            not_refined += c is None
+            pairs.append((d.tag_id, d.corners_px if c is None else c))
+        refined.add(match_detections(pairs, tags, image=path.name))
+    return refined, not_refined
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--photos", default=str(DEFAULT_PHOTOS), help="the apriltag-photos folder")
@@ -186,14 +201,7 @@ def main(argv=None) -> int:
 
     print("\nfront-end detector + refine_tag_corners against the reference listing's corners:")
     detector = FrontEnd(kinect_v1_default(), FrontEndConfig()).detector
-    refined, not_refined = MatchResult(), 0
-    for image, tags, path in zip(nasa_grey, listed, nasa):
-        pairs = []
-        for d in detector.detect(image):
-            c = refine_tag_corners(image, d.corners_px)
-            not_refined += c is None
-            pairs.append((d.tag_id, d.corners_px if c is None else c))
-        refined.add(match_detections(pairs, tags, image=path.name))
+    refined, not_refined = match_refined(nasa_grey, listed, nasa, detector)
     print(f"  {refined.found}/{refined.listed} matched, corner difference max {refined.max_corner_error_px:.3f} px, "
           f"mean {refined.mean_corner_error_px:.3f} px; {not_refined} tags kept the detector's corners "
           "(the listed corners are the reference detector's binarised corners, not ground truth)")

@@ -1,0 +1,63 @@
+"""The measurements behind the docs' numbers, by name: each is run once per check, however
+many quoted numbers it feeds (:mod:`doc_numbers.quotes`)."""
+
+from __future__ import annotations
+
+from doc_numbers.quotes import Source
+from doc_numbers.sources.experiments import (MRCLAM6, SEED003, apriltag_photos, camera_accuracy, mrclam_dataset6,
+                                             real_corner_sigma, seed001_association, seed002_shapes, seed003_drives,
+                                             seed004_paths)
+from doc_numbers.sources.runs import (ASSOCIATING, DEFAULT, OUTLIERS, PAPERS, ROBUST, against_truth, bundled,
+                                      check_smoothed, ekf_without_gate, flaw_costs, hidden_ids, monte_carlo_octagon,
+                                      seed_sweep, sim_then_run, trial_calibration, victoria_park)
+
+SOURCES = [
+    Source("octagon", f"fgslam run data/arena_octagon.jsonl --estimators {DEFAULT},{PAPERS}", "cheap",
+           bundled("arena_octagon.jsonl", f"{DEFAULT},{PAPERS}")),
+    Source("square-papers", f"fgslam run data/arena_square.jsonl --estimators {PAPERS}", "cheap",
+           bundled("arena_square.jsonl", PAPERS, consistency=False)),
+    Source("octagon-outliers", f"fgslam sim arena-octagon --seed 1 --outliers 0.1 --outlier-mode add; "
+           f"fgslam run --estimators {ROBUST}", "cheap",
+           sim_then_run("outliers", "arena-octagon", ROBUST, consistency=False, **OUTLIERS)),
+    Source("octagon-hidden", "fgslam sim arena-octagon --seed 1 --hide-ids; fgslam run --estimators "
+           f"{ASSOCIATING},isam2",
+           "cheap", hidden_ids("arena-octagon")),
+    Source("square-cylinders-hidden", "fgslam sim arena-square|cylinders --seed 1 --hide-ids; fgslam run "
+           f"--estimators {ASSOCIATING},isam2", "slow", hidden_ids("arena-square", "cylinders")),
+    Source("check-octagon", "fgslam check data/arena_octagon.jsonl --estimator ekf --against smoothed", "cheap",
+           check_smoothed),
+    Source("trial-calibration", "fgslam calibrate data/calibration_trials_s001.csv; fgslam run LOG --calibration",
+           "cheap", trial_calibration),
+    Source("flaw-costs", "python scripts/flaw_costs.py (+ fgslam sim cylinders --seed 1)", "slow", flaw_costs),
+    Source("camera-accuracy", "python -m slamio.camera.accuracy", "slow", camera_accuracy),
+    Source("tag-corner-sigma", "slamio.camera.accuracy.real_corner_sigma_px(tests/data/apriltag-photos)", "cheap",
+           real_corner_sigma),
+    Source("apriltag-photos", "python scripts/bench_apriltag.py (accuracy columns)", "slow", apriltag_photos),
+    Source("seed002-shapes", "python scripts/seed002_shapes.py", "slow", seed002_shapes),
+    Source("grid200", f"fgslam sim grid --landmarks 200 --seed 1; fgslam run --estimators {DEFAULT},isam2-fast",
+           "slow", sim_then_run("grid200", "grid", f"{DEFAULT},isam2-fast", landmarks=200)),
+    Source("grid200-hidden", f"fgslam sim grid --landmarks 200 --seed 1 --hide-ids; fgslam run --estimators "
+           f"{ASSOCIATING},isam2", "slow",
+           against_truth("grid200_hidden", "grid", ASSOCIATING, landmarks=200, hide_ids=True)),
+    Source("victoria-park", "fgslam import victoria-park vp.jsonl; fgslam run vp.jsonl --estimators "
+           "ekf,isam2-fast,dead_reckoning", "slow", victoria_park),
+    Source("octagon-outliers-ekf-no-gate", "fgslam sim arena-octagon --seed 1 --outliers 0.1 "
+           "--outlier-mode add; EkfSlam(known_id_gate_probability=None)", "cheap", ekf_without_gate),
+    Source("mrclam6", "python scripts/bench_mrclam.py ../shared/data/mrclam/MRCLAM_Dataset6", "slow",
+           mrclam_dataset6, shared=MRCLAM6),
+    Source("bench-octagon", "fgslam bench arena-octagon --runs 50 --jobs 2", "long", monte_carlo_octagon),
+    Source("sweep-octagon", "python scripts/seed_sweep.py arena-octagon --seeds 0-19 --jobs 2", "long",
+           seed_sweep("arena-octagon", range(0, 20))),
+    Source("sweep-grid200", "python scripts/seed_sweep.py grid --landmarks 200 --seeds 0-5 --jobs 2", "long",
+           seed_sweep("grid", range(0, 6))),
+    Source("seed004-measured", "python scripts/seed004_paths.py --seeds 1-20 --jobs 2", "long",
+           seed004_paths("measured")),
+    Source("seed004-nominal", "python scripts/seed004_paths.py --seeds 1-20 --jobs 2 --tag-noise nominal", "long",
+           seed004_paths("nominal")),
+    Source("seed001-association", "python scripts/seed001_association.py --spacings 0.25,0.5,0.75,1.0,1.5,2.0,3.0 "
+           "--jobs 2", "long", seed001_association),
+    Source("seed003-real", "python scripts/seed003_drives.py --data ../shared/data/seed003 (real drives)", "slow",
+           seed003_drives(("0020", "0027", "0042"), shared=True), shared=SEED003),
+    Source("seed003-sim", "python scripts/seed003_drives.py --seeds 1-10 (simulated drives)", "long",
+           seed003_drives(range(1, 11), shared=False)),
+]

@@ -1,0 +1,142 @@
+"""Measurements that are a script's experiment on images or on the shared data: the rendered
+accuracy table, the AprilTag photos, seed 002's shapes, seed 003's drives, seed 004's paths,
+MRCLAM Dataset 6. Each calls the function the script itself uses."""
+
+from __future__ import annotations
+
+from doc_numbers.quotes import Context
+
+MRCLAM6 = "data/mrclam/MRCLAM_Dataset6"  # under the shared data folder
+SEED003 = "data/seed003"
+
+
+def camera_accuracy(context: Context) -> dict[str, list[str]]:
+    """``python -m slamio.camera.accuracy``'s table: first cell → the numbers of its row."""
+    from doc_numbers.readers import markdown_rows
+    from slamio.camera.accuracy import error_table, format_table
+
+    return markdown_rows(format_table(error_table()))
+
+
+def real_corner_sigma(context: Context) -> tuple[float, int]:
+    """σ_px of the refined corners on the pupil-labs photos, and the number of tags."""
+    from slamio.camera.accuracy import real_corner_sigma_px
+
+    return real_corner_sigma_px(context.root / "tests" / "data" / "apriltag-photos")
+
+
+def apriltag_photos(context: Context) -> dict:
+    """``scripts/bench_apriltag.py``'s accuracy columns (no timing) on the NASA photos: detector
+    name → (found, listed, false detections, corner error max, mean px); "refined" → the chosen
+    detector's corners after ``refine_tag_corners`` (found, listed, max, mean, kept)."""
+    import bench_apriltag as script
+    import cv2
+
+    from slamio.camera.accuracy import MatchResult, match_detections, read_corner_list
+    from slamio.camera.apriltag import AprilTagDetector
+
+    nasa = sorted((context.root / "tests" / "data" / "apriltag-photos").glob("nasa_*.jpg"))
+    images = [cv2.imread(str(p), cv2.IMREAD_GRAYSCALE) for p in nasa]
+    listed = [read_corner_list(p.with_suffix(".txt")) for p in nasa]
+    out = {}
+    from slamio.camera.tag_passes import TagPasses
+
+    for name, settings in script.CONFIGS:
+        detector, total = TagPasses([AprilTagDetector(**p) for p in settings]), MatchResult()
+        for image, tags, path in zip(images, listed, nasa):
+            found = [(d.tag_id, d.corners_px) for d in detector.detect(image)]
+            total.add(match_detections(found, tags, image=path.name))
+        out[name] = (total.found, total.listed, len(total.false_detections), total.max_corner_error_px,
+                     total.mean_corner_error_px)
+    refined, kept = script.match_refined(images, listed, nasa)
+    out["refined"] = (refined.found, refined.listed, refined.max_corner_error_px, refined.mean_corner_error_px, kept)
+    return out
+
+
+def seed002_shapes(context: Context) -> dict:
+    """``scripts/seed002_shapes.py``: the heights per shape, distance and bearing, and the
+    summary over all frames (min, max, mean deviation in %, frames measured) per method."""
+    import math
+
+    import seed002_shapes as script
+
+    rows = script.measure(2.0, 0)
+    out: dict = {(r["shape"], r["distance_m"], r["bearing_deg"]): r for r in rows}
+    for method in ("gheight", "pinhole"):
+        dev = [100 * (r[method] / r["actual_m"] - 1) for r in rows if math.isfinite(r[method])]
+        out[method] = {"min": min(dev), "max": max(dev), "mean": sum(dev) / len(dev), "measured": len(dev)}
+    return out
+
+
+def seed004_paths(tag_noise: str):
+    """``scripts/seed004_paths.py --seeds 1-20 --jobs 2 --tag-noise T``: (path, seed) → its row."""
+    def measure(context: Context) -> dict:
+        from concurrent.futures import ProcessPoolExecutor
+
+        import seed004_paths as script
+
+        jobs = [(p, s) for s in range(1, 21) for p in script.PATHS]
+        with ProcessPoolExecutor(max_workers=2) as pool:
+            rows = pool.map(script.one_run, [j[0] for j in jobs], [j[1] for j in jobs], [tag_noise] * len(jobs))
+            return {(r["scenario"], r["seed"]): r for r in rows}
+    return measure
+
+
+def seed003_drives(names_or_seeds, shared: bool):
+    """``scripts/seed003_drives.py``'s first table: drive → estimator → ATE 3-D m (real drives
+    against the batch smoother, simulated ones against the truth)."""
+    def measure(context: Context) -> dict:
+        import seed003_drives as script
+
+        from ekf.drive3d import position_errors_m
+        from slamio.datasets.seed003 import load_drive
+        from slamio.sim3d import simulate_drive
+
+        out = {}
+        for item in names_or_seeds:
+            drive = load_drive(context.shared / SEED003 / f"{item}.npz") if shared else simulate_drive(item)
+            results, _, batch = script.run_all(drive)
+            reference, _, _ = script.reference_of(drive, batch)
+            out[item] = {name: position_errors_m(trajectory, reference)[0]
+                         for name, (trajectory, _, _) in results.items()}
+        return out
+    return measure
+
+
+def mrclam_dataset6(context: Context) -> dict:
+    """``scripts/bench_mrclam.py SHARED/data/mrclam/MRCLAM_Dataset6``: robot → estimator → its
+    scores (each robot with the noise model fitted on the other four)."""
+    import contextlib
+    import io
+    import json
+
+    import bench_mrclam as script
+
+    out = context.scratch / "mrclam6.json"
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        script.main([str(context.shared / MRCLAM6), "--json", str(out)])
+    return {int(k): v for k, v in json.loads(out.read_text(encoding="utf-8"))["results"].items()}
+
+
+def seed001_association(context: Context) -> dict:
+    """``scripts/seed001_association.py --spacings 0.25,0.5,0.75,1.0,1.5,2.0,3.0 --jobs 2``:
+    (spacing m, noise scale) → variant → (share correct %, ATE m), medians over seeds 1–3."""
+    import statistics
+    from concurrent.futures import ProcessPoolExecutor
+
+    import seed001_association as script
+
+    jobs = [(sp, ns, seed) for sp in SEED001_SPACINGS for ns in SEED001_SCALES for seed in (1, 2, 3)]
+    with ProcessPoolExecutor(max_workers=2) as pool:
+        rows = list(pool.map(script.one_run, *zip(*jobs), [36] * len(jobs)))
+    out = {}
+    for sp in SEED001_SPACINGS:
+        for ns in SEED001_SCALES:
+            cell = [r for r in rows if r["spacing_m"] == sp and r["noise_scale"] == ns]
+            out[(sp, ns)] = {name: (100 * statistics.median(r[name][0] for r in cell),
+                                    statistics.median(r[name][1] for r in cell)) for name in script.VARIANTS}
+    return out
+
+
+SEED001_SPACINGS = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0)
+SEED001_SCALES = (0.5, 1.0, 2.0, 4.0)
