@@ -176,6 +176,11 @@ def range_bearing_nis(pose, landmark_xy, joint_covariance, range_m: float, beari
     H_pose, H_landmark = range_bearing_jacobians(pose, landmark_xy)
     H = np.hstack([H_pose, H_landmark])
     S = H @ np.asarray(joint_covariance, dtype=float) @ H.T + np.asarray(R, dtype=float)
+    return normalised_innovation_squared(nu, S)
+
+
+def normalised_innovation_squared(nu, S) -> float:
+    """``νᵀ S⁻¹ ν`` through S's Cholesky factor; NaN when S is not positive definite."""
     try:
         L = np.linalg.cholesky(0.5 * (S + S.T))
     except np.linalg.LinAlgError:

@@ -70,6 +70,7 @@ from ekf.models import (
     landmark_from_range_bearing,
     landmark_init_jacobians,
     motion_jacobians,
+    normalised_innovation_squared,
     predict_pose,
     range_bearing,
     range_bearing_jacobians,
@@ -599,12 +600,7 @@ class EkfSlam:
         H_pose, H_landmark = range_bearing_jacobians(pose, self._mean[i : i + 2])
         H = np.hstack([H_pose, H_landmark, np.eye(2)])
         S = H @ joint @ H.T + (1.0 - self.reading_error.share) * measurement_covariance(observation)
-        try:
-            L = np.linalg.cholesky(0.5 * (S + S.T))
-        except np.linalg.LinAlgError:
-            return float("nan")
-        w = np.linalg.solve(L, nu)
-        return float(w @ w)
+        return normalised_innovation_squared(nu, S)
 
     def state_mean(self) -> np.ndarray:
         """The full state vector ``[x, y, θ, l1x, l1y, (l1h,) (l1 range error, l1 bearing error,) ...]``

@@ -149,14 +149,7 @@ def ekf_variant(log: RunLog, *, camera_sigma=None, reading_share=0.0, reading_ta
                 error_sigma[slot[ob.landmark_id]] = (g * sr, g * sb)
                 continue
             i = slot[ob.landmark_id]
-            dx, dy = x[i] - x[0], x[i + 1] - x[1]
-            q = dx * dx + dy * dy
-            r = math.sqrt(q)
-            H = np.zeros((2, len(x)))
-            H[0, [0, 1, i, i + 1]] = [-dx / r, -dy / r, dx / r, dy / r]
-            H[1, [0, 1, 2, i, i + 1]] = [dy / q, -dx / q, -1.0, -dy / q, dx / q]
-            H[0, 3] = H[1, 4] = 1.0
-            predicted = [r + x[3], wrap_angle(math.atan2(dy, dx) - x[2]) + x[4]]
+            predicted, H = _reading_model(x, i)
             if reading_share > 0:
                 H[0, i + 2] = H[1, i + 3] = 1.0
                 predicted = [predicted[0] + x[i + 2], predicted[1] + x[i + 3]]
@@ -180,6 +173,18 @@ def ekf_variant(log: RunLog, *, camera_sigma=None, reading_share=0.0, reading_ta
     return ate, float(np.mean((nis >= low) & (nis <= high))), float(np.median(nis))
 
 
+def _reading_model(x, i):
+    """Predicted (range, bearing) of landmark ``i`` with the camera offsets (states 3, 4), and H."""
+    dx, dy = x[i] - x[0], x[i + 1] - x[1]
+    q = dx * dx + dy * dy
+    r = math.sqrt(q)
+    H = np.zeros((2, len(x)))
+    H[0, [0, 1, i, i + 1]] = [-dx / r, -dy / r, dx / r, dy / r]
+    H[1, [0, 1, 2, i, i + 1]] = [dy / q, -dx / q, -1.0, -dy / q, dx / q]
+    H[0, 3] = H[1, 4] = 1.0
+    return [r + x[3], wrap_angle(math.atan2(dy, dx) - x[2]) + x[4]], H
+
+
 def _predict(x, P, o, q_scale):
     increment = (o.dx_m, o.dy_m, o.dtheta_rad)
     F, Fi = motion_jacobians(x[:3], increment)
@@ -198,14 +203,8 @@ def _surprised(x, P, step, slot, gate) -> bool:
         i = slot.get(ob.landmark_id)
         if i is None:
             continue
-        dx, dy = x[i] - x[0], x[i + 1] - x[1]
-        q = dx * dx + dy * dy
-        r = math.sqrt(q)
-        H = np.zeros((2, len(x)))
-        H[0, [0, 1, i, i + 1]] = [-dx / r, -dy / r, dx / r, dy / r]
-        H[1, [0, 1, 2, i, i + 1]] = [dy / q, -dx / q, -1.0, -dy / q, dx / q]
-        H[0, 3] = H[1, 4] = 1.0
-        nu = np.array([ob.range_m - r - x[3], wrap_angle(ob.bearing_rad - math.atan2(dy, dx) + x[2] - x[4])])
+        predicted, H = _reading_model(x, i)
+        nu = np.array([ob.range_m - predicted[0], wrap_angle(ob.bearing_rad - predicted[1])])
         S = H @ P @ H.T + np.diag([ob.sigma_range_m**2, ob.sigma_bearing_rad**2])
         if float(nu @ np.linalg.solve(S, nu)) > gate:
             return True
