@@ -130,8 +130,33 @@ def crops_640x480(image):
     return [np.ascontiguousarray(image[r:r + 480, c:c + 640]) for r, c in corners]
 
 
+def timing_frames(photos: Path, nasa_grey) -> list:
+    """The 640×480 frames times are measured on: the pupil-labs photos, then crops of the NASA photos."""
+    frames = [cv2.imread(str(p), cv2.IMREAD_GRAYSCALE) for p in sorted(photos.glob("pupil_*.png"))]
+    return frames + [c for g in nasa_grey for c in crops_640x480(g)]
+
+
+def front_end_tags(front: FrontEnd, frames) -> int:
+    """How many tags the whole front-end reports over grey ``frames``."""
+    return sum(len(front.process(Frame(0.0, 0, "bench", cv2.cvtColor(g, cv2.COLOR_GRAY2BGR))).tags) for g in frames)
+
+
 def ms(times):
     return f"{1e3 * np.median(times):5.1f} (p90 {1e3 * np.percentile(times, 90):5.1f})"
+
+
+def accuracy_columns(detector, images, listed, paths, union, rendered):
+    """The columns of a detector's row that are not times: its score against the union listing
+    (:class:`UnionScore`), against the reference listing (:class:`MatchResult`), and on the
+    rendered frames (found, largest corner error per found tag)."""
+    reference, found_by_image = MatchResult(), {}
+    for image, tags, path in zip(images, listed, paths):
+        found = detector.detect(image)
+        found_by_image[path.name] = [(d.tag_id, d.centre_px) for d in found]
+        reference.add(match_detections([(d.tag_id, d.corners_px) for d in found], tags, image=path.name))
+    score = score_against_union(found_by_image, union, counts_for_recall)
+    n_rendered, errors = rendered_corner_errors(detector.detect, rendered)
+    return score, reference, n_rendered, errors
 
 
 def match_refined(images, listed, paths, detector=None) -> tuple[MatchResult, int]:
@@ -163,8 +188,7 @@ def main(argv=None) -> int:
     nasa_grey = [cv2.imread(str(p), cv2.IMREAD_GRAYSCALE) for p in nasa]
     listed = [read_corner_list(p.with_suffix(".txt")) for p in nasa]
     union = read_union(photos / "nasa_union.txt")
-    small = [cv2.imread(str(p), cv2.IMREAD_GRAYSCALE) for p in sorted(photos.glob("pupil_*.png"))]
-    small += [c for g in nasa_grey for c in crops_640x480(g)]
+    small = timing_frames(photos, nasa_grey)
     counted = sum(1 for t in union if counts_for_recall(t))
     print(f"{len(nasa)} NASA photos ({nasa_grey[0].shape[1]}×{nasa_grey[0].shape[0]}): {counted} tags in the union "
           f"listing, {sum(len(x) for x in listed)} in the reference listing; {len(small)} frames of 640×480 for "
@@ -181,15 +205,9 @@ def main(argv=None) -> int:
         if args.only not in name:
             continue
         detector = TagPasses([AprilTagDetector(**s) for s in settings])
-        reference, found_by_image = MatchResult(), {}
-        for image, tags, path in zip(nasa_grey, listed, nasa):
-            found = detector.detect(image)
-            found_by_image[path.name] = [(d.tag_id, d.centre_px) for d in found]
-            reference.add(match_detections([(d.tag_id, d.corners_px) for d in found], tags, image=path.name))
-        score = score_against_union(found_by_image, union, counts_for_recall)
+        score, reference, n_rendered, errors = accuracy_columns(detector, nasa_grey, listed, nasa, union, rendered)
         mine, ref = cpu_times(detector.detect, first_pass.detect, small, args.repeats)
         unlisted = score.not_listed + score.duplicates
-        n_rendered, errors = rendered_corner_errors(detector.detect, rendered)
         print(f"{name:52} {score.found:>2}/{score.counted:<3} {len(unlisted):>6} {reference.found:>4}/{reference.listed:<4} "
               f"{reference.max_corner_error_px:5.2f}/{reference.mean_corner_error_px:.2f}  "
               f"{n_rendered:>10}/{len(rendered)} {errors.max():5.2f}/{errors.mean():.2f} px   "
@@ -212,7 +230,7 @@ def main(argv=None) -> int:
 
     print("\nwhole front-end per frame (detect, refine, IPPE pose, robot-frame geometry), 640×480, CPU:")
     front = FrontEnd(kinect_v1_default(), FrontEndConfig(kind="apriltag", tag_size_m=0.16))
-    count = sum(len(front.process(Frame(0.0, 0, "bench", cv2.cvtColor(g, cv2.COLOR_GRAY2BGR))).tags) for g in small)
+    count = front_end_tags(front, small)
     bgr = [cv2.cvtColor(g, cv2.COLOR_GRAY2BGR) for g in small]
     mine, ref = cpu_times(lambda image: front.process(Frame(0.0, 0, "bench", image)),
                           lambda image: first_pass.detect(cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)), bgr, args.repeats)

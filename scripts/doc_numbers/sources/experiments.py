@@ -26,30 +26,57 @@ def real_corner_sigma(context: Context) -> tuple[float, int]:
 
 
 def apriltag_photos(context: Context) -> dict:
-    """``scripts/bench_apriltag.py``'s accuracy columns (no timing) on the NASA photos: detector
-    name → (found, listed, false detections, corner error max, mean px); "refined" → the chosen
-    detector's corners after ``refine_tag_corners`` (found, listed, max, mean, kept)."""
+    """``scripts/bench_apriltag.py``'s numbers that are not times, on the NASA photos and the
+    rendered tags: CONFIGS name → its row's columns (``union``, ``counted``, ``not_in_union``
+    (false detections and duplicates), ``outside_counted`` (real tags outside the counted
+    union), ``reference``, ``listed``, ``reference_max``/``_mean`` px, ``rendered``,
+    ``rendered_frames``, ``rendered_max``/``_mean`` px); "refined" and "refined single pass" →
+    the front-end's / the single pass's corners after ``refine_tag_corners`` against the listed
+    ones (``matched``, ``max``, ``mean`` px, ``kept`` the detector's, ``detections``); "rendered
+    refined" and "rendered refined single pass" → the same on the rendered tags against the
+    truth (``found``, ``max``, ``mean``, ``p95`` px); "timing frames" → the 640×480 frames the
+    times are measured on (``frames``, and the whole front-end's ``tags_per_frame``)."""
     import bench_apriltag as script
     import cv2
+    import numpy as np
 
-    from slamio.camera.accuracy import MatchResult, match_detections, read_corner_list
+    from slamio.camera.accuracy import read_corner_list
     from slamio.camera.apriltag import AprilTagDetector
+    from slamio.camera.detect import FrontEnd, FrontEndConfig
+    from slamio.camera.model import kinect_v1_default
+    from slamio.camera.tag_passes import TagPasses
+    from slamio.camera.tag_union import read_union
 
-    nasa = sorted((context.root / "tests" / "data" / "apriltag-photos").glob("nasa_*.jpg"))
+    photos = context.root / "tests" / "data" / "apriltag-photos"
+    nasa = sorted(photos.glob("nasa_*.jpg"))
     images = [cv2.imread(str(p), cv2.IMREAD_GRAYSCALE) for p in nasa]
     listed = [read_corner_list(p.with_suffix(".txt")) for p in nasa]
+    union = read_union(photos / "nasa_union.txt")
+    camera, rendered = script.rendered_tags()
     out = {}
-    from slamio.camera.tag_passes import TagPasses
-
     for name, settings in script.CONFIGS:
-        detector, total = TagPasses([AprilTagDetector(**p) for p in settings]), MatchResult()
-        for image, tags, path in zip(images, listed, nasa):
-            found = [(d.tag_id, d.corners_px) for d in detector.detect(image)]
-            total.add(match_detections(found, tags, image=path.name))
-        out[name] = (total.found, total.listed, len(total.false_detections), total.max_corner_error_px,
-                     total.mean_corner_error_px)
-    refined, kept = script.match_refined(images, listed, nasa)
-    out["refined"] = (refined.found, refined.listed, refined.max_corner_error_px, refined.mean_corner_error_px, kept)
+        detector = TagPasses([AprilTagDetector(**p) for p in settings])
+        score, reference, n_rendered, errors = script.accuracy_columns(detector, images, listed, nasa, union, rendered)
+        out[name] = dict(union=score.found, counted=score.counted,
+                         not_in_union=len(score.not_listed) + len(score.duplicates), outside_counted=score.found_other,
+                         reference=reference.found, listed=reference.listed,
+                         reference_max=reference.max_corner_error_px, reference_mean=reference.mean_corner_error_px,
+                         rendered=n_rendered, rendered_frames=len(rendered), rendered_max=float(errors.max()),
+                         rendered_mean=float(errors.mean()))
+    single_pass = AprilTagDetector(**script.FIRST_PASS)
+    for label, detector in (("", None), (" single pass", single_pass)):
+        refined, kept = script.match_refined(images, listed, nasa, detector)
+        out["refined" + label] = dict(matched=refined.found, max=refined.max_corner_error_px,
+                                      mean=refined.mean_corner_error_px, kept=kept,
+                                      detections=refined.found + len(refined.false_detections))
+    front_end = FrontEnd(kinect_v1_default(), FrontEndConfig()).detector
+    for label, detector in (("", front_end), (" single pass", single_pass)):
+        found, errors = script.rendered_corner_errors(detector.detect, rendered, camera)
+        out["rendered refined" + label] = dict(found=found, max=float(errors.max()), mean=float(errors.mean()),
+                                               p95=float(np.percentile(errors, 95)))
+    front = FrontEnd(kinect_v1_default(), FrontEndConfig(kind="apriltag", tag_size_m=0.16))
+    frames = script.timing_frames(photos, images)
+    out["timing frames"] = dict(frames=len(frames), tags_per_frame=script.front_end_tags(front, frames) / len(frames))
     return out
 
 
