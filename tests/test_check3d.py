@@ -148,6 +148,7 @@ def test_too_little_truth_is_refused(tmp_path, drive):
 # ------------------------------------------------------------------ bench
 
 
+@pytest.mark.slow  # a small Monte Carlo: CI runs it, the quick suite stays under 4 min
 def test_bench_stereo_loop_averages_the_se3_nees_of_the_runs():
     with concurrent.futures.ThreadPoolExecutor(max_workers=2) as pool:
         result = monte_carlo("stereo-loop", 2, estimators=("ekf-s003-figures", "ekf-vio-fej"), first_seed=3,
