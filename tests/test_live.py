@@ -240,10 +240,16 @@ def test_hil_log_states_the_noise_its_camera_and_encoders_have(octagon_run):
             z_bearing.append(wrap_angle(o.bearing_rad - math.atan2(dy, dx) + theta) / o.sigma_bearing_rad)
     assert len(z_range) > 100
     for name, z in (("range", z_range), ("bearing", z_bearing)):
-        rms = math.sqrt(np.mean(np.square(z)))
+        z = np.asarray(z)
+        inliers = z[np.abs(z) < 5.0]
+        rms = math.sqrt(np.mean(np.square(inliers)))
         # One corner precision for both: the bearing's own runs 0.16–0.26 px, the range's
         # 0.2–0.34 px (RENDERED_CORNER_SIGMA_PX = 0.3). Before: 0.39 (range) and 0.05 (bearing).
+        # The σ describe the readings, not a rare misdetection: on a loaded machine the
+        # frames that reach the front-end differ, and one bad corner beyond 5σ once took the
+        # plain RMS to 2.0; such readings must stay rare.
         assert 0.5 < rms < 1.5, (name, rms)
+        assert len(inliers) >= 0.99 * len(z), (name, len(z) - len(inliers))
 
 
 @pytest.mark.slow
