@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["ReadingErrorModel", "gauss_markov_step", "reading_error_model"]
+__all__ = ["ReadingErrorModel", "gauss_markov_step", "reading_error_model", "reading_sigmas"]
 
 
 @dataclass(frozen=True)
@@ -80,3 +80,8 @@ def gauss_markov_step(
     sigma_now = np.asarray(sigma_now, dtype=float)
     scale = phi * sigma_now / sigma_before
     return scale, share * sigma_now**2 * (1.0 - phi * phi)
+
+
+def reading_sigmas(observation) -> np.ndarray:
+    """``(σ_range_m, σ_bearing_rad)`` a range-bearing observation states."""
+    return np.array([observation.sigma_range_m, observation.sigma_bearing_rad], dtype=float)

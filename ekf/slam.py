@@ -77,9 +77,10 @@ from ekf.models import (
     range_bearing_nis,
 )
 from ekf.range_only import DelayedInitRule, try_initialise
-from ekf.reading_error import gauss_markov_step, reading_error_model
+from ekf.reading_error import gauss_markov_step, reading_error_model, reading_sigmas
 from slamio.geometry import wrap_angle
 from slamio.log import Header, Observation, Step
+from slamio.noise_model import noise_expects_outliers
 
 __all__ = [
     "EkfSlam",
@@ -298,13 +299,9 @@ def log_expects_outliers(header: Header) -> bool:
     """Whether the log says some readings are outliers: a fitted noise model's
     ``noise.observation.outlier_rate`` > 0 (``fgslam calibrate``), or a simulator's
     ``source.outliers`` > 0 (``fgslam sim --outliers``)."""
-    noise, source = header.noise, header.source
-    observation = noise.get("observation") if isinstance(noise, dict) else None
-    rates = [
-        observation.get("outlier_rate") if isinstance(observation, dict) else None,
-        source.get("outliers") if isinstance(source, dict) else None,
-    ]
-    return any(isinstance(r, (int, float)) and not isinstance(r, bool) and r > 0 for r in rates)
+    source = header.source.get("outliers") if isinstance(header.source, dict) else None
+    simulated = isinstance(source, (int, float)) and not isinstance(source, bool) and source > 0
+    return simulated or noise_expects_outliers(header.noise)
 
 
 class EkfSlam:
@@ -688,9 +685,8 @@ class EkfSlam:
         correlated with the errors by ``−G_z·ρR``; the errors start at 0 with variance ρR
         and are independent of everything else."""
         j = self._dim
-        rho = self.reading_error.share
-        sigma = np.array([observation.sigma_range_m, observation.sigma_bearing_rad])
-        P_ee = np.diag(rho * sigma**2)
+        sigma = reading_sigmas(observation)
+        P_ee = np.diag(self.reading_error.share * sigma**2)
         i, k = self._slot[key], self._landmark_dim(key)
         self._mean[j : j + 2] = 0.0
         self._cov[j : j + 2, :j] = 0.0
@@ -706,10 +702,9 @@ class EkfSlam:
 
     def _error_transition(self, key: int, observation: Observation) -> tuple[np.ndarray, np.ndarray]:
         """(scale, added variance) from the landmark's last reading to ``observation``."""
-        sigma = np.array([observation.sigma_range_m, observation.sigma_bearing_rad])
         return gauss_markov_step(
             observation.stamp_s - self._error_time[key], self.reading_error.time_s,
-            self._error_sigma[key], sigma, self.reading_error.share,
+            self._error_sigma[key], reading_sigmas(observation), self.reading_error.share,
         )
 
     def _decay_reading_error(self, key: int, observation: Observation) -> None:
@@ -723,7 +718,7 @@ class EkfSlam:
         self._cov[j, j] += added[0]
         self._cov[j + 1, j + 1] += added[1]
         self._error_time[key] = observation.stamp_s
-        self._error_sigma[key] = np.array([observation.sigma_range_m, observation.sigma_bearing_rad])
+        self._error_sigma[key] = reading_sigmas(observation)
 
     def _register_landmark(self, key: int, n: int, with_height: bool) -> None:
         """Book a landmark just placed at state index ``n`` (its mean and covariance are set)."""

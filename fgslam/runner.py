@@ -36,6 +36,7 @@ from fgslam.smoother import FAST_SETTINGS, Isam2Smoother, batch_solve
 from slamio.errors import FgslamError
 from slamio.estimator import Estimator
 from slamio.log import Header, RunLog, Step
+from slamio.noise_model import noise_expects_outliers
 
 #: name → factory(header). Each name is what ``--estimators`` accepts.
 ESTIMATORS: dict[str, Callable[[Header], Estimator]] = {
@@ -66,8 +67,7 @@ def expected_outlier_kernel(header: Header) -> str | None:
     to 0.07 / 0.5 m (docs/datasets-mrclam-rosbag.md). DCS leaves every residual within
     3.7σ at full weight, so it costs nothing on clean readings.
     """
-    rate = header.noise.get("observation", {}).get("outlier_rate") if isinstance(header.noise, dict) else None
-    return "dcs" if isinstance(rate, (int, float)) and rate > 0 else None
+    return "dcs" if noise_expects_outliers(header.noise) else None
 
 
 def _named(estimator, name: str):

@@ -63,6 +63,7 @@ __all__ = [
     "carries_fitted_model",
     "correct_observation",
     "load_noise_model",
+    "noise_expects_outliers",
     "save_noise_model",
 ]
 
@@ -222,6 +223,14 @@ def carries_fitted_model(noise: dict) -> bool:
     """True when a log header's ``noise`` says a fitted model was applied (by an importer's
     ``--noise`` or by :func:`slamio.noise_apply.apply_noise_model`)."""
     return "fitted_on" in noise or "lag_s" in noise.get("odometry", {})
+
+
+def noise_expects_outliers(noise: Any) -> bool:
+    """Whether a log header's ``noise`` carries a fitted outlier rate above zero
+    (``noise.observation.outlier_rate``, from ``fgslam calibrate``)."""
+    observation = noise.get("observation") if isinstance(noise, dict) else None
+    rate = observation.get("outlier_rate") if isinstance(observation, dict) else None
+    return isinstance(rate, (int, float)) and not isinstance(rate, bool) and rate > 0
 
 
 def correct_observation(
