@@ -48,7 +48,7 @@ from gtsam.symbol_shorthand import C, L, X  # noqa: E402
 from scipy.optimize import nnls  # noqa: E402
 from scipy.stats import chi2  # noqa: E402
 
-from ekf.models import motion_jacobians, predict_pose  # noqa: E402
+from ekf.models import landmark_from_range_bearing, landmark_init_jacobians, motion_jacobians, predict_pose  # noqa: E402
 from fgslam.runner import compare_log  # noqa: E402
 from fgslam.smoother.factors import odometry_noise_covariance, robust_estimator  # noqa: E402
 from slamio.datasets.mrclam import ROBOT_SUBJECTS, import_mrclam  # noqa: E402
@@ -213,24 +213,20 @@ def _surprised(x, P, step, slot, gate) -> bool:
 
 def _add_landmark(x, P, ob, R, error_sigma, with_error_states):
     """Augment with a landmark placed from the reading (and its two reading-error states)."""
-    r, b = ob.range_m - x[3], ob.bearing_rad - x[4]
-    a = x[2] + b
-    u = np.array([math.cos(a), math.sin(a)])
-    v = np.array([-r * math.sin(a), r * math.cos(a)])
+    r, b = ob.range_m - x[3], ob.bearing_rad - x[4]  # the reading less the camera offsets
+    G_pose, G_z = landmark_init_jacobians(x[:3], r, b)
     k = 4 if with_error_states else 2
     G = np.zeros((k, len(x)))
-    G[:2, :2] = np.eye(2)
-    G[:2, 2] = v
-    G[:2, 3], G[:2, 4] = -u, -v
-    noise = np.column_stack([u, v]) @ R @ np.column_stack([u, v]).T
+    G[:2, :3] = G_pose
+    G[:2, 3:5] = -G_z
     Pnn = G @ P @ G.T
-    Pnn[:2, :2] += noise
+    Pnn[:2, :2] += G_z @ R @ G_z.T
     if with_error_states:  # landmark = reading − error; error ~ N(0, σ_e²)
         E = np.diag(np.square(error_sigma))
-        Ge = np.vstack([-np.column_stack([u, v]), np.eye(2)])
+        Ge = np.vstack([-G_z, np.eye(2)])
         Pnn += Ge @ E @ Ge.T
     Pxn = G @ P
-    mean = np.concatenate([x, x[:2] + r * u, np.zeros(k - 2)])
+    mean = np.concatenate([x, landmark_from_range_bearing(x[:3], r, b), np.zeros(k - 2)])
     return mean, np.block([[P, Pxn.T], [Pxn, Pnn]])
 
 

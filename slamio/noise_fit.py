@@ -47,7 +47,7 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
-from scipy.optimize import nnls
+from scipy.optimize import curve_fit, nnls
 
 from slamio.errors import FgslamError
 from slamio.geometry import wrap_angle
@@ -434,8 +434,6 @@ def fit_reading_correlation(stamps_s: np.ndarray, landmark: np.ndarray, normalis
     the first bin's mean Δt). A correlation at most 0.05 over the first bin, or fewer than
     100 pairs there, means white readings (ρ = 0).
     """
-    from scipy.optimize import curve_fit
-
     edges = np.asarray(CORRELATION_BINS_S)
     sums = np.zeros((len(edges) - 1, normalised.shape[1]))
     square_a = np.zeros_like(sums)
