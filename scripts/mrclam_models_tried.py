@@ -9,12 +9,18 @@ quotes its output. Every robot is scored with a noise model fitted on the other 
    (a random walk grows as √T), and how heavy-tailed they are against the fitted variance
    (the share of 1 s windows beyond 3 robust σ, the median of z² where a Gaussian has
    0.455), with and without a command-change term (Σ Δω² inside the window: the command's
-   execution time jitters).
-2. ``ekf``: a known-id range-bearing EKF (the product's maths, ``ekf.models``) with optional
+   execution time jitters; read from the 67 Hz commands), the variance rates fitted on the
+   other robots and scored on each.
+2. ``readings``: the readings' own errors against Vicon (each run's own scale and bias
+   removed, which its map absorbs) over the leave-one-out model's σ: the share inside the
+   95 % band is the ceiling of an estimator's NIS share with this reading model.
+3. ``startup``: why the anchored ATE exceeds the aligned one: the batch solution's rotation
+   against Vicon is the heading error the odometry made before the first landmark was seen.
+4. ``ekf``: a known-id range-bearing EKF (the product's maths, ``ekf.models``) with optional
    extra states: per-run camera offsets (range m, bearing rad), a Gauss–Markov reading error
    per landmark (a share of each reading's variance, correlation time τ), and a scale on the
    odometry covariance. ``plain`` reproduces the product's ``ekf`` on these logs.
-3. ``batch``: batch Levenberg–Marquardt (DCS kernel, as ``isam2`` uses here) with white
+5. ``batch``: batch Levenberg–Marquardt (DCS kernel, as ``isam2`` uses here) with white
    readings, with a per-run camera offset variable (a ``gtsam.CustomFactor``), and with a
    Gauss–Markov reading error (each reading sees an *apparent* landmark position, a
    variable per reading, tied to the landmark and to the previous reading's).
@@ -25,7 +31,7 @@ sighting), not the product's :mod:`ekf.reading_error`, whose figures come from
 
 Usage::
 
-    .venv/bin/python scripts/mrclam_models_tried.py ../shared/data/mrclam/MRCLAM_Dataset6 [odometry|ekf|batch ...]
+    .venv/bin/python scripts/mrclam_models_tried.py ../shared/data/mrclam/MRCLAM_Dataset6 [odometry|readings|startup|ekf|batch ...]
 
 Takes a few minutes (the leave-one-out fits and imports come first).
 """
@@ -49,30 +55,40 @@ from scipy.optimize import nnls  # noqa: E402
 from scipy.stats import chi2  # noqa: E402
 
 from ekf.models import landmark_from_range_bearing, landmark_init_jacobians, motion_jacobians, predict_pose  # noqa: E402
+from fgslam.compare import align_se2  # noqa: E402
 from fgslam.runner import compare_log  # noqa: E402
 from fgslam.smoother.factors import odometry_noise_covariance, robust_estimator  # noqa: E402
-from slamio.datasets.mrclam import ROBOT_SUBJECTS, import_mrclam  # noqa: E402
+from slamio.datasets.mrclam import MAX_ZERO_BLIP_S, ROBOT_SUBJECTS, fill_zero_blips, import_mrclam  # noqa: E402
 from slamio.geometry import wrap_angle  # noqa: E402
 from slamio.log import RunLog  # noqa: E402
-from slamio.noise_fit import _log_data, _mad_sigma, _odometry_increments, _residuals, _windows, fit_noise_model  # noqa: E402
+from slamio.noise_fit import (  # noqa: E402
+    _line_fit, _log_data, _mad_sigma, _odometry_increments, _residuals, _true_range_bearing, _windows, fit_noise_model,
+    turn_rate_radps,
+)
 
 # ----------------------------------------------------------------------------- odometry
 
 
-def window_features(raw: RunLog, windows, lag_s: float) -> np.ndarray:
+def command_stream(folder: str, robot: int, raw: RunLog) -> tuple[np.ndarray, np.ndarray]:
+    """The robot's commanded turn rate at ~67 Hz (zero blips filled as the importer does):
+    (times in the log's clock, ω rad/s)."""
+    od = np.loadtxt(os.path.join(folder, f"Robot{robot}_Odometry.dat"))
+    t = od[:, 0] - raw.header.source["time_origin_s"]
+    _, omega, _ = fill_zero_blips(t, od[:, 1], od[:, 2], MAX_ZERO_BLIP_S)
+    return t, omega
+
+
+def window_features(commands: tuple[np.ndarray, np.ndarray], windows, lag_s: float) -> np.ndarray:
     """Σ (Δω)² of the commanded turn rate inside each window (shifted by the lag)."""
-    steps = raw.steps()
-    stamps = np.array([s.stamp_s for s in steps])
-    dt = np.maximum(np.diff(stamps), 1e-3)
-    omega = np.array([s.odometry.dtheta_rad for s in steps[1:]]) / dt
+    t, omega = commands
     out = []
     for t0, t1, _ in windows:
-        a, b = np.searchsorted(stamps, t0 - lag_s), np.searchsorted(stamps, t1 - lag_s)
-        out.append(float(np.sum(np.diff(omega[max(a - 1, 0) : b]) ** 2)))
+        a, b = max(int(np.searchsorted(t, t0 - lag_s)), 1), int(np.searchsorted(t, t1 - lag_s))
+        out.append(float(np.sum(np.diff(omega[a - 1 : b]) ** 2)))
     return np.array(out)
 
 
-def odometry_report(raws: dict[int, RunLog], models: dict) -> None:
+def odometry_report(raws: dict[int, RunLog], models: dict, folder: str) -> None:
     print("## heading error (MAD, rad) by window length; forward error (MAD, m)")
     rows_x, rows_y = [], []
     for k, raw in raws.items():
@@ -86,20 +102,87 @@ def odometry_report(raws: dict[int, RunLog], models: dict) -> None:
             cells.append(f"{w:g} s: {_mad_sigma(res[:, 2]):.3f} / {_mad_sigma(res[:, 0]):.3f}")
             if w == 1.0:
                 turn = np.abs(m.turn_scale * odo[:, 2])
-                rows_x.append(np.column_stack([turn, np.abs(odo[:, 0]), dts, window_features(raw, windows, m.lag_s)]))
+                rows_x.append(np.column_stack([turn, np.abs(odo[:, 0]), dts, window_features(command_stream(folder, k, raw), windows, m.lag_s)]))
                 rows_y.append(res[:, 2])
         print(f"robot {k}: " + "; ".join(cells))
     X, h = np.vstack(rows_x), np.concatenate(rows_y)
     big = np.abs(h) > 3 * _mad_sigma(h)
     print(f"1 s windows beyond 3 robust sigma: {big.mean():.3f} (Gaussian: 0.003); "
           f"mean sum(dw^2) there {X[big, 3].mean():.3f}, elsewhere {X[~big, 3].mean():.3f}")
+    low, high = chi2.ppf(0.025, 1), chi2.ppf(0.975, 1)
     for cols, name in (([0, 1, 2], "turn, distance, time"), ([0, 1, 2, 3], "+ command change sum(dw^2)")):
-        scale = X[:, cols].max(axis=0)
-        rates, _ = nnls(X[:, cols] / scale, h**2)
-        rates /= scale
-        z2 = h**2 / np.maximum(X[:, cols] @ rates, 1e-12)
-        print(f"heading variance on {name}: rates {np.round(rates, 6).tolist()}, "
-              f"inside 95 % {np.mean(z2 < 1.96**2):.3f}, median z^2 {np.median(z2):.2f} (Gaussian 0.455)")
+        scores, timing = [], []
+        for k in range(len(rows_x)):  # rates fitted on the other robots, scored on robot k
+            Xo = np.vstack([x for j, x in enumerate(rows_x) if j != k])[:, cols]
+            ho = np.concatenate([y for j, y in enumerate(rows_y) if j != k])
+            keep = np.abs(ho) <= 5 * _mad_sigma(ho)
+            scale = Xo.max(axis=0)
+            rates, _ = nnls(Xo[keep] / scale, ho[keep] ** 2)
+            rates /= scale
+            z2 = rows_y[k] ** 2 / np.maximum(rows_x[k][:, cols] @ rates, 1e-12)
+            scores.append([np.mean((z2 >= low) & (z2 <= high)), np.mean(z2 < low), np.mean(z2 > high), np.median(z2)])
+            timing.append(math.sqrt(rates[3]) if len(cols) == 4 else math.nan)
+        inside, below, above, median = np.mean(scores, axis=0)
+        extra = f", timing sigma {np.mean(timing):.3f} s" if len(cols) == 4 else ""
+        print(f"heading variance on {name} (leave-one-out): inside the 95 % band {inside:.3f} "
+              f"(below {below:.3f}, above {above:.3f}), median z^2 {median:.2f} (Gaussian 0.455){extra}")
+
+
+def readings_report(raws: dict[int, RunLog], models: dict) -> None:
+    """The NIS an estimator that knew every pose exactly would see.
+
+    Each robot's readings against the range and bearing Vicon gives at the picture time,
+    less that run's own scale and bias (a line fitted to the run, as the calibration does:
+    a run's own scale error moves its map, which the estimator adapts, not its
+    innovations), over the σ of the model fitted on the other robots. The share of
+    (z_r² + z_b²) inside the 95 % χ²(2) band is the ceiling of an estimator's NIS share
+    with this reading model; the kurtosis of the readings within 5 σ says how far from
+    Gaussian their shape is.
+    """
+    print("## readings against the truth, own line removed, sigma fitted on the other robots: "
+          "inside / below / above the 95 % band; excess kurtosis of z_r, z_b within 5 sigma")
+    low, high = chi2.ppf(0.025, 2), chi2.ppf(0.975, 2)
+    shares = []
+    for k, raw in raws.items():
+        obs, odometry = models[k].observation, models[k].odometry
+        data = _log_data(raw)
+        rm, bm, r, b, t, _ = _true_range_bearing(data, obs.camera_latency_s)
+        omega = odometry.turn_scale * turn_rate_radps(data.chain, t - odometry.lag_s)
+        along = r * np.cos(b) if obs.range_is_depth else r
+        sigma_r = np.array([obs.sigma_range_m(float(v)) for v in r])
+        sigma_b = np.array([obs.sigma_bearing_rad(float(w)) for w in omega])
+        z = np.column_stack([_line_fit(along, rm)[2] / sigma_r, _line_fit(b, bm)[2] / sigma_b])
+        d2 = np.sum(z**2, axis=1)
+        row = [np.mean((d2 >= low) & (d2 <= high)), np.mean(d2 < low), np.mean(d2 > high)]
+        shares.append(row[0])
+        inlier = np.all(np.abs(z) <= 5.0, axis=1)
+        kurt = np.mean(z[inlier] ** 4, axis=0) / np.mean(z[inlier] ** 2, axis=0) ** 2 - 3.0
+        print(f"robot {k}: {row[0]:.3f} / {row[1]:.3f} / {row[2]:.3f}; kurtosis {kurt[0]:+.2f}, {kurt[1]:+.2f}")
+    print(f"median inside the band: {np.median(shares):.3f}")
+
+
+def startup_report(logs: dict[int, RunLog]) -> None:
+    """The anchored ATE's excess over the aligned one: the heading at the first sighting.
+
+    Before the first landmark is seen only the odometry places the robot; the map is then
+    built from wherever the odometry left it, so the whole solution is turned by the heading
+    error of that moment, which no estimator can observe. Prints, for the batch solve, the
+    rotation of the SE(2) alignment to Vicon and the dead-reckoned heading error at the
+    first sighting (the alignment undoes it: equal and opposite).
+    """
+    print("## start-up: batch SE(2) alignment rotation vs heading error at the first sighting (degrees)")
+    for k, log in logs.items():
+        steps = log.steps()
+        first = next(i for i, s in enumerate(steps) if s.observations)
+        scored = next(i for i in range(first, len(steps)) if steps[i].truth is not None)
+        mask = np.array([s.truth is not None for s in steps])
+        truth = np.array([[s.truth.x_m, s.truth.y_m, s.truth.theta_rad] if s.truth else [np.nan] * 3 for s in steps])
+        batch = next(r for r in compare_log(log, ["isam2"]).runs if r.name == "batch")
+        final = np.asarray(batch.final)
+        rotation, _ = align_se2(final[mask, :2], truth[mask, :2])
+        heading_error = wrap_angle(float(final[scored, 2] - truth[scored, 2]))
+        print(f"robot {k}: first sighting after {steps[first].stamp_s - steps[0].stamp_s:.1f} s; "
+              f"alignment rotation {math.degrees(rotation):+.2f}, heading error then {math.degrees(heading_error):+.2f}")
 
 
 # ----------------------------------------------------------------------------- EKF variants
@@ -342,13 +425,17 @@ def main(argv=None) -> int:
     if not argv:
         print(__doc__)
         return 2
-    folder, parts = argv[0], argv[1:] or ["odometry", "ekf", "batch"]
+    folder, parts = argv[0], argv[1:] or ["odometry", "readings", "startup", "ekf", "batch"]
     robots = [k for k in ROBOT_SUBJECTS if os.path.exists(os.path.join(folder, f"Robot{k}_Odometry.dat"))]
     raws = {k: RunLog(f"robot{k} (raw)", *import_mrclam(folder, k)) for k in robots}
     models = {k: fit_noise_model([raws[j] for j in robots if j != k]) for k in robots}
     logs = {k: RunLog(f"robot{k}", *import_mrclam(folder, k, model=models[k])) for k in robots}
     if "odometry" in parts:
-        odometry_report(raws, models)
+        odometry_report(raws, models, folder)
+    if "readings" in parts:
+        readings_report(raws, models)
+    if "startup" in parts:
+        startup_report(logs)
     if "ekf" in parts:
         print("## EKF variants: ATE m / NIS inside band / median NIS, per robot; medians")
         for name, kwargs in EKF_VARIANTS.items():
