@@ -43,7 +43,7 @@ capture glitches out of the fit; their share is the model's ``outlier_rate``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Sequence
 
 import numpy as np
@@ -367,11 +367,7 @@ def _fit_observations(datas: Sequence[_LogData], odometry: OdometryModel, latenc
     inlier = (np.abs(res_r) <= gate_r) & (np.abs(res_b) <= gate_b)
     r_rates = _nnls_rates(res_r[inlier], np.column_stack([np.ones(inlier.sum()), r[inlier] ** 2]))
     b_rates = _nnls_rates(res_b[inlier], np.column_stack([np.ones(inlier.sum()), omega[inlier] ** 2]))
-    sigma_r = np.sqrt(np.column_stack([np.ones(len(r)), r**2]) @ r_rates)
-    sigma_b = np.sqrt(np.column_stack([np.ones(len(r)), omega**2]) @ b_rates)
-    normalised = np.column_stack([res_r / np.maximum(sigma_r, 1e-9), res_b / np.maximum(sigma_b, 1e-12)])
-    correlation = fit_reading_correlation(t[inlier], (own * (landmark.max() + 1) + landmark)[inlier], normalised[inlier])
-    model = ObservationModel(
+    white = ObservationModel(
         range_is_depth=bool(is_depth),
         range_scale=range_scale,
         range_bias_m=range_bias,
@@ -383,9 +379,13 @@ def _fit_observations(datas: Sequence[_LogData], odometry: OdometryModel, latenc
         bearing_sigma_s=math.sqrt(b_rates[1]),
         camera_latency_s=latency,
         outlier_rate=float(1.0 - inlier.mean()),
-        correlated_share=correlation.share,
-        correlation_time_s=correlation.time_s,
     )
+    # normalised by the model's own σ (with its floors), as the estimators will see them
+    sigma_r = np.array([white.sigma_range_m(float(v)) for v in r])
+    sigma_b = np.array([white.sigma_bearing_rad(float(w)) for w in omega])
+    normalised = np.column_stack([res_r / sigma_r, res_b / sigma_b])
+    correlation = fit_reading_correlation(t[inlier], (own * (landmark.max() + 1) + landmark)[inlier], normalised[inlier])
+    model = replace(white, correlated_share=correlation.share, correlation_time_s=correlation.time_s)
     report = {
         "observations": int(len(r)),
         "outliers": int((~inlier).sum()),
