@@ -639,7 +639,7 @@ def plot_nis(path, runs: list[EstimatorRun], stamps_s, *, baseline: str = "fade"
     for i, run, faint in _plotted(runs, baselines, baseline):
         if run.nis is None or run.nis_steps is None or not len(run.nis):
             continue
-        mean, inside, count = nis_summary(run.nis)
+        mean, inside, count = nis_summary(run.nis, run.nis_dofs)
         label = f"{run.name}: {count} obs., mean {mean:.2f}, {100 * inside:.1f} % inside"
         ax.plot(t[np.asarray(run.nis_steps, dtype=int)], np.maximum(run.nis, 1e-6), ".", ms=2.0,
                 color=_style(i)[0], alpha=_FAINT_ALPHA if faint else 1.0,

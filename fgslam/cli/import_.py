@@ -54,7 +54,8 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     imp.add_argument("--robot", type=int, default=1, metavar="N", help="MRCLAM: which robot, 1-5 (default 1)")
     imp.add_argument("--noise", default=None, metavar="FILE",
                      help="MRCLAM: a noise model from `fgslam calibrate LOG... --out FILE` (odometry lag and "
-                          "scale, range/bearing correction and sigmas); default: round, unfitted values")
+                          "scale, range/bearing correction and sigmas); default: round, unfitted values. "
+                          "Plaza: the range model (scale, bias, sigma) fitted on the other run")
     imp.add_argument("--hide-ids", action="store_true",
                      help="write observations without landmark ids (the estimators must associate them); "
                           "the dataset's id is kept in truth_landmark_id to score the association")
@@ -108,8 +109,13 @@ def cmd_import(args: argparse.Namespace) -> int:
     else:  # plaza1, plaza2
         from slamio.datasets.plaza import import_plaza
 
+        model = None
+        if args.noise is not None:
+            from slamio.noise_model import load_noise_model
+
+            model = load_noise_model(args.noise)
         header, records = import_plaza(
-            args.dataset, source, range_sigma_m=args.range_sigma, range_bias_m=args.range_bias
+            args.dataset, source, range_sigma_m=args.range_sigma, range_bias_m=args.range_bias, range_model=model
         )
     if args.hide_ids:
         header, records = hide_landmark_ids(header, records)

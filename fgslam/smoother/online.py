@@ -22,6 +22,7 @@ from ekf.models import (
     range_bearing,
     range_bearing_jacobians,
     range_bearing_nis,
+    range_nis,
     wrap_angle,
 )
 from fgslam.smoother.chain import OdometryChain
@@ -142,7 +143,7 @@ class OnlinePose:
             return out
         wanted = [
             (j, o) for j, o in enumerate(step.observations)
-            if o.landmark_id is not None and not o.range_only and o.landmark_id not in tag_ids
+            if o.landmark_id is not None and o.landmark_id not in tag_ids
             and isam.valueExists(L(o.landmark_id))
         ]
         if not wanted:
@@ -173,6 +174,9 @@ class OnlinePose:
             cov[3:, :3] = cov[:3, 3:].T
             cov[3:, 3:] = joint.at(key, key)
             landmark = isam.calculateEstimatePoint2(key)
+            if o.range_only:  # a ranging radio: 1 degree of freedom
+                out[j] = range_nis(mean, landmark, cov, o.range_m, o.sigma_range_m)
+                continue
             out[j] = range_bearing_nis(
                 mean, landmark, cov, o.range_m, o.bearing_rad, np.diag([o.sigma_range_m**2, o.sigma_bearing_rad**2])
             )

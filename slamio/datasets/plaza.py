@@ -59,6 +59,7 @@ from slamio.datasets.victoria_park import DatasetFormatError
 from slamio.errors import FgslamError
 from slamio.geometry import arc_increment, arc_increment_jacobian, wrap_angle
 from slamio.log import Header, Observation, Odometry, Record, TruthLandmark, TruthPose
+from slamio.noise_model import NoiseModel, NoiseModelError, correct_range
 
 __all__ = ["import_plaza", "plaza_files", "PLAZA_RUNS", "odometry_covariance", "OdometryNoise"]
 
@@ -174,6 +175,56 @@ def gt_heading_offset_rad(gt: np.ndarray, min_step_m: float = 0.05) -> float:
     return float(np.median(wrap_angle(travel - gt[1:, 3][moving])))
 
 
+def _observation_noise(range_sigma_m: float, range_bias_m: float, range_model: NoiseModel | None) -> dict:
+    """The header's ``noise.observation``: the fitted range model when one was applied."""
+    if range_model is None:
+        return {"model": "range-only, constant sigma", "sigma_range_m": range_sigma_m,
+                "range_bias_removed_m": range_bias_m,
+                "measured_against_gps": "median offset 2.84 m / 2.80 m, spread 1.22 m / 1.77 m (Plaza1 / Plaza2); "
+                                        "measured = 1.07 x distance + 0.5 m white noise (docs/datasets.md)"}
+    o = range_model.observation
+    return {"model": "range-only readings corrected by slamio.noise_model.correct_range (fitted model)",
+            "range_scale": o.range_scale, "range_bias_m": o.range_bias_m, "range_sigma_m": o.range_sigma_m,
+            "range_sigma_per_m": o.range_sigma_per_m, "outlier_rate": o.outlier_rate,
+            "correlated_share": o.correlated_share, "correlation_time_s": o.correlation_time_s,
+            "fitted_on": list(range_model.fitted_on),
+            "odometry_part": "not applied (Plaza1's GPS heading is its dead-reckoned heading)"}
+
+
+#: Length of the GPS track over which the start heading is measured (:func:`gps_start_heading_rad`).
+START_HEADING_TRACK_M = 20.0
+#: σ of that start heading: it moves by 2 degrees between the first 10 m and 20 m of track.
+START_HEADING_SIGMA_RAD = 0.05
+
+
+def gps_start_heading_rad(gt: np.ndarray, dr: np.ndarray, track_m: float = START_HEADING_TRACK_M) -> float:
+    """The start heading that turns the dead-reckoned path onto the GPS track.
+
+    The dead reckoning (``dr`` rows ``time_s, Δs, Δθ``, arc model) is integrated from the
+    first GPS position with heading ``gt[0, 3]``; over the GPS poses within ``track_m`` of
+    travel from the start (``gt`` row k + 1 is at ``dr`` row k's time), the rotation about the
+    start that best fits the dead-reckoned positions to the GPS ones (least squares) is
+    added to that heading. Plaza's ``GT`` heading is no measurement of the start heading
+    (Plaza1's is its dead-reckoned heading), and with ranges to beacons whose positions are
+    unknown nothing else fixes the rotation of the whole solution about the start."""
+    x = y = 0.0
+    theta = float(gt[0, 3])
+    path = []
+    for _, distance, angle in dr:
+        dx, dy, dth = arc_increment(float(distance), float(angle))
+        c, s = math.cos(theta), math.sin(theta)
+        x, y, theta = x + c * dx - s * dy, y + s * dx + c * dy, theta + dth
+        path.append((x, y))
+    gps = gt[1 : len(path) + 1, 1:3] - gt[0, 1:3]
+    a = np.asarray(path)[: len(gps)]
+    travelled = np.r_[0.0, np.cumsum(np.hypot(*np.diff(gt[: len(gps) + 1, 1:3], axis=0).T))][1:]
+    n = max(int(np.searchsorted(travelled, track_m)), 2)
+    a, b = a[:n], gps[:n]
+    rotation = math.atan2(float(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])),
+                          float(np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1])))
+    return float(wrap_angle(float(gt[0, 3]) + rotation))
+
+
 def import_plaza(
     run: str = "plaza1",
     folder: str | os.PathLike[str] | None = None,
@@ -181,10 +232,17 @@ def import_plaza(
     range_sigma_m: float = DEFAULT_RANGE_SIGMA_M,
     range_bias_m: float = 0.0,
     odometry_noise: OdometryNoise = OdometryNoise(),
+    range_model: NoiseModel | None = None,
 ) -> tuple[Header, list[Record]]:
-    """Convert Plaza1 or Plaza2 into ``(header, records)`` (see the module docstring)."""
+    """Convert Plaza1 or Plaza2 into ``(header, records)`` (see the module docstring).
+
+    With ``range_model`` (``fgslam calibrate`` on the *other* run) every range is corrected
+    by its observation model (:func:`slamio.noise_model.correct_range`: scale, bias and σ),
+    instead of ``range_bias_m`` and ``range_sigma_m``; its odometry part is not used."""
     if not (range_sigma_m > 0 and math.isfinite(range_sigma_m)):
         raise FgslamError(f"range sigma must be > 0 m, got {range_sigma_m}")
+    if range_model is not None and range_bias_m != 0.0:
+        raise FgslamError("give a range model (--noise) or a range bias, not both")
     dr_path, td_path, mat_path = plaza_files(run, folder)
     dr = _read_table(dr_path, ("time_s", "delta_distance_m", "delta_heading_rad"))
     # the shipped TD files have blocks out of time order (Plaza1 line 1989 goes back 64 s): sort
@@ -195,7 +253,11 @@ def import_plaza(
         gt = gt.copy()
         gt[:, 3] = wrap_angle(gt[:, 3] + math.pi)
     t_start = float(gt[0, 0])
-    start_pose = (float(gt[0, 1]), float(gt[0, 2]), wrap_angle(float(gt[0, 3])))
+    start_heading = gps_start_heading_rad(gt, dr)
+    gt_heading_turn = float(wrap_angle(start_heading - float(gt[0, 3])))
+    gt = gt.copy()
+    gt[:, 3] = wrap_angle(gt[:, 3] + gt_heading_turn)  # the truth's headings start where pose 0 does
+    start_pose = (float(gt[0, 1]), float(gt[0, 2]), start_heading)
 
     records: list[Record] = [
         TruthLandmark(landmark_id=int(b[0]), x_m=float(b[1]), y_m=float(b[2])) for b in tl
@@ -208,11 +270,16 @@ def import_plaza(
 
     def observe(t: float, receiver: int, range_m: float) -> None:
         nonlocal skipped_short
-        value = range_m - range_bias_m
+        value, sigma = range_m - range_bias_m, range_sigma_m
+        if range_model is not None:
+            try:
+                value, sigma = correct_range(range_model.observation, range_m)
+            except NoiseModelError:
+                value = 0.0
         if value <= 0:
             skipped_short += 1
             return
-        records.append(Observation(t, receiver, value, None, range_sigma_m, None))
+        records.append(Observation(t, receiver, value, None, sigma, None))
 
     while j < len(ranges) and ranges[j][0] <= t_start:  # ranges before the first motion: pose 0
         observe(*ranges[j])
@@ -247,7 +314,7 @@ def import_plaza(
     header = Header(
         stamp_s=t_start,
         start_pose=start_pose,
-        start_sigma=START_SIGMA,
+        start_sigma=(START_SIGMA[0], START_SIGMA[1], START_HEADING_SIGMA_RAD),
         robot={"name": f"CMU {run.capitalize()} robot (Djugash & Singh, ranging radios)", "drive": "differential",
                "note": "dead reckoning given as (time, delta distance, delta heading) per interval"},
         sensor={"kind": "range-only", "landmark_kind": "radio beacon",
@@ -256,13 +323,13 @@ def import_plaza(
             "odometry": {"model": "arc increment; var(ds) = (k_distance ds)^2 + distance_m2_per_s dt, "
                                   "var(dtheta) = (k_heading dtheta)^2 + heading_rad2_per_s dt through the arc "
                                   "Jacobian, plus sideways_m2_per_s dt on x and y", **asdict(odometry_noise)},
-            "observation": {"model": "range-only, constant sigma", "sigma_range_m": range_sigma_m,
-                            "range_bias_removed_m": range_bias_m,
-                            "measured_against_gps": "median bias 2.84 m / 2.80 m, spread 1.22 m / 1.77 m "
-                                                    "(Plaza1 / Plaza2)"},
+            "observation": _observation_noise(range_sigma_m, range_bias_m, range_model),
         },
         source={"dataset": run, "files": [str(dr_path), str(td_path), str(mat_path)], "sha256": digest,
-                "converted_by": "fgslam import " + run, "gt_heading_turned_by_pi": flipped, "ranges_after_last_odometry_dropped": dropped_late,
+                "converted_by": "fgslam import " + run, "gt_heading_turned_by_pi": flipped,
+                "start_heading": f"from the GPS track's first {START_HEADING_TRACK_M:g} m (the dead reckoning "
+                                 f"turned onto it): {start_heading:.4f} rad; every GT heading turned by "
+                                 f"{gt_heading_turn:+.4f} rad to match", "ranges_after_last_odometry_dropped": dropped_late,
                 "ranges_not_positive_after_bias_dropped": skipped_short},
     )
     return header, records
