@@ -50,7 +50,8 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     imp.add_argument("--range-sigma", type=float, default=1.5, metavar="M",
                      help="Plaza: standard deviation given to every range (default 1.5 m)")
     imp.add_argument("--range-bias", type=float, default=0.0, metavar="M",
-                     help="Plaza: subtract this from every range (default 0; GPS says the radios read ~2.8 m long)")
+                     help="Plaza: subtract this from every range (default 0; GPS says the radios read 7 %% long, "
+                          "not a constant: fit the model with fgslam calibrate and use --noise)")
     imp.add_argument("--robot", type=int, default=1, metavar="N", help="MRCLAM: which robot, 1-5 (default 1)")
     imp.add_argument("--noise", default=None, metavar="FILE",
                      help="MRCLAM: a noise model from `fgslam calibrate LOG... --out FILE` (odometry lag and "

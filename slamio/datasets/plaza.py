@@ -15,8 +15,9 @@ gave ground truth. The gtsam wheel ships both runs in its ``Data`` folder:
 
 The conversion
 --------------
-* **Start**: pose 0 is the first ``GT`` row (time, position, heading), pinned with σ = 1e-3:
-  the world frame is the GPS frame and ATE is measured against GPS without alignment.
+* **Start**: pose 0 is at the first ``GT`` row's time and position, pinned with σ = 1e-3 m
+  (heading: below): the world frame is the GPS frame and ATE is measured against GPS
+  without alignment.
 * **Odometry**: each DR interval ``(Δs, Δθ)`` becomes the arc increment of
   :func:`slamio.geometry.arc_increment` (within 1 % of other integrations' ATE against GPS:
   arc 1.93 m, heading-first 1.90 m, move-first 1.97 m over Plaza1). A range that arrives
@@ -26,15 +27,21 @@ The conversion
   whose GT heading equals the DR heading): per piece of duration Δt,
   ``var(Δs) = (0.05·Δs)² + 0.02² m²/s·Δt``, ``var(Δθ) = (0.05·Δθ)² + 0.005² rad²/s·Δt``,
   mapped through the arc Jacobian, plus ``0.02² m²/s·Δt`` on x and y (sideways slip)
-  (:class:`OdometryNoise`; docs/datasets.md shows how the ATE moves with looser and
-  tighter settings). The time-proportional parts keep a standing robot's covariance
+  (:class:`OdometryNoise`). The time-proportional parts keep a standing robot's covariance
   positive definite and make the total independent of how an interval is split.
 * **Ranges** (sorted by time: the shipped TD files have blocks out of order): range-only observations (no bearing) of landmark ``receiver_id``, with
-  ``range_m − range_bias_m`` and ``sigma_range_m`` (defaults 0 and 1.5 m). Measured against
-  GPS truth (GT interpolated at each range time): the ranges read long by a median of
-  2.84 m (Plaza1) and 2.80 m (Plaza2) with a robust spread (1.4826·MAD) of 1.22 m and
-  1.77 m. Pass ``range_bias_m=2.8`` to remove the bias; the defaults do not use the truth.
+  ``range_m − range_bias_m`` and ``sigma_range_m`` (defaults 0 and 1.5 m), or, with
+  ``range_model`` (``fgslam calibrate`` on the other run), corrected by that model
+  (:func:`slamio.noise_model.correct_range`). Measured against GPS truth (GT interpolated
+  at each range time): ``measured = 1.069·distance + 0.03 m`` with white noise σ 0.54 m
+  (Plaza1; Plaza2 1.070, 0.01 m, 0.56 m): a 7 % scale, which at the plaza's typical 40 m
+  reads as a median offset of 2.84 m (2.80 m). The defaults do not use the truth.
   A range before the first DR time belongs to pose 0; ranges after the last are dropped.
+* **Start heading**: GPS gives no heading (Plaza1's ``GT`` heading is its dead-reckoned one), and
+  with unsurveyed beacons nothing else fixes the rotation of the whole solution about the
+  start; the start heading is the one that turns the dead-reckoned path onto the first
+  20 m of GPS track (:func:`gps_start_heading_rad`), σ 0.05 rad, and every ``GT`` heading
+  is turned by the same angle.
 * **Heading of the truth**: Plaza2's ``GT`` heading points backwards — the direction of
   travel is 3.08 rad (median) from it, against −0.016 rad in Plaza1 — so it is turned by π
   whenever that median exceeds π/2 (:func:`gt_heading_offset_rad`; the header's source
@@ -61,7 +68,7 @@ from slamio.geometry import arc_increment, arc_increment_jacobian, wrap_angle
 from slamio.log import Header, Observation, Odometry, Record, TruthLandmark, TruthPose
 from slamio.noise_model import NoiseModel, NoiseModelError, correct_range
 
-__all__ = ["import_plaza", "plaza_files", "PLAZA_RUNS", "odometry_covariance", "OdometryNoise"]
+__all__ = ["import_plaza", "plaza_files", "PLAZA_RUNS", "odometry_covariance", "OdometryNoise", "gps_start_heading_rad"]
 
 PLAZA_RUNS = ("plaza1", "plaza2")
 START_SIGMA = (1e-3, 1e-3, 1e-3)
@@ -180,8 +187,8 @@ def _observation_noise(range_sigma_m: float, range_bias_m: float, range_model: N
     if range_model is None:
         return {"model": "range-only, constant sigma", "sigma_range_m": range_sigma_m,
                 "range_bias_removed_m": range_bias_m,
-                "measured_against_gps": "median offset 2.84 m / 2.80 m, spread 1.22 m / 1.77 m (Plaza1 / Plaza2); "
-                                        "measured = 1.07 x distance + 0.5 m white noise (docs/datasets.md)"}
+                "measured_against_gps": "measured = 1.069 x distance + 0.03 m, white sigma 0.54 m (Plaza1; Plaza2 "
+                                        "1.070, 0.01 m, 0.56 m): fgslam calibrate, then import --noise (docs/datasets.md)"}
     o = range_model.observation
     return {"model": "range-only readings corrected by slamio.noise_model.correct_range (fitted model)",
             "range_scale": o.range_scale, "range_bias_m": o.range_bias_m, "range_sigma_m": o.range_sigma_m,
