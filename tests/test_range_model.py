@@ -86,3 +86,20 @@ def test_range_nis_of_a_consistent_model_is_chi2_1(estimator):
     mean, inside, count = nis_summary(run.nis, run.nis_dofs)
     assert count > 600
     assert 0.85 < mean < 1.2 and inside > 0.92
+
+
+def test_calibrate_cli_fits_a_range_only_log_and_import_applies_it(tmp_path, capsys):
+    """``fgslam calibrate`` on a range-only log says what the radio does; the file it writes
+    is the model ``fgslam import plazaN --noise`` reads."""
+    from fgslam.cli import main
+    from slamio.log import write_log
+    from slamio.noise_model import load_noise_model
+
+    log = radio_log(1.07, 0.2, 0.05)
+    path = tmp_path / "radio.jsonl"
+    write_log(path, log.header, log.records)
+    assert main(["calibrate", str(path), "--out", str(tmp_path / "radio.json")]) == 0
+    out = capsys.readouterr().out
+    scale = float(out.split("ranges (no bearing): measured = ")[1].split()[0])
+    assert scale == pytest.approx(1.07, abs=0.005) and "camera" not in out
+    assert load_noise_model(tmp_path / "radio.json").observation.range_scale == pytest.approx(1.07, abs=0.005)
