@@ -103,3 +103,20 @@ def test_calibrate_cli_fits_a_range_only_log_and_import_applies_it(tmp_path, cap
     scale = float(out.split("ranges (no bearing): measured = ")[1].split()[0])
     assert scale == pytest.approx(1.07, abs=0.005) and "camera" not in out
     assert load_noise_model(tmp_path / "radio.json").observation.range_scale == pytest.approx(1.07, abs=0.005)
+
+
+def test_run_noise_corrects_range_only_readings_too():
+    """``fgslam run --noise`` (slamio.noise_apply) turns each range by the model, as the
+    Plaza importer's ``--noise`` does."""
+    from slamio.noise_apply import apply_noise_model
+    from slamio.noise_model import NoiseModel
+
+    log = radio_log(1.07, 0.2, 0.05)
+    model = NoiseModel(observation=ObservationModel(range_scale=1.07, range_bias_m=0.2, range_sigma_m=0.05))
+    corrected, dropped = apply_noise_model(log, model)
+    before = [r for r in log.records if isinstance(r, Observation)]
+    after = [r for r in corrected.records if isinstance(r, Observation)]
+    assert dropped == 0 and len(after) == len(before)
+    for a, b in zip(before, after):
+        assert b.range_m == pytest.approx((a.range_m - 0.2) / 1.07, rel=1e-12)
+        assert b.sigma_range_m == pytest.approx(0.05 / 1.07, rel=1e-12)
