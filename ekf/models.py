@@ -47,6 +47,7 @@ __all__ = [
     "landmark_from_range_bearing",
     "landmark_init_jacobians",
     "range_bearing_nis",
+    "range_nis",
 ]
 
 
@@ -177,6 +178,18 @@ def range_bearing_nis(pose, landmark_xy, joint_covariance, range_m: float, beari
     H = np.hstack([H_pose, H_landmark])
     S = H @ np.asarray(joint_covariance, dtype=float) @ H.T + np.asarray(R, dtype=float)
     return normalised_innovation_squared(nu, S)
+
+
+def range_nis(pose, landmark_xy, joint_covariance, range_m: float, sigma_range_m: float) -> float:
+    """Normalised innovation squared of one range-only reading (a ranging radio): the range
+    row of :func:`range_bearing_nis`, ``ν = r − |l − p|``, ``S = h Σ hᵀ + σ²`` with
+    ``h = [H_pose | H_landmark]``'s first row. χ²-distributed with 1 degree of freedom
+    (mean 1) for a consistent estimator; NaN when S is not positive."""
+    predicted_range, _ = range_bearing(pose, landmark_xy)
+    H_pose, H_landmark = range_bearing_jacobians(pose, landmark_xy)
+    h = np.hstack([H_pose[0], H_landmark[0]])
+    S = float(h @ np.asarray(joint_covariance, dtype=float) @ h) + float(sigma_range_m) ** 2
+    return float((range_m - predicted_range) ** 2 / S) if S > 0.0 else float("nan")
 
 
 def normalised_innovation_squared(nu, S) -> float:

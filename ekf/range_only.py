@@ -133,8 +133,9 @@ def try_initialise(positions_xy, ranges_m, sigmas_m, rule: DelayedInitRule = Del
         if other.chi2 - best.chi2 < rule.min_mirror_gap:
             return None  # two places fit about as well: wait for a turn
         fit = best
-    if math.sqrt(max(np.linalg.eigvalsh(fit.covariance))) > rule.max_sigma_m:
-        return None
+    eigenvalues = np.linalg.eigvalsh(fit.covariance)
+    if not eigenvalues[0] > 0.0 or math.sqrt(eigenvalues[-1]) > rule.max_sigma_m:
+        return None  # a covariance that is not positive definite: the positions do not pin it down
     if fit.chi2 > chi2_dist.ppf(rule.fit_probability, m - 2):
         return None
     return fit

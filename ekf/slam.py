@@ -75,6 +75,7 @@ from ekf.models import (
     range_bearing,
     range_bearing_jacobians,
     range_bearing_nis,
+    range_nis,
 )
 from ekf.range_only import DelayedInitRule, try_initialise
 from ekf.reading_error import gauss_markov_step, reading_error_model, reading_sigmas
@@ -540,7 +541,8 @@ class EkfSlam:
         The pose is predicted with ``step.odometry`` (its covariance blocks with it:
         ``P_rr ← F P_rr Fᵀ + Q``, ``P_rl ← F P_rl``); each observation of a landmark already
         in the map then gets :func:`ekf.models.range_bearing_nis` over (range, bearing)
-        with the joint pose-landmark covariance. Every estimator answers this question the
+        with the joint pose-landmark covariance (a range-only reading
+        :func:`ekf.models.range_nis`, 1 degree of freedom). Every estimator answers this question the
         same way, so their NIS compare. None for an observation without an id or of a
         landmark not in the map yet.
         """
@@ -556,7 +558,7 @@ class EkfSlam:
         out: list[float | None] = []
         for observation in step.observations:
             i = self._slot.get(observation.landmark_id) if observation.landmark_id is not None else None
-            if i is None or observation.range_only:
+            if i is None:
                 out.append(None)
                 continue
             if observation.landmark_id in self._error_index:
@@ -567,6 +569,9 @@ class EkfSlam:
             joint[:3, 3:] = F @ self._cov[:ROBOT_DIM, i : i + 2]
             joint[3:, :3] = joint[:3, 3:].T
             joint[3:, 3:] = self._cov[i : i + 2, i : i + 2]
+            if observation.range_only:  # 1 degree of freedom
+                out.append(range_nis(pose, self._mean[i : i + 2], joint, observation.range_m, observation.sigma_range_m))
+                continue
             out.append(
                 range_bearing_nis(
                     pose, self._mean[i : i + 2], joint, observation.range_m, observation.bearing_rad,

@@ -141,6 +141,8 @@ class EstimatorRun:
             already held), against its prediction before the observation's step; ``None``
             when the estimator does not offer it.
         nis_steps: ``(m,)`` the step of each NIS value.
+        nis_dofs: ``(m,)`` the degrees of freedom of each NIS value (1 for a range-only
+            reading); ``None`` means :data:`NIS_DOF` for all.
         peak_memory_bytes: how far the process's resident memory rose above where it
             started during the run (:class:`fgslam.memory.PeakMemory`), or ``None``.
         landmark_covariances: landmark id → 2×2 covariance of its final (x, y) estimate
@@ -158,6 +160,7 @@ class EstimatorRun:
     online_covariances: np.ndarray | None = None
     nis: np.ndarray | None = None
     nis_steps: np.ndarray | None = None
+    nis_dofs: np.ndarray | None = None
     peak_memory_bytes: int | None = None
     landmark_covariances: dict[int, np.ndarray] | None = None
     #: what became of observations the estimator did not use as a landmark (e.g. ``skipped``:
@@ -541,17 +544,27 @@ def nees_band(dof: int = 3, runs: int = 1, probability: float = 0.95) -> tuple[f
 NIS_DOF = 2
 
 
-def nis_summary(values) -> tuple[float | None, float | None, int | None]:
-    """``(mean, share inside the 95 % χ²(2) band, count)`` of per-observation NIS values
-    (NaNs dropped); all None when there are none to summarise (``values`` None)."""
+def nis_summary(values, dofs=None) -> tuple[float | None, float | None, int | None]:
+    """``(mean, share inside the 95 % χ² band, count)`` of per-observation NIS values
+    (NaNs dropped); all None when there are none to summarise (``values`` None).
+
+    ``dofs`` gives each value's degrees of freedom (1 for a range-only reading, 2 for range
+    and bearing); default :data:`NIS_DOF` for all. Each value is tested against its own
+    band; the mean is of the values as they are (1 or 2 when consistent)."""
     if values is None:
         return None, None, None
     v = np.asarray(values, dtype=float).reshape(-1)
-    v = v[np.isfinite(v)]
+    d = np.full(len(v), NIS_DOF) if dofs is None else np.asarray(dofs, dtype=int).reshape(-1)
+    finite = np.isfinite(v)
+    v, d = v[finite], d[finite]
     if not len(v):
         return None, None, 0
-    low, high = nees_band(NIS_DOF)
-    return float(np.mean(v)), float(np.mean((v >= low) & (v <= high))), int(len(v))
+    inside = np.zeros(len(v), dtype=bool)
+    for dof in np.unique(d):
+        low, high = nees_band(int(dof))
+        m = d == dof
+        inside[m] = (v[m] >= low) & (v[m] <= high)
+    return float(np.mean(v)), float(np.mean(inside)), int(len(v))
 
 
 def rpe_delta_frames(reference, distance_m: float = 1.0, *, has_pose=None) -> int:
@@ -850,8 +863,10 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
              "nis_mean": float|None,         # mean NIS of the observations of landmarks
                                              # already mapped, against the prediction before
                                              # their step (2-DoF range-bearing; 2 if
-                                             # consistent); needs no reference
-             "nis_inside_95": float|None,    # share of them inside the χ²(2) band [0.0506, 7.38]
+                                             # consistent; range-only readings 1-DoF, 1);
+                                             # needs no reference
+             "nis_inside_95": float|None,    # share of them inside their χ²(dof) band: χ²(2)
+                                             # [0.0506, 7.38], χ²(1) [0.000982, 5.02]
              "nis_count": int|None,          # how many observations have a NIS
              "map_rmse_m": float|None,       # None when no landmark id in common
              "map_height_rmse_m": float|None,# 3-D maps against true heights, else None
@@ -934,7 +949,7 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
                 nees_mean = float(np.mean(values))
                 nees_inside = float(np.mean((values >= low) & (values <= high)))
             nees_count = int(len(values))
-        nis_mean, nis_inside, nis_count = nis_summary(run.nis)
+        nis_mean, nis_inside, nis_count = nis_summary(run.nis, run.nis_dofs)
         metrics[run.name] = {
             "ate_rmse_m": _json_float(_rmse(position_errors_m(final_a, ref[:m])[valid[:m]])),
             "ate_online_rmse_m": _json_float(ate_online),
@@ -1069,7 +1084,7 @@ COLUMN_MEANINGS = {
     "steps that have it)",
     "NIS in %": "share of observations of already mapped landmarks whose NIS (innovation against "
     "the estimator's prediction, weighted by its predicted covariance) lies inside the 95 % "
-    "chi-square(2) band; about 95 when consistent; needs no ground truth",
+    "chi-square(2) band (chi-square(1) for a range-only reading); about 95 when consistent; needs no ground truth",
     "peak MB": "how far the process's resident memory rose during the run, megabytes (10^6 bytes)",
 }
 

@@ -630,16 +630,19 @@ def plot_heading_errors(path, runs: list[EstimatorRun], reference: Reference, st
 
 def plot_nis(path, runs: list[EstimatorRun], stamps_s, *, baseline: str = "fade",
              baselines=BASELINE_ESTIMATORS) -> Path | None:
-    """NIS of every observation against time, with the 95 % χ²(2) band; a PNG (None when
-    no estimator recorded NIS). Needs no reference: it is the estimator's own surprise."""
+    """NIS of every observation against time, with the 95 % χ² band of its degrees of freedom
+    (2 for range and bearing, 1 for a range-only reading); a PNG (None when no estimator
+    recorded NIS). Needs no reference: it is the estimator's own surprise."""
     t = np.asarray(stamps_s, dtype=float) - float(stamps_s[0])
     fig = _new_figure()
     ax = fig.add_subplot()
     drawn = False
+    dofs: set[int] = set()
     for i, run, faint in _plotted(runs, baselines, baseline):
         if run.nis is None or run.nis_steps is None or not len(run.nis):
             continue
-        mean, inside, count = nis_summary(run.nis)
+        dofs.update({NIS_DOF} if run.nis_dofs is None else set(np.asarray(run.nis_dofs).tolist()))
+        mean, inside, count = nis_summary(run.nis, run.nis_dofs)
         label = f"{run.name}: {count} obs., mean {mean:.2f}, {100 * inside:.1f} % inside"
         ax.plot(t[np.asarray(run.nis_steps, dtype=int)], np.maximum(run.nis, 1e-6), ".", ms=2.0,
                 color=_style(i)[0], alpha=_FAINT_ALPHA if faint else 1.0,
@@ -647,13 +650,14 @@ def plot_nis(path, runs: list[EstimatorRun], stamps_s, *, baseline: str = "fade"
         drawn = True
     if not drawn:
         return None
-    low, high = nees_band(NIS_DOF)
-    ax.axhline(low, color="k", ls="--", lw=0.8, label=f"95 % band [{low:.3f}, {high:.2f}]")
-    ax.axhline(high, color="k", ls="--", lw=0.8)
-    ax.axhline(NIS_DOF, color="0.5", ls=":", lw=0.8, label="expected mean 2")
+    for dof, style in zip(sorted(dofs), ("--", "-.")):
+        low, high = nees_band(dof)
+        ax.axhline(low, color="k", ls=style, lw=0.8, label=f"95 % band, {dof} DoF [{low:.3f}, {high:.2f}]")
+        ax.axhline(high, color="k", ls=style, lw=0.8)
+        ax.axhline(dof, color="0.5", ls=":", lw=0.8, label=f"expected mean {dof}")
     ax.set_yscale("log")
     ax.set_xlabel("time since start [s]")
-    ax.set_ylabel("NIS of the observation (range, bearing: 2 DoF)")
+    ax.set_ylabel("NIS of the observation (range, bearing: 2 DoF; range only: 1)")
     ax.set_title("Consistency: NIS of each observation against the prediction before its step", fontsize=11)
     ax.grid(True, which="both", lw=0.5, alpha=0.5)
     return _legend_and_save(fig, ax, path, markerscale=4)

@@ -30,7 +30,7 @@ import scipy.linalg  # noqa: F401  (scipy's own BLAS is loaded now, so the threa
 from threadpoolctl import threadpool_limits
 
 from ekf import DeadReckoning, EkfS000, EkfS001, EkfS004, EkfSlam
-from fgslam.compare import EstimatorRun, Reference, relabel_landmarks, score_associations
+from fgslam.compare import NIS_DOF, EstimatorRun, Reference, relabel_landmarks, score_associations
 from fgslam.memory import PeakMemory
 from fgslam.smoother import FAST_SETTINGS, Isam2Smoother, batch_solve
 from slamio.errors import FgslamError
@@ -148,6 +148,7 @@ def run_estimator(
     pose_covariances = np.empty((len(steps), 3, 3)) if with_covariance else None
     nis_values: list[float] = []
     nis_steps: list[int] = []
+    nis_dofs: list[int] = []
     every = max(1, len(steps) // 200)
     associating = hasattr(estimator, "step_associations")
     true_ids: list[int | None] = []
@@ -155,10 +156,11 @@ def run_estimator(
     with pinned_threads(blas_threads), PeakMemory() as memory:
         for i, step in enumerate(steps):
             if with_nis:  # against the prediction, so before the step; outside the timed region
-                for value in estimator.predicted_nis(step):  # type: ignore[attr-defined]
+                for observation, value in zip(step.observations, estimator.predicted_nis(step)):  # type: ignore[attr-defined]
                     if value is not None:
                         nis_values.append(value)
                         nis_steps.append(i)
+                        nis_dofs.append(1 if observation.range_only else NIS_DOF)
             start = time.perf_counter()
             estimator.step(step)
             online[i] = estimator.current_pose()
@@ -206,6 +208,7 @@ def run_estimator(
         online_covariances=pose_covariances,
         nis=np.array(nis_values) if with_nis else None,
         nis_steps=np.array(nis_steps, dtype=int) if with_nis else None,
+        nis_dofs=np.array(nis_dofs, dtype=int) if with_nis else None,
         peak_memory_bytes=memory.peak_bytes,
         landmark_covariances=landmark_covariances or None,
         unused_observations=unused_observations(estimator),

@@ -14,7 +14,8 @@ and scaled before they are integrated). Here only the log is left, so:
   :func:`~slamio.noise_model.correct_observation` with the turn rate of the (delayed)
   odometry at its time; one that cannot be corrected is dropped and counted.
   ``camera_latency_s`` is not applied (the reading stays with its pose; at the fitted
-  0.03 s the difference is a few millimetres);
+  0.03 s the difference is a few millimetres); a range-only reading (a ranging radio) by
+  :func:`~slamio.noise_model.correct_range`;
 * the header's ``noise`` says the model was applied, so ``fgslam calibrate`` refuses the
   result, as it refuses a log imported with ``--noise``.
 
@@ -31,7 +32,7 @@ import numpy as np
 from slamio.errors import FgslamError
 from slamio.log import Observation, Odometry, RunLog, as_matrix3
 from slamio.noise_fit import OdometryChain, turn_rate_radps
-from slamio.noise_model import NoiseModel, NoiseModelError, carries_fitted_model, correct_observation
+from slamio.noise_model import NoiseModel, NoiseModelError, carries_fitted_model, correct_observation, correct_range
 
 __all__ = ["apply_noise_model"]
 
@@ -69,6 +70,13 @@ def apply_noise_model(log: RunLog, model: NoiseModel) -> tuple[RunLog, int]:
                 dropped += 1
                 continue
             out.append(dataclasses.replace(record, range_m=r, bearing_rad=b, sigma_range_m=sr, sigma_bearing_rad=sb))
+        elif isinstance(record, Observation) and record.range_only:  # a ranging radio
+            try:
+                r, sr = correct_range(model.observation, record.range_m)
+            except NoiseModelError:
+                dropped += 1
+                continue
+            out.append(dataclasses.replace(record, range_m=r, sigma_range_m=sr))
         else:
             out.append(record)
     noise = {

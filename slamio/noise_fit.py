@@ -43,7 +43,7 @@ capture glitches out of the fit; their share is the model's ``outlier_rate``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Sequence
 
 import numpy as np
@@ -139,6 +139,7 @@ class _LogData:
     truth_stamps_s: np.ndarray  # stamps of poses with truth
     truth_poses: np.ndarray  # (n, 3), heading unwrapped
     observations: list[tuple[float, float, float, tuple[float, float]]]  # (stamp, range, bearing, landmark xy)
+    ranges: list[tuple[float, float, int, tuple[float, float]]] = field(default_factory=list)  # range-only: (stamp, range, id, landmark xy)
 
 
 def _log_data(log: RunLog) -> _LogData:
@@ -165,7 +166,13 @@ def _log_data(log: RunLog) -> _LogData:
         for o in s.observations
         if o.bearing_rad is not None and o.landmark_id in landmarks
     ]
-    return _LogData(log.path, OdometryChain(stamps, increments), tr[:, 0], tr[:, 1:], observations)
+    ranges = [
+        (s.stamp_s, o.range_m, o.landmark_id, landmarks[o.landmark_id])
+        for s in steps
+        for o in s.observations
+        if o.range_only and o.landmark_id in landmarks
+    ]
+    return _LogData(log.path, OdometryChain(stamps, increments), tr[:, 0], tr[:, 1:], observations, ranges)
 
 
 def _truth_at(data: _LogData, t_s: np.ndarray, max_gap_s: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
@@ -498,6 +505,10 @@ def fit_noise_model(
     odometry, odo_report = _fit_odometry(datas, window_s, lag_grid)
     if any(d.observations for d in datas):
         observation, obs_report = _fit_observations(datas, odometry, latency_grid)
+    elif any(d.ranges for d in datas):  # ranging radios: range-only readings (slamio.range_fit)
+        from slamio.range_fit import fit_range_only
+
+        observation, obs_report = fit_range_only(datas)
     else:
         raise CalibrationError(
             "no observation of a landmark with truth in these logs; the fit needs truth_landmark records"

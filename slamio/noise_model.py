@@ -62,6 +62,7 @@ __all__ = [
     "OdometryNoiseRates",
     "carries_fitted_model",
     "correct_observation",
+    "correct_range",
     "load_noise_model",
     "noise_expects_outliers",
     "save_noise_model",
@@ -261,6 +262,16 @@ def correct_observation(
     if model.range_is_depth:  # the depth's σ, stretched by 1/cos b, plus the bearing's share
         sigma_r = math.hypot(sigma_r / c, range_corrected * math.tan(bearing) * sigma_b)
     return range_corrected, bearing, sigma_r, sigma_b
+
+
+def correct_range(model: ObservationModel, range_m: float) -> tuple[float, float]:
+    """A raw range-only reading (no bearing: a ranging radio) as ``(range_m, σ_range_m)``:
+    inverts ``measured = range_scale·r + range_bias_m``; the σ is the model's at that range,
+    divided by the scale. Raises :class:`NoiseModelError` for a non-positive result."""
+    corrected = (range_m - model.range_bias_m) / model.range_scale
+    if not corrected > 0.0:
+        raise NoiseModelError(f"reading {range_m!r} m corrects to a non-positive range {corrected!r} m")
+    return corrected, model.sigma_range_m(corrected) / model.range_scale
 
 
 # --------------------------------------------------------------------------- the file

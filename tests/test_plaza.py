@@ -12,7 +12,9 @@ from scipy.io import loadmat
 
 from fgslam.cli import main
 from slamio.datasets import DatasetFormatError
-from slamio.datasets.plaza import gt_heading_offset_rad, import_plaza, plaza_files
+from slamio.datasets.plaza import gps_start_heading_rad, gt_heading_offset_rad, import_plaza, plaza_files
+from slamio.errors import FgslamError
+from slamio.geometry import arc_increment
 from slamio.log import Observation, Odometry, TruthPose, read_log
 
 
@@ -56,11 +58,16 @@ def test_truth_is_gps_with_plaza2_heading_turned(plaza2):
     assert gt_heading_offset_rad(gt) == pytest.approx(3.08, abs=0.02)
     assert header.source["gt_heading_turned_by_pi"] is True
     assert header.start_pose[:2] == (gt[0, 1], gt[0, 2])
-    assert header.start_pose[2] == pytest.approx(math.pi - 2.021089, abs=1e-6)  # GTSAM's example start
+    # the start heading comes from the GPS track; the turned GT heading is GTSAM's example start
+    turned = math.pi - 2.021089
+    start_heading = header.start_pose[2]
+    assert abs(start_heading - turned) < 0.2 and header.start_sigma[2] == 0.05
     truth = {r.stamp_s: r for r in records if isinstance(r, TruthPose)}
     for row in gt[1::500]:
         t = truth[row[0]]
         assert (t.x_m, t.y_m) == (row[1], row[2])
+        # every GT heading turned by pi and by the same start correction
+        assert math.remainder(t.theta_rad - (row[3] + math.pi + start_heading - turned), 2 * math.pi) == pytest.approx(0.0, abs=1e-5)
     h1, _ = import_plaza("plaza1")
     assert h1.source["gt_heading_turned_by_pi"] is False
 
@@ -93,3 +100,40 @@ def test_import_then_run_reports_ate_against_gps(tmp_path, capsys):
         assert metrics[name]["landmarks_found"] == 4
         # dead reckoning drifts tens of metres on Plaza2; ranges to four beacons keep both near GPS
         assert metrics[name]["ate_rmse_m"] < 0.5 * metrics["dead_reckoning"]["ate_rmse_m"]
+
+
+def test_gps_start_heading_undoes_a_rotation_of_the_track():
+    """A dead-reckoned L-shaped drive and its GPS track turned by 0.2 rad about the start:
+    the start heading is the logged one plus 0.2 rad."""
+    dr = np.array([[0.1 * (k + 1), 0.5, 0.0 if k != 30 else 1.2] for k in range(80)])
+    gt = np.zeros((81, 4))
+    gt[:, 0] = np.r_[0.0, dr[:, 0]]
+    x = y = 0.0
+    theta = 0.3
+    for k, (_, ds, da) in enumerate(dr, start=1):
+        dx, dy, _ = arc_increment(ds, da)
+        c, s = math.cos(theta), math.sin(theta)
+        x, y, theta = x + c * dx - s * dy, y + s * dx + c * dy, theta + da
+        gt[k, 1:3] = (x, y)
+    turn = np.array([[math.cos(0.2), -math.sin(0.2)], [math.sin(0.2), math.cos(0.2)]])
+    gt[:, 1:3] = gt[:, 1:3] @ turn.T + (5.0, -2.0)
+    gt[:, 3] = 0.3
+    assert gps_start_heading_rad(gt, dr, track_m=30.0) == pytest.approx(0.5, abs=1e-9)
+
+
+def test_a_fitted_range_model_corrects_every_range(tmp_path):
+    """``--noise``: each range becomes (r − bias)/scale with the model's σ / scale."""
+    from slamio.noise_model import NoiseModel, ObservationModel
+
+    model = NoiseModel(observation=ObservationModel(range_scale=1.07, range_bias_m=0.03, range_sigma_m=0.54))
+    _, raw = import_plaza("plaza2")
+    header, records = import_plaza("plaza2", range_model=model)
+    before = [r for r in raw if isinstance(r, Observation)]
+    after = [r for r in records if isinstance(r, Observation)]
+    assert len(before) == len(after)
+    for a, b in zip(before[::100], after[::100]):
+        assert b.range_m == pytest.approx((a.range_m - 0.03) / 1.07, rel=1e-12)
+        assert b.sigma_range_m == pytest.approx(0.54 / 1.07, rel=1e-12)
+    assert header.noise["observation"]["range_scale"] == 1.07
+    with pytest.raises(FgslamError, match="not both"):
+        import_plaza("plaza2", range_model=model, range_bias_m=2.8)

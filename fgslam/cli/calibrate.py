@@ -111,13 +111,25 @@ def noise_model_summary(model) -> str:
         f"  sigma per sqrt(m): forward {n.forward_m2_per_m ** 0.5:.4f} m, sideways {n.lateral_m2_per_m ** 0.5:.4f} m, "
         f"heading {n.heading_rad2_per_m ** 0.5:.4f} rad; per sqrt(rad) turned {n.heading_rad2_per_rad ** 0.5:.4f} rad; "
         f"per sqrt(s): {n.forward_m2_per_s ** 0.5:.4f} m, {n.lateral_m2_per_s ** 0.5:.4f} m, {n.heading_rad2_per_s ** 0.5:.4f} rad",
-        f"camera: range is {'depth (r cos b)' if z.range_is_depth else 'Euclidean range'}, "
-        f"measured = {z.range_scale:.4f} x {z.range_bias_m:+.4f} m; bearing = {z.bearing_scale:.4f} b {z.bearing_bias_rad:+.4f} rad; "
-        f"latency {z.camera_latency_s:.3f} s",
-        f"  sigma range = hypot({z.range_sigma_m:.4f} m, {z.range_sigma_per_m:.4f} x range); "
-        f"sigma bearing = hypot({z.bearing_sigma_rad:.4f} rad, {z.bearing_sigma_s:.4f} s x turn rate); "
-        f"outliers {100 * z.outlier_rate:.2f} %",
+        *(_radio_lines(model) if "constant_offset_fit" in model.fit_report.get("observation", {}) else [
+            f"camera: range is {'depth (r cos b)' if z.range_is_depth else 'Euclidean range'}, "
+            f"measured = {z.range_scale:.4f} x {z.range_bias_m:+.4f} m; bearing = {z.bearing_scale:.4f} b "
+            f"{z.bearing_bias_rad:+.4f} rad; latency {z.camera_latency_s:.3f} s",
+            f"  sigma range = hypot({z.range_sigma_m:.4f} m, {z.range_sigma_per_m:.4f} x range); "
+            f"sigma bearing = hypot({z.bearing_sigma_rad:.4f} rad, {z.bearing_sigma_s:.4f} s x turn rate); "
+            f"outliers {100 * z.outlier_rate:.2f} %"]),
         f"  readings of one landmark: {100 * z.correlated_share:.0f} % of the variance correlated in time, "
         f"correlation time {z.correlation_time_s:.1f} s" if z.correlated_share > 0 else
         "  readings of one landmark: errors independent in time",
     ])
+
+
+def _radio_lines(model) -> list[str]:
+    """The observation lines of a range-only model (ranging radios, slamio.range_fit)."""
+    z, offset = model.observation, model.fit_report["observation"]["constant_offset_fit"]
+    return [
+        f"ranges (no bearing): measured = {z.range_scale:.4f} x distance {z.range_bias_m:+.4f} m "
+        f"(a constant offset would be {offset['median_offset_m']:.2f} m, spread {offset['robust_spread_m']:.2f} m)",
+        f"  sigma range = hypot({z.range_sigma_m:.4f} m, {z.range_sigma_per_m:.4f} x range); "
+        f"outliers {100 * z.outlier_rate:.2f} %",
+    ]

@@ -50,11 +50,13 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     imp.add_argument("--range-sigma", type=float, default=1.5, metavar="M",
                      help="Plaza: standard deviation given to every range (default 1.5 m)")
     imp.add_argument("--range-bias", type=float, default=0.0, metavar="M",
-                     help="Plaza: subtract this from every range (default 0; GPS says the radios read ~2.8 m long)")
+                     help="Plaza: subtract this from every range (default 0; GPS says the radios read 7 %% long, "
+                          "not a constant: fit the model with fgslam calibrate and use --noise)")
     imp.add_argument("--robot", type=int, default=1, metavar="N", help="MRCLAM: which robot, 1-5 (default 1)")
     imp.add_argument("--noise", default=None, metavar="FILE",
                      help="MRCLAM: a noise model from `fgslam calibrate LOG... --out FILE` (odometry lag and "
-                          "scale, range/bearing correction and sigmas); default: round, unfitted values")
+                          "scale, range/bearing correction and sigmas); default: round, unfitted values. "
+                          "Plaza: the range model (scale, bias, sigma) fitted on the other run")
     imp.add_argument("--hide-ids", action="store_true",
                      help="write observations without landmark ids (the estimators must associate them); "
                           "the dataset's id is kept in truth_landmark_id to score the association")
@@ -108,8 +110,13 @@ def cmd_import(args: argparse.Namespace) -> int:
     else:  # plaza1, plaza2
         from slamio.datasets.plaza import import_plaza
 
+        model = None
+        if args.noise is not None:
+            from slamio.noise_model import load_noise_model
+
+            model = load_noise_model(args.noise)
         header, records = import_plaza(
-            args.dataset, source, range_sigma_m=args.range_sigma, range_bias_m=args.range_bias
+            args.dataset, source, range_sigma_m=args.range_sigma, range_bias_m=args.range_bias, range_model=model
         )
     if args.hide_ids:
         header, records = hide_landmark_ids(header, records)

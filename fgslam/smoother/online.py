@@ -19,10 +19,9 @@ from gtsam.symbol_shorthand import L, T, X
 from ekf.models import (
     motion_jacobians,
     predict_pose,
-    range_bearing,
     range_bearing_jacobians,
     range_bearing_nis,
-    wrap_angle,
+    range_nis,
 )
 from fgslam.smoother.chain import OdometryChain
 from fgslam.smoother.factors import odometry_noise_covariance
@@ -95,11 +94,22 @@ class OnlinePose:
         step path): the correction's steps replayed as a full EKF over the pose and the
         landmarks it used, from iSAM2's joint marginal of its newest pose and those
         landmarks, so the landmarks' uncertainty and their correlation with the pose count
-        (the correction itself takes them as known)."""
+        (the correction itself takes them as known).
+
+        The replay is linearised where that joint marginal is: at iSAM2's linearisation
+        point, not at its estimate. The two differ by up to a relinearisation threshold,
+        and the joint's thin directions (a landmark seen a moment ago from the newest pose,
+        to a few mm) are thin along the old geometry: a reading's Jacobian at the estimate
+        cuts across them and reads information that is not there (a replayed live run:
+        heading σ 0.003 rad against a 0.04 rad error, NEES up to 4 000). For the same reason
+        the replay stays on the prediction from there (the linearisation point's pose ⊕ the
+        odometry): moving its mean by the readings would turn the Jacobians again."""
         ids = list(dict.fromkeys(lid for _, _, used in self._since for lid, *_ in used))
         x_key = X(self._since_chain.start)
         joint = isam.jointMarginalCovariance(gtsam.KeyVector([x_key] + [L(i) for i in ids]))
-        anchor = self._anchor
+        linearisation = isam.getLinearizationPoint()
+        anchor = linearisation.atPose2(x_key)
+        landmark_at = {lid: np.asarray(linearisation.atPoint2(L(lid)), dtype=float) for lid in ids}
         n = 3 + 2 * len(ids)
         J = np.eye(n)
         J[:3, :3] = body_to_world(anchor.theta())
@@ -120,17 +130,14 @@ class OnlinePose:
             P[:3, :] = F @ P[:3, :]
             P[:, :3] = P[:, :3] @ F.T
             P[:3, :3] += G @ np.asarray(odo.covariance) @ G.T
-            for lid, landmark_xy, range_m, bearing_rad, R in used:
-                H_pose, H_landmark = range_bearing_jacobians(mean, landmark_xy)
+            for lid, _, _, _, R in used:  # linearised along the prediction (docstring)
+                H_pose, H_landmark = range_bearing_jacobians(mean, landmark_at[lid])
                 H = np.zeros((2, n))
                 H[:, :3] = H_pose
                 c = column[lid]
                 H[:, c : c + 2] = H_landmark
                 S = H @ P @ H.T + np.asarray(R)
                 K = P @ H.T @ np.linalg.inv(S)
-                predicted_range, predicted_bearing = range_bearing(mean, landmark_xy)
-                nu = np.array([range_m - predicted_range, wrap_angle(bearing_rad - predicted_bearing)])
-                mean = mean + (K @ nu)[:3]
                 P = P - K @ S @ K.T
                 P = 0.5 * (P + P.T)
         return P[:3, :3]
@@ -142,7 +149,7 @@ class OnlinePose:
             return out
         wanted = [
             (j, o) for j, o in enumerate(step.observations)
-            if o.landmark_id is not None and not o.range_only and o.landmark_id not in tag_ids
+            if o.landmark_id is not None and o.landmark_id not in tag_ids
             and isam.valueExists(L(o.landmark_id))
         ]
         if not wanted:
@@ -173,6 +180,9 @@ class OnlinePose:
             cov[3:, :3] = cov[:3, 3:].T
             cov[3:, 3:] = joint.at(key, key)
             landmark = isam.calculateEstimatePoint2(key)
+            if o.range_only:  # a ranging radio: 1 degree of freedom
+                out[j] = range_nis(mean, landmark, cov, o.range_m, o.sigma_range_m)
+                continue
             out[j] = range_bearing_nis(
                 mean, landmark, cov, o.range_m, o.bearing_rad, np.diag([o.sigma_range_m**2, o.sigma_bearing_rad**2])
             )

@@ -15,8 +15,9 @@ gave ground truth. The gtsam wheel ships both runs in its ``Data`` folder:
 
 The conversion
 --------------
-* **Start**: pose 0 is the first ``GT`` row (time, position, heading), pinned with σ = 1e-3:
-  the world frame is the GPS frame and ATE is measured against GPS without alignment.
+* **Start**: pose 0 is at the first ``GT`` row's time and position, pinned with σ = 1e-3 m
+  (heading: below): the world frame is the GPS frame and ATE is measured against GPS
+  without alignment.
 * **Odometry**: each DR interval ``(Δs, Δθ)`` becomes the arc increment of
   :func:`slamio.geometry.arc_increment` (within 1 % of other integrations' ATE against GPS:
   arc 1.93 m, heading-first 1.90 m, move-first 1.97 m over Plaza1). A range that arrives
@@ -26,15 +27,21 @@ The conversion
   whose GT heading equals the DR heading): per piece of duration Δt,
   ``var(Δs) = (0.05·Δs)² + 0.02² m²/s·Δt``, ``var(Δθ) = (0.05·Δθ)² + 0.005² rad²/s·Δt``,
   mapped through the arc Jacobian, plus ``0.02² m²/s·Δt`` on x and y (sideways slip)
-  (:class:`OdometryNoise`; docs/datasets.md shows how the ATE moves with looser and
-  tighter settings). The time-proportional parts keep a standing robot's covariance
+  (:class:`OdometryNoise`). The time-proportional parts keep a standing robot's covariance
   positive definite and make the total independent of how an interval is split.
 * **Ranges** (sorted by time: the shipped TD files have blocks out of order): range-only observations (no bearing) of landmark ``receiver_id``, with
-  ``range_m − range_bias_m`` and ``sigma_range_m`` (defaults 0 and 1.5 m). Measured against
-  GPS truth (GT interpolated at each range time): the ranges read long by a median of
-  2.84 m (Plaza1) and 2.80 m (Plaza2) with a robust spread (1.4826·MAD) of 1.22 m and
-  1.77 m. Pass ``range_bias_m=2.8`` to remove the bias; the defaults do not use the truth.
+  ``range_m − range_bias_m`` and ``sigma_range_m`` (defaults 0 and 1.5 m), or, with
+  ``range_model`` (``fgslam calibrate`` on the other run), corrected by that model
+  (:func:`slamio.noise_model.correct_range`). Measured against GPS truth (GT interpolated
+  at each range time): ``measured = 1.069·distance + 0.03 m`` with white noise σ 0.54 m
+  (Plaza1; Plaza2 1.070, 0.01 m, 0.56 m): a 7 % scale, which at the plaza's typical 40 m
+  reads as a median offset of 2.84 m (2.80 m). The defaults do not use the truth.
   A range before the first DR time belongs to pose 0; ranges after the last are dropped.
+* **Start heading**: GPS gives no heading (Plaza1's ``GT`` heading is its dead-reckoned one), and
+  with unsurveyed beacons nothing else fixes the rotation of the whole solution about the
+  start; the start heading is the one that turns the dead-reckoned path onto the first
+  20 m of GPS track (:func:`gps_start_heading_rad`), σ 0.05 rad, and every ``GT`` heading
+  is turned by the same angle.
 * **Heading of the truth**: Plaza2's ``GT`` heading points backwards — the direction of
   travel is 3.08 rad (median) from it, against −0.016 rad in Plaza1 — so it is turned by π
   whenever that median exceeds π/2 (:func:`gt_heading_offset_rad`; the header's source
@@ -59,8 +66,9 @@ from slamio.datasets.victoria_park import DatasetFormatError
 from slamio.errors import FgslamError
 from slamio.geometry import arc_increment, arc_increment_jacobian, wrap_angle
 from slamio.log import Header, Observation, Odometry, Record, TruthLandmark, TruthPose
+from slamio.noise_model import NoiseModel, NoiseModelError, correct_range
 
-__all__ = ["import_plaza", "plaza_files", "PLAZA_RUNS", "odometry_covariance", "OdometryNoise"]
+__all__ = ["import_plaza", "plaza_files", "PLAZA_RUNS", "odometry_covariance", "OdometryNoise", "gps_start_heading_rad"]
 
 PLAZA_RUNS = ("plaza1", "plaza2")
 START_SIGMA = (1e-3, 1e-3, 1e-3)
@@ -174,6 +182,56 @@ def gt_heading_offset_rad(gt: np.ndarray, min_step_m: float = 0.05) -> float:
     return float(np.median(wrap_angle(travel - gt[1:, 3][moving])))
 
 
+def _observation_noise(range_sigma_m: float, range_bias_m: float, range_model: NoiseModel | None) -> dict:
+    """The header's ``noise.observation``: the fitted range model when one was applied."""
+    if range_model is None:
+        return {"model": "range-only, constant sigma", "sigma_range_m": range_sigma_m,
+                "range_bias_removed_m": range_bias_m,
+                "measured_against_gps": "measured = 1.069 x distance + 0.03 m, white sigma 0.54 m (Plaza1; Plaza2 "
+                                        "1.070, 0.01 m, 0.56 m): fgslam calibrate, then import --noise (docs/datasets.md)"}
+    o = range_model.observation
+    return {"model": "range-only readings corrected by slamio.noise_model.correct_range (fitted model)",
+            "range_scale": o.range_scale, "range_bias_m": o.range_bias_m, "range_sigma_m": o.range_sigma_m,
+            "range_sigma_per_m": o.range_sigma_per_m, "outlier_rate": o.outlier_rate,
+            "correlated_share": o.correlated_share, "correlation_time_s": o.correlation_time_s,
+            "fitted_on": list(range_model.fitted_on),
+            "odometry_part": "not applied (Plaza1's GPS heading is its dead-reckoned heading)"}
+
+
+#: Length of the GPS track over which the start heading is measured (:func:`gps_start_heading_rad`).
+START_HEADING_TRACK_M = 20.0
+#: σ of that start heading: it moves by 2 degrees between the first 10 m and 20 m of track.
+START_HEADING_SIGMA_RAD = 0.05
+
+
+def gps_start_heading_rad(gt: np.ndarray, dr: np.ndarray, track_m: float = START_HEADING_TRACK_M) -> float:
+    """The start heading that turns the dead-reckoned path onto the GPS track.
+
+    The dead reckoning (``dr`` rows ``time_s, Δs, Δθ``, arc model) is integrated from the
+    first GPS position with heading ``gt[0, 3]``; over the GPS poses within ``track_m`` of
+    travel from the start (``gt`` row k + 1 is at ``dr`` row k's time), the rotation about the
+    start that best fits the dead-reckoned positions to the GPS ones (least squares) is
+    added to that heading. Plaza's ``GT`` heading is no measurement of the start heading
+    (Plaza1's is its dead-reckoned heading), and with ranges to beacons whose positions are
+    unknown nothing else fixes the rotation of the whole solution about the start."""
+    x = y = 0.0
+    theta = float(gt[0, 3])
+    path = []
+    for _, distance, angle in dr:
+        dx, dy, dth = arc_increment(float(distance), float(angle))
+        c, s = math.cos(theta), math.sin(theta)
+        x, y, theta = x + c * dx - s * dy, y + s * dx + c * dy, theta + dth
+        path.append((x, y))
+    gps = gt[1 : len(path) + 1, 1:3] - gt[0, 1:3]
+    a = np.asarray(path)[: len(gps)]
+    travelled = np.r_[0.0, np.cumsum(np.hypot(*np.diff(gt[: len(gps) + 1, 1:3], axis=0).T))][1:]
+    n = max(int(np.searchsorted(travelled, track_m)), 2)
+    a, b = a[:n], gps[:n]
+    rotation = math.atan2(float(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])),
+                          float(np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1])))
+    return float(wrap_angle(float(gt[0, 3]) + rotation))
+
+
 def import_plaza(
     run: str = "plaza1",
     folder: str | os.PathLike[str] | None = None,
@@ -181,10 +239,17 @@ def import_plaza(
     range_sigma_m: float = DEFAULT_RANGE_SIGMA_M,
     range_bias_m: float = 0.0,
     odometry_noise: OdometryNoise = OdometryNoise(),
+    range_model: NoiseModel | None = None,
 ) -> tuple[Header, list[Record]]:
-    """Convert Plaza1 or Plaza2 into ``(header, records)`` (see the module docstring)."""
+    """Convert Plaza1 or Plaza2 into ``(header, records)`` (see the module docstring).
+
+    With ``range_model`` (``fgslam calibrate`` on the *other* run) every range is corrected
+    by its observation model (:func:`slamio.noise_model.correct_range`: scale, bias and σ),
+    instead of ``range_bias_m`` and ``range_sigma_m``; its odometry part is not used."""
     if not (range_sigma_m > 0 and math.isfinite(range_sigma_m)):
         raise FgslamError(f"range sigma must be > 0 m, got {range_sigma_m}")
+    if range_model is not None and range_bias_m != 0.0:
+        raise FgslamError("give a range model (--noise) or a range bias, not both")
     dr_path, td_path, mat_path = plaza_files(run, folder)
     dr = _read_table(dr_path, ("time_s", "delta_distance_m", "delta_heading_rad"))
     # the shipped TD files have blocks out of time order (Plaza1 line 1989 goes back 64 s): sort
@@ -195,7 +260,11 @@ def import_plaza(
         gt = gt.copy()
         gt[:, 3] = wrap_angle(gt[:, 3] + math.pi)
     t_start = float(gt[0, 0])
-    start_pose = (float(gt[0, 1]), float(gt[0, 2]), wrap_angle(float(gt[0, 3])))
+    start_heading = gps_start_heading_rad(gt, dr)
+    gt_heading_turn = float(wrap_angle(start_heading - float(gt[0, 3])))
+    gt = gt.copy()
+    gt[:, 3] = wrap_angle(gt[:, 3] + gt_heading_turn)  # the truth's headings start where pose 0 does
+    start_pose = (float(gt[0, 1]), float(gt[0, 2]), start_heading)
 
     records: list[Record] = [
         TruthLandmark(landmark_id=int(b[0]), x_m=float(b[1]), y_m=float(b[2])) for b in tl
@@ -208,11 +277,16 @@ def import_plaza(
 
     def observe(t: float, receiver: int, range_m: float) -> None:
         nonlocal skipped_short
-        value = range_m - range_bias_m
+        value, sigma = range_m - range_bias_m, range_sigma_m
+        if range_model is not None:
+            try:
+                value, sigma = correct_range(range_model.observation, range_m)
+            except NoiseModelError:
+                value = 0.0
         if value <= 0:
             skipped_short += 1
             return
-        records.append(Observation(t, receiver, value, None, range_sigma_m, None))
+        records.append(Observation(t, receiver, value, None, sigma, None))
 
     while j < len(ranges) and ranges[j][0] <= t_start:  # ranges before the first motion: pose 0
         observe(*ranges[j])
@@ -247,7 +321,7 @@ def import_plaza(
     header = Header(
         stamp_s=t_start,
         start_pose=start_pose,
-        start_sigma=START_SIGMA,
+        start_sigma=(START_SIGMA[0], START_SIGMA[1], START_HEADING_SIGMA_RAD),
         robot={"name": f"CMU {run.capitalize()} robot (Djugash & Singh, ranging radios)", "drive": "differential",
                "note": "dead reckoning given as (time, delta distance, delta heading) per interval"},
         sensor={"kind": "range-only", "landmark_kind": "radio beacon",
@@ -256,13 +330,13 @@ def import_plaza(
             "odometry": {"model": "arc increment; var(ds) = (k_distance ds)^2 + distance_m2_per_s dt, "
                                   "var(dtheta) = (k_heading dtheta)^2 + heading_rad2_per_s dt through the arc "
                                   "Jacobian, plus sideways_m2_per_s dt on x and y", **asdict(odometry_noise)},
-            "observation": {"model": "range-only, constant sigma", "sigma_range_m": range_sigma_m,
-                            "range_bias_removed_m": range_bias_m,
-                            "measured_against_gps": "median bias 2.84 m / 2.80 m, spread 1.22 m / 1.77 m "
-                                                    "(Plaza1 / Plaza2)"},
+            "observation": _observation_noise(range_sigma_m, range_bias_m, range_model),
         },
         source={"dataset": run, "files": [str(dr_path), str(td_path), str(mat_path)], "sha256": digest,
-                "converted_by": "fgslam import " + run, "gt_heading_turned_by_pi": flipped, "ranges_after_last_odometry_dropped": dropped_late,
+                "converted_by": "fgslam import " + run, "gt_heading_turned_by_pi": flipped,
+                "start_heading": f"from the GPS track's first {START_HEADING_TRACK_M:g} m (the dead reckoning "
+                                 f"turned onto it): {start_heading:.4f} rad; every GT heading turned by "
+                                 f"{gt_heading_turn:+.4f} rad to match", "ranges_after_last_odometry_dropped": dropped_late,
                 "ranges_not_positive_after_bias_dropped": skipped_short},
     )
     return header, records

@@ -9,6 +9,6 @@ quote them.
 from __future__ import annotations
 
 from doc_numbers.quotes import Quote
-from doc_numbers.registry import camera, estimators, readme, seeds
+from doc_numbers.registry import camera, estimators, plaza, readme, seeds
 
-QUOTES: list[Quote] = [*readme.QUOTES, *seeds.QUOTES, *estimators.QUOTES, *camera.QUOTES]
+QUOTES: list[Quote] = [*readme.QUOTES, *seeds.QUOTES, *estimators.QUOTES, *camera.QUOTES, *plaza.QUOTES]

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 from doc_numbers.quotes import Source
 from doc_numbers.sources.experiments import (MRCLAM6, SEED003, apriltag_photos, camera_accuracy, mrclam_dataset6,
-                                             real_corner_sigma, seed001_association, seed002_shapes, seed003_drives,
-                                             seed004_paths)
+                                             plaza_range_model, real_corner_sigma, seed001_association, seed002_shapes,
+                                             seed003_drives, seed004_paths)
 from doc_numbers.sources.runs import (ASSOCIATING, DEFAULT, OUTLIERS, PAPERS, ROBUST, against_truth, bundled,
-                                      check_smoothed, ekf_without_gate, flaw_costs, hidden_ids, monte_carlo_octagon,
+                                      check_smoothed, ekf_without_gate, flaw_costs, hidden_ids, live_replay, monte_carlo_octagon,
                                       seed_sweep, sim_then_run, trial_calibration, victoria_park)
 
 SOURCES = [
@@ -41,6 +41,10 @@ SOURCES = [
            against_truth("grid200_hidden", "grid", ASSOCIATING, landmarks=200, hide_ids=True)),
     Source("victoria-park", "fgslam import victoria-park vp.jsonl; fgslam run vp.jsonl --estimators "
            "ekf,isam2-fast,dead_reckoning", "slow", victoria_park),
+    Source("plaza", "python scripts/plaza_range_model.py (fgslam import plazaN --noise OTHER.json; fgslam run "
+           "--estimators ekf,isam2-fast,dead_reckoning)", "slow", plaza_range_model),
+    Source("live-replay", "fgslam run tests/data/live-sim/octagon.jsonl --estimators ekf,isam2 (NEES)", "cheap",
+           live_replay),
     Source("octagon-outliers-ekf-no-gate", "fgslam sim arena-octagon --seed 1 --outliers 0.1 "
            "--outlier-mode add; EkfSlam(known_id_gate_probability=None)", "cheap", ekf_without_gate),
     Source("mrclam6", "python scripts/bench_mrclam.py ../shared/data/mrclam/MRCLAM_Dataset6", "slow",

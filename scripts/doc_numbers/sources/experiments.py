@@ -167,3 +167,13 @@ def seed001_association(context: Context) -> dict:
 
 SEED001_SPACINGS = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0)
 SEED001_SCALES = (0.5, 1.0, 2.0, 4.0)
+
+
+def plaza_range_model(context: Context) -> dict:
+    """``scripts/plaza_range_model.py``'s measurement: each Plaza run under the other run's
+    fitted range model and under the default import (``results[(run, kind)][estimator]``:
+    ``fgslam run``'s metrics plus ``ate_aligned_m`` and ``rotation_deg``), the fitted
+    ``models``, their fit ``reports`` and the GT headings' ``turn_deg``."""
+    import plaza_range_model as script
+
+    return script.measure()

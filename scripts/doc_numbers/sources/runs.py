@@ -190,3 +190,23 @@ def victoria_park(context: Context) -> dict:
     metrics = compute_metrics(result.runs, result.reference, log_path=str(path))
     metrics["ekf-gated"] = compute_metrics([gated], result.reference, log_path=str(path))["ekf"]
     return metrics
+
+
+def live_replay(context: Context) -> dict:
+    """``tests/data/live-sim/octagon.jsonl`` (a lap of ``fgslam live --port sim``) replayed:
+    estimator → ``nees_mean`` and ``nees_max`` of its online poses against the log's truth."""
+    import numpy as np
+
+    from fgslam.compare import nees_over_truth
+    from fgslam.runner import ESTIMATORS, run_estimator, truth_trajectory
+    from slamio.log import read_log
+
+    log = read_log(context.root / "tests" / "data" / "live-sim" / "octagon.jsonl")
+    steps = log.steps()
+    truth, has = truth_trajectory(steps)
+    out = {}
+    for name in ("ekf", "isam2"):
+        run, _ = run_estimator(ESTIMATORS[name](log.header), steps)
+        nees = nees_over_truth(run.online, run.online_covariances, truth, has)
+        out[name] = {"nees_mean": float(np.mean(nees)), "nees_max": float(np.max(nees))}
+    return out
