@@ -8,6 +8,7 @@ from doc_numbers.quotes import Context
 
 MRCLAM6 = "data/mrclam/MRCLAM_Dataset6"  # under the shared data folder
 SEED003 = "data/seed003"
+RGBD_REAL = "data/rgbd-real"
 
 
 def camera_accuracy(context: Context) -> dict[str, list[str]]:
@@ -167,3 +168,18 @@ def seed001_association(context: Context) -> dict:
 
 SEED001_SPACINGS = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0)
 SEED001_SCALES = (0.5, 1.0, 2.0, 4.0)
+
+
+def colour_real(context: Context) -> dict[str, list[str]]:
+    """``scripts/bench_colour_real.py ../shared/data/rgbd-real``'s two tables (real clutter per
+    frame, composited cylinders per depth shift): first cell → the numbers of its row."""
+    import contextlib
+    import io
+
+    import bench_colour_real as script
+    from doc_numbers.readers import markdown_rows
+
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        script.main([str(context.shared / RGBD_REAL)])
+    return markdown_rows(printed.getvalue())
