@@ -25,7 +25,7 @@ from slamio.camera.colour import (
     linear_bearing_error_rad,
     measure_blob,
 )
-from slamio.camera.colour_checks import colour_rows_past, rim_arc_rows, row_extents, rows_outside_body
+from slamio.camera.colour_checks import colour_rows_past, rim_arc_rows, rows_outside_body
 from slamio.camera.detect import FrontEnd, FrontEndConfig
 from slamio.camera.sources import Frame
 from slamio.camera.model import T_robot_camera_from_mount, kinect_v1_default
