@@ -49,6 +49,10 @@ from slamio.camera.tag_union import read_union, score_against_union  # noqa: E40
 DEFAULT_PHOTOS = Path(__file__).resolve().parents[1] / "tests" / "data" / "apriltag-photos"
 FIRST_PASS = dict(backend="apriltag3", quad_decimate=1.0)  # decimate 1, no upsampling: the reference for times
 ARUCO_PASS = dict(backend="aruco", aruco_refinement="none", aruco_window_px=3, aruco_min_perimeter=0.1)
+# AprilTag 3's quad thresholds: no threshold in 4x4 tiles of less contrast, quads of fewer edge pixels dropped
+QUADS_20 = dict(min_white_black_diff=20, min_cluster_pixels=40)
+QUADS_40 = dict(min_white_black_diff=40, min_cluster_pixels=40)  # the front-end's enlarged pass
+QUADS_60 = dict(min_white_black_diff=60, min_cluster_pixels=60)
 
 CONFIGS = [
     ("apriltag3 decimate 1, refine_edges off (single pass)", [FIRST_PASS]),
@@ -67,8 +71,14 @@ CONFIGS = [
     ("cv2.aruco, one 3 px window, perimeter >= 0.1", [ARUCO_PASS]),
     ("apriltag3 first pass + cv2.aruco 3 px", [FIRST_PASS, ARUCO_PASS]),
     ("apriltag3 upsampled 1.5x + cv2.aruco 3 px", [dict(upsample=1.5), ARUCO_PASS]),
-    ("apriltag3 upsampled 1.75x + cv2.aruco 3 px (front-end)", [dict(upsample=1.75), ARUCO_PASS]),
+    ("apriltag3 upsampled 1.75x + cv2.aruco 3 px", [dict(upsample=1.75), ARUCO_PASS]),
     ("apriltag3 upsampled 2x + cv2.aruco 3 px", [dict(upsample=2.0), ARUCO_PASS]),
+    ("apriltag3 upsampled 1.75x, white-black 20, cluster 40", [dict(upsample=1.75, **QUADS_20)]),
+    ("apriltag3 upsampled 1.75x, white-black 40, cluster 40", [dict(upsample=1.75, **QUADS_40)]),
+    ("apriltag3 upsampled 1.75x, white-black 60, cluster 60", [dict(upsample=1.75, **QUADS_60)]),
+    ("apriltag3 upsampled 1.75x, white-black 40, cluster 40 + cv2.aruco 3 px (front-end)",
+     [dict(upsample=1.75, **QUADS_40), ARUCO_PASS]),
+    ("apriltag3 upsampled 2x, white-black 40, cluster 40 + cv2.aruco 3 px", [dict(upsample=2.0, **QUADS_40), ARUCO_PASS]),
 ]
 
 
@@ -141,8 +151,12 @@ def front_end_tags(front: FrontEnd, frames) -> int:
     return sum(len(front.process(Frame(0.0, 0, "bench", cv2.cvtColor(g, cv2.COLOR_GRAY2BGR))).tags) for g in frames)
 
 
-def ms(times):
-    return f"{1e3 * np.median(times):5.1f} (p90 {1e3 * np.percentile(times, 90):5.1f})"
+def ms(times, repeats=1):
+    """Median (90th percentile, worst frame) in ms; ``times`` run frame by frame, ``repeats`` each
+    (a frame's time is the median of its runs)."""
+    per_frame = np.median(np.asarray(times).reshape(-1, repeats), axis=1)
+    return (f"{1e3 * np.median(per_frame):5.1f} (p90 {1e3 * np.percentile(per_frame, 90):5.1f}, "
+            f"worst {1e3 * per_frame.max():5.1f})")
 
 
 def accuracy_columns(detector, images, listed, paths, union, rendered):
@@ -178,7 +192,8 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--photos", default=str(DEFAULT_PHOTOS), help="the apriltag-photos folder")
     parser.add_argument("--repeats", type=int, default=3, help="timed runs per frame (default 3)")
-    parser.add_argument("--only", default="", help="run only configurations whose name contains this")
+    parser.add_argument("--only", default="", help="run only configurations whose name contains this (or one of "
+                        "these, comma-separated)")
     args = parser.parse_args(argv)
     photos = Path(args.photos)
     nasa = sorted(photos.glob("nasa_*.jpg"))
@@ -202,7 +217,7 @@ def main(argv=None) -> int:
     print("-" * len(header))
     first_pass = AprilTagDetector(**FIRST_PASS)
     for name, settings in CONFIGS:
-        if args.only not in name:
+        if not any(part in name for part in args.only.split(",")):
             continue
         detector = TagPasses([AprilTagDetector(**s) for s in settings])
         score, reference, n_rendered, errors = accuracy_columns(detector, nasa_grey, listed, nasa, union, rendered)
@@ -211,7 +226,7 @@ def main(argv=None) -> int:
         print(f"{name:52} {score.found:>2}/{score.counted:<3} {len(unlisted):>6} {reference.found:>4}/{reference.listed:<4} "
               f"{reference.max_corner_error_px:5.2f}/{reference.mean_corner_error_px:.2f}  "
               f"{n_rendered:>10}/{len(rendered)} {errors.max():5.2f}/{errors.mean():.2f} px   "
-              f"{ms(mine)} | {ms(ref)} | {np.median(mine) / np.median(ref):.2f}", flush=True)
+              f"{ms(mine, args.repeats)} | {ms(ref, args.repeats)} | {np.median(mine) / np.median(ref):.2f}", flush=True)
         for image_name, tag_id, centre in unlisted:
             print(f"{'':8}not in the union: {image_name} id {tag_id} at ({centre[0]:.1f}, {centre[1]:.1f})")
         if score.found_other:
@@ -228,13 +243,30 @@ def main(argv=None) -> int:
         print(f"  rendered, {label} + refine_tag_corners: {n_rendered}/{len(rendered)} found, corner error against the "
               f"truth max {errors.max():.2f} px, mean {errors.mean():.2f} px, 95 % {np.percentile(errors, 95):.2f} px")
 
+    print("\nthe front-end detector's passes by kind of frame, CPU ms per 640×480 frame, median (worst), and the "
+          "single pass on the same frames:")
+    n_robot = len(sorted(photos.glob("pupil_*.png")))
+    groups = (("robot-camera photos", small[:n_robot]), ("NASA crops", small[n_robot:]))
+    for group, frames in groups:
+        cells = []
+        for label, detect in [*((f"pass {k + 1}", d.detect) for k, d in enumerate(detector.detectors)),
+                              ("both", detector.detect)]:
+            mine, ref = cpu_times(detect, first_pass.detect, frames, args.repeats)
+            per_frame = np.median(mine.reshape(-1, args.repeats), axis=1)
+            ref_frame = np.median(ref.reshape(-1, args.repeats), axis=1)
+            cells.append(f"{label} {1e3 * np.median(per_frame):.1f} ({1e3 * per_frame.max():.1f}), "
+                         f"{np.median(mine) / np.median(ref):.2f}x")
+        print(f"  {group} ({len(frames)}): " + "; ".join(cells) +
+              f"; single pass {1e3 * np.median(ref_frame):.1f} ({1e3 * ref_frame.max():.1f})")
+
     print("\nwhole front-end per frame (detect, refine, IPPE pose, robot-frame geometry), 640×480, CPU:")
     front = FrontEnd(kinect_v1_default(), FrontEndConfig(kind="apriltag", tag_size_m=0.16))
     count = front_end_tags(front, small)
     bgr = [cv2.cvtColor(g, cv2.COLOR_GRAY2BGR) for g in small]
     mine, ref = cpu_times(lambda image: front.process(Frame(0.0, 0, "bench", image)),
                           lambda image: first_pass.detect(cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)), bgr, args.repeats)
-    print(f"  {ms(mine)} ms over {len(small)} frames with {count} tags in all; first pass alone {ms(ref)} ms")
+    print(f"  {ms(mine, args.repeats)} ms over {len(small)} frames with {count} tags in all; first pass alone "
+          f"{ms(ref, args.repeats)} ms")
     return 0
 
 

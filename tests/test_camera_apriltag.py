@@ -292,3 +292,20 @@ def test_aruco_backend_for_comparison():
     image[70:230, 70:230] = cv2.aruco.generateImageMarker(dictionary, 42, 160)
     (d,) = AprilTagDetector(backend="aruco").detect(image)
     assert d.tag_id == 42 and np.abs(d.corners_px - [[69.5, 69.5], [229.5, 69.5], [229.5, 229.5], [69.5, 229.5]]).max() < 1.0
+
+
+def test_quad_thresholds_are_set_in_the_library_detector_only_for_the_enlarged_pass():
+    import ctypes
+
+    from slamio.camera.apriltag import QUAD_THRESHOLD_DEFAULTS, _quad_threshold_struct
+    from slamio.camera.tag_passes import ENLARGED_MIN_CLUSTER_PIXELS, ENLARGED_MIN_WHITE_BLACK_DIFF
+
+    def thresholds(detector):
+        head = ctypes.cast(detector._detector.tag_detector_ptr, ctypes.POINTER(_quad_threshold_struct())).contents
+        return head.qtp.min_white_black_diff, head.qtp.min_cluster_pixels, head.qtp.max_nmaxima
+
+    enlarged = front_end_detector().detectors[0]
+    assert thresholds(enlarged) == (ENLARGED_MIN_WHITE_BLACK_DIFF, ENLARGED_MIN_CLUSTER_PIXELS, 10)
+    native = front_end_detector(upsample=1.0).detectors[0]
+    assert thresholds(native) == (QUAD_THRESHOLD_DEFAULTS["min_white_black_diff"],
+                                  QUAD_THRESHOLD_DEFAULTS["min_cluster_pixels"], 10)

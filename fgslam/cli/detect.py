@@ -372,7 +372,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
                         help="AprilTag quad_decimate (default 1.0: finds small tags; 2.0 is faster)")
     detect.add_argument("--tag-upsample", type=float, default=1.75, metavar="F",
                         help="AprilTag 3 sees the image enlarged F times (default 1.75: finds 11-17 px and oblique "
-                        "tags; 1 is about 2.5x faster, 2 finds a few more)")
+                        "tags; 1 is a little faster and finds fewer, 2 finds a few more)")
     detect.add_argument("--tag-second-pass", choices=("aruco", "none"), default="aruco",
                         help="aruco (default): cv2.aruco adds tags AprilTag 3 missed; none: AprilTag 3 only")
     detect.add_argument("--threads", type=int, default=1, help="AprilTag detector threads (default 1)")

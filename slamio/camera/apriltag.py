@@ -324,6 +324,45 @@ def choose_tag_pose(
 # --------------------------------------------------------------------------- detector
 
 
+def _quad_threshold_struct():
+    """ctypes mirror of the head of AprilTag 3's C ``apriltag_detector`` up to its quad-threshold
+    parameters (``struct apriltag_quad_thresh_params qtp``), which pupil-apriltags does not expose."""
+    import ctypes
+
+    class QuadThresholds(ctypes.Structure):
+        _fields_ = [("min_cluster_pixels", ctypes.c_int), ("max_nmaxima", ctypes.c_int),
+                    ("critical_rad", ctypes.c_float), ("cos_critical_rad", ctypes.c_float),
+                    ("max_line_fit_mse", ctypes.c_float), ("min_white_black_diff", ctypes.c_int),
+                    ("deglitch", ctypes.c_int)]
+
+    class DetectorHead(ctypes.Structure):
+        _fields_ = [("nthreads", ctypes.c_int), ("quad_decimate", ctypes.c_float), ("quad_sigma", ctypes.c_float),
+                    ("refine_edges", ctypes.c_int), ("decode_sharpening", ctypes.c_double), ("debug", ctypes.c_int),
+                    ("qtp", QuadThresholds)]
+
+    return DetectorHead
+
+
+#: AprilTag 3's own defaults (apriltag.c), read back before anything is written.
+QUAD_THRESHOLD_DEFAULTS = {"min_cluster_pixels": 5, "max_nmaxima": 10, "max_line_fit_mse": 10.0,
+                           "min_white_black_diff": 5}
+
+
+def set_quad_thresholds(pupil_detector, min_white_black_diff: int, min_cluster_pixels: int) -> None:
+    """Set AprilTag 3's ``min_white_black_diff`` (grey levels between the darkest and brightest
+    pixel of a 4×4 tile for it to be thresholded at all) and ``min_cluster_pixels`` (edge pixels
+    of a quad candidate). The library's defaults are checked first, so a binding whose struct
+    layout differs raises :class:`TagDetectorError` instead of writing into the wrong field."""
+    import ctypes
+
+    head = ctypes.cast(pupil_detector.tag_detector_ptr, ctypes.POINTER(_quad_threshold_struct())).contents
+    found = {key: getattr(head.qtp, key) for key in QUAD_THRESHOLD_DEFAULTS}
+    if found != QUAD_THRESHOLD_DEFAULTS:
+        raise TagDetectorError(f"unexpected AprilTag detector layout ({found}); cannot set its quad thresholds")
+    head.qtp.min_white_black_diff = int(min_white_black_diff)
+    head.qtp.min_cluster_pixels = int(min_cluster_pixels)
+
+
 def _pupil_detector_class():
     """pupil_apriltags.Detector whose destructor frees the detector before its tag families.
 
@@ -363,6 +402,8 @@ class AprilTagDetector:
     given by ``aruco_window_px``, and candidates whose perimeter is at least
     ``aruco_min_perimeter`` × the image's larger side. ``upsample`` > 1 enlarges the image
     that many times (bilinear) before detection; corners are always in the given image's pixels.
+    ``min_white_black_diff`` and ``min_cluster_pixels`` are AprilTag 3's quad-threshold
+    parameters (:func:`set_quad_thresholds`; the library's defaults 5 and 5).
     """
 
     def __init__(
@@ -380,6 +421,8 @@ class AprilTagDetector:
         aruco_window_px: int | None = None,
         aruco_min_perimeter: float = 0.03,
         upsample: float = 1.0,
+        min_white_black_diff: int = 5,
+        min_cluster_pixels: int = 5,
     ):
         if backend not in BACKENDS:
             raise TagDetectorError(f"unknown AprilTag backend {backend!r}; use one of {', '.join(BACKENDS)}")
@@ -405,6 +448,8 @@ class AprilTagDetector:
                 )
             except Exception as exc:  # the binding raises a bare RuntimeError for an unknown family
                 raise TagDetectorError(f"cannot build an AprilTag detector for family {family!r}: {exc}") from None
+            if (min_white_black_diff, min_cluster_pixels) != (5, 5):
+                set_quad_thresholds(self._detector, min_white_black_diff, min_cluster_pixels)
         else:
             import cv2
 

@@ -52,7 +52,9 @@ Pipeline for one landmark colour (:class:`ColourSpec`)
    the floor, which needs the mount's height to be right; when it touches the top border
    there is no height (``height_cut_off``). Rows where the blob continues at another depth
    (something of its colour right above or below it) are not the landmark's
-   (:func:`_surface_rows`). ``height_method="gheight"`` is seed 002's
+   (:func:`_surface_rows`). When something of its colour continues an end so that neither
+   colour nor depth can place it well enough there is no height (``height_ambiguous``,
+   :func:`_ambiguous_end`). ``height_method="gheight"`` is seed 002's
    ``gHeight(d1, d2, pd)`` instead (:func:`gheight_seed002`), with d1, d2 read at the top
    and bottom rows as the seed does.
 
@@ -72,9 +74,13 @@ from slamio.camera.colour_checks import (
     SHAPES,
     STRAIGHT_SIDED,
     allowed_depth_deviation_m,
+    colour_rows_past,
     fill_ratio,
     outlier_fraction,
     relative_error,
+    rim_arc_rows,
+    row_extents,
+    rows_outside_body,
     shape_fits,
     uneven_row_fraction,
     width_from_silhouette_m,
@@ -154,6 +160,7 @@ class Blob:
     bottom: int  # inclusive
     area_px: int
     extra_blobs: int = 0  # other candidates of this colour that passed every check too
+    component: np.ndarray | None = None  # the colour component a depth cut took it from (None: itself)
 
     @property
     def width_px(self) -> int:
@@ -194,6 +201,7 @@ class ColourOptions:
     colours: tuple[ColourSpec, ...] = field(default=DEFAULT_COLOURS)
     size_tolerance: float = 0.35  # |measured width / landmark width − 1| at most
     height_tolerance: float = 0.15  # |measured height / landmark height − 1| at most
+    height_precision: float = 0.03  # no height when an end set by depth alone may be off by more (× height)
     depth_tolerance_m: float = 0.03  # body depth off the face by more than this + width/2 + 2 Kinect steps ...
     depth_outliers: float = 0.05  # ... in more than this fraction of the body: not one landmark
     uneven_rows: float = 0.08  # cylinders, rectangles: at most this fraction of rows wider/narrower than most
@@ -368,7 +376,7 @@ def split_by_depth(blob: Blob, depth_m: np.ndarray) -> list[Blob]:
         mask = np.zeros_like(blob.mask)
         mask[r0:r1, c0:c1] = labels == index
         parts.append(Blob(blob.colour, mask, c0 + int(x), r0 + int(y), c0 + int(x + w - 1), r0 + int(y + h - 1),
-                          int(area)))
+                          int(area), component=blob.mask if blob.component is None else blob.component))
     return sorted(parts, key=lambda b: -b.area_px) if len(parts) > 1 else [blob]
 
 
@@ -481,6 +489,8 @@ def measure_blob(blob: Blob, depth_m: np.ndarray, camera: CameraModel,
     else:
         top, bottom = _surface_rows(blob, depth_m, camera, face_m, allowed, options.erode_px)
         height, note = _height(blob, camera, face_m, spec.radius_m, top, bottom)
+        if height is not None and _ambiguous_end(blob, camera, face_m, top, bottom, spec.height_m or height, options):
+            height, note = None, "height_ambiguous"
     if height is not None and spec.height_m is not None:
         if abs(relative_error(height, spec.height_m)) > options.height_tolerance:
             return reject("height_mismatch", f"{height:.2f} m tall, the landmark is {spec.height_m:.2f} m")
@@ -549,6 +559,48 @@ def _height(blob: Blob, camera: CameraModel, face_m: float, radius_m: float, top
     if bottom >= camera.height_px - 1:
         return z_top, "top-above-floor"
     return z_top - z_at_horizontal_distance(origin, bottom_ray, face_m), "top-bottom"
+
+
+def _ambiguous_end(blob: Blob, camera: CameraModel, face_m: float, top: int, bottom: int, height_m: float,
+                   options: ColourOptions) -> str | None:
+    """Why the landmark's top or bottom row cannot be trusted, or None when both can.
+
+    - ``"outline"`` (cylinders): more rows between the straight-sided body and the end than its
+      rim arc (:func:`rim_arc_rows`) and one anti-aliased row: something of its colour at its
+      own depth continues it (a red toy standing on a red cylinder's top), so neither colour nor
+      depth tells where the landmark ends.
+    - ``"colour_continues"``: the landmark's colour goes on past the end, over at least a third of
+      the body's columns (:func:`colour_rows_past`), for more rows than the rim arc and one: the
+      end is where the depth changes, which a
+      misregistered depth image may put ``erode_px`` rows off; that is given up when those
+      rows are more than ``height_precision`` of the height at the landmark's distance.
+
+    The bottom is not looked at when the blob touches the image's bottom (the foot is out of view).
+    """
+    spec = blob.colour
+    left, right = row_extents(blob.mask[top : bottom + 1])
+    rows = left >= 0
+    widths = right[rows] - left[rows] + 1
+    col0, col1 = int(np.median(left[rows])), int(np.median(right[rows]))
+    T = camera.T_robot_camera
+    u_mid = 0.5 * (blob.left + blob.right)
+    rays = camera.rays_camera(np.array([[u_mid, top - 0.5], [u_mid, bottom + 0.5]])) @ T[:3, :3].T
+    arcs = [rim_arc_rows(camera.fy, z_at_horizontal_distance(T[:3, 3], ray, face_m) - T[2, 3], face_m,
+                         spec.radius_m) for ray in rays]
+    ends = [(top, -1, arcs[0])]
+    if bottom < camera.height_px - 1:
+        ends.append((bottom, 1, arcs[1]))
+    if spec.shape == "cylinder":
+        outside = rows_outside_body(widths)
+        if any(outside[k] > arc + 1 for k, (_, _, arc) in enumerate(ends)):
+            return "outline"
+    component = blob.mask if blob.component is None else blob.component
+    depth_uncertainty_m = options.erode_px * face_m / camera.fy
+    for row, step, arc in ends:
+        if colour_rows_past(component, row, step, col0, col1) > arc + 1:
+            if depth_uncertainty_m > options.height_precision * height_m:
+                return "colour_continues"
+    return None
 
 
 def _gheight(blob: Blob, band: np.ndarray, depth_m: np.ndarray, camera: CameraModel,

@@ -106,3 +106,50 @@ def z_at_horizontal_distance(origin: np.ndarray, ray: np.ndarray, distance_m: fl
     """Height of the point of the ray ``origin + t·ray`` that is ``distance_m`` away horizontally."""
     horizontal = math.hypot(float(ray[0]), float(ray[1]))
     return float(origin[2] + ray[2] * distance_m / max(horizontal, 1e-12))
+
+
+# --------------------------------------------------------------------------- where a landmark ends
+
+
+def row_extents(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Leftmost and rightmost column of each row of a mask (−1, −1 for an empty row)."""
+    filled = mask.any(axis=1)
+    left = np.where(filled, np.argmax(mask, axis=1), -1)
+    right = np.where(filled, mask.shape[1] - 1 - np.argmax(mask[:, ::-1], axis=1), -1)
+    return left, right
+
+
+def rim_arc_rows(fy_px: float, dz_m: float, face_m: float, radius_m: float) -> float:
+    """How many rows a cylinder's rim rises (or sinks) past its straight sides in the image.
+
+    A level camera sees the rim ``dz_m`` above (below) the lens as an arc: its apex, on the face
+    ``face_m`` away, is fy·dz/f from the horizon; the silhouette's sides touch the rim at depth
+    D − R²/D (D = f + R), fy·dz·D/(D² − R²) from it. The difference is fy·|dz|·R/(D² − R²):
+    12 rows for the top of a 0.8 m cylinder at 1 m with the lens at 0.3 m, under a row at 4 m.
+    """
+    distance = face_m + radius_m
+    return fy_px * abs(dz_m) * radius_m / max(distance * distance - radius_m * radius_m, 1e-12)
+
+
+def colour_rows_past(mask: np.ndarray, row: int, step: int, col0: int, col1: int, fraction: float = 1 / 3) -> int:
+    """How many rows of ``mask`` past ``row`` (walking by ``step``, ±1), without a gap, fill at least
+    ``fraction`` of columns ``col0``..``col1``: the landmark's colour continuing across that end
+    as wide as a body could (a thinner thing touching it — a picture frame's corner — cannot
+    be the landmark going on, and the colour alone tells where the landmark ends)."""
+    need = fraction * (col1 - col0 + 1)
+    count, v = 0, row + step
+    while 0 <= v < mask.shape[0] and mask[v, col0 : col1 + 1].sum() >= need:
+        count += 1
+        v += step
+    return count
+
+
+def rows_outside_body(widths: np.ndarray, min_px: float = 2.0, relative: float = 0.2) -> tuple[int, int]:
+    """Rows at the top and at the bottom of a silhouette (row widths, top to bottom) before its
+    first and after its last row as wide as the median row (within max(``min_px``, ``relative`` ×
+    median), as :func:`uneven_row_fraction`): a cylinder's are its rim arcs, a few rows at most."""
+    median = float(np.median(widths))
+    body = np.nonzero(np.abs(widths - median) <= max(min_px, relative * median))[0]
+    if len(body) == 0:
+        return len(widths), len(widths)
+    return int(body[0]), int(len(widths) - 1 - body[-1])

@@ -68,6 +68,7 @@ NOTES = {
     "height_cut_off": "a blob touching the image's top border: no height",
     "height_no_depth": "no depth at a blob's top edge: no height",
     "height_top_above_floor": "a blob cut at the image's bottom: height of its top above the floor",
+    "height_ambiguous": "a landmark whose top or bottom is continued by something of its colour: no height",
 }
 
 
@@ -365,7 +366,7 @@ class FrontEnd:
         for m in measured:
             if m.extra_blobs:
                 result.notes.append("extra_blobs")
-            if m.height_note in ("height_cut_off", "height_no_depth"):
+            if m.height_note in ("height_cut_off", "height_no_depth", "height_ambiguous"):
                 result.notes.append(m.height_note)
             elif m.height_note == "top-above-floor":
                 result.notes.append("height_top_above_floor")

@@ -17,6 +17,7 @@ it, ``fgslam tune-colours`` writes it. Every key but ``landmarks`` is optional::
     checks:
       size_tolerance: 0.35     # |measured width / width_m - 1| at most
       height_tolerance: 0.15   # |measured height / height_m - 1| at most
+      height_precision: 0.03   # no height when an end set by depth alone may be off by more (x height)
       depth_tolerance_m: 0.03  # body depth spread allowed beyond width/2 and the Kinect's steps
       depth_outliers: 0.05     # fraction of the body allowed outside that
       uneven_rows: 0.08        # cylinder, rectangle: fraction of rows allowed to stick out
@@ -43,6 +44,7 @@ from slamio.errors import FgslamError
 CHECK_KEYS = {
     "size_tolerance": float,
     "height_tolerance": float,
+    "height_precision": float,
     "depth_tolerance_m": float,
     "depth_outliers": float,
     "uneven_rows": float,

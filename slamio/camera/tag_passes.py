@@ -10,10 +10,16 @@ Measured on the NASA photos against every tag that any of eight detector set-ups
 - The same detector on the image **enlarged 1.75×** (bilinear) finds 51 (2×: 53), and
 - **cv2.aruco** with one 3-pixel adaptive-threshold window and candidates of at least a
   tenth of the image's side in perimeter — cheap: about a quarter of the first pass's time —
-  decodes tags on cube tops and sides that AprilTag 3 rejects at any scale. Together: 57 of
-  61 (2×: 59), none outside the union, at about 2.6× the CPU time of the single pass at the
-  camera's resolution (2×: 3.0×), which keeps a 640×480 frame within 40 ms on this project's
-  2-core machine when it is not shared.
+  decodes tags on cube tops and sides that AprilTag 3 rejects at any scale.
+- Enlarged, AprilTag 3's quad thresholds are raised (40 grey levels of tile contrast, 40 edge
+  pixels per candidate, :data:`ENLARGED_MIN_WHITE_BLACK_DIFF`): fine texture stops making
+  thousands of candidates, the pass costs 1.2–1.5× the single pass instead of 2.1–2.4× and
+  finds the same tags.
+
+Together: 57 of 61 (2×: 59), none outside the union, at 1.5–1.7× the CPU time of the single
+pass at the camera's resolution (2×: 2.0–2.1×): about 21 ms per 640×480 frame on the median
+frame of this project's shared 2-core machine, but 43–45 ms on tag-dense frames of gravel
+(2.6–2.7×), a third of it the aruco pass.
 
 Tags found by the first pass keep its corners; the second pass only adds tags whose centre is
 not within half a side of one already found. The front-end refines every tag's corners on the
@@ -55,16 +61,31 @@ def already_found(tag: TagDetection, other: TagDetection) -> bool:
     return float(np.linalg.norm(tag.centre_px - other.centre_px)) < 0.5 * other.side_px
 
 
+#: AprilTag 3's quad-threshold parameters for the enlarged pass (the library's defaults: 5, 5): tiles
+#: of less contrast than this are not thresholded, and quad candidates need this many edge pixels.
+#: Gravel, grass and carpet stop making thousands of candidates; the tags the pass finds stay.
+ENLARGED_MIN_WHITE_BLACK_DIFF = 40
+ENLARGED_MIN_CLUSTER_PIXELS = 40
+
+
 def front_end_detector(family: str = "tag36h11", *, upsample: float = 1.75, second_pass: str = "aruco",
                        quad_decimate: float = 1.0, refine_edges: bool = False, nthreads: int = 1) -> TagPasses:
     """The front-end's detector: AprilTag 3 on the image enlarged ``upsample`` times, then the second pass.
+
+    Enlarged, AprilTag 3 ignores low-contrast tiles and small quad candidates
+    (``ENLARGED_MIN_WHITE_BLACK_DIFF``, ``ENLARGED_MIN_CLUSTER_PIXELS``); at the camera's
+    resolution (``upsample`` 1) it keeps the library's defaults.
 
     The aruco pass needs OpenCV's dictionary of the family (tag36h11, tag36h10, tag25h9,
     tag16h5); for other families AprilTag 3 runs alone."""
     if second_pass not in SECOND_PASSES:
         raise TagDetectorError(f"unknown second pass {second_pass!r}; use one of {', '.join(SECOND_PASSES)}")
+    thresholds = {}
+    if upsample > 1.0:
+        thresholds = dict(min_white_black_diff=ENLARGED_MIN_WHITE_BLACK_DIFF,
+                          min_cluster_pixels=ENLARGED_MIN_CLUSTER_PIXELS)
     passes = [AprilTagDetector(family, quad_decimate=quad_decimate, refine_edges=refine_edges, nthreads=nthreads,
-                               upsample=upsample)]
+                               upsample=upsample, **thresholds)]
     if second_pass == "aruco" and family in ARUCO_DICTIONARIES:
         passes.append(AprilTagDetector(family, backend="aruco", aruco_refinement="none", aruco_window_px=3,
                                        aruco_min_perimeter=0.1))

@@ -23,7 +23,8 @@ ACCURACY_ROWS = (  # python -m slamio.camera.accuracy, row by row
 
 # bench_apriltag.CONFIGS names of the detectors the docs name in prose
 SINGLE = "apriltag3 decimate 1, refine_edges off (single pass)"
-CHOSEN = "apriltag3 upsampled 1.75x + cv2.aruco 3 px (front-end)"
+CHOSEN = "apriltag3 upsampled 1.75x, white-black 40, cluster 40 + cv2.aruco 3 px (front-end)"
+ENLARGED_ARUCO = "apriltag3 upsampled 1.75x + cv2.aruco 3 px"  # the same with the library's quad thresholds
 SINGLE_ARUCO = "apriltag3 first pass + cv2.aruco 3 px"
 TWICE_ARUCO = "apriltag3 upsampled 2x + cv2.aruco 3 px"
 
@@ -55,8 +56,17 @@ DETECTOR_ROWS = (  # camera.md's row up to its times, bench_apriltag.CONFIGS nam
     ("| cv2.aruco, one 3 px window, perimeter ≥ 0.1 × image side | 24 | 0 | 18 | 37/63, 1.06 / 0.75 px |",
      "cv2.aruco, one 3 px window, perimeter >= 0.1", COLUMNS),
     ("| single pass, then that aruco | 52 | 0 | 46 | 59/63 |", SINGLE_ARUCO, NO_CORNERS),
-    ("| **AprilTag 3 enlarged 1.75×, then that aruco (chosen)** | **57** | **0** | **45** | "
+    ("| AprilTag 3 enlarged 1.75×, then that aruco | 57 | 0 | 45 | 61/63, 0.46 / 0.26 px |", ENLARGED_ARUCO, COLUMNS),
+    ("| AprilTag 3 enlarged 1.75×, quad thresholds 20 / 40 | 51 | 0 | 45 | 61/63, 0.46 / 0.26 px |",
+     "apriltag3 upsampled 1.75x, white-black 20, cluster 40", COLUMNS),
+    ("| AprilTag 3 enlarged 1.75×, quad thresholds 40 / 40 | 51 | 0 | 45 | 61/63, 0.46 / 0.26 px |",
+     "apriltag3 upsampled 1.75x, white-black 40, cluster 40", COLUMNS),
+    ("| AprilTag 3 enlarged 1.75×, quad thresholds 60 / 60 | 51 | 0 | 45 | 61/63, 0.46 / 0.26 px |",
+     "apriltag3 upsampled 1.75x, white-black 60, cluster 60", COLUMNS),
+    ("| **AprilTag 3 enlarged 1.75×, quad thresholds 40 / 40, then that aruco (chosen)** | **57** | **0** | **45** | "
      "**61/63, 0.46 / 0.26 px** |", CHOSEN, COLUMNS),
+    ("| AprilTag 3 enlarged 2×, quad thresholds 40 / 40, then that aruco | 59 | 0 | 45 | 60/63, 0.42 / 0.19 px |",
+     "apriltag3 upsampled 2x, white-black 40, cluster 40 + cv2.aruco 3 px", COLUMNS),
     ("| AprilTag 3 enlarged 2×, then that aruco | 59 | 0 | 45 | 60/63, 0.42 / 0.19 px |", TWICE_ARUCO, COLUMNS),
     ("| AprilTag 3 enlarged 2×, then aruco with three windows | 60 | 0 | 46 | 61/63 |",
      "apriltag3 upsampled 2x + cv2.aruco", NO_CORNERS),
@@ -113,6 +123,22 @@ DETECTOR_PROSE = [
                                3: item(SINGLE, "listed"), 4: item(SINGLE, "reference_max")}),
 ]
 
+COLOUR_REAL_ROWS = (  # python scripts/bench_colour_real.py ../shared/data/rgbd-real, row by row
+    "| sequence/00000 | 1 | 0 | shape_mismatch 1 |",
+    "| sequence/00001 | 2 | 0 | shape_mismatch 2 |",
+    "| sequence/00002 | 1 | 0 | shape_mismatch 1 |",
+    "| sequence/00003 | 2 | 0 | blob_at_image_border 1, shape_mismatch 1 |",
+    "| sequence/00004 | 3 | 0 | shape_mismatch 2, blob_at_image_border 1 |",
+    "| TUM | 24 | 0 | shape_mismatch 22, blob_at_image_border 2 |",
+    "| SUN | 1 | 0 | shape_mismatch 1 |",
+    "| +0, +0 | 730/735 (99.3 %) | 0 | 0.40 % | 0.053° | 1.04 % | 0 | 2.34 % (689) |",
+    "| +2, +0 | 729/735 (99.2 %) | 0 | 0.53 % | 0.184° | 1.04 % | 0 | 2.21 % (690) |",
+    "| -2, +0 | 727/735 (98.9 %) | 0 | 0.53 % | 0.203° | 1.04 % | 0 | 2.46 % (688) |",
+    "| +0, +2 | 727/735 (98.9 %) | 0 | 0.40 % | 0.053° | 1.38 % | 0 | 2.37 % (686) |",
+    "| +0, -2 | 730/735 (99.3 %) | 0 | 0.40 % | 0.053° | 1.04 % | 0 | 2.34 % (683) |",
+    "| +2, +2 | 727/735 (98.9 %) | 0 | 0.53 % | 0.184° | 1.24 % | 0 | 2.34 % (686) |",
+)
+
 QUOTES: list[Quote] = [
     *[q for text in ACCURACY_ROWS for q in same_row(CAM, text, "camera-accuracy", "accuracy table")],
     *row(CAM, "(largest error 11.4–12.9 % per\n   distance at 1–4 m;", "camera-accuracy", "gHeight error range",
@@ -121,4 +147,5 @@ QUOTES: list[Quote] = [
          {0: lambda r: r[1], 1: lambda r: r[0]}),
     *[q for text, name, columns in DETECTOR_ROWS for q in detector_row(text, name, columns)],
     *DETECTOR_PROSE,
+    *[q for text in COLOUR_REAL_ROWS for q in same_row(CAM, text, "colour-real", "real RGB-D frames")],
 ]

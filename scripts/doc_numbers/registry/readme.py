@@ -227,8 +227,8 @@ CAMERA = [
          "  - cylinder range error ≤ 0.40 %, bearing ≤ 0.031°, height ≤ 1.24 %;", "camera-accuracy",
          "rendered-frame errors", {i: largest(column) for i, column in enumerate((3, 4, 8, 9, 10))}),
     *row(R, "of the 61 tags that any of", "apriltag-photos", "union", {0: item(CHOSEN, "counted")}),
-    *row(R, "finds 57 with no false detection", "apriltag-photos", "front-end", {0: item(CHOSEN, "union")}),
-    *row(R, "AprilTag 3 alone, which finds\n  46.", "apriltag-photos", "single pass", {1: item(SINGLE, "union")}),
+    *row(R, "finds 57\n  with no false detection", "apriltag-photos", "front-end", {0: item(CHOSEN, "union")}),
+    *row(R, "AprilTag 3 alone, which finds 46.", "apriltag-photos", "single pass", {1: item(SINGLE, "union")}),
     *row(R, "`--tag-upsample 1` finds 52", "apriltag-photos", "single pass + aruco", {1: item(SINGLE_ARUCO, "union")}),
 ]
 

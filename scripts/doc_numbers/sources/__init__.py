@@ -4,9 +4,9 @@ many quoted numbers it feeds (:mod:`doc_numbers.quotes`)."""
 from __future__ import annotations
 
 from doc_numbers.quotes import Source
-from doc_numbers.sources.experiments import (MRCLAM6, SEED003, apriltag_photos, camera_accuracy, mrclam_dataset6,
-                                             plaza_range_model, real_corner_sigma, seed001_association, seed002_shapes,
-                                             seed003_drives, seed004_paths)
+from doc_numbers.sources.experiments import (MRCLAM6, RGBD_REAL, SEED003, apriltag_photos, camera_accuracy,
+                                             colour_real, mrclam_dataset6, plaza_range_model, real_corner_sigma,
+                                             seed001_association, seed002_shapes, seed003_drives, seed004_paths)
 from doc_numbers.sources.runs import (ASSOCIATING, DEFAULT, OUTLIERS, PAPERS, ROBUST, against_truth, bundled,
                                       check_smoothed, ekf_without_gate, flaw_costs, hidden_ids, live_replay, monte_carlo_octagon,
                                       seed_sweep, sim_then_run, trial_calibration, victoria_park)
@@ -33,6 +33,8 @@ SOURCES = [
     Source("tag-corner-sigma", "slamio.camera.accuracy.real_corner_sigma_px(tests/data/apriltag-photos)", "cheap",
            real_corner_sigma),
     Source("apriltag-photos", "python scripts/bench_apriltag.py (accuracy columns)", "slow", apriltag_photos),
+    Source("colour-real", "python scripts/bench_colour_real.py ../shared/data/rgbd-real", "slow", colour_real,
+           shared=RGBD_REAL),
     Source("seed002-shapes", "python scripts/seed002_shapes.py", "slow", seed002_shapes),
     Source("grid200", f"fgslam sim grid --landmarks 200 --seed 1; fgslam run --estimators {DEFAULT},isam2-fast",
            "slow", sim_then_run("grid200", "grid", f"{DEFAULT},isam2-fast", landmarks=200)),

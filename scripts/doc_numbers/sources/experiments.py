@@ -8,6 +8,7 @@ from doc_numbers.quotes import Context
 
 MRCLAM6 = "data/mrclam/MRCLAM_Dataset6"  # under the shared data folder
 SEED003 = "data/seed003"
+RGBD_REAL = "data/rgbd-real"
 
 
 def camera_accuracy(context: Context) -> dict[str, list[str]]:
@@ -177,3 +178,18 @@ def plaza_range_model(context: Context) -> dict:
     import plaza_range_model as script
 
     return script.measure()
+
+
+def colour_real(context: Context) -> dict[str, list[str]]:
+    """``scripts/bench_colour_real.py ../shared/data/rgbd-real``'s two tables (real clutter per
+    frame, composited cylinders per depth shift): first cell → the numbers of its row."""
+    import contextlib
+    import io
+
+    import bench_colour_real as script
+    from doc_numbers.readers import markdown_rows
+
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        script.main([str(context.shared / RGBD_REAL)])
+    return markdown_rows(printed.getvalue())
