@@ -309,3 +309,17 @@ def test_quad_thresholds_are_set_in_the_library_detector_only_for_the_enlarged_p
     native = front_end_detector(upsample=1.0).detectors[0]
     assert thresholds(native) == (QUAD_THRESHOLD_DEFAULTS["min_white_black_diff"],
                                   QUAD_THRESHOLD_DEFAULTS["min_cluster_pixels"], 10)
+
+
+def test_a_binding_laid_out_otherwise_keeps_the_default_thresholds_with_a_warning(monkeypatch):
+    import slamio.camera.apriltag as apriltag
+
+    monkeypatch.setattr(apriltag, "QUAD_THRESHOLD_DEFAULTS", {**apriltag.QUAD_THRESHOLD_DEFAULTS, "max_nmaxima": 11})
+    with pytest.warns(RuntimeWarning, match="default quad thresholds"):
+        detector = apriltag.AprilTagDetector(min_white_black_diff=40, min_cluster_pixels=40)
+    assert not detector.quad_thresholds_set
+    import cv2
+
+    image = np.full((300, 300), 255, np.uint8)
+    image[70:230, 70:230] = cv2.aruco.generateImageMarker(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11), 7, 160)
+    assert [d.tag_id for d in detector.detect(image)] == [7]

@@ -42,6 +42,7 @@ counter-clockwise from the robot's x axis: a tag seen head-on has tag yaw π.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -448,8 +449,16 @@ class AprilTagDetector:
                 )
             except Exception as exc:  # the binding raises a bare RuntimeError for an unknown family
                 raise TagDetectorError(f"cannot build an AprilTag detector for family {family!r}: {exc}") from None
-            if (min_white_black_diff, min_cluster_pixels) != (5, 5):
-                set_quad_thresholds(self._detector, min_white_black_diff, min_cluster_pixels)
+            #: whether the quad thresholds asked for are in force (they only save time: with a
+            #: binding laid out otherwise the library's defaults stay, with a warning)
+            self.quad_thresholds_set = (min_white_black_diff, min_cluster_pixels) == (5, 5)
+            if not self.quad_thresholds_set:
+                try:
+                    set_quad_thresholds(self._detector, min_white_black_diff, min_cluster_pixels)
+                    self.quad_thresholds_set = True
+                except TagDetectorError as exc:
+                    warnings.warn(f"{exc}: AprilTag keeps its default quad thresholds (same tags, slower on "
+                                  "textured scenes)", RuntimeWarning, stacklevel=2)
         else:
             import cv2
 
