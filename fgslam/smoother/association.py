@@ -16,7 +16,11 @@ functions it calls) but on the smoother's own uncertainty:
 3. **JCBB** (:func:`ekf.association.jcbb`) over the step's observations, with the
    association gate ``gate_probability`` for the joint test and the wider new-landmark gate
    ``new_landmark_probability`` for the candidate pairs, exactly as ``EkfSlam`` does.
-4. An unpaired observation inside the new-landmark gate of some landmark is **rejected**
+   Then :func:`ekf.association.settle_pairing`, as in ``EkfSlam``: a landmark another
+   observation of the step is paired with is no candidate for the others (one frame sees a
+   landmark once), and an ambiguous pair (another free landmark within ``ambiguity_margin``
+   of its ``d²``: less than 100 times less likely) is dropped and rejected.
+4. An unpaired observation inside the new-landmark gate of some free landmark is **rejected**
    (ambiguous), and asked once more after the next update, from its pose's new estimate
    (:meth:`SmootherAssociation.retry_rejected`: the first re-observations of a loop
    closure can be outside the joint gate until the closure corrects the pose).
@@ -44,7 +48,8 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import L, X
 
-from ekf.association import DEFAULT_GATE_PROBABILITY, chi2_gate, jcbb, mahalanobis_squared
+from ekf.association import (DEFAULT_AMBIGUITY_MARGIN, DEFAULT_GATE_PROBABILITY, chi2_gate, jcbb, mahalanobis_squared,
+                             settle_pairing)
 from ekf.models import range_bearing, range_bearing_jacobians
 from ekf.slam import DEFAULT_NEW_LANDMARK_PROBABILITY
 from fgslam.smoother.chain import OdometryChain
@@ -136,12 +141,14 @@ class SmootherAssociation:
         confirm_gate: float = PENDING_GATE,
         max_wait_steps: int = MAX_WAIT_STEPS,
         min_sightings: int = MIN_SIGHTINGS,
+        ambiguity_margin: float | None = DEFAULT_AMBIGUITY_MARGIN,
     ):
         self.gate_probability = gate_probability
         self.new_landmark_probability = new_landmark_probability
         self.confirm_gate = confirm_gate
         self.max_wait_steps = max_wait_steps
         self.min_sightings = min_sightings
+        self.ambiguity_margin = ambiguity_margin
         self.waiting: list[list[FirstSighting]] = []  # groups of agreeing first sightings
         self.spread_m: dict[int, float] = {}  # created landmark → its point's spread when created
         self.held: dict[int, np.ndarray] = {}  # created, not yet in iSAM2 → its point
@@ -234,12 +241,14 @@ class SmootherAssociation:
             nu, H, R = association_problem(pose_world, P, [means[c] for c in candidates], obs)
             S = H @ P @ np.swapaxes(H, -1, -2) + R[:, None]
             d2 = mahalanobis_squared(nu, 0.5 * (S + np.swapaxes(S, -1, -2)))
-            near = (d2 <= chi2_gate(2, self.new_landmark_probability)).any(axis=1)
+            candidate = d2 <= chi2_gate(2, self.new_landmark_probability)
+            near = candidate.any(axis=1)
             if near.any():
                 result = jcbb(nu, H, P, R, probability=self.gate_probability,
                               candidate_probability=self.new_landmark_probability)
                 self.jcbb_nodes_max = max(self.jcbb_nodes_max, result.nodes)
-                pairing = [None if c is None else candidates[c] for c in result.pairing]
+                kept, near = settle_pairing(candidate, d2, result.pairing, self.ambiguity_margin)
+                pairing = [None if c is None else candidates[c] for c in kept]
         return pairing, near, points, spreads
 
     def retry_rejected(self, k: int, isam: gtsam.ISAM2, joint_marginal_at, known_points: list[int]):
