@@ -278,7 +278,7 @@ def settle_pairing(candidate, d2, pairing, margin: float | None = DEFAULT_AMBIGU
     ambiguous rather than made a new landmark (:func:`free_candidates`). A pair that is
     ambiguous (:func:`ambiguous_pairs`, ``margin``; None: no such test) is dropped and the
     observation rejected. Both rules matter only where landmarks stand closer together than
-    the gates are wide (MRCLAM's cylinders, 0.15–0.28 m apart in clusters): there the first
+    the gates are wide (MRCLAM's cylinders, 0.18–0.36 m apart in clusters): there the first
     sighting of a landmark's neighbour comes in the same frame as the landmark, and a reading
     that fits two neighbours nearly equally, once paired with the wrong one, pulls pose and map
     towards it so that the next readings go wrong too (docs/estimators.md).

@@ -155,6 +155,7 @@ class SmootherAssociation:
         self._keys: list[int | None] = []
         self._step_start = 0
         self.retry: list[FirstSighting] = []  # rejected observations to ask once more
+        self.unsettled: list[FirstSighting] = []  # asked once more, still rejected: asked at the end (settle)
         self.paired = self.created = self.rejected = self.unconfirmed = self.retried = 0
         self.jcbb_nodes_max = 0
 
@@ -257,11 +258,28 @@ class SmootherAssociation:
         a loop closure's first re-observations can fall outside the joint gate while the
         pose is still uncorrected, and the closure itself (the observations that did pair)
         corrects it. Returns ``(sighting, landmark id)`` for those that pair now; the others
-        stay rejected."""
+        stay rejected until :meth:`settle` asks them once more at the end of the run."""
         due = [r for r in self.retry if r.pose_index < k and isam.valueExists(X(r.pose_index))]
         if not due:
             return []
         self.retry = [r for r in self.retry if not any(r is d for d in due)]
+        out = self._associate_again(due, isam, joint_marginal_at, known_points)
+        paired = {id(r) for r, _ in out}
+        self.unsettled.extend(r for r in due if id(r) not in paired)
+        return out
+
+    def settle(self, isam: gtsam.ISAM2, joint_marginal_at, known_points: list[int]):
+        """The run is over: every observation still rejected is associated once more against
+        the whole map as it stands now (the deferred decision: a reading that fitted two
+        neighbouring landmarks nearly equally while the map was young can be told apart
+        once the map has settled), with the same gates and ambiguity margin. Returns
+        ``(sighting, landmark id)`` for those that pair now."""
+        due = [r for r in self.unsettled + self.retry if isam.valueExists(X(r.pose_index))]
+        self.unsettled, self.retry = [], []
+        return self._associate_again(due, isam, joint_marginal_at, known_points)
+
+    def _associate_again(self, due: list[FirstSighting], isam: gtsam.ISAM2, joint_marginal_at,
+                         known_points: list[int]):
         out = []
         for p in sorted({r.pose_index for r in due}):
             group = [r for r in due if r.pose_index == p]

@@ -18,6 +18,34 @@ def association_row(estimator: str, first: int, scenario: str | None = None, rej
     return {first + i: read if scenario is None else scene(scenario, read) for i, read in enumerate(reads)}
 
 
+def _mrclam_hidden(robot: int | None, estimator: str, read):
+    """One robot's value (``read(row)``), or (robot None) the median over the robots."""
+    from statistics import median
+
+    if robot is None:
+        return lambda r: median(read(r[k][estimator]) for k in r)
+    return lambda r: read(r[robot][estimator])
+
+
+#: The cells of a robot's row of the MRCLAM hidden-barcode table, in order, after the robot's number.
+_HIDDEN_CELLS = (lambda x: x["observations"], lambda x: x["correct"], lambda x: 100 * x["rate"],
+                 lambda x: 100 * x["rate_seen"], lambda x: x["wrong"], lambda x: x["new"], lambda x: x["duplicates"],
+                 lambda x: x["rejected"], lambda x: x["ate_ids_m"], lambda x: x["ate_m"],
+                 lambda x: x["ate_m"] / x["ate_ids_m"])
+#: The cells of the median row.
+_MEDIAN_CELLS = (lambda x: 100 * x["rate"], lambda x: 100 * x["rate_seen"], lambda x: x["wrong"], lambda x: x["new"],
+                 lambda x: x["rejected"], lambda x: x["ate_ids_m"], lambda x: x["ate_m"])
+
+
+def mrclam_hidden_row(text: str, robot: int | None, estimator: str) -> list[Quote]:
+    """A row of docs/estimators.md's MRCLAM table with the barcodes withheld
+    (``scripts/bench_association_mrclam.py``'s own row)."""
+    cells = _HIDDEN_CELLS if robot is not None else _MEDIAN_CELLS
+    first = 1 if robot is not None else 0
+    return row(EST, text, "mrclam6-hidden", f"MRCLAM 6 barcodes withheld, robot {robot or 'median'} {estimator}",
+               {first + i: _mrclam_hidden(robot, estimator, read) for i, read in enumerate(cells)})
+
+
 GATE_SENTENCE = "on the grid it is 0.403 m against\n0.403 m with ids"
 
 QUOTES: list[Quote] = [
