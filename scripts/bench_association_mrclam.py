@@ -43,15 +43,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
-from fgslam.cli.import_ import hide_landmark_ids  # noqa: E402
+from bench_mrclam import leave_one_out, raw_logs  # noqa: E402
 from ekf.association import DEFAULT_AMBIGUITY_MARGIN, chi2_gate  # noqa: E402
 from ekf.models import range_bearing  # noqa: E402
+from fgslam.cli.import_ import hide_landmark_ids  # noqa: E402
 from fgslam.compare import ate_rmse_m, score_associations  # noqa: E402
 from fgslam.runner import ESTIMATORS, run_estimator, truth_trajectory  # noqa: E402
-from slamio.datasets.mrclam import ROBOT_SUBJECTS, import_mrclam  # noqa: E402
+from slamio.datasets.mrclam import ROBOT_SUBJECTS  # noqa: E402
 from slamio.geometry import wrap_angle  # noqa: E402
 from slamio.log import RunLog  # noqa: E402
-from slamio.noise_fit import fit_noise_model  # noqa: E402
 
 
 def run_one(log: RunLog, name: str, seen_ids: list[int | None] | None = None) -> dict:
@@ -141,19 +141,14 @@ def main(argv=None) -> int:
     parser.add_argument("--json", default=None, metavar="FILE", help="write every figure here")
     args = parser.parse_args(argv)
     names = args.estimators.split(",")
-    present = [k for k in ROBOT_SUBJECTS if os.path.exists(os.path.join(args.folder, f"Robot{k}_Odometry.dat"))]
-    robots = [int(r) for r in args.robots.split(",") if int(r) in present]
-    raw = {}
-    for k in present:  # every robot is needed to fit the others' models
-        header, records = import_mrclam(args.folder, k)
-        raw[k] = RunLog(f"robot{k} (raw)", header, tuple(records))
+    raw = raw_logs(args.folder)
+    robots = [int(r) for r in args.robots.split(",") if int(r) in raw]
     results: dict[int, dict] = {}
     print("| robot | estimator | observations | correct (barcodes) | correct (landmark seen) | wrong | new (dup.) | rejected "
           "| ATE ids m | ATE hidden m | ratio |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for k in robots:
-        model = fit_noise_model([raw[j] for j in present if j != k])
-        header, records = import_mrclam(args.folder, k, model=model)
+        header, records, _ = leave_one_out(args.folder, k, raw)
         with_ids = RunLog(f"robot{k}", header, tuple(records))
         hidden_header, hidden_records = hide_landmark_ids(header, records)
         hidden = RunLog(f"robot{k} hidden", hidden_header, tuple(hidden_records))
