@@ -59,10 +59,10 @@ import numpy as np
 from scipy.linalg import blas as _blas
 
 from ekf.association import (
+    DEFAULT_AMBIGUITY_MARGIN,
     DEFAULT_GATE_PROBABILITY,
     DEFAULT_MAX_NODES,
     chi2_gate,
-    DEFAULT_AMBIGUITY_MARGIN,
     gated_nearest_neighbour,
     jcbb,
     mahalanobis_squared,

@@ -156,6 +156,7 @@ class SmootherAssociation:
         self._step_start = 0
         self.retry: list[FirstSighting] = []  # rejected observations to ask once more
         self.unsettled: list[FirstSighting] = []  # asked once more, still rejected: asked at the end (settle)
+        self._frames: dict[int, range] = {}  # pose index → its step's observation slots
         self.paired = self.created = self.rejected = self.unconfirmed = self.retried = 0
         self.jcbb_nodes_max = 0
 
@@ -193,6 +194,7 @@ class SmootherAssociation:
         decision = Decision({}, {})
         if not observations:
             return decision
+        self._frames[k] = range(self._step_start, len(self._keys))
         obs = [o for _, o in observations]
         found = self._pairing(seed, obs, isam, joint_marginal, known_points)
         if found is None:  # no marginal this step: use nothing, create nothing
@@ -283,9 +285,13 @@ class SmootherAssociation:
         out = []
         for p in sorted({r.pose_index for r in due}):
             group = [r for r in due if r.pose_index == p]
+            asked = {r.index for r in group}
+            # one frame sees a landmark once: not the landmarks the frame's other observations are
+            taken = {self._keys[j] for j in self._frames.get(p, ()) if j not in asked}
+            free = [i for i in known_points if i not in taken]
             pose = isam.calculateEstimatePose2(X(p))
             found = self._pairing(pose, [r.observation for r in group], isam,
-                                  lambda ids, p=p, pose=pose: joint_marginal_at(p, pose, ids), known_points)
+                                  lambda ids, p=p, pose=pose: joint_marginal_at(p, pose, ids), free)
             if found is None:
                 continue
             for r, lid in zip(group, found[0]):
