@@ -59,12 +59,14 @@ import numpy as np
 from scipy.linalg import blas as _blas
 
 from ekf.association import (
+    DEFAULT_AMBIGUITY_MARGIN,
     DEFAULT_GATE_PROBABILITY,
     DEFAULT_MAX_NODES,
     chi2_gate,
     gated_nearest_neighbour,
     jcbb,
     mahalanobis_squared,
+    settle_pairing,
 )
 from ekf.models import (
     landmark_from_range_bearing,
@@ -336,13 +338,20 @@ class EkfSlam:
       correct). JCBB takes its candidate pairs from this wider gate as well (the joint test
       decides).
 
+    After JCBB (:func:`ekf.association.settle_pairing`): a landmark another observation of
+    the step is paired with is no candidate for the others (one frame sees a landmark once),
+    and a pair whose landmark is not at least ``exp(ambiguity_margin / 2)`` = 100 times as
+    likely as some other landmark the step leaves free is dropped (None: kept), the
+    observation rejected.
+
     For the associated observations of a step:
 
     * paired (by NN or by JCBB's best hypothesis) → an EKF update of that landmark;
     * unpaired and outside the new-landmark gate of every landmark → a new landmark, keyed
       −1, −2, … in order of creation;
     * otherwise → rejected, counted in ``rejected_observations``: it lost to another
-      observation (NN's conflict rule, JCBB's hypothesis) or lies between the gates.
+      observation (NN's conflict rule, JCBB's hypothesis), lies between the gates, or its
+      pair was ambiguous.
 
     Paired observations update in log order, then new landmarks are added (from the
     updated pose), in log order. :meth:`step_associations` says what each observation of
@@ -392,6 +401,7 @@ class EkfSlam:
         new_landmark_probability: float | None = None,
         max_jcbb_nodes: int = DEFAULT_MAX_NODES,
         joint_test: str = "final",
+        ambiguity_margin: float | None = DEFAULT_AMBIGUITY_MARGIN,
         landmark_capacity: int = 16,
         known_id_gate_probability: float | str | None = "auto",
     ):
@@ -420,6 +430,7 @@ class EkfSlam:
         self.new_landmark_probability = float(new_landmark_probability)
         self.max_jcbb_nodes = int(max_jcbb_nodes)
         self.joint_test = joint_test
+        self.ambiguity_margin = ambiguity_margin
         capacity = ROBOT_DIM + LANDMARK_DIM * max(1, int(landmark_capacity))
         self._mean = np.zeros(capacity)
         self._cov = np.zeros((capacity, capacity), order="F")  # see add_low_rank_in_place
@@ -933,6 +944,7 @@ class EkfSlam:
                 pairing = gated_nearest_neighbour(lin.d2, chi2_gate(lin.dof, self.gate_probability))
             elif near.any():
                 pairing = self._jcbb(lin, candidate)
+                pairing, near = settle_pairing(candidate, lin.d2, pairing, self.ambiguity_margin)
         keys: list[int | None] = [None] * n
         for i, j in enumerate(pairing):
             if j is not None:

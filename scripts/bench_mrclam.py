@@ -146,6 +146,25 @@ def draw_figure(results: dict[int, dict], path: str, names: list[str]) -> None:
     print(f"wrote {path}")
 
 
+def raw_logs(folder: str) -> dict[int, RunLog]:
+    """Every robot of an MRCLAM folder, imported without a noise model (every robot is needed
+    to fit the others' models)."""
+    raw = {}
+    for k in ROBOT_SUBJECTS:
+        if os.path.exists(os.path.join(folder, f"Robot{k}_Odometry.dat")):
+            header, records = import_mrclam(folder, k)
+            raw[k] = RunLog(f"{folder}/robot{k} (raw)", header, tuple(records))
+    return raw
+
+
+def leave_one_out(folder: str, robot: int, raw: dict[int, RunLog]):
+    """Robot ``robot`` imported with a noise model fitted on the *other* robots of ``raw``:
+    ``(header, records, model)``."""
+    model = fit_noise_model([raw[j] for j in raw if j != robot])
+    header, records = import_mrclam(folder, robot, model=model)
+    return header, records, model
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("folder", help="an MRCLAM_DatasetK folder")
@@ -156,20 +175,15 @@ def main(argv=None) -> int:
     parser.add_argument("--json", default=None, metavar="FILE", help="write every figure (and the fitted models) here")
     args = parser.parse_args(argv)
     names = parse_estimator_names(args.estimators)
-    present = [k for k in ROBOT_SUBJECTS if os.path.exists(os.path.join(args.folder, f"Robot{k}_Odometry.dat"))]
-    robots = [int(r) for r in args.robots.split(",") if int(r) in present]
-    raw = {}
-    for k in present:  # every robot is needed to fit the others' models
-        header, records = import_mrclam(args.folder, k)
-        raw[k] = RunLog(f"{args.folder}/robot{k} (raw)", header, tuple(records))
+    raw = raw_logs(args.folder)
+    robots = [int(r) for r in args.robots.split(",") if int(r) in raw]
     results, models = {}, {}
     for k in robots:
         if args.no_model:
             log = raw[k]
         else:
-            model = fit_noise_model([raw[j] for j in present if j != k])
+            header, records, model = leave_one_out(args.folder, k, raw)
             models[k] = model.to_dict()
-            header, records = import_mrclam(args.folder, k, model=model)
             log = RunLog(f"{args.folder}/robot{k}", header, tuple(records))
         results[k] = score_robot(log, names)
         print(f"robot {k}: " + ", ".join(f"{n} {results[k][n]['ate_final_m']:.3f} m" for n in names if n in results[k]),

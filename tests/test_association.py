@@ -18,13 +18,17 @@ import pytest
 from scipy.stats import chi2
 
 from ekf.association import (
+    DEFAULT_AMBIGUITY_MARGIN,
+    ambiguous_pairs,
     chi2_gate,
+    free_candidates,
     gated_nearest_neighbour,
     individual_compatibility,
     innovation_covariances,
     jcbb,
     joint_mahalanobis_squared,
     mahalanobis_squared,
+    settle_pairing,
 )
 from ekf.models import range_bearing, range_bearing_jacobians
 from slamio.geometry import wrap_angle
@@ -318,3 +322,42 @@ def test_jcbb_trivial_inputs():
     assert none.pairing == (None, None) and none.joint_d2 == 0.0
     with pytest.raises(ValueError):
         jcbb(np.zeros((1, 1, 2)), np.zeros((1, 1, 2, 5)), np.eye(5), np.eye(2)[None], joint_test="bogus")
+
+
+# --------------------------------------------------------------------------- after JCBB
+
+
+def test_a_landmark_taken_in_the_frame_is_no_candidate_for_the_others():
+    candidate = np.array([[True, False, False], [True, False, False], [True, False, True], [False, False, False]])
+    free = free_candidates(candidate, [0, None, None, None])
+    # obs 1 could only be landmark 0, which obs 0 saw: a landmark not in the map;
+    # obs 2 could still be landmark 2; obs 3 has no candidate at all
+    assert free.tolist() == [False, False, True, False]
+    assert free_candidates(candidate, [None] * 4).tolist() == [True, True, True, False]
+
+
+def test_a_pair_is_ambiguous_when_another_free_landmark_is_less_than_100_times_less_likely():
+    assert DEFAULT_AMBIGUITY_MARGIN == pytest.approx(2.0 * math.log(100.0))
+    d2 = np.array([[1.0, 9.0, 60.0], [2.0, 20.0, 3.0], [0.5, 40.0, 40.0]])
+    pairing = [0, None, None]
+    # likelihood ratio of the chosen landmark to the best free other one, exp(-d²/2) each
+    ratio = [math.exp(-d2[0, 0] / 2) / math.exp(-d2[0, 1] / 2)]
+    assert ratio[0] < 100.0
+    assert ambiguous_pairs(d2, pairing).tolist() == [True, False, False]
+    # obs 0 with landmark 1 and obs 1 with landmark 0: landmark 2 is the only free one;
+    # obs 0: 60 - 9 apart (not ambiguous), obs 1: 3 - 2 (ambiguous)
+    assert ambiguous_pairs(d2, [1, 0, None]).tolist() == [False, True, False]
+    assert not ambiguous_pairs(d2, [0, 1, 2]).any()  # nothing free: nothing to confuse it with
+
+
+def test_settle_pairing_drops_ambiguous_pairs_and_rejects_them():
+    d2 = np.array([[1.0, 9.0], [40.0, 50.0]])
+    candidate = d2 <= chi2_gate(2, 0.999999)
+    pairing, near = settle_pairing(candidate, d2, [0, None])
+    assert pairing == [None, None] and near.tolist() == [True, False]  # 9 - 1 < 9.2: rejected
+    pairing, near = settle_pairing(candidate, d2, [0, None], margin=None)
+    assert pairing == [0, None] and near.tolist() == [False, False]
+    # a clear pair is kept; the other observation, whose only candidate it took, is new
+    d2 = np.array([[1.0, 80.0], [5.0, 90.0]])
+    pairing, near = settle_pairing(d2 <= chi2_gate(2, 0.999999), d2, [0, None])
+    assert pairing == [0, None] and near.tolist() == [False, False]

@@ -16,7 +16,11 @@ functions it calls) but on the smoother's own uncertainty:
 3. **JCBB** (:func:`ekf.association.jcbb`) over the step's observations, with the
    association gate ``gate_probability`` for the joint test and the wider new-landmark gate
    ``new_landmark_probability`` for the candidate pairs, exactly as ``EkfSlam`` does.
-4. An unpaired observation inside the new-landmark gate of some landmark is **rejected**
+   Then :func:`ekf.association.settle_pairing`, as in ``EkfSlam``: a landmark another
+   observation of the step is paired with is no candidate for the others (one frame sees a
+   landmark once), and an ambiguous pair (another free landmark within ``ambiguity_margin``
+   of its ``d²``: less than 100 times less likely) is dropped and rejected.
+4. An unpaired observation inside the new-landmark gate of some free landmark is **rejected**
    (ambiguous), and asked once more after the next update, from its pose's new estimate
    (:meth:`SmootherAssociation.retry_rejected`: the first re-observations of a loop
    closure can be outside the joint gate until the closure corrects the pose).
@@ -44,7 +48,8 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import L, X
 
-from ekf.association import DEFAULT_GATE_PROBABILITY, chi2_gate, jcbb, mahalanobis_squared
+from ekf.association import (DEFAULT_AMBIGUITY_MARGIN, DEFAULT_GATE_PROBABILITY, chi2_gate, jcbb, mahalanobis_squared,
+                             settle_pairing)
 from ekf.models import range_bearing, range_bearing_jacobians
 from ekf.slam import DEFAULT_NEW_LANDMARK_PROBABILITY
 from fgslam.smoother.chain import OdometryChain
@@ -136,18 +141,22 @@ class SmootherAssociation:
         confirm_gate: float = PENDING_GATE,
         max_wait_steps: int = MAX_WAIT_STEPS,
         min_sightings: int = MIN_SIGHTINGS,
+        ambiguity_margin: float | None = DEFAULT_AMBIGUITY_MARGIN,
     ):
         self.gate_probability = gate_probability
         self.new_landmark_probability = new_landmark_probability
         self.confirm_gate = confirm_gate
         self.max_wait_steps = max_wait_steps
         self.min_sightings = min_sightings
+        self.ambiguity_margin = ambiguity_margin
         self.waiting: list[list[FirstSighting]] = []  # groups of agreeing first sightings
         self.spread_m: dict[int, float] = {}  # created landmark → its point's spread when created
         self.held: dict[int, np.ndarray] = {}  # created, not yet in iSAM2 → its point
         self._keys: list[int | None] = []
         self._step_start = 0
         self.retry: list[FirstSighting] = []  # rejected observations to ask once more
+        self.unsettled: list[FirstSighting] = []  # asked once more, still rejected: asked at the end (settle)
+        self._frames: dict[int, range] = {}  # pose index → its step's observation slots
         self.paired = self.created = self.rejected = self.unconfirmed = self.retried = 0
         self.jcbb_nodes_max = 0
 
@@ -185,6 +194,7 @@ class SmootherAssociation:
         decision = Decision({}, {})
         if not observations:
             return decision
+        self._frames[k] = range(self._step_start, len(self._keys))
         obs = [o for _, o in observations]
         found = self._pairing(seed, obs, isam, joint_marginal, known_points)
         if found is None:  # no marginal this step: use nothing, create nothing
@@ -234,12 +244,14 @@ class SmootherAssociation:
             nu, H, R = association_problem(pose_world, P, [means[c] for c in candidates], obs)
             S = H @ P @ np.swapaxes(H, -1, -2) + R[:, None]
             d2 = mahalanobis_squared(nu, 0.5 * (S + np.swapaxes(S, -1, -2)))
-            near = (d2 <= chi2_gate(2, self.new_landmark_probability)).any(axis=1)
+            candidate = d2 <= chi2_gate(2, self.new_landmark_probability)
+            near = candidate.any(axis=1)
             if near.any():
                 result = jcbb(nu, H, P, R, probability=self.gate_probability,
                               candidate_probability=self.new_landmark_probability)
                 self.jcbb_nodes_max = max(self.jcbb_nodes_max, result.nodes)
-                pairing = [None if c is None else candidates[c] for c in result.pairing]
+                kept, near = settle_pairing(candidate, d2, result.pairing, self.ambiguity_margin)
+                pairing = [None if c is None else candidates[c] for c in kept]
         return pairing, near, points, spreads
 
     def retry_rejected(self, k: int, isam: gtsam.ISAM2, joint_marginal_at, known_points: list[int]):
@@ -248,17 +260,38 @@ class SmootherAssociation:
         a loop closure's first re-observations can fall outside the joint gate while the
         pose is still uncorrected, and the closure itself (the observations that did pair)
         corrects it. Returns ``(sighting, landmark id)`` for those that pair now; the others
-        stay rejected."""
+        stay rejected until :meth:`settle` asks them once more at the end of the run."""
         due = [r for r in self.retry if r.pose_index < k and isam.valueExists(X(r.pose_index))]
         if not due:
             return []
         self.retry = [r for r in self.retry if not any(r is d for d in due)]
+        out = self._associate_again(due, isam, joint_marginal_at, known_points)
+        paired = {id(r) for r, _ in out}
+        self.unsettled.extend(r for r in due if id(r) not in paired)
+        return out
+
+    def settle(self, isam: gtsam.ISAM2, joint_marginal_at, known_points: list[int]):
+        """The run is over: every observation still rejected is associated once more against
+        the whole map as it stands now (the deferred decision: a reading that fitted two
+        neighbouring landmarks nearly equally while the map was young can be told apart
+        once the map has settled), with the same gates and ambiguity margin. Returns
+        ``(sighting, landmark id)`` for those that pair now."""
+        due = [r for r in self.unsettled + self.retry if isam.valueExists(X(r.pose_index))]
+        self.unsettled, self.retry = [], []
+        return self._associate_again(due, isam, joint_marginal_at, known_points)
+
+    def _associate_again(self, due: list[FirstSighting], isam: gtsam.ISAM2, joint_marginal_at,
+                         known_points: list[int]):
         out = []
         for p in sorted({r.pose_index for r in due}):
             group = [r for r in due if r.pose_index == p]
+            asked = {r.index for r in group}
+            # one frame sees a landmark once: not the landmarks the frame's other observations are
+            taken = {self._keys[j] for j in self._frames.get(p, ()) if j not in asked}
+            free = [i for i in known_points if i not in taken]
             pose = isam.calculateEstimatePose2(X(p))
             found = self._pairing(pose, [r.observation for r in group], isam,
-                                  lambda ids, p=p, pose=pose: joint_marginal_at(p, pose, ids), known_points)
+                                  lambda ids, p=p, pose=pose: joint_marginal_at(p, pose, ids), free)
             if found is None:
                 continue
             for r, lid in zip(group, found[0]):

@@ -474,6 +474,13 @@ class Isam2Smoother:
         if self._num_poses == 0:
             return
         self._flush()
+        if self.associate and self._association.unsettled:  # the deferred decisions, against the whole map
+            points = [i for i in self._landmarks.ids if i not in self._landmarks.tag_ids]
+            for s, lid in self._association.settle(
+                    self._isam, lambda p, pose, ids: world_joint_marginal(self._isam, OdometryChain(p), pose, ids), points):
+                self._add_observation(s.pose_index, s.seed, replace(s.observation, landmark_id=lid))
+                self._held.steps = max(self._held.steps, 1)
+            self._flush()
         self._association.finish()
         self._estimate_cache = None
         self._landmark_xy.clear()

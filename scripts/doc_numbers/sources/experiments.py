@@ -146,6 +146,21 @@ def mrclam_dataset6(context: Context) -> dict:
     return {int(k): v for k, v in json.loads(out.read_text(encoding="utf-8"))["results"].items()}
 
 
+def mrclam_dataset6_hidden(context: Context) -> dict:
+    """``scripts/bench_association_mrclam.py SHARED/data/mrclam/MRCLAM_Dataset6``: robot →
+    estimator → association score and ATE with the barcodes withheld (and ATE with them)."""
+    import contextlib
+    import io
+    import json
+
+    import bench_association_mrclam as script
+
+    out = context.scratch / "mrclam6_hidden.json"
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        script.main([str(context.shared / MRCLAM6), "--json", str(out)])
+    return {int(k): v for k, v in json.loads(out.read_text(encoding="utf-8")).items()}
+
+
 def seed001_association(context: Context) -> dict:
     """``scripts/seed001_association.py --spacings 0.25,0.5,0.75,1.0,1.5,2.0,3.0 --jobs 2``:
     (spacing m, noise scale) → variant → (share correct %, ATE m), medians over seeds 1–3."""
