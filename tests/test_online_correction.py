@@ -14,7 +14,7 @@ import pytest
 
 from ekf.models import motion_jacobians, predict_pose, range_bearing, range_bearing_jacobians, wrap_angle
 from fgslam.smoother import Isam2Smoother
-from fgslam.smoother.correction import SURPRISE_NIS, PoseCorrector, correct, predict
+from fgslam.smoother.correction import SURPRISE_NIS, PoseCorrector, correct, correct_range, predict
 from slamio.log import group_steps
 from slamio.sim import simulate
 
@@ -58,6 +58,26 @@ def test_correct_equals_the_joseph_form(seed):
     assert wrap_angle(updated[2] - expected_mean[2]) == pytest.approx(0.0, abs=1e-12)
     np.testing.assert_allclose(P_new, I_KH @ P @ I_KH.T + K @ R @ K.T, atol=1e-12)
     assert nis == pytest.approx(float(nu @ np.linalg.solve(S, nu)), rel=1e-10)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_correct_range_equals_the_joseph_form(seed):
+    rng = np.random.default_rng(20 + seed)
+    mean = np.array([rng.normal(), rng.normal(), rng.uniform(-math.pi, math.pi)])
+    P = _random_covariance(rng, 3)
+    landmark = mean[:2] + rng.uniform(1.0, 30.0) * np.array([math.cos(seed), math.sin(seed)])
+    var = 1.5**2
+    r, _ = range_bearing(mean, landmark)
+    updated, P_new, nis = correct_range(tuple(mean), P.tolist(), tuple(landmark), r + 0.7, var)
+    H = range_bearing_jacobians(mean, landmark)[0][:1]  # the range row
+    S = H @ P @ H.T + var
+    K = P @ H.T / S
+    I_KH = np.eye(3) - K @ H
+    expected_mean = mean + (K * 0.7).ravel()
+    np.testing.assert_allclose(updated[:2], expected_mean[:2], atol=1e-12)
+    assert wrap_angle(updated[2] - expected_mean[2]) == pytest.approx(0.0, abs=1e-12)
+    np.testing.assert_allclose(P_new, I_KH @ P @ I_KH.T + K * var @ K.T, atol=1e-12)
+    assert nis == pytest.approx(0.7**2 / S.item(), rel=1e-10)
 
 
 def test_linear_case_equals_the_information_form():

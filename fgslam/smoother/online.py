@@ -122,14 +122,16 @@ class OnlinePose:
             P[:3, :3] += G @ np.asarray(odo.covariance) @ G.T
             for lid, landmark_xy, range_m, bearing_rad, R in used:
                 H_pose, H_landmark = range_bearing_jacobians(mean, landmark_xy)
-                H = np.zeros((2, n))
-                H[:, :3] = H_pose
-                c = column[lid]
-                H[:, c : c + 2] = H_landmark
-                S = H @ P @ H.T + np.asarray(R)
-                K = P @ H.T @ np.linalg.inv(S)
                 predicted_range, predicted_bearing = range_bearing(mean, landmark_xy)
-                nu = np.array([range_m - predicted_range, wrap_angle(bearing_rad - predicted_bearing)])
+                rows = 2 if bearing_rad is not None else 1  # a range-only observation: the range row
+                H = np.zeros((rows, n))
+                H[:, :3] = H_pose[:rows]
+                c = column[lid]
+                H[:, c : c + 2] = H_landmark[:rows]
+                S = H @ P @ H.T + np.atleast_2d(R)
+                K = P @ H.T @ np.linalg.inv(S)
+                nu = np.array([range_m - predicted_range] if bearing_rad is None
+                              else [range_m - predicted_range, wrap_angle(bearing_rad - predicted_bearing)])
                 mean = mean + (K @ nu)[:3]
                 P = P - K @ S @ K.T
                 P = 0.5 * (P + P.T)
