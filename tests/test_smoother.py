@@ -643,12 +643,14 @@ def test_update_every_k_ends_where_every_step_ends(noisy):
 def test_updates_come_by_information():
     """The default's triggers, replayed from outside: an update runs exactly when a step
     sees a new landmark, when the held steps carry ``update_observations`` observations,
-    when an observation's innovation is unlikely (χ² tail below ``update_tail``), or when
-    ``update_every`` steps wait; steps without observations are held."""
+    when an observation's innovation was unlikely (χ² tail below ``update_tail``) and
+    ``update_tail_min_steps`` steps are held, or when ``update_every`` steps wait; steps
+    without observations are held."""
     header, steps, _, _ = make_loop_log(n_steps=300, seed=5)
     for k in range(100, 200):  # a stretch without observations: held up to update_every
         steps[k] = Step(steps[k].index, steps[k].stamp_s, steps[k].odometry, (), steps[k].truth)
-    smoother = Isam2Smoother(header, update_observations=12, update_every=40, update_tail=0.02)
+    smoother = Isam2Smoother(header, update_observations=12, update_every=40, update_tail=0.02,
+                             update_tail_min_steps=3)
     tails: list[float] = []
     correct = smoother._corrector.correct
 
@@ -660,6 +662,7 @@ def test_updates_come_by_information():
     smoother._corrector.correct = recording
     seen: set[int] = set()
     held_steps = held_observations = 0
+    unlikely = False
     reasons = set()
     for step in steps:
         before, tails[:] = smoother.updates, []
@@ -667,9 +670,10 @@ def test_updates_come_by_information():
         ids = {o.landmark_id for o in step.observations}
         held_steps += 1
         held_observations += len(step.observations)
+        unlikely |= any(t < 0.02 for t in tails)
         due = {
             "first": step.index == 0, "new landmark": not ids <= seen, "observations": held_observations >= 12,
-            "unlikely": any(t < 0.02 for t in tails), "steps": held_steps >= 40,
+            "unlikely": unlikely and held_steps >= 3, "steps": held_steps >= 40,
         }
         seen |= ids
         updated = smoother.updates > before
@@ -677,6 +681,7 @@ def test_updates_come_by_information():
         if updated:
             reasons |= {name for name, value in due.items() if value}
             held_steps = held_observations = 0
+            unlikely = False
     assert reasons == {"first", "new landmark", "observations", "unlikely", "steps"}
     assert smoother.updates < len(steps) / 5
 

@@ -94,14 +94,16 @@ class Isam2Smoother:
     max_retries:
         How many further updates a withheld observation is retried with before it is
         dropped (see :mod:`fgslam.smoother.pending`).
-    update_every, update_on, max_held_steps, update_observations, update_tail:
+    update_every, update_on, max_held_steps, update_observations, update_tail, update_tail_min_steps:
         When steps go to iSAM2: by information rather than by the clock. Steps are held
         until they carry ``update_observations`` observation factors (default 20; None
         turns this rule off) or ``update_every`` steps wait (default 50), then go to iSAM2
         in one update. A step goes at once when it sees a landmark iSAM2 does not hold
-        yet, or an observation whose innovation against the online correction's prediction
-        has a χ² tail probability below ``update_tail`` (default 0.02: the map iSAM2 last
-        gave disagrees with what the robot sees; 0 turns this off). With
+        yet, or an observation the correction rejects (χ² tail below 0.001). An
+        observation whose innovation against the online correction's prediction has a χ²
+        tail probability below ``update_tail`` (default 0.02: the map iSAM2 last gave
+        disagrees with what the robot sees; 0 turns this off) brings the update forward to
+        the first step with at least ``update_tail_min_steps`` (default 5) held. With
         ``update_on="observations"`` only a step with observations triggers the
         ``update_every`` rule; ``max_held_steps`` bounds the wait; ``update_every=1``
         updates at every step. While steps are held, :meth:`current_pose` is the last
@@ -236,6 +238,7 @@ class Isam2Smoother:
         associate: bool = True,
         update_observations: int | None = 20,
         update_tail: float = 0.02,
+        update_tail_min_steps: int = 5,
     ):
         threshold = _relinearize_threshold(relinearize_threshold)
         if relinearize_skip < 1 or final_updates < 0 or max_retries < 0:
@@ -256,6 +259,7 @@ class Isam2Smoother:
         self.update_every = int(update_every)
         self.update_observations = None if update_observations is None else int(update_observations)
         self.update_tail = float(update_tail)
+        self.update_tail_min_steps = int(update_tail_min_steps)
         self.update_on = update_on
         self.max_held_steps = int(max_held_steps)
         self.final_iterations = int(final_iterations)
@@ -425,6 +429,8 @@ class Isam2Smoother:
         """Whether the held steps go to iSAM2 now (see ``update_every`` / ``update_on``)."""
         if k == 0 or self._held.steps >= self.max_held_steps or self._held.urgent:
             return True
+        if self._held.unlikely and self._held.steps >= self.update_tail_min_steps:
+            return True
         if self.update_observations and self._held.observations >= self.update_observations:
             return True
         if self._held.steps < self.update_every:
@@ -483,7 +489,7 @@ class Isam2Smoother:
             if corrector.correct(xy, obs.range_m, bearing, R):
                 used.append((lid, xy, obs.range_m, bearing, R))
                 if corrector.last_tail < self.update_tail:
-                    self._held.urgent = True
+                    self._held.unlikely = True
             else:
                 self._held.urgent = True
         return gtsam.Pose2(*corrector.mean), tuple(used)

@@ -51,8 +51,9 @@ class HeldSteps:
     observation factors (``entries``), the range factors of range-only landmarks already
     placed (``ranges``), how many steps wait and whether any of them observed something:
     run in one update later. ``urgent`` marks a step that should not wait: it saw a
-    landmark iSAM2 does not hold yet, or an observation the online correction found
-    unlikely (:mod:`fgslam.smoother.correction`).
+    landmark iSAM2 does not hold yet, or an observation the online correction did not use
+    (:mod:`fgslam.smoother.correction`); ``unlikely``, an observation the correction found
+    unlikely (the update then waits for ``update_tail_min_steps`` held steps).
     """
 
     def __init__(self):
@@ -63,6 +64,7 @@ class HeldSteps:
         self.steps = 0
         self.observed = False
         self.urgent = False
+        self.unlikely = False
 
     @property
     def observations(self) -> int:
@@ -74,7 +76,7 @@ class HeldSteps:
         """(core, values, entries, ranges) of every held step; nothing is held afterwards."""
         taken = self.core, self.values, self.entries, self.ranges
         self.core, self.values, self.entries, self.ranges = gtsam.NonlinearFactorGraph(), gtsam.Values(), [], []
-        self.steps, self.observed, self.urgent = 0, False, False
+        self.steps, self.observed, self.urgent, self.unlikely = 0, False, False, False
         return taken
 
 
