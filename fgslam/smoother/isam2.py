@@ -1,9 +1,9 @@
 """The online smoother: :class:`Isam2Smoother`, which composes the pieces of this package.
 
 Steps are held and go to iSAM2 in one ``ISAM2.update`` once they carry 20 observations
-(``update_observations``) or 50 steps wait (``update_every``), and at once for a step
-that sees a landmark iSAM2 does not hold yet or an observation the online correction
-finds unlikely (``update_tail``), with their new factors and new variables. A new pose is seeded from the
+and 10 steps (``update_observations``) or 50 steps wait (``update_every``); sooner after
+an observation the online correction finds unlikely (``update_tail``), and at once for a
+step that sees a landmark iSAM2 does not hold yet; with their new factors and new variables. A new pose is seeded from the
 *current iSAM2 estimate* of the previous pose composed with the odometry increment and
 corrected by the online correction (:mod:`fgslam.smoother.correction`, which is also the
 online pose between updates; seeding from dead reckoning makes iSAM2 diverge on real
@@ -94,11 +94,12 @@ class Isam2Smoother:
     max_retries:
         How many further updates a withheld observation is retried with before it is
         dropped (see :mod:`fgslam.smoother.pending`).
-    update_every, update_on, max_held_steps, update_observations, update_tail, update_tail_min_steps:
+    update_every, update_on, max_held_steps, update_observations, update_observations_min_steps, update_tail, update_tail_min_steps:
         When steps go to iSAM2: by information rather than by the clock. Steps are held
         until they carry ``update_observations`` observation factors (default 20; None
-        turns this rule off) or ``update_every`` steps wait (default 50), then go to iSAM2
-        in one update. A step goes at once when it sees a landmark iSAM2 does not hold
+        turns this rule off) and ``update_observations_min_steps`` steps (default 10: where
+        landmarks are seen at several a step, no more updates than one per 10 steps), or
+        until ``update_every`` steps wait (default 50), then go to iSAM2 in one update. A step goes at once when it sees a landmark iSAM2 does not hold
         yet, or an observation the correction rejects (χ² tail below 0.001). An
         observation whose innovation against the online correction's prediction has a χ²
         tail probability below ``update_tail`` (default 0.02: the map iSAM2 last gave
@@ -239,6 +240,7 @@ class Isam2Smoother:
         update_observations: int | None = 20,
         update_tail: float = 0.02,
         update_tail_min_steps: int = 5,
+        update_observations_min_steps: int = 10,
     ):
         threshold = _relinearize_threshold(relinearize_threshold)
         if relinearize_skip < 1 or final_updates < 0 or max_retries < 0:
@@ -260,6 +262,7 @@ class Isam2Smoother:
         self.update_observations = None if update_observations is None else int(update_observations)
         self.update_tail = float(update_tail)
         self.update_tail_min_steps = int(update_tail_min_steps)
+        self.update_observations_min_steps = int(update_observations_min_steps)
         self.update_on = update_on
         self.max_held_steps = int(max_held_steps)
         self.final_iterations = int(final_iterations)
@@ -431,7 +434,8 @@ class Isam2Smoother:
             return True
         if self._held.unlikely and self._held.steps >= self.update_tail_min_steps:
             return True
-        if self.update_observations and self._held.observations >= self.update_observations:
+        if (self.update_observations and self._held.observations >= self.update_observations
+                and self._held.steps >= self.update_observations_min_steps):
             return True
         if self._held.steps < self.update_every:
             return False
