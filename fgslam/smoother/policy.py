@@ -1,9 +1,9 @@
 """The update policy: when steps go to iSAM2, and which poses become its variables.
 
-By default steps are held and go to iSAM2 once they carry 20 observations (and 10 steps) or 50 steps
-wait (sooner when a step is urgent: a landmark iSAM2 does not hold yet, or an observation
-the online correction finds unlikely), and every pose is a variable. ``update_observations``,
-``update_every`` / ``update_on`` set how steps are held (:class:`HeldSteps`); ``keyframes`` makes
+By default steps are held and go to iSAM2 once they carry 20 observations (and 10 steps)
+or 50 steps wait (sooner when a step is urgent: a landmark iSAM2 does not hold yet, or an
+observation the online correction finds unlikely), and every pose is a variable.
+``update_observations``, ``update_every`` / ``update_on`` set how steps are held (:class:`HeldSteps`); ``keyframes`` makes
 only poses with observations variables and folds the odometry in between
 (:class:`Keyframes`). :data:`FAST_SETTINGS` is the preset that uses both. The measured
 effects are in docs/performance.md.
