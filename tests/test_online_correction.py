@@ -14,7 +14,7 @@ import pytest
 
 from ekf.models import motion_jacobians, predict_pose, range_bearing, range_bearing_jacobians, wrap_angle
 from fgslam.smoother import Isam2Smoother
-from fgslam.smoother.correction import SURPRISE_NIS, PoseCorrector, correct, predict
+from fgslam.smoother.correction import SURPRISE_NIS, PoseCorrector, correct, correct_range, predict
 from slamio.log import group_steps
 from slamio.sim import simulate
 
@@ -37,19 +37,17 @@ def test_predict_equals_the_matrix_form(seed):
     np.testing.assert_allclose(P_new, F @ P @ F.T + G @ Q @ G.T, atol=1e-12)
 
 
-@pytest.mark.parametrize("seed", range(5))
-def test_correct_equals_the_joseph_form(seed):
-    rng = np.random.default_rng(10 + seed)
+def _random_case(seed, max_range_m):
+    """A random pose, covariance and landmark within ``max_range_m`` of the pose."""
+    rng = np.random.default_rng(seed)
     mean = np.array([rng.normal(), rng.normal(), rng.uniform(-math.pi, math.pi)])
     P = _random_covariance(rng, 3)
-    landmark = mean[:2] + rng.uniform(1.0, 5.0) * np.array([math.cos(seed), math.sin(seed)])
-    R = np.diag([0.1**2, 0.02**2])
-    r, b = range_bearing(mean, landmark)
-    z_r, z_b = r + 0.05, wrap_angle(b - 0.01)
-    updated, P_new, nis = correct(tuple(mean), P.tolist(), tuple(landmark), z_r, z_b, R.tolist())
-    # the textbook update, matrices and the Joseph form
-    H, _ = range_bearing_jacobians(mean, landmark)
-    nu = np.array([z_r - r, wrap_angle(z_b - b)])
+    landmark = mean[:2] + rng.uniform(1.0, max_range_m) * np.array([math.cos(seed), math.sin(seed)])
+    return mean, P, landmark
+
+
+def _assert_textbook_update(updated, P_new, nis, mean, P, H, R, nu):
+    """The textbook EKF update with matrices, covariance in the Joseph form."""
     S = H @ P @ H.T + R
     K = P @ H.T @ np.linalg.inv(S)
     I_KH = np.eye(3) - K @ H
@@ -58,6 +56,27 @@ def test_correct_equals_the_joseph_form(seed):
     assert wrap_angle(updated[2] - expected_mean[2]) == pytest.approx(0.0, abs=1e-12)
     np.testing.assert_allclose(P_new, I_KH @ P @ I_KH.T + K @ R @ K.T, atol=1e-12)
     assert nis == pytest.approx(float(nu @ np.linalg.solve(S, nu)), rel=1e-10)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_correct_equals_the_joseph_form(seed):
+    mean, P, landmark = _random_case(10 + seed, 5.0)
+    R = np.diag([0.1**2, 0.02**2])
+    r, b = range_bearing(mean, landmark)
+    z_r, z_b = r + 0.05, wrap_angle(b - 0.01)
+    updated, P_new, nis = correct(tuple(mean), P.tolist(), tuple(landmark), z_r, z_b, R.tolist())
+    H, _ = range_bearing_jacobians(mean, landmark)
+    _assert_textbook_update(updated, P_new, nis, mean, P, H, R, np.array([z_r - r, wrap_angle(z_b - b)]))
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_correct_range_equals_the_joseph_form(seed):
+    mean, P, landmark = _random_case(20 + seed, 30.0)
+    var = 1.5**2
+    r, _ = range_bearing(mean, landmark)
+    updated, P_new, nis = correct_range(tuple(mean), P.tolist(), tuple(landmark), r + 0.7, var)
+    H = range_bearing_jacobians(mean, landmark)[0][:1]  # the range row
+    _assert_textbook_update(updated, P_new, nis, mean, P, H, np.array([[var]]), np.array([0.7]))
 
 
 def test_linear_case_equals_the_information_form():

@@ -121,6 +121,28 @@ def test_isam2_with_range_factors_reaches_the_batch_optimum(simulated):
     assert smoother.error() == pytest.approx(batch.final_error, rel=1e-4)
 
 
+def test_online_correction_uses_ranges_between_updates(simulated):
+    """Between iSAM2 updates the pose-only correction takes the ranges to placed beacons
+    (fgslam/smoother/correction.py): the online pose is closer to an iSAM2 that updates at
+    every step than the dead reckoning between the same updates."""
+    header, _, steps, _ = simulated
+
+    def online(**kwargs):
+        settings = {"update_every": 25, "update_observations": None, **kwargs}
+        run, smoother = run_estimator(Isam2Smoother(header, **settings), steps, covariances=False)
+        return run.online, smoother
+
+    reference, _ = online(update_every=1, online_correction=False)
+    corrected, smoother = online()
+    uncorrected, _ = online(online_correction=False)
+    assert smoother._corrector.corrections > 100
+
+    def gap(a):
+        return float(np.sqrt(np.mean(np.sum((a[:, :2] - reference[:, :2]) ** 2, axis=1))))
+
+    assert gap(corrected) < gap(uncorrected)
+
+
 def test_range_only_log_round_trips(simulated, tmp_path):
     header, records, _, _ = simulated
     path = tmp_path / "ranges.jsonl"

@@ -640,6 +640,52 @@ def test_update_every_k_ends_where_every_step_ends(noisy):
         assert abs(held.error() - batch.final_error) <= 1e-3 * batch.final_error, kwargs
 
 
+def test_updates_come_by_information():
+    """The default's triggers, replayed from outside: an update runs exactly when a step
+    sees a new landmark, when the held steps carry ``update_observations`` observations
+    (and ``update_observations_min_steps`` steps), when an observation's innovation was unlikely (χ² tail below ``update_tail``) and
+    ``update_tail_min_steps`` steps are held, or when ``update_every`` steps wait; steps
+    without observations are held."""
+    header, steps, _, _ = make_loop_log(n_steps=300, seed=5)
+    for k in range(100, 200):  # a stretch without observations: held up to update_every
+        steps[k] = Step(steps[k].index, steps[k].stamp_s, steps[k].odometry, (), steps[k].truth)
+    smoother = Isam2Smoother(header, update_observations=12, update_every=40, update_tail=0.02,
+                             update_tail_min_steps=3, update_observations_min_steps=4)
+    tails: list[float] = []
+    correct = smoother._corrector.correct
+
+    def recording(*args):
+        used = correct(*args)
+        tails.append(smoother._corrector.last_tail)
+        return used
+
+    smoother._corrector.correct = recording
+    seen: set[int] = set()
+    held_steps = held_observations = 0
+    unlikely = False
+    reasons = set()
+    for step in steps:
+        before, tails[:] = smoother.updates, []
+        smoother.step(step)
+        ids = {o.landmark_id for o in step.observations}
+        held_steps += 1
+        held_observations += len(step.observations)
+        unlikely |= any(t < 0.02 for t in tails)
+        due = {
+            "first": step.index == 0, "new landmark": not ids <= seen, "observations": held_observations >= 12 and held_steps >= 4,
+            "unlikely": unlikely and held_steps >= 3, "steps": held_steps >= 40,
+        }
+        seen |= ids
+        updated = smoother.updates > before
+        assert updated == any(due.values()), (step.index, due)
+        if updated:
+            reasons |= {name for name, value in due.items() if value}
+            held_steps = held_observations = 0
+            unlikely = False
+    assert reasons == {"first", "new landmark", "observations", "unlikely", "steps"}
+    assert smoother.updates < len(steps) / 5
+
+
 def test_current_pose_between_updates_is_last_estimate_plus_odometry():
     header, steps, _, _ = make_loop_log(n_steps=60, seed=3)
     # without the online correction (tests/test_online_correction.py checks it), between

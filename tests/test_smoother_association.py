@@ -45,7 +45,9 @@ def test_hidden_ids_are_associated_as_well_as_the_ids_themselves(scenario):
     score = hidden.association
     assert with_ids.association is None  # the log's ids were used: nothing to score
     assert score.observations > 700
-    assert score.correct == score.observations and score.wrong == 0  # measured: every one right
+    # measured: none wrong; every one right with an iSAM2 update per 10 steps, and with the
+    # default's updates by information one of 1 064 rejected as ambiguous on cylinders
+    assert score.wrong == 0 and score.observations - score.correct <= score.observations // 500
     assert score.landmarks_created == {"arena-octagon": 8, "cylinders": 3}[scenario]
     assert not score.duplicate_keys
     assert ate_hidden <= 1.01 * ate_ids

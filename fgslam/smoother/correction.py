@@ -1,16 +1,19 @@
 """The online pose between iSAM2 updates: a 3-state EKF against the mapped landmarks.
 
 iSAM2 updates only every few steps (:class:`~fgslam.smoother.isam2.Isam2Smoother`'s
-``update_every``). Between updates the newest pose would otherwise be the last iSAM2
+``update_observations`` / ``update_every``). Between updates the newest pose would otherwise be the last iSAM2
 estimate ⊕ the odometry since (dead reckoning). :class:`PoseCorrector` does better for a
 few microseconds a step: it propagates that pose with the odometry and corrects it with
-each observation of a landmark iSAM2 already holds, treating the landmark's last iSAM2
-estimate as known (a pose-only EKF; the landmark's own uncertainty and its correlation
+each observation of a landmark iSAM2 already holds (range and bearing, or a range alone
+for a range-only landmark), treating the landmark's last iSAM2 estimate as known (a pose-only EKF; the landmark's own uncertainty and its correlation
 with the pose are ignored). At every iSAM2 update its mean is replaced by iSAM2's estimate
 of the newest pose; its covariance carries on, so it stays the filter's own bookkeeping of
 how far odometry and observations are trusted. It is the online estimate only: the factor
 graph, and so the final estimate, never sees it (except that new poses are seeded from
-it, a better linearisation point than dead reckoning).
+it, a better linearisation point than dead reckoning). Each observation's NIS is also
+kept as a χ² tail probability (:attr:`PoseCorrector.last_tail`): the smoother asks iSAM2
+for an update when one is unlikely, and does not use one that is very unlikely
+(:data:`SURPRISE_NIS`).
 
 Frames: the state is ``(x_m, y_m, theta_rad)`` in the world frame, its covariance in
 world (x, y, θ) coordinates — the EKF's (:mod:`ekf.models`), whose motion and observation
@@ -28,6 +31,16 @@ from ekf.models import wrap_angle
 #: (NIS against the pose-only prediction) is not used by the correction; the smoother then
 #: gives the held steps to iSAM2 at once (a surprise is what the full smoother is for).
 SURPRISE_NIS = 13.82
+#: The same as a probability, for either kind of observation: a range-bearing NIS is χ²
+#: with 2 degrees of freedom, a range-only NIS with 1 (whose 0.999 point is 10.83).
+SURPRISE_TAIL = 0.001
+
+
+def chi2_tail(nis: float, dof: int) -> float:
+    """P(χ²_dof > nis) for 1 or 2 degrees of freedom (closed forms: erfc(√(x/2)), e^(−x/2))."""
+    if not nis >= 0.0:  # NaN
+        return 0.0
+    return math.exp(-0.5 * nis) if dof == 2 else math.erfc(math.sqrt(0.5 * nis))
 
 # The maths below is written out in scalars: on 3×3 matrices numpy's per-call overhead is
 # ten times the arithmetic, and this runs for every observation of every step.
@@ -112,6 +125,32 @@ def correct(mean, P, landmark_xy, range_m: float, bearing_rad: float, R) -> tupl
     return updated, [[c00, c01, c02], [c01, c11, c12], [c02, c12, c22]], nis
 
 
+def correct_range(mean, P, landmark_xy, range_m: float, var_range_m2: float) -> tuple[tuple, list[list[float]], float]:
+    """EKF update of a pose by one range-only observation of a landmark at a known point.
+
+    The range row of :func:`correct`: ν = z − ‖landmark − position‖, H = [−eₓ/r, −e_y/r, 0],
+    S = H P Hᵀ + σ², K = P Hᵀ / S; returns ``(mean + K ν, P − K S Kᵀ, ν² / S)``.
+    """
+    x, y, th = mean
+    ex, ey = landmark_xy[0] - x, landmark_xy[1] - y
+    r = math.sqrt(ex * ex + ey * ey)
+    if not r > 0.0:
+        return mean, P, math.inf
+    h0, h1 = -ex / r, -ey / r
+    nu = range_m - r
+    (p00, p01, p02), (_, p11, p12), (_, _, p22) = P
+    u0, u1, u2 = p00 * h0 + p01 * h1, p01 * h0 + p11 * h1, p02 * h0 + p12 * h1  # P Hᵀ
+    S = h0 * u0 + h1 * u1 + var_range_m2
+    if not S > 0.0:
+        return mean, P, math.inf
+    k0, k1, k2 = u0 / S, u1 / S, u2 / S
+    updated = (x + k0 * nu, y + k1 * nu, wrap_angle(th + k2 * nu))
+    P_new = [[p00 - k0 * u0, p01 - k0 * u1, p02 - k0 * u2],
+             [p01 - k0 * u1, p11 - k1 * u1, p12 - k1 * u2],
+             [p02 - k0 * u2, p12 - k1 * u2, p22 - k2 * u2]]
+    return updated, P_new, nu * nu / S
+
+
 class PoseCorrector:
     """The pose-only EKF that gives the online pose between iSAM2 updates (module docstring)."""
 
@@ -120,6 +159,7 @@ class PoseCorrector:
         self.P = [[float(v) for v in row] for row in start_covariance_world]
         self.corrections = 0  # observations used
         self.surprises = 0  # observations gated out (NIS > SURPRISE_NIS)
+        self.last_tail = 1.0  # χ² tail probability of the last observation's NIS
 
     def reset(self, pose) -> None:
         """iSAM2 has updated: its estimate of the newest pose replaces the mean."""
@@ -128,10 +168,18 @@ class PoseCorrector:
     def predict(self, increment, Q_increment) -> None:
         self.mean, self.P = predict(self.mean, self.P, increment, Q_increment)
 
-    def correct(self, landmark_xy, range_m: float, bearing_rad: float, R) -> bool:
-        """Use one observation unless it is a surprise; return whether it was used."""
-        mean, P, nis = correct(self.mean, self.P, landmark_xy, range_m, bearing_rad, R)
-        if not nis <= SURPRISE_NIS:  # also NaN
+    def correct(self, landmark_xy, range_m: float, bearing_rad: float | None, R) -> bool:
+        """Use one observation unless it is a surprise; return whether it was used.
+
+        ``R``: the 2×2 covariance of (range_m, bearing_rad), or with ``bearing_rad=None``
+        (a range-only observation) the range's variance."""
+        if bearing_rad is None:  # a range-only observation: R is the range's variance
+            mean, P, nis = correct_range(self.mean, self.P, landmark_xy, range_m, R)
+            self.last_tail = chi2_tail(nis, 1)
+        else:
+            mean, P, nis = correct(self.mean, self.P, landmark_xy, range_m, bearing_rad, R)
+            self.last_tail = chi2_tail(nis, 2)
+        if not self.last_tail >= SURPRISE_TAIL:
             self.surprises += 1
             return False
         self.mean, self.P = mean, P

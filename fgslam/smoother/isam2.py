@@ -1,8 +1,9 @@
 """The online smoother: :class:`Isam2Smoother`, which composes the pieces of this package.
 
-Steps are held and go to iSAM2 in one ``ISAM2.update`` per 10 steps (``update_every``;
-at once for a step that sees a landmark iSAM2 does not hold yet or a surprising
-observation), with their new factors and new variables. A new pose is seeded from the
+Steps are held and go to iSAM2 in one ``ISAM2.update`` once they carry 20 observations
+and 10 steps (``update_observations``) or 50 steps wait (``update_every``); sooner after
+an observation the online correction finds unlikely (``update_tail``), and at once for a
+step that sees a landmark iSAM2 does not hold yet; with their new factors and new variables. A new pose is seeded from the
 *current iSAM2 estimate* of the previous pose composed with the odometry increment and
 corrected by the online correction (:mod:`fgslam.smoother.correction`, which is also the
 online pose between updates; seeding from dead reckoning makes iSAM2 diverge on real
@@ -93,27 +94,39 @@ class Isam2Smoother:
     max_retries:
         How many further updates a withheld observation is retried with before it is
         dropped (see :mod:`fgslam.smoother.pending`).
-    update_every, update_on, max_held_steps:
-        When steps go to iSAM2. By default steps are held until 10 are waiting, then go to
-        iSAM2 in one update; a step that sees a landmark iSAM2 does not hold yet, or an
-        observation the online correction finds surprising, goes at once. With
-        ``update_on="observations"`` only a step with observations triggers the update;
-        ``max_held_steps`` bounds the wait; ``update_every=1`` updates at every step.
-        While steps are held, :meth:`current_pose` is the last iSAM2 estimate composed with
-        the odometry since, corrected by ``online_correction``.
+    update_every, update_on, max_held_steps, update_observations, update_observations_min_steps, update_tail, update_tail_min_steps:
+        When steps go to iSAM2: by information rather than by the clock. Steps are held
+        until they carry ``update_observations`` observation factors (default 20; None
+        turns this rule off) and ``update_observations_min_steps`` steps (default 10: where
+        landmarks are seen at several a step, no more updates than one per 10 steps), or
+        until ``update_every`` steps wait (default 50), then go to iSAM2 in one update. A step goes at once when it sees a landmark iSAM2 does not hold
+        yet, or an observation the correction rejects (χ² tail below 0.001). An
+        observation whose innovation against the online correction's prediction has a χ²
+        tail probability below ``update_tail`` (default 0.02: the map iSAM2 last gave
+        disagrees with what the robot sees; 0 turns this off) brings the update forward to
+        the first step with at least ``update_tail_min_steps`` (default 5) held. With
+        ``update_on="observations"`` only a step with observations triggers the
+        ``update_every`` rule; ``max_held_steps`` bounds the wait; ``update_every=1``
+        updates at every step. While steps are held, :meth:`current_pose` is the last
+        iSAM2 estimate composed with the odometry since, corrected by ``online_correction``.
+        A run of steps without observations gives iSAM2 nothing the odometry does not, so
+        holding it costs the online pose nothing; the correction carries the pose
+        through observations of mapped landmarks.
     online_correction:
         True (default): between updates, a pose-only EKF corrects the online pose with the
         observations of landmarks iSAM2 holds, their last iSAM2 estimates taken as known
         (:mod:`fgslam.smoother.correction`); new poses are seeded from it. False: dead
         reckoning from the last update.
 
-        Why 10 steps and the correction, measured (docs/performance.md, scripts/bench_online.py,
-        against an iSAM2 that updates and checks relinearisation at every step): online ATE
-        on arena-octagon seeds 1–20 within 3 % of it, on Victoria Park 1.000×, on MRCLAM
-        Dataset 6 robot 1 1.004×, final estimate unchanged (the same Gauss–Newton ending);
-        held without the correction the online ATE lost up to 2.7 % on the arena at 10 steps
-        and 5.9 % on Victoria Park at 50. Holding 20–50 steps was faster still but lost 4–6 %
-        online on the arena and on MRCLAM.
+        Why these triggers and the correction, measured (docs/performance.md,
+        scripts/bench_online.py, against an iSAM2 that updates and checks relinearisation at
+        every step): the final estimate is unchanged (the same Gauss–Newton ending); held
+        without the correction the online ATE lost up to 2.7 % on the arena at 10 steps and
+        5.9 % on Victoria Park at 50; with it, a fixed 50 steps still lost 4–7 % on MRCLAM
+        robot 1 (least squares), which the observation count and the innovation trigger
+        keep within 3 % on every log measured (worst 1.023× on MRCLAM robot 4) at 20–80 %
+        fewer updates than the previous default (every 10 steps; Victoria Park 817 → 397,
+        Plaza1 1 320 → 269). Range-only observations (Plaza) are corrected too.
     final_iterations, final_tolerance:
         In :meth:`finish`, after ``final_updates``: up to this many Gauss–Newton steps on
         the whole graph, until the error drops by less than ``final_tolerance``
@@ -125,6 +138,15 @@ class Isam2Smoother:
         changes below the wildfire threshold).
     partial_relinearization_check, cache_linearized_factors, factorization, wildfire_threshold:
         Passed to GTSAM's ``ISAM2Params`` (``factorization`` is "cholesky" or "qr").
+        ``wildfire_threshold`` (default 1.0; GTSAM's 0.001) stops the back-substitution
+        where a clique's solution changed by less than this, so reading the newest pose
+        after an update (the top of the tree) no longer back-substitutes the whole tree;
+        that read was a third of the default's time on Victoria Park and 40 % of Plaza's.
+        The deltas deeper in the tree then lag, so the relinearisation check sees fewer
+        variables move; the online ATE was unchanged on every log measured
+        (docs/performance.md), and :meth:`finish` and the whole-estimate queries
+        (:meth:`trajectory`, :meth:`landmarks`, …) back-substitute fully
+        (``calculateBestEstimate``).
     robust:
         ``None`` (default): every factor is Gaussian (least squares). ``"huber"``,
         ``"cauchy"``, ``"tukey"`` or ``"dcs"``: landmark factors get that robust kernel through
@@ -198,7 +220,7 @@ class Isam2Smoother:
         *,
         relinearize_threshold: float | tuple[float, float] = 0.01,
         relinearize_skip: int = 10,
-        update_every: int = 10,
+        update_every: int = 50,
         update_on: str = "any",
         max_held_steps: int = 50,
         final_updates: int = 2,
@@ -207,7 +229,7 @@ class Isam2Smoother:
         partial_relinearization_check: bool = False,
         cache_linearized_factors: bool = True,
         factorization: str = "cholesky",
-        wildfire_threshold: float = 0.001,
+        wildfire_threshold: float = 1.0,
         max_retries: int = 3,
         robust: str | None = None,
         robust_k: float | None = None,
@@ -216,6 +238,10 @@ class Isam2Smoother:
         max_keyframe_gap: int = 50,
         online_correction: bool = True,
         associate: bool = True,
+        update_observations: int | None = 20,
+        update_tail: float = 0.02,
+        update_tail_min_steps: int = 5,
+        update_observations_min_steps: int = 10,
     ):
         threshold = _relinearize_threshold(relinearize_threshold)
         if relinearize_skip < 1 or final_updates < 0 or max_retries < 0:
@@ -234,6 +260,10 @@ class Isam2Smoother:
         if not wildfire_threshold >= 0:
             raise FgslamError("Isam2Smoother: wildfire_threshold must be >= 0")
         self.update_every = int(update_every)
+        self.update_observations = None if update_observations is None else int(update_observations)
+        self.update_tail = float(update_tail)
+        self.update_tail_min_steps = int(update_tail_min_steps)
+        self.update_observations_min_steps = int(update_observations_min_steps)
         self.update_on = update_on
         self.max_held_steps = int(max_held_steps)
         self.final_iterations = int(final_iterations)
@@ -403,6 +433,11 @@ class Isam2Smoother:
         """Whether the held steps go to iSAM2 now (see ``update_every`` / ``update_on``)."""
         if k == 0 or self._held.steps >= self.max_held_steps or self._held.urgent:
             return True
+        if self._held.unlikely and self._held.steps >= self.update_tail_min_steps:
+            return True
+        if (self.update_observations and self._held.observations >= self.update_observations
+                and self._held.steps >= self.update_observations_min_steps):
+            return True
         if self._held.steps < self.update_every:
             return False
         return self.update_on == "any" or self._held.observed
@@ -438,10 +473,11 @@ class Isam2Smoother:
         corrector.predict((odo.dx_m, odo.dy_m, odo.dtheta_rad), odo.covariance)
         for obs in observations:
             lid = obs.landmark_id
-            if lid is None or obs.range_only:
+            if lid is None:
                 continue
             if lid not in self._landmarks.known:
-                self._held.urgent = True
+                # a range-only landmark waits for its trilateration (pending.py), not for an update
+                self._held.urgent |= not obs.range_only
                 continue
             if lid in self._landmarks.tag_ids:
                 continue
@@ -449,9 +485,16 @@ class Isam2Smoother:
             if xy is None:
                 point = self._isam.calculateEstimatePoint2(L(lid))
                 xy = self._landmark_xy[lid] = (float(point[0]), float(point[1]))
-            R = ((obs.sigma_range_m**2, 0.0), (0.0, obs.sigma_bearing_rad**2))
-            if corrector.correct(xy, obs.range_m, obs.bearing_rad, R):
-                used.append((lid, xy, obs.range_m, obs.bearing_rad, R))
+            if obs.range_only:
+                R = obs.sigma_range_m**2
+                bearing = None
+            else:
+                R = ((obs.sigma_range_m**2, 0.0), (0.0, obs.sigma_bearing_rad**2))
+                bearing = obs.bearing_rad
+            if corrector.correct(xy, obs.range_m, bearing, R):
+                used.append((lid, xy, obs.range_m, bearing, R))
+                if corrector.last_tail < self.update_tail:
+                    self._held.unlikely = True
             else:
                 self._held.urgent = True
         return gtsam.Pose2(*corrector.mean), tuple(used)
@@ -606,8 +649,8 @@ class Isam2Smoother:
         return values
 
     def estimate(self) -> gtsam.Values:
-        """A copy of iSAM2's current estimate of every variable of :meth:`graph` (one
-        ``calculateEstimate``; with keyframes, the poses between them as in :meth:`trajectory`)."""
+        """A copy of iSAM2's current estimate of every variable of :meth:`graph` (one full
+        back-substitution, ``calculateBestEstimate``; with keyframes, the poses between them as in :meth:`trajectory`)."""
         values = gtsam.Values(self._estimate())
         if self.keyframes:
             trajectory = self.trajectory_of(values)
@@ -695,7 +738,9 @@ class Isam2Smoother:
     def _estimate(self) -> gtsam.Values:
         self._flush()
         if self._estimate_cache is None:
-            self._estimate_cache = self._isam.calculateEstimate()
+            # the full back-substitution: with the default wildfire threshold (1.0)
+            # calculateEstimate() would leave the deltas deep in the tree stale
+            self._estimate_cache = self._isam.calculateBestEstimate()
         return self._estimate_cache
 
     def _update_with_recovery(self, core, core_values, entries: list[PendingObservation]) -> None:

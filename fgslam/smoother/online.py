@@ -130,13 +130,14 @@ class OnlinePose:
             P[:3, :] = F @ P[:3, :]
             P[:, :3] = P[:, :3] @ F.T
             P[:3, :3] += G @ np.asarray(odo.covariance) @ G.T
-            for lid, _, _, _, R in used:  # linearised along the prediction (docstring)
+            for lid, _, _, bearing_rad, R in used:  # linearised along the prediction (docstring)
                 H_pose, H_landmark = range_bearing_jacobians(mean, landmark_at[lid])
-                H = np.zeros((2, n))
-                H[:, :3] = H_pose
+                rows = 2 if bearing_rad is not None else 1  # a range-only observation: the range row
+                H = np.zeros((rows, n))
+                H[:, :3] = H_pose[:rows]
                 c = column[lid]
-                H[:, c : c + 2] = H_landmark
-                S = H @ P @ H.T + np.asarray(R)
+                H[:, c : c + 2] = H_landmark[:rows]
+                S = H @ P @ H.T + np.atleast_2d(R)
                 K = P @ H.T @ np.linalg.inv(S)
                 P = P - K @ S @ K.T
                 P = 0.5 * (P + P.T)

@@ -1,8 +1,9 @@
 """The update policy: when steps go to iSAM2, and which poses become its variables.
 
-By default steps are held and go to iSAM2 ten at a time (sooner when a step is urgent:
-a landmark iSAM2 does not hold yet, or a surprising observation), and every pose is a
-variable. ``update_every`` / ``update_on`` set how steps are held (:class:`HeldSteps`); ``keyframes`` makes
+By default steps are held and go to iSAM2 once they carry 20 observations (and 10 steps)
+or 50 steps wait (sooner when a step is urgent: a landmark iSAM2 does not hold yet, or an
+observation the online correction finds unlikely), and every pose is a variable.
+``update_observations``, ``update_every`` / ``update_on`` set how steps are held (:class:`HeldSteps`); ``keyframes`` makes
 only poses with observations variables and folds the odometry in between
 (:class:`Keyframes`). :data:`FAST_SETTINGS` is the preset that uses both. The measured
 effects are in docs/performance.md.
@@ -19,7 +20,7 @@ from fgslam.smoother.factors import PendingObservation
 from fgslam.smoother.variables import poses_of
 
 #: The ``isam2-fast`` preset: settings tuned on Victoria Park (docs/performance.md), for long
-#: runs and large maps where even the default's update per 10 steps costs too much. Only steps with
+#: runs and large maps where even the default's updates cost too much. Only steps with
 #: observations become iSAM2 variables (keyframes; the odometry between them is folded into
 #: one factor, and the poses in between are rebuilt on demand); steps are held and go to
 #: iSAM2 in one update at the first step with observations once 50 are waiting; iSAM2
@@ -29,7 +30,8 @@ from fgslam.smoother.variables import poses_of
 #: the batch optimum, and on MRCLAM Dataset 6 robot 1 1.8 % above it (keyframes are exact
 #: only to first order), so it is not the default. Between updates the online correction
 #: works as in the default (without it this preset's online ATE on Victoria Park was 5.9 %
-#: above the default's).
+#: above the default's); the default's information triggers (20 observations, an unlikely
+#: innovation) are off, so it still updates once per 50 steps.
 FAST_SETTINGS = {
     "keyframes": True,
     "relinearize_threshold": (1.0, 0.05),
@@ -37,6 +39,8 @@ FAST_SETTINGS = {
     "update_every": 50,
     "update_on": "observations",
     "wildfire_threshold": 1.0,
+    "update_observations": None,
+    "update_tail": 0.0,
 }
 
 
@@ -47,8 +51,9 @@ class HeldSteps:
     observation factors (``entries``), the range factors of range-only landmarks already
     placed (``ranges``), how many steps wait and whether any of them observed something:
     run in one update later. ``urgent`` marks a step that should not wait: it saw a
-    landmark iSAM2 does not hold yet, or an observation the online correction found
-    surprising (:mod:`fgslam.smoother.correction`).
+    landmark iSAM2 does not hold yet, or an observation the online correction did not use
+    (:mod:`fgslam.smoother.correction`); ``unlikely``, an observation the correction found
+    unlikely (the update then waits for ``update_tail_min_steps`` held steps).
     """
 
     def __init__(self):
@@ -59,13 +64,19 @@ class HeldSteps:
         self.steps = 0
         self.observed = False
         self.urgent = False
+        self.unlikely = False
+
+    @property
+    def observations(self) -> int:
+        """Observation factors held (range-bearing, tag and range-only)."""
+        return len(self.entries) + len(self.ranges)
 
     def take(self) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values, list[PendingObservation],
                             list[PendingObservation]]:
         """(core, values, entries, ranges) of every held step; nothing is held afterwards."""
         taken = self.core, self.values, self.entries, self.ranges
         self.core, self.values, self.entries, self.ranges = gtsam.NonlinearFactorGraph(), gtsam.Values(), [], []
-        self.steps, self.observed, self.urgent = 0, False, False
+        self.steps, self.observed, self.urgent, self.unlikely = 0, False, False, False
         return taken
 
 
