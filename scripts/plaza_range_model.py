@@ -3,7 +3,7 @@
 
 For each run the range model (``fgslam calibrate``: scale, bias, σ, outliers, correlation in
 time; slamio/range_fit.py) is fitted on the *other* run and applied at import
-(``fgslam import plazaN OUT --noise OTHER.json``). Then the EKF and ``isam2-fast`` run and
+(``fgslam import plazaN OUT --noise OTHER.json``). Then the EKF, ``isam2`` and ``isam2-fast`` run and
 the batch optimum is solved, as ``fgslam run`` does. Printed per run and import:
 
 * ATE against GPS without alignment (what ``fgslam run`` reports: pose 0 is pinned at the
@@ -34,7 +34,7 @@ from slamio.log import RunLog  # noqa: E402
 from slamio.noise_fit import fit_noise_model  # noqa: E402
 
 RUNS = ("plaza1", "plaza2")
-ESTIMATORS = ("ekf", "isam2-fast", "dead_reckoning")
+ESTIMATORS = ("ekf", "isam2", "isam2-fast", "dead_reckoning")
 
 
 def as_log(run: str, header, records) -> RunLog:
