@@ -387,6 +387,7 @@ class Isam2Smoother:
                 k, self._isam, lambda p, pose, ids: world_joint_marginal(self._isam, OdometryChain(p), pose, ids), points):
             self._add_observation(s.pose_index, s.seed, replace(s.observation, landmark_id=lid))
         unknown = [(i, o) for i, o in enumerate(observations) if o.landmark_id is None and not o.range_only]
+        self._held.uncorrected |= bool(unknown)
         if not unknown:
             return list(observations)
         since = self._online._caught_up_since_chain()
@@ -434,6 +435,9 @@ class Isam2Smoother:
         if k == 0 or self._held.steps >= self.max_held_steps or self._held.urgent:
             return True
         if self._held.unlikely and self._held.steps >= self.update_tail_min_steps:
+            return True
+        if (self.update_observations and self._held.uncorrected
+                and self._held.steps >= self.update_observations_min_steps):
             return True
         if (self.update_observations and self._held.observations >= self.update_observations
                 and self._held.steps >= self.update_observations_min_steps):

@@ -53,7 +53,10 @@ class HeldSteps:
     run in one update later. ``urgent`` marks a step that should not wait: it saw a
     landmark iSAM2 does not hold yet, or an observation the online correction did not use
     (:mod:`fgslam.smoother.correction`); ``unlikely``, an observation the correction found
-    unlikely (the update then waits for ``update_tail_min_steps`` held steps).
+    unlikely (the update then waits for ``update_tail_min_steps`` held steps);
+    ``uncorrected``, an observation without an id (the correction cannot use it, so the online
+    pose dead-reckons until iSAM2 has associated it: the update waits for
+    ``update_observations_min_steps`` held steps, not for ``update_observations``).
     """
 
     def __init__(self):
@@ -65,6 +68,7 @@ class HeldSteps:
         self.observed = False
         self.urgent = False
         self.unlikely = False
+        self.uncorrected = False
 
     @property
     def observations(self) -> int:
@@ -76,7 +80,7 @@ class HeldSteps:
         """(core, values, entries, ranges) of every held step; nothing is held afterwards."""
         taken = self.core, self.values, self.entries, self.ranges
         self.core, self.values, self.entries, self.ranges = gtsam.NonlinearFactorGraph(), gtsam.Values(), [], []
-        self.steps, self.observed, self.urgent, self.unlikely = 0, False, False, False
+        self.steps, self.observed, self.urgent, self.unlikely, self.uncorrected = 0, False, False, False, False
         return taken
 
 

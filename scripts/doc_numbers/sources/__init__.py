@@ -45,7 +45,7 @@ SOURCES = [
     Source("victoria-park", "fgslam import victoria-park vp.jsonl; fgslam run vp.jsonl --estimators "
            "ekf,isam2-fast,dead_reckoning", "slow", victoria_park),
     Source("plaza", "python scripts/plaza_range_model.py (fgslam import plazaN --noise OTHER.json; fgslam run "
-           "--estimators ekf,isam2,isam2-fast,dead_reckoning)", "slow", plaza_range_model),
+           "--estimators ekf,isam2,isam2-fast,dead_reckoning)", "long", plaza_range_model),
     Source("live-replay", "fgslam run tests/data/live-sim/octagon.jsonl --estimators ekf,isam2 (NEES)", "cheap",
            live_replay),
     Source("octagon-outliers-ekf-no-gate", "fgslam sim arena-octagon --seed 1 --outliers 0.1 "
