@@ -328,6 +328,18 @@ def _line_fit(x: np.ndarray, y: np.ndarray) -> tuple[float, float, np.ndarray]:
     return float(scale), float(bias), res
 
 
+def _residuals_about_own_lines(x: np.ndarray, y: np.ndarray, own: np.ndarray, pooled: tuple[float, float]) -> np.ndarray:
+    """Each log's residuals about its own :func:`_line_fit` (``own``: the log of each
+    reading); a log with fewer than 10 readings about the ``pooled`` (scale, bias) line.
+    A run's own scale and bias error is common to all its readings, so it moves that run's
+    map, not its innovations: σ are fitted to this scatter."""
+    residual = np.empty(len(x))
+    for j in np.unique(own):
+        m = own == j
+        residual[m] = _line_fit(x[m], y[m])[2] if m.sum() >= 10 else y[m] - (pooled[0] * x[m] + pooled[1])
+    return residual
+
+
 def _fit_observations(datas: Sequence[_LogData], odometry: OdometryModel, latency_grid_s: np.ndarray) -> tuple[ObservationModel, dict]:
     best = None
     for latency in latency_grid_s:
@@ -357,18 +369,10 @@ def _fit_observations(datas: Sequence[_LogData], odometry: OdometryModel, latenc
         fits[name] = (_mad_sigma(res), scale, bias)
     is_depth = fits["depth"][0] < fits["range"][0]
     _, range_scale, range_bias = fits["depth" if is_depth else "range"]
-    # σ from the scatter about each log's own line: a run's own scale and bias error is common
-    # to all its readings, so it moves that run's map, not its innovations.
+    # σ from the scatter about each log's own line (:func:`_residuals_about_own_lines`)
     own = np.concatenate([np.full(len(p[0]), j) for j, p in enumerate(parts)])
-    res_r, res_b = np.empty(len(r)), np.empty(len(r))
-    for j in range(len(parts)):
-        m = own == j
-        if m.sum() < 10:
-            res_r[m] = rm[m] - (range_scale * (r[m] * np.cos(b[m]) if is_depth else r[m]) + range_bias)
-            res_b[m] = bm[m] - (bearing_scale * b[m] + bearing_bias)
-            continue
-        res_r[m] = _line_fit(r[m] * np.cos(b[m]) if is_depth else r[m], rm[m])[2]
-        res_b[m] = _line_fit(b[m], bm[m])[2]
+    res_r = _residuals_about_own_lines(r * np.cos(b) if is_depth else r, rm, own, (range_scale, range_bias))
+    res_b = _residuals_about_own_lines(b, bm, own, (bearing_scale, bearing_bias))
     gate_r = GATE_SIGMAS * _mad_sigma(res_r)
     gate_b = GATE_SIGMAS * _mad_sigma(res_b)
     inlier = (np.abs(res_r) <= gate_r) & (np.abs(res_b) <= gate_b)

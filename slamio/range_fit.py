@@ -51,7 +51,8 @@ def _truth_ranges(data) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 def fit_range_only(datas: Sequence) -> tuple[ObservationModel, dict]:
     """The range-only :class:`ObservationModel` of the logs' readings and a report (module docstring)."""
-    from slamio.noise_fit import GATE_SIGMAS, _line_fit, _mad_sigma, _nnls_rates, fit_reading_correlation
+    from slamio.noise_fit import (GATE_SIGMAS, _line_fit, _mad_sigma, _nnls_rates, _residuals_about_own_lines,
+                                  fit_reading_correlation)
 
     parts = [_truth_ranges(d) for d in datas]
     t, measured, distance = (np.concatenate([p[j] for p in parts]) for j in range(3))
@@ -59,10 +60,7 @@ def fit_range_only(datas: Sequence) -> tuple[ObservationModel, dict]:
     landmark = np.concatenate([p[3] for p in parts])
     series = np.unique(np.column_stack([own, landmark]), axis=0, return_inverse=True)[1].ravel()  # per landmark and log
     scale, bias, _ = _line_fit(distance, measured)
-    residual = np.empty(len(t))
-    for j in range(len(parts)):  # about each log's own line (module docstring)
-        m = own == j
-        residual[m] = _line_fit(distance[m], measured[m])[2] if m.sum() >= 10 else measured[m] - (scale * distance[m] + bias)
+    residual = _residuals_about_own_lines(distance, measured, own, (scale, bias))  # module docstring
     inlier = np.abs(residual) <= GATE_SIGMAS * _mad_sigma(residual)
     rates = _nnls_rates(residual[inlier], np.column_stack([np.ones(inlier.sum()), distance[inlier] ** 2]))
     sigma = np.sqrt(np.column_stack([np.ones(len(t)), distance**2]) @ rates)
