@@ -21,6 +21,7 @@ the residuals' spread by distance.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Sequence
 
 import numpy as np
@@ -63,14 +64,14 @@ def fit_range_only(datas: Sequence) -> tuple[ObservationModel, dict]:
     residual = _residuals_about_own_lines(distance, measured, own, (scale, bias))  # module docstring
     inlier = np.abs(residual) <= GATE_SIGMAS * _mad_sigma(residual)
     rates = _nnls_rates(residual[inlier], np.column_stack([np.ones(inlier.sum()), distance[inlier] ** 2]))
-    sigma = np.sqrt(np.column_stack([np.ones(len(t)), distance**2]) @ rates)
-    correlation = fit_reading_correlation(t[inlier], series[inlier], (residual / sigma)[inlier, None])
-    model = ObservationModel(
+    white = ObservationModel(
         range_scale=scale, range_bias_m=bias,
         range_sigma_m=max(float(np.sqrt(rates[0])), 1e-3), range_sigma_per_m=float(np.sqrt(rates[1])),
         outlier_rate=float(1.0 - inlier.mean()),
-        correlated_share=correlation.share, correlation_time_s=correlation.time_s,
     )
+    sigma = np.array([white.sigma_range_m(float(d)) for d in distance])  # the model's own σ, as estimators see it
+    correlation = fit_reading_correlation(t[inlier], series[inlier], (residual / sigma)[inlier, None])
+    model = replace(white, correlated_share=correlation.share, correlation_time_s=correlation.time_s)
     offset = measured - distance
     per_landmark = {}
     for lid in np.unique(landmark):
