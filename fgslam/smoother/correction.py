@@ -13,7 +13,7 @@ graph, and so the final estimate, never sees it (except that new poses are seede
 it, a better linearisation point than dead reckoning). Each observation's NIS is also
 kept as a χ² tail probability (:attr:`PoseCorrector.last_tail`): the smoother asks iSAM2
 for an update when one is unlikely, and does not use one that is very unlikely
-(:data:`SURPRISE_NIS`).
+(:data:`SURPRISE_TAIL`).
 
 Frames: the state is ``(x_m, y_m, theta_rad)`` in the world frame, its covariance in
 world (x, y, θ) coordinates — the EKF's (:mod:`ekf.models`), whose motion and observation
@@ -27,13 +27,13 @@ import math
 
 from ekf.models import wrap_angle
 
-#: χ² with 2 degrees of freedom at 0.999: an observation whose innovation exceeds this
-#: (NIS against the pose-only prediction) is not used by the correction; the smoother then
-#: gives the held steps to iSAM2 at once (a surprise is what the full smoother is for).
-SURPRISE_NIS = 13.82
-#: The same as a probability, for either kind of observation: a range-bearing NIS is χ²
-#: with 2 degrees of freedom, a range-only NIS with 1 (whose 0.999 point is 10.83).
+#: An observation whose NIS against the pose-only prediction has a χ² tail probability below
+#: this is not used by the correction; the smoother then gives the held steps to iSAM2 at once
+#: (a surprise is what the full smoother is for). A range-bearing NIS is χ² with 2 degrees of
+#: freedom, a range-only NIS with 1 (whose 0.999 point is 10.83).
 SURPRISE_TAIL = 0.001
+#: The same threshold on a range-bearing NIS: χ²₂ at 0.999 (13.82), P(χ²₂ > x) = e^(−x/2).
+SURPRISE_NIS = -2.0 * math.log(SURPRISE_TAIL)
 
 
 def chi2_tail(nis: float, dof: int) -> float:
@@ -158,7 +158,7 @@ class PoseCorrector:
         self.mean = tuple(float(v) for v in start_pose)
         self.P = [[float(v) for v in row] for row in start_covariance_world]
         self.corrections = 0  # observations used
-        self.surprises = 0  # observations gated out (NIS > SURPRISE_NIS)
+        self.surprises = 0  # observations gated out (χ² tail < SURPRISE_TAIL)
         self.last_tail = 1.0  # χ² tail probability of the last observation's NIS
 
     def reset(self, pose) -> None:
