@@ -60,6 +60,10 @@ class HeldSteps:
     """
 
     def __init__(self):
+        self._empty()
+
+    def _empty(self) -> None:
+        """Nothing held."""
         self.core = gtsam.NonlinearFactorGraph()
         self.values = gtsam.Values()
         self.entries: list[PendingObservation] = []
@@ -79,8 +83,7 @@ class HeldSteps:
                             list[PendingObservation]]:
         """(core, values, entries, ranges) of every held step; nothing is held afterwards."""
         taken = self.core, self.values, self.entries, self.ranges
-        self.core, self.values, self.entries, self.ranges = gtsam.NonlinearFactorGraph(), gtsam.Values(), [], []
-        self.steps, self.observed, self.urgent, self.unlikely, self.uncorrected = 0, False, False, False, False
+        self._empty()
         return taken
 
 
