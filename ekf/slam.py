@@ -118,6 +118,17 @@ def measurement_covariance(observation: Observation, with_height: bool = False) 
     return np.diag([observation.sigma_range_m**2, observation.sigma_bearing_rad**2])
 
 
+def observation_nis(pose, landmark_xy, joint_covariance, observation: Observation) -> float:
+    """NIS of one observation of a mapped landmark, given the 5×5 joint covariance of the
+    pose and the landmark: :func:`ekf.models.range_nis` (1 degree of freedom) for a
+    range-only reading, else :func:`ekf.models.range_bearing_nis` with
+    :func:`measurement_covariance`. Every estimator's ``predicted_nis`` asks it."""
+    if observation.range_only:
+        return range_nis(pose, landmark_xy, joint_covariance, observation.range_m, observation.sigma_range_m)
+    return range_bearing_nis(pose, landmark_xy, joint_covariance, observation.range_m, observation.bearing_rad,
+                             measurement_covariance(observation))
+
+
 def has_height(observation: Observation) -> bool:
     """True when the observation carries a usable height (a value and a positive σ)."""
     return (
@@ -580,15 +591,7 @@ class EkfSlam:
             joint[:3, 3:] = F @ self._cov[:ROBOT_DIM, i : i + 2]
             joint[3:, :3] = joint[:3, 3:].T
             joint[3:, 3:] = self._cov[i : i + 2, i : i + 2]
-            if observation.range_only:  # 1 degree of freedom
-                out.append(range_nis(pose, self._mean[i : i + 2], joint, observation.range_m, observation.sigma_range_m))
-                continue
-            out.append(
-                range_bearing_nis(
-                    pose, self._mean[i : i + 2], joint, observation.range_m, observation.bearing_rad,
-                    measurement_covariance(observation),
-                )
-            )
+            out.append(observation_nis(pose, self._mean[i : i + 2], joint, observation))
         return out
 
     def _nis_with_reading_error(self, pose, P_rr, F, observation: Observation) -> float:

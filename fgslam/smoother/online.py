@@ -16,13 +16,8 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import L, T, X
 
-from ekf.models import (
-    motion_jacobians,
-    predict_pose,
-    range_bearing_jacobians,
-    range_bearing_nis,
-    range_nis,
-)
+from ekf.models import motion_jacobians, predict_pose, range_bearing_jacobians
+from ekf.slam import observation_nis
 from fgslam.smoother.chain import OdometryChain
 from fgslam.smoother.factors import odometry_noise_covariance
 from slamio.log import Odometry, Step
@@ -181,12 +176,7 @@ class OnlinePose:
             cov[3:, :3] = cov[:3, 3:].T
             cov[3:, 3:] = joint.at(key, key)
             landmark = isam.calculateEstimatePoint2(key)
-            if o.range_only:  # a ranging radio: 1 degree of freedom
-                out[j] = range_nis(mean, landmark, cov, o.range_m, o.sigma_range_m)
-                continue
-            out[j] = range_bearing_nis(
-                mean, landmark, cov, o.range_m, o.bearing_rad, np.diag([o.sigma_range_m**2, o.sigma_bearing_rad**2])
-            )
+            out[j] = observation_nis(mean, landmark, cov, o)
         return out
 
 
