@@ -27,7 +27,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from fgslam.compare import align_se2, compute_metrics  # noqa: E402
+from fgslam.compare import align_se2, apply_se2, compute_metrics  # noqa: E402
 from fgslam.runner import compare_log  # noqa: E402
 from slamio.datasets.plaza import import_plaza  # noqa: E402
 from slamio.log import RunLog  # noqa: E402
@@ -55,8 +55,7 @@ def score(log: RunLog) -> dict:
     for run in comparison.runs:
         final = np.asarray(run.final)[:, :2]
         rotation, translation = align_se2(final, truth)
-        c, s = math.cos(rotation), math.sin(rotation)
-        aligned = final @ np.array([[c, s], [-s, c]]) + translation
+        aligned = apply_se2(final, rotation, translation)
         metrics[run.name]["ate_aligned_m"] = float(np.sqrt(np.mean(np.sum((aligned - truth) ** 2, axis=1))))
         metrics[run.name]["rotation_deg"] = math.degrees(rotation)
     return metrics
