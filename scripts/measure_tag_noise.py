@@ -45,7 +45,7 @@ DISTANCES_M = (0.75, 1.25, 2.0, 2.75, 3.5)
 VIEWS_DEG = (0.0, 10.0, 20.0, 35.0, 50.0, 60.0, 70.0)
 
 
-def rendered_cell(distance_m: float, view_deg: float, repeats: int, noise: float, rng) -> dict:
+def rendered_cell(distance_m: float, view_deg: float, repeats: int, noise: float, rng, supersample: int = 2) -> dict:
     """RMS errors of one (distance, viewing angle) over ``repeats`` noisy renders; tag straight ahead."""
     camera = tag_camera()
     front = FrontEnd(camera, FrontEndConfig(kind="apriltag", tag_size_m=TAG_SIZE_M))
@@ -57,7 +57,7 @@ def rendered_cell(distance_m: float, view_deg: float, repeats: int, noise: float
     true_yaw = wrap_angle(face - ROBOT_POSE[2])
     errs, corner_errs = [], []
     for k in range(repeats):
-        image = render(camera, ROBOT_POSE, Scene(tags=(tag,)), noise_sigma=noise, rng=rng, supersample=2)
+        image = render(camera, ROBOT_POSE, Scene(tags=(tag,)), noise_sigma=noise, rng=rng, supersample=supersample)
         grey = cv2.cvtColor(image.bgr, cv2.COLOR_BGR2GRAY)
         for d in detector.detect(grey):
             refined = refine_tag_corners(grey, d.corners_px, camera)
@@ -114,13 +114,15 @@ def main(argv=None) -> int:
     parser.add_argument("--repeats", type=int, default=12, help="noisy renders per cell (default 12)")
     parser.add_argument("--noise", type=float, default=6.0, help="pixel noise σ, grey levels (default 6)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--supersample", type=int, default=2,
+                        help="rays per pixel side when rendering (default 2; fgslam live --port sim renders with 1)")
     args = parser.parse_args(argv)
 
     sigma_real, n_real = real_corner_sigma_px(Path(__file__).resolve().parents[1] / "tests" / "data" / "apriltag-photos")
     print(f"real photos (pupil-labs, refined corners): {n_real} tags, corner sigma ≈ {sigma_real:.2f} px")
 
     rng = np.random.default_rng(args.seed)
-    cells = [rendered_cell(d, v, args.repeats, args.noise, rng) for d in DISTANCES_M for v in VIEWS_DEG]
+    cells = [rendered_cell(d, v, args.repeats, args.noise, rng, args.supersample) for d in DISTANCES_M for v in VIEWS_DEG]
     sigma_px = float(np.nanmedian([c["corner_rms_px"] for c in cells]))
     fx = float(tag_camera().K[0, 0])
     gains = fit_gains(cells, sigma_px, fx, TAG_SIZE_M)
