@@ -208,3 +208,38 @@ def colour_real(context: Context) -> dict[str, list[str]]:
     with contextlib.redirect_stdout(printed):
         script.main([str(context.shared / RGBD_REAL)])
     return markdown_rows(printed.getvalue())
+
+
+def exact_models_nees(context: Context) -> dict:
+    """``scripts/live_nees.py --simulate 30``: the EKF's run means on 30 simulated octagon laps
+    (``means``), how many are ``inside`` their independent-pose ``band``, ``runs_band``."""
+    import live_nees as script
+
+    return script.exact_models_reference(30)
+
+
+def live_band(context: Context) -> dict:
+    """The shipped live-simulation lap's EKF mean NEES and its band (100 redrawn copies), and
+    the same readings stating ``factor`` × their σ (30 copies): factor → RunNeesBand."""
+    from ekf import EkfSlam
+    from fgslam.consistency import run_nees_band, with_stated_noise_scaled
+    from slamio.log import read_log
+
+    log = read_log(context.root / "tests" / "data" / "live-sim" / "octagon.jsonl")
+    out = {1.0: run_nees_band(log, EkfSlam, draws=100)}
+    for factor in (0.4, 0.5, 0.7):
+        out[factor] = run_nees_band(with_stated_noise_scaled(log, factor), EkfSlam, draws=30)
+    return out
+
+
+def live_laps(context: Context) -> list[dict]:
+    """``scripts/live_nees.py --record 10 --draws 0``: ten lockstep laps (seeds 1–10), each
+    scored (reading z RMS, ekf and isam2 mean NEES)."""
+    import live_nees as script
+
+    scores = []
+    for seed in range(1, 11):
+        out = str(context.scratch / f"live-seed{seed}.jsonl")
+        script.record_lap(out, seed)
+        scores.append(script.score_log(out, ("ekf", "isam2"), draws=0))
+    return scores
