@@ -43,7 +43,9 @@ from __future__ import annotations
 
 import math
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -75,11 +77,11 @@ class TagDetection:
     hamming: int = 0
     decision_margin: float = float("nan")
 
-    @property
+    @cached_property
     def centre_px(self) -> np.ndarray:
         return self.corners_px.mean(axis=0)
 
-    @property
+    @cached_property
     def side_px(self) -> float:
         """Mean side length in pixels."""
         c = self.corners_px
@@ -325,6 +327,24 @@ def choose_tag_pose(
 # --------------------------------------------------------------------------- detector
 
 
+@contextmanager
+def opencv_threads(count: int):
+    """OpenCV's calls inside run on ``count`` threads (its process-wide setting, restored after).
+
+    OpenCV otherwise spreads resizing, thresholding and contour work over every core, and on a
+    shared machine its idle workers' spinning shows up as CPU time of this process (the aruco
+    pass took about 1.5× less CPU on the NASA crops with one thread; docs/camera.md).
+    """
+    import cv2
+
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(int(count))
+    try:
+        yield
+    finally:
+        cv2.setNumThreads(before)
+
+
 def _quad_threshold_struct():
     """ctypes mirror of the head of AprilTag 3's C ``apriltag_detector`` up to its quad-threshold
     parameters (``struct apriltag_quad_thresh_params qtp``), which pupil-apriltags does not expose."""
@@ -479,24 +499,26 @@ class AprilTagDetector:
             self._detector = cv2.aruco.ArucoDetector(dictionary, params)
 
     def detect(self, grey: np.ndarray) -> list[TagDetection]:
-        """Tags in a 2-D uint8 image, sorted by id."""
-        grey = np.ascontiguousarray(grey, dtype=np.uint8)
-        if self.upsample != 1.0:
-            import cv2
+        """Tags in a 2-D uint8 image, sorted by id (OpenCV's calls on ``nthreads`` threads too)."""
+        import cv2
 
-            grey = cv2.resize(grey, None, fx=self.upsample, fy=self.upsample, interpolation=cv2.INTER_LINEAR)
+        grey = np.ascontiguousarray(grey, dtype=np.uint8)
         out: list[TagDetection] = []
-        if self.backend == "apriltag3":
-            for d in self._detector.detect(grey):
-                if d.hamming > self.max_hamming:
-                    continue
-                corners = corners_from_upsampled(apriltag_to_opencv_corners(d.corners), self.upsample)
-                out.append(TagDetection(int(d.tag_id), self.family, corners, int(d.hamming), float(d.decision_margin)))
-        else:
-            corners, ids, _ = self._detector.detectMarkers(grey)
-            if ids is not None:
-                for c, i in zip(corners, ids.ravel()):
-                    c = corners_from_upsampled(np.asarray(c, dtype=float).reshape(4, 2), self.upsample)
-                    out.append(TagDetection(int(i), self.family, c))
+        with opencv_threads(self.settings["nthreads"]):
+            if self.upsample != 1.0:
+                grey = cv2.resize(grey, None, fx=self.upsample, fy=self.upsample, interpolation=cv2.INTER_LINEAR)
+            if self.backend == "apriltag3":
+                for d in self._detector.detect(grey):
+                    if d.hamming > self.max_hamming:
+                        continue
+                    corners = corners_from_upsampled(apriltag_to_opencv_corners(d.corners), self.upsample)
+                    out.append(TagDetection(int(d.tag_id), self.family, corners, int(d.hamming),
+                                            float(d.decision_margin)))
+            else:
+                corners, ids, _ = self._detector.detectMarkers(grey)
+                if ids is not None:
+                    for c, i in zip(corners, ids.ravel()):
+                        c = corners_from_upsampled(np.asarray(c, dtype=float).reshape(4, 2), self.upsample)
+                        out.append(TagDetection(int(i), self.family, c))
         out.sort(key=lambda t: (t.tag_id, float(t.centre_px[0])))
         return out
