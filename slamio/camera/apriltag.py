@@ -289,18 +289,19 @@ def estimate_tag_pose(corners_px: np.ndarray, tag_size_m: float, camera: CameraM
     except cv2.error:
         pass
 
-    def score(c):
-        return _reprojection_rms(object_points, xy, rodrigues(c[0]), c[1]) * focal
+    def pose(rvec, tvec) -> TagPose:
+        R = rodrigues(rvec)
+        return TagPose(R, tvec, _reprojection_rms(object_points, xy, R, tvec) * focal)
 
-    if not candidates or min(score(c) for c in candidates) > fallback_error_px:
+    poses = [pose(r, t) for r, t in candidates]
+    if not poses or min(p.reprojection_error_px for p in poses) > fallback_error_px:
         try:
             ok, rvec, tvec = cv2.solvePnP(object_points, image_points, np.eye(3), None, flags=cv2.SOLVEPNP_SQPNP)
             if ok:
                 rvec, tvec = cv2.solvePnPRefineLM(object_points, image_points, np.eye(3), None, rvec, tvec)
-                candidates.append((rvec.ravel(), tvec.ravel()))
+                poses.append(pose(rvec.ravel(), tvec.ravel()))
         except cv2.error:
             pass
-    poses = [TagPose(rodrigues(r), t, score((r, t))) for r, t in candidates]
     poses = [p for p in poses if math.isfinite(p.reprojection_error_px)]
     poses.sort(key=lambda p: p.reprojection_error_px)
     return poses
