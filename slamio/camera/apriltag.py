@@ -144,7 +144,8 @@ def cross_2d(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 def neighbour_intersections(centres: np.ndarray, directions: np.ndarray) -> np.ndarray | None:
     """Where line k−1 meets line k, for each k of a closed chain of lines (point, direction);
     None when two neighbours are parallel."""
-    previous, previous_dir = np.roll(centres, 1, axis=0), np.roll(directions, 1, axis=0)
+    before = np.arange(len(centres)) - 1  # line k−1 (the last line before the first)
+    previous, previous_dir = centres[before], directions[before]
     det = cross_2d(previous_dir, directions)
     if np.any(np.abs(det) < 1e-9):
         return None
@@ -218,7 +219,7 @@ def refine_tag_corners(grey: np.ndarray, corners_px: np.ndarray, camera: CameraM
     """
     c = np.asarray(corners_px, dtype=float).reshape(4, 2)
     grey = np.ascontiguousarray(grey, dtype=np.uint8)
-    ends = np.roll(c, -1, axis=0)  # side i: corner i → i+1
+    ends = c[[1, 2, 3, 0]]  # side i: corner i → i+1
     sides = np.linalg.norm(ends - c, axis=1)
     if np.min(sides) / 8.0 < 1.5:
         return None
@@ -226,7 +227,7 @@ def refine_tag_corners(grey: np.ndarray, corners_px: np.ndarray, camera: CameraM
     normals = np.column_stack([tangents[:, 1], -tangents[:, 0]])
     inward = np.sum((0.5 * (c + ends) - c.mean(axis=0)) * normals, axis=1) < 0
     normals[inward] *= -1.0
-    cells = np.minimum(np.minimum(np.roll(sides, 1), sides), np.roll(sides, -1)) / 8.0  # perspective: the smallest nearby
+    cells = np.minimum(np.minimum(sides[[3, 0, 1, 2]], sides), sides[[1, 2, 3, 0]]) / 8.0  # perspective: the smallest nearby
     point_sets = edge_crossings(grey, c, ends, normals, np.maximum(1.5, cells))
     if min(len(pts) for pts in point_sets) < 3:
         return None
