@@ -16,10 +16,10 @@ Measured on the NASA photos against every tag that any of eight detector set-ups
   thousands of candidates, the pass costs 1.2–1.5× the single pass instead of 2.1–2.4× and
   finds the same tags.
 
-Together: 57 of 61 (2×: 59), none outside the union, at 1.5–1.7× the CPU time of the single
-pass at the camera's resolution (2×: 2.0–2.1×): about 21 ms per 640×480 frame on the median
-frame of this project's shared 2-core machine, but 43–45 ms on tag-dense frames of gravel
-(2.6–2.7×), a third of it the aruco pass.
+Together: 57 of 61 (2×: 59), none outside the union, at 1.3–1.5× the CPU time of the single
+pass at the camera's resolution (2×: 1.5×), one thread: 18–24 ms per 640×480 frame on the
+median frame of this project's shared 2-core machine, 25–32 ms on tag-dense frames of gravel
+(worst 30–39 ms), where the enlarged pass takes most and the aruco pass 3–6 ms.
 
 Tags found by the first pass keep its corners; the second pass only adds tags whose centre is
 not within half a side of one already found. The front-end refines every tag's corners on the
