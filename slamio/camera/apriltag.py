@@ -170,7 +170,7 @@ def edge_crossings(grey: np.ndarray, starts: np.ndarray, ends: np.ndarray, outwa
 
     starts, ends, outwards = (np.asarray(a, dtype=float).reshape(-1, 2) for a in (starts, ends, outwards))
     lengths = np.linalg.norm(ends - starts, axis=1)
-    counts = np.clip(np.round(0.7 * lengths), 4, 60).astype(int)
+    counts = np.array([min(max(round(0.7 * float(length)), 4), 60) for length in lengths])
     offsets = [np.arange(-h, h + 1e-9, 0.25) for h in np.asarray(halves_px, dtype=float)]
     width = max(len(o) for o in offsets)
     edge = np.repeat(np.arange(len(starts)), counts)  # the edge of each profile
@@ -178,12 +178,11 @@ def edge_crossings(grey: np.ndarray, starts: np.ndarray, ends: np.ndarray, outwa
     fraction = (np.arange(len(edge)) - first[edge]) * ((0.85 - 0.15) / (counts - 1))[edge] + 0.15  # np.linspace's arithmetic
     fraction[first + counts - 1] = 0.85
     along = starts[edge] + fraction[:, None] * (ends - starts)[edge]
-    offset = np.full((len(offsets), width), np.nan)  # padded with NaN: no crossing there
+    offset = np.zeros((len(offsets), width))  # padded: never a crossing there (see ``up``)
     for k, o in enumerate(offsets):
         offset[k, : len(o)] = o
     offset = offset[edge]  # (profiles, width)
-    step = np.nan_to_num(offset)
-    map_x, map_y = (along[:, axis, None] + step * outwards[edge, axis, None] for axis in (0, 1))
+    map_x, map_y = (along[:, axis, None] + offset * outwards[edge, axis, None] for axis in (0, 1))
     values = cv2.remap(grey, map_x.astype(np.float32), map_y.astype(np.float32), cv2.INTER_CUBIC,
                        borderMode=cv2.BORDER_REPLICATE).astype(float)
     column = np.arange(width)[None, :]
@@ -201,7 +200,7 @@ def edge_crossings(grey: np.ndarray, starts: np.ndarray, ends: np.ndarray, outwa
     found = crossing[np.arange(len(crossing)), nearest]
     keep = np.isfinite(found) & (bright - dark >= min_contrast)
     out = along + np.where(keep, found, 0.0)[:, None] * outwards[edge]
-    return [out[keep & (edge == k)] for k in range(len(starts))]
+    return [out[a:b][keep[a:b]] for a, b in zip(first, first + counts)]
 
 
 def refine_tag_corners(grey: np.ndarray, corners_px: np.ndarray, camera: CameraModel | None = None,
