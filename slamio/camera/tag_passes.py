@@ -17,8 +17,8 @@ Measured on the NASA photos against every tag that any of eight detector set-ups
   finds the same tags.
 
 Together: 57 of 61 (2×: 59), none outside the union, at 1.3–1.5× the CPU time of the single
-pass at the camera's resolution (2×: 1.5×), one thread: 18–24 ms per 640×480 frame on the
-median frame of this project's shared 2-core machine, 25–32 ms on tag-dense frames of gravel
+pass at the camera's resolution (2×: 1.5×), one thread: 16–24 ms per 640×480 frame on the
+median frame of this project's shared 2-core machine, 21–31 ms on tag-dense frames of gravel
 (worst 30–39 ms), where the enlarged pass takes most and the aruco pass 3–6 ms.
 
 Tags found by the first pass keep its corners; the second pass only adds tags whose centre is
