@@ -16,7 +16,10 @@ For each detector configuration, on the three NASA photos of ``tests/data/aprilt
   is printed: on a busy machine the ratio travels better than the milliseconds.
 
 Then the chosen configuration's corners after ``refine_tag_corners`` against the listed ones,
-and the whole front-end's time per frame (detection, refinement, pose, geometry).
+and, by kind of frame (robot-camera photos, NASA crops), the CPU time per frame of each of the
+front-end detector's passes, of the detector and of the whole front-end (detection,
+refinement, pose, geometry): median, p90 and worst frame. Everything runs on one thread
+(AprilTag 3's ``nthreads`` 1, and OpenCV's calls inside the detector and the front-end).
 Usage: ``.venv/bin/python scripts/bench_apriltag.py [--photos DIR] [--repeats N] [--only SUBSTRING]``.
 """
 
@@ -121,14 +124,15 @@ def rendered_corner_errors(detect, frames, camera=None):
     return len(errors), np.array(errors)
 
 
-def cpu_times(detect, reference, frames, repeats):
-    """CPU seconds of ``detect`` and of ``reference`` per frame, run alternately on each frame."""
+def cpu_times(detect, reference, frames, repeats, inputs=None):
+    """CPU seconds of ``detect`` and of ``reference`` per frame, run alternately on each frame
+    (``detect`` on ``inputs`` — the same frames in another form, such as BGR — when given)."""
     mine, ref = [], []
-    for image in frames:
+    for image, own in zip(frames, frames if inputs is None else inputs):
         for _ in range(repeats):
-            for function, times in ((detect, mine), (reference, ref)):
+            for function, argument, times in ((detect, own, mine), (reference, image, ref)):
                 t0 = time.process_time()
-                function(image)
+                function(argument)
                 times.append(time.process_time() - t0)
     return np.array(mine), np.array(ref)
 
@@ -243,30 +247,20 @@ def main(argv=None) -> int:
         print(f"  rendered, {label} + refine_tag_corners: {n_rendered}/{len(rendered)} found, corner error against the "
               f"truth max {errors.max():.2f} px, mean {errors.mean():.2f} px, 95 % {np.percentile(errors, 95):.2f} px")
 
-    print("\nthe front-end detector's passes by kind of frame, CPU ms per 640×480 frame, median (worst), and the "
-          "single pass on the same frames:")
+    print("\nby kind of 640×480 frame, CPU ms per frame (median / p90 / worst of the frames, each frame the median of "
+          f"its {args.repeats} runs), each run alternating with the single pass on the same frame:")
+    front = FrontEnd(kinect_v1_default(), FrontEndConfig(kind="apriltag", tag_size_m=0.16))
     n_robot = len(sorted(photos.glob("pupil_*.png")))
     groups = (("robot-camera photos", small[:n_robot]), ("NASA crops", small[n_robot:]))
     for group, frames in groups:
-        cells = []
-        for label, detect in [*((f"pass {k + 1}", d.detect) for k, d in enumerate(detector.detectors)),
-                              ("both", detector.detect)]:
-            mine, ref = cpu_times(detect, first_pass.detect, frames, args.repeats)
-            per_frame = np.median(mine.reshape(-1, args.repeats), axis=1)
-            ref_frame = np.median(ref.reshape(-1, args.repeats), axis=1)
-            cells.append(f"{label} {1e3 * np.median(per_frame):.1f} ({1e3 * per_frame.max():.1f}), "
-                         f"{np.median(mine) / np.median(ref):.2f}x")
-        print(f"  {group} ({len(frames)}): " + "; ".join(cells) +
-              f"; single pass {1e3 * np.median(ref_frame):.1f} ({1e3 * ref_frame.max():.1f})")
-
-    print("\nwhole front-end per frame (detect, refine, IPPE pose, robot-frame geometry), 640×480, CPU:")
-    front = FrontEnd(kinect_v1_default(), FrontEndConfig(kind="apriltag", tag_size_m=0.16))
-    count = front_end_tags(front, small)
-    bgr = [cv2.cvtColor(g, cv2.COLOR_GRAY2BGR) for g in small]
-    mine, ref = cpu_times(lambda image: front.process(Frame(0.0, 0, "bench", image)),
-                          lambda image: first_pass.detect(cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)), bgr, args.repeats)
-    print(f"  {ms(mine, args.repeats)} ms over {len(small)} frames with {count} tags in all; first pass alone "
-          f"{ms(ref, args.repeats)} ms")
+        bgr = [cv2.cvtColor(g, cv2.COLOR_GRAY2BGR) for g in frames]
+        print(f"  {group} ({len(frames)} frames, {front_end_tags(front, frames)} tags found by the front-end):")
+        steps = [*((f"pass {k + 1}", frames, d.detect) for k, d in enumerate(detector.detectors)),
+                 ("detector (both passes)", frames, detector.detect),
+                 ("whole front-end", bgr, lambda image: front.process(Frame(0.0, 0, "bench", image)))]
+        for label, images, function in steps:
+            mine, ref = cpu_times(function, first_pass.detect, frames, args.repeats, inputs=images)
+            print(f"    {label:24} {ms(mine, args.repeats)}   single pass {ms(ref, args.repeats)}")
     return 0
 
 

@@ -15,14 +15,18 @@ from slamio.camera.apriltag import (
     TagPose,
     apriltag_to_opencv_corners,
     choose_tag_pose,
+    TagDetection,
     estimate_tag_pose,
+    fit_lines,
+    neighbour_intersections,
+    opencv_threads,
     refine_tag_corners,
     tag_geometry,
     tag_object_points,
 )
 from slamio.camera.model import CameraModel, T_robot_camera_from_mount, kinect_v1_default, rotation_y
 from slamio.camera.render import Scene, TagSpec, project_world_points, render, tag_corners_world
-from slamio.camera.tag_passes import front_end_detector
+from slamio.camera.tag_passes import TagPasses, already_found, front_end_detector
 from slamio.camera.tag_union import ListedTag, found_by_a_setup, read_union, score_against_union, write_union
 
 PHOTOS = Path(__file__).resolve().parent / "data" / "apriltag-photos"
@@ -179,6 +183,76 @@ def test_upsampled_detection_maps_corners_back(upsample):
     assert d.tag_id == 11 and np.abs(d.corners_px - truth).max() < 0.5
     (d,) = front_end_detector(upsample=upsample).detect(g)  # the aruco pass adds nothing on top
     assert np.abs(refine_tag_corners(g, d.corners_px, cam) - truth).max() < 0.25
+
+
+@pytest.mark.parametrize("distance_m, turn_rad", [(1.0, 0.0), (1.5, -0.7), (2.5, 0.7), (3.5, 0.35)])
+def test_refined_corners_of_turned_tags_against_the_truth(detector, distance_m, turn_rad):
+    # the four edges are sampled and fitted together; each corner is where its two edge lines meet
+    cam = kinect_v1_default(T_robot_camera_from_mount(z_m=0.2))
+    tag = TagSpec(11, distance_m, 0.1, 0.2, math.pi + turn_rad, 0.16)
+    import cv2
+
+    g = cv2.cvtColor(render(cam, (0.0, 0.0, 0.0), Scene(tags=(tag,)), supersample=3).bgr, cv2.COLOR_BGR2GRAY)
+    truth = project_world_points(cam, (0.0, 0.0, 0.0), tag_corners_world(tag))
+    (d,) = detector.detect(g)
+    refined = refine_tag_corners(g, d.corners_px, cam)
+    assert np.abs(refined - truth).max() < 0.25
+    assert np.abs(refined - truth).max() <= np.abs(d.corners_px - truth).max()
+
+
+def test_edge_lines_and_their_intersections_in_closed_form():
+    # points spread symmetrically about each side of a known quadrilateral: the fitted lines are its
+    # sides, and neighbouring lines meet at its corners
+    corners = np.array([[10.0, 12.0], [52.0, 8.0], [58.0, 49.0], [6.0, 55.0]])
+    rng = np.random.default_rng(3)
+    point_sets = []
+    for k in range(4):
+        a, b = corners[k], corners[(k + 1) % 4]
+        t = np.linspace(0.2, 0.8, 9)
+        normal = np.array([a[1] - b[1], b[0] - a[0]]) / np.linalg.norm(b - a)
+        offsets = rng.normal(0.0, 0.3, 9)
+        points = a + t[:, None] * (b - a)
+        point_sets.append(np.vstack([points + offsets[:, None] * normal, points - offsets[:, None] * normal]))
+    centres, directions = fit_lines(point_sets)
+    assert np.allclose(np.linalg.norm(directions, axis=1), 1.0)
+    # line k runs from corner k to corner k+1, so lines k-1 and k meet at corner k
+    assert np.abs(neighbour_intersections(centres, directions) - corners).max() < 1e-9
+    assert neighbour_intersections(centres, np.tile([1.0, 0.0], (4, 1))) is None  # parallel lines
+
+
+def test_passes_keep_the_first_detection_of_each_tag():
+    # a later pass adds a tag only when its centre is not within half a side of one already found
+    def tag(tag_id, x, y, side=20.0):
+        h = side / 2
+        return TagDetection(tag_id, "tag36h11", np.array([[x - h, y - h], [x + h, y - h], [x + h, y + h], [x - h, y + h]]))
+
+    class Fixed:
+        family = "tag36h11"
+
+        def __init__(self, tags):
+            self.tags = tags
+
+        def detect(self, grey):
+            return list(self.tags)
+
+    first = [tag(0, 100, 100), tag(0, 140, 100)]
+    again = tag(0, 108, 100)  # the first tag seen by the second pass, 8 px off: within half a side
+    new = tag(3, 100, 125)  # 25 px away: another tag
+    found = TagPasses([Fixed(first), Fixed([again, new])]).detect(np.zeros((8, 8), np.uint8))
+    assert [(t.tag_id, t.centre_px.tolist()) for t in found] == [(0, [100.0, 100.0]), (0, [140.0, 100.0]),
+                                                                  (3, [100.0, 125.0])]
+    assert found[0] is first[0]  # the earlier pass's corners are kept
+    assert not already_found(new, [])
+    assert already_found(again, first)
+
+
+def test_opencv_threads_are_set_inside_and_restored_after():
+    import cv2
+
+    before = cv2.getNumThreads()
+    with opencv_threads(1):
+        assert cv2.getNumThreads() == 1
+    assert cv2.getNumThreads() == before
 
 
 def test_a_far_small_tag_is_found_by_the_front_end_only(detector, front_end):

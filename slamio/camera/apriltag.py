@@ -43,7 +43,9 @@ from __future__ import annotations
 
 import math
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -75,11 +77,11 @@ class TagDetection:
     hamming: int = 0
     decision_margin: float = float("nan")
 
-    @property
+    @cached_property
     def centre_px(self) -> np.ndarray:
         return self.corners_px.mean(axis=0)
 
-    @property
+    @cached_property
     def side_px(self) -> float:
         """Mean side length in pixels."""
         c = self.corners_px
@@ -125,57 +127,80 @@ def corners_from_upsampled(corners_px: np.ndarray, factor: float) -> np.ndarray:
     return (np.asarray(corners_px, dtype=float) + 0.5) / factor - 0.5
 
 
-def _fit_line(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Total-least-squares line through (N, 2) points: (a point on it, unit direction)."""
-    centre = points.mean(axis=0)
-    _, _, vt = np.linalg.svd(points - centre)
-    return centre, vt[0]
+def fit_lines(point_sets: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Total-least-squares lines through sets of (N, 2) points: (K, 2) points on them (the
+    centroids) and (K, 2) unit directions (the scatter's major axis, in closed form)."""
+    centres = np.array([pts.mean(axis=0) for pts in point_sets])
+    scatter = np.array([(d := pts - c).T @ d for pts, c in zip(point_sets, centres)])  # (K, 2, 2)
+    angle = 0.5 * np.arctan2(2.0 * scatter[:, 0, 1], scatter[:, 0, 0] - scatter[:, 1, 1])
+    return centres, np.column_stack([np.cos(angle), np.sin(angle)])
 
 
-def _intersect(line_a, line_b) -> np.ndarray | None:
-    (pa, da), (pb, db) = line_a, line_b
-    m = np.column_stack([da, -db])
-    if abs(np.linalg.det(m)) < 1e-9:
+def cross_2d(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """z of the cross product of 2-D vectors (row by row)."""
+    return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
+
+def neighbour_intersections(centres: np.ndarray, directions: np.ndarray) -> np.ndarray | None:
+    """Where line k−1 meets line k, for each k of a closed chain of lines (point, direction);
+    None when two neighbours are parallel."""
+    before = np.arange(len(centres)) - 1  # line k−1 (the last line before the first)
+    previous, previous_dir = centres[before], directions[before]
+    det = cross_2d(previous_dir, directions)
+    if np.any(np.abs(det) < 1e-9):
         return None
-    s = np.linalg.solve(m, pb - pa)
-    return pa + s[0] * da
+    s = cross_2d(centres - previous, directions) / det
+    return previous + s[:, None] * previous_dir
 
 
-def edge_crossings(grey: np.ndarray, p0: np.ndarray, p1: np.ndarray, outward: np.ndarray, half_px: float,
-                   *, min_contrast: float = 15.0) -> np.ndarray:
-    """Sub-pixel points of a dark-inside/bright-outside edge between two rough corners.
+def edge_crossings(grey: np.ndarray, starts: np.ndarray, ends: np.ndarray, outwards: np.ndarray,
+                   halves_px: np.ndarray, *, min_contrast: float = 15.0) -> list[np.ndarray]:
+    """Sub-pixel points of dark-inside/bright-outside edges between rough corners, one (N, 2) array per edge.
 
-    Samples intensity profiles (bicubic, 0.25 px steps, ± ``half_px``) across the edge at points spread
-    over its middle 70 %, and returns where each crosses the mid level between its dark
+    Edge k runs from ``starts[k]`` to ``ends[k]`` with unit normal ``outwards[k]``. Samples
+    intensity profiles (bicubic, 0.25 px steps, ± ``halves_px[k]``) across the edge at points
+    spread over its middle 70 %, and returns where each crosses the mid level between its dark
     (inner) and bright (outer) halves — the upward crossing nearest the rough edge, so a
     white data cell inside the border or clutter beyond the margin does not capture it.
-    Profiles with too little contrast are skipped.
+    Profiles with too little contrast are skipped. All edges' profiles are sampled by one
+    ``cv2.remap`` and evaluated together (rows of different lengths padded): a tag-dense frame
+    refines hundreds of edges.
     """
     import cv2
 
-    edge = p1 - p0
-    length = float(np.linalg.norm(edge))
-    count = int(np.clip(round(0.7 * length), 4, 60))
-    along = p0 + np.linspace(0.15, 0.85, count)[:, None] * edge
-    offsets = np.arange(-half_px, half_px + 1e-9, 0.25)
-    pts = along[:, None, :] + offsets[None, :, None] * outward  # (count, m, 2)
-    mapx = pts[..., 0].astype(np.float32)
-    mapy = pts[..., 1].astype(np.float32)
-    values = cv2.remap(grey, mapx, mapy, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE).astype(float)
-    middle = len(offsets) // 2  # offset 0: the rough edge
-    dark = values[:, : middle + 1].min(axis=1)
-    bright = values[:, middle:].max(axis=1)
+    starts, ends, outwards = (np.asarray(a, dtype=float).reshape(-1, 2) for a in (starts, ends, outwards))
+    lengths = np.linalg.norm(ends - starts, axis=1)
+    counts = np.array([min(max(round(0.7 * float(length)), 4), 60) for length in lengths])
+    offsets = [np.arange(-h, h + 1e-9, 0.25) for h in np.asarray(halves_px, dtype=float)]
+    width = max(len(o) for o in offsets)
+    edge = np.repeat(np.arange(len(starts)), counts)  # the edge of each profile
+    first = np.cumsum(counts) - counts  # each edge's first profile
+    fraction = (np.arange(len(edge)) - first[edge]) * ((0.85 - 0.15) / (counts - 1))[edge] + 0.15  # np.linspace's arithmetic
+    fraction[first + counts - 1] = 0.85
+    along = starts[edge] + fraction[:, None] * (ends - starts)[edge]
+    offset = np.zeros((len(offsets), width))  # padded: never a crossing there (see ``up``)
+    for k, o in enumerate(offsets):
+        offset[k, : len(o)] = o
+    offset = offset[edge]  # (profiles, width)
+    map_x, map_y = (along[:, axis, None] + offset * outwards[edge, axis, None] for axis in (0, 1))
+    values = cv2.remap(grey, map_x.astype(np.float32), map_y.astype(np.float32), cv2.INTER_CUBIC,
+                       borderMode=cv2.BORDER_REPLICATE).astype(float)
+    column = np.arange(width)[None, :]
+    middle = np.array([len(o) // 2 for o in offsets])[edge][:, None]  # offset 0: the rough edge
+    size = np.array([len(o) for o in offsets])[edge][:, None]
+    dark = np.where(column <= middle, values, np.inf).min(axis=1)
+    bright = np.where((column >= middle) & (column < size), values, -np.inf).max(axis=1)
     level = 0.5 * (dark + bright)[:, None]
     v0, v1 = values[:, :-1], values[:, 1:]
-    up = (v0 < level) & (v1 >= level)  # dark → bright going outward
+    up = (v0 < level) & (v1 >= level) & (column[:, 1:] < size)  # dark → bright going outward
     with np.errstate(divide="ignore", invalid="ignore"):
-        crossing = offsets[:-1] + (level - v0) / (v1 - v0) * (offsets[1:] - offsets[:-1])
+        crossing = offset[:, :-1] + (level - v0) / (v1 - v0) * (offset[:, 1:] - offset[:, :-1])
     crossing = np.where(up, crossing, np.inf)
     nearest = np.argmin(np.abs(crossing), axis=1)  # the crossing nearest the rough edge
-    offset = crossing[np.arange(count), nearest]
-    keep = np.isfinite(offset) & (bright - dark >= min_contrast)
-    out = along[keep] + offset[keep, None] * outward
-    return np.array(out).reshape(-1, 2)
+    found = crossing[np.arange(len(crossing)), nearest]
+    keep = np.isfinite(found) & (bright - dark >= min_contrast)
+    out = along + np.where(keep, found, 0.0)[:, None] * outwards[edge]
+    return [out[a:b][keep[a:b]] for a, b in zip(first, first + counts)]
 
 
 def refine_tag_corners(grey: np.ndarray, corners_px: np.ndarray, camera: CameraModel | None = None,
@@ -193,32 +218,24 @@ def refine_tag_corners(grey: np.ndarray, corners_px: np.ndarray, camera: CameraM
     """
     c = np.asarray(corners_px, dtype=float).reshape(4, 2)
     grey = np.ascontiguousarray(grey, dtype=np.uint8)
-    sides = np.linalg.norm(np.roll(c, -1, axis=0) - c, axis=1)  # side i: corner i → i+1
+    ends = c[[1, 2, 3, 0]]  # side i: corner i → i+1
+    sides = np.linalg.norm(ends - c, axis=1)
     if np.min(sides) / 8.0 < 1.5:
         return None
-    centre = c.mean(axis=0)
+    tangents = (ends - c) / sides[:, None]
+    normals = np.column_stack([tangents[:, 1], -tangents[:, 0]])
+    inward = np.sum((0.5 * (c + ends) - c.mean(axis=0)) * normals, axis=1) < 0
+    normals[inward] *= -1.0
+    cells = np.minimum(np.minimum(sides[[3, 0, 1, 2]], sides), sides[[1, 2, 3, 0]]) / 8.0  # perspective: the smallest nearby
+    point_sets = edge_crossings(grey, c, ends, normals, np.maximum(1.5, cells))
+    if min(len(pts) for pts in point_sets) < 3:
+        return None
     distorted = camera is not None and (camera.has_distortion or camera.distortion_model == "equidistant")
-    lines = []
-    for i in range(4):
-        p0, p1 = c[i], c[(i + 1) % 4]
-        t = (p1 - p0) / np.linalg.norm(p1 - p0)
-        n = np.array([t[1], -t[0]])
-        if np.dot(0.5 * (p0 + p1) - centre, n) < 0:
-            n = -n
-        cell = min(sides[i - 1], sides[i], sides[(i + 1) % 4]) / 8.0  # perspective: the smallest nearby
-        pts = edge_crossings(grey, p0, p1, n, max(1.5, cell))
-        if len(pts) < 3:
-            return None
-        if distorted:
-            pts = camera.normalized(pts)
-        lines.append(_fit_line(pts))
-    refined = []
-    for i in range(4):
-        p = _intersect(lines[i - 1], lines[i])
-        if p is None:
-            return None
-        refined.append(p)
-    refined = np.array(refined)
+    if distorted:
+        point_sets = np.split(camera.normalized(np.concatenate(point_sets)), np.cumsum([len(p) for p in point_sets])[:-1])
+    refined = neighbour_intersections(*fit_lines(point_sets))
+    if refined is None:
+        return None
     if distorted:
         refined = camera.project(np.column_stack([refined, np.ones(4)]))
     if not np.all(np.isfinite(refined)) or np.max(np.linalg.norm(refined - c, axis=1)) > max_shift_px:
@@ -272,18 +289,19 @@ def estimate_tag_pose(corners_px: np.ndarray, tag_size_m: float, camera: CameraM
     except cv2.error:
         pass
 
-    def score(c):
-        return _reprojection_rms(object_points, xy, rodrigues(c[0]), c[1]) * focal
+    def pose(rvec, tvec) -> TagPose:
+        R = rodrigues(rvec)
+        return TagPose(R, tvec, _reprojection_rms(object_points, xy, R, tvec) * focal)
 
-    if not candidates or min(score(c) for c in candidates) > fallback_error_px:
+    poses = [pose(r, t) for r, t in candidates]
+    if not poses or min(p.reprojection_error_px for p in poses) > fallback_error_px:
         try:
             ok, rvec, tvec = cv2.solvePnP(object_points, image_points, np.eye(3), None, flags=cv2.SOLVEPNP_SQPNP)
             if ok:
                 rvec, tvec = cv2.solvePnPRefineLM(object_points, image_points, np.eye(3), None, rvec, tvec)
-                candidates.append((rvec.ravel(), tvec.ravel()))
+                poses.append(pose(rvec.ravel(), tvec.ravel()))
         except cv2.error:
             pass
-    poses = [TagPose(rodrigues(r), t, score((r, t))) for r, t in candidates]
     poses = [p for p in poses if math.isfinite(p.reprojection_error_px)]
     poses.sort(key=lambda p: p.reprojection_error_px)
     return poses
@@ -323,6 +341,24 @@ def choose_tag_pose(
 
 
 # --------------------------------------------------------------------------- detector
+
+
+@contextmanager
+def opencv_threads(count: int):
+    """OpenCV's calls inside run on ``count`` threads (its process-wide setting, restored after).
+
+    OpenCV otherwise spreads resizing, thresholding and contour work over every core, and on a
+    shared machine its idle workers' spinning shows up as CPU time of this process (the aruco
+    pass took about 1.5× less CPU on the NASA crops with one thread; docs/camera.md).
+    """
+    import cv2
+
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(int(count))
+    try:
+        yield
+    finally:
+        cv2.setNumThreads(before)
 
 
 def _quad_threshold_struct():
@@ -479,24 +515,26 @@ class AprilTagDetector:
             self._detector = cv2.aruco.ArucoDetector(dictionary, params)
 
     def detect(self, grey: np.ndarray) -> list[TagDetection]:
-        """Tags in a 2-D uint8 image, sorted by id."""
-        grey = np.ascontiguousarray(grey, dtype=np.uint8)
-        if self.upsample != 1.0:
-            import cv2
+        """Tags in a 2-D uint8 image, sorted by id (OpenCV's calls on ``nthreads`` threads too)."""
+        import cv2
 
-            grey = cv2.resize(grey, None, fx=self.upsample, fy=self.upsample, interpolation=cv2.INTER_LINEAR)
+        grey = np.ascontiguousarray(grey, dtype=np.uint8)
         out: list[TagDetection] = []
-        if self.backend == "apriltag3":
-            for d in self._detector.detect(grey):
-                if d.hamming > self.max_hamming:
-                    continue
-                corners = corners_from_upsampled(apriltag_to_opencv_corners(d.corners), self.upsample)
-                out.append(TagDetection(int(d.tag_id), self.family, corners, int(d.hamming), float(d.decision_margin)))
-        else:
-            corners, ids, _ = self._detector.detectMarkers(grey)
-            if ids is not None:
-                for c, i in zip(corners, ids.ravel()):
-                    c = corners_from_upsampled(np.asarray(c, dtype=float).reshape(4, 2), self.upsample)
-                    out.append(TagDetection(int(i), self.family, c))
+        with opencv_threads(self.settings["nthreads"]):
+            if self.upsample != 1.0:
+                grey = cv2.resize(grey, None, fx=self.upsample, fy=self.upsample, interpolation=cv2.INTER_LINEAR)
+            if self.backend == "apriltag3":
+                for d in self._detector.detect(grey):
+                    if d.hamming > self.max_hamming:
+                        continue
+                    corners = corners_from_upsampled(apriltag_to_opencv_corners(d.corners), self.upsample)
+                    out.append(TagDetection(int(d.tag_id), self.family, corners, int(d.hamming),
+                                            float(d.decision_margin)))
+            else:
+                corners, ids, _ = self._detector.detectMarkers(grey)
+                if ids is not None:
+                    for c, i in zip(corners, ids.ravel()):
+                        c = corners_from_upsampled(np.asarray(c, dtype=float).reshape(4, 2), self.upsample)
+                        out.append(TagDetection(int(i), self.family, c))
         out.sort(key=lambda t: (t.tag_id, float(t.centre_px[0])))
         return out

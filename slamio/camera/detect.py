@@ -27,6 +27,7 @@ from slamio.camera.apriltag import (
     TagGeometry,
     choose_tag_pose,
     estimate_tag_pose,
+    opencv_threads,
     refine_tag_corners,
     tag_geometry,
 )
@@ -284,7 +285,8 @@ class FrontEnd:
             return result
         try:
             if self.config.kind == "apriltag":
-                self._tags(grey, result)
+                with opencv_threads(self.config.nthreads):  # refinement and pose too
+                    self._tags(grey, result)
             else:
                 self._colour(frame, result)
         except (cv2.error, ValueError, ArithmeticError, np.linalg.LinAlgError, RuntimeError) as exc:

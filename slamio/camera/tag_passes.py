@@ -16,10 +16,10 @@ Measured on the NASA photos against every tag that any of eight detector set-ups
   thousands of candidates, the pass costs 1.2–1.5× the single pass instead of 2.1–2.4× and
   finds the same tags.
 
-Together: 57 of 61 (2×: 59), none outside the union, at 1.5–1.7× the CPU time of the single
-pass at the camera's resolution (2×: 2.0–2.1×): about 21 ms per 640×480 frame on the median
-frame of this project's shared 2-core machine, but 43–45 ms on tag-dense frames of gravel
-(2.6–2.7×), a third of it the aruco pass.
+Together: 57 of 61 (2×: 59), none outside the union, at 1.3–1.5× the CPU time of the single
+pass at the camera's resolution (2×: 1.5×), one thread: 16–24 ms per 640×480 frame on the
+median frame of this project's shared 2-core machine, 21–31 ms on tag-dense frames of gravel
+(worst 30–39 ms), where the enlarged pass takes most and the aruco pass 3–6 ms.
 
 Tags found by the first pass keep its corners; the second pass only adds tags whose centre is
 not within half a side of one already found. The front-end refines every tag's corners on the
@@ -50,15 +50,20 @@ class TagPasses:
         found: list[TagDetection] = []
         for detector in self.detectors:
             for tag in detector.detect(grey):
-                if not any(already_found(tag, other) for other in found):
+                if not already_found(tag, found):
                     found.append(tag)
         found.sort(key=lambda t: (t.tag_id, float(t.centre_px[0])))
         return found
 
 
-def already_found(tag: TagDetection, other: TagDetection) -> bool:
-    """True when ``tag``'s centre is within half of ``other``'s side of ``other``'s centre (same tag)."""
-    return float(np.linalg.norm(tag.centre_px - other.centre_px)) < 0.5 * other.side_px
+def already_found(tag: TagDetection, found: list[TagDetection]) -> bool:
+    """True when ``tag``'s centre is within half a side of the centre of one of the ``found`` tags
+    (the same tag). One array operation over ``found``: a tag-dense frame compares hundreds of pairs."""
+    if not found:
+        return False
+    centres = np.array([other.centre_px for other in found])
+    half_sides = 0.5 * np.array([other.side_px for other in found])
+    return bool(np.any(np.hypot(*(centres - tag.centre_px).T) < half_sides))
 
 
 #: AprilTag 3's quad-threshold parameters for the enlarged pass (the library's defaults: 5, 5): tiles

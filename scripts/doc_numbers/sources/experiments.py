@@ -36,7 +36,8 @@ def apriltag_photos(context: Context) -> dict:
     ones (``matched``, ``max``, ``mean`` px, ``kept`` the detector's, ``detections``); "rendered
     refined" and "rendered refined single pass" → the same on the rendered tags against the
     truth (``found``, ``max``, ``mean``, ``p95`` px); "timing frames" → the 640×480 frames the
-    times are measured on (``frames``, and the whole front-end's ``tags_per_frame``)."""
+    times are measured on (``frames``, and the whole front-end's ``tags_per_frame``; by kind,
+    ``robot_frames``/``robot_tags`` and ``nasa_frames``/``nasa_tags``)."""
     import bench_apriltag as script
     import cv2
     import numpy as np
@@ -77,7 +78,11 @@ def apriltag_photos(context: Context) -> dict:
                                                p95=float(np.percentile(errors, 95)))
     front = FrontEnd(kinect_v1_default(), FrontEndConfig(kind="apriltag", tag_size_m=0.16))
     frames = script.timing_frames(photos, images)
-    out["timing frames"] = dict(frames=len(frames), tags_per_frame=script.front_end_tags(front, frames) / len(frames))
+    robot = len(list(photos.glob("pupil_*.png")))  # timing_frames puts the robot-camera photos first
+    robot_tags, nasa_tags = script.front_end_tags(front, frames[:robot]), script.front_end_tags(front, frames[robot:])
+    out["timing frames"] = dict(frames=len(frames), tags_per_frame=(robot_tags + nasa_tags) / len(frames),
+                                robot_frames=robot, robot_tags=robot_tags, nasa_frames=len(frames) - robot,
+                                nasa_tags=nasa_tags)
     return out
 
 
