@@ -260,3 +260,50 @@ def test_the_fit_recovers_a_known_correlation():
 def test_white_readings_fit_as_white():
     fit = fit_reading_correlation(*draw_series(2, 0.0, 0.0))
     assert fit.share == 0.0
+
+
+# ----------------------------------------------------------------------------- the association sees the errors too
+
+
+def test_the_association_distance_is_the_updates_nis():
+    """Without ids, the association's d² of a reading to its landmark is the NIS the update
+    uses (errors decayed to the step, ``ν = z − h − u``, white part ``(1 − ρ)R``), and the
+    reduced problem JCBB is given has the same individual distances."""
+    import ekf.slam as slam
+    from ekf.association import individual_compatibility
+
+    header, steps, _ = correlated_run(5)
+    ekf = EkfSlam(header, known_id_gate_probability=None)
+    given = []
+
+    def spy(nu, H, P, R, **kwargs):
+        given.append((nu, H, P, R))
+        return real_jcbb(nu, H, P, R, **kwargs)
+
+    real_jcbb, slam.jcbb = slam.jcbb, spy
+    compared = 0
+    try:
+        for k, step in enumerate(steps):
+            ekf.step(step)
+            if k + 1 == len(steps) or k % 5:
+                continue
+            now = [dataclasses.replace(o, stamp_s=step.stamp_s) for o in steps[k + 1].observations]
+            now = [o for o in now if o.landmark_id in ekf._slot]
+            if not now:
+                continue
+            keys, d2, _ = ekf.association_distances([dataclasses.replace(o, landmark_id=None) for o in now])
+            nis = ekf.predicted_nis(Step(step.index, step.stamp_s, None, tuple(now), None))
+            for i, o in enumerate(now):
+                assert d2[i, keys.index(o.landmark_id)] == pytest.approx(nis[i], rel=1e-8)
+                compared += 1
+            lin = ekf._linearise([dataclasses.replace(o, landmark_id=None) for o in now])
+            candidate = lin.d2 <= 1e6
+            given.clear()
+            ekf._jcbb(lin, candidate)
+            nu, H, P, R = given[-1]
+            got = individual_compatibility(nu, H, P, R)  # its rows in JCBB's order (fewest candidates first)
+            np.testing.assert_allclose(got[np.argsort(got[:, 0])], lin.d2[np.argsort(lin.d2[:, 0])], rtol=1e-8)
+    finally:
+        slam.jcbb = real_jcbb
+    assert compared > 50
+    assert ekf._error_index  # the filter did carry reading errors
