@@ -903,11 +903,6 @@ class EkfSlam:
         R_obs = np.zeros((n_obs, m, m))
         R_obs[:, 0, 0] = [o.sigma_range_m**2 for o in observations]
         R_obs[:, 1, 1] = [o.sigma_bearing_rad**2 for o in observations]
-        errors = self._reading_errors(observations, J, block, m)
-        if errors is not None:  # ν −= ratio·u, S += the errors' terms, R → its white part (1 − ρ)R
-            nu[:, :, :2] -= errors.ratio * errors.mean[None]
-            nu[:, :, 1] = wrap_angle(nu[:, :, 1])
-            R_obs[:, :2, :2] *= 1.0 - self.reading_error.share
         dof = np.full((n_obs, M), 2, dtype=int)
         if m == 3:
             hj = np.where(lm_h)[0]
@@ -926,60 +921,17 @@ class EkfSlam:
             nu[:, :, 2] = np.where(valid, h_obs[:, None] - h_lm[None, :], 0.0)
             dof = np.where(valid, 3, 2)
             S = np.broadcast_to(S_lm, (n_obs, M, m, m)).copy()
-            if errors is not None:
-                S += errors.added
             S[:, :, 2, :] *= valid[:, :, None]
             S[:, :, :, 2] *= valid[:, :, None]
             S = S + R_obs[:, None]
             d2 = mahalanobis_squared(nu, S)
         else:
             S = S_lm[None] + R_obs[:, None]
-            if errors is not None:
-                S = S + errors.added
             a, b, c = S[..., 0, 0], S[..., 0, 1], S[..., 1, 1]
             v0, v1 = nu[..., 0], nu[..., 1]
             d2 = (c * v0 * v0 - 2.0 * b * v0 * v1 + a * v1 * v1) / (a * c - b * b)
         d2 = np.where(degenerate[None, :], np.inf, d2)
-        return _Linearised(m, nu, d2, dof, Hp, Hl, R_obs, obs_h, lm_h, errors)
-
-    def _reading_errors(self, observations, J, block, m) -> "_ReadingErrors | None":
-        """The landmarks' reading errors (:mod:`ekf.reading_error`) in the association, as
-        :meth:`_update` has them: a reading of landmark j is ``h + G·u_j + w``, ``w`` white
-        with ``(1 − ρ)R``, ``u_j`` the landmark's error decayed to the step's time with its
-        σ at its last reading (``u = φ·e``, variance ``φ²P_ee + ρσ²(1 − φ²)``) and
-        ``G = diag(σ_now/σ_then)`` the reading's own σ over that one — together
-        :func:`ekf.reading_error.gauss_markov_step`. None without a reading-error model.
-
-        ``J`` (M, 2, 5) the Jacobians over [pose, landmark], ``block`` (M, 5) their state
-        indices. Landmarks without error states (range-only) get ``G = 0``."""
-        if self.reading_error is None or not self._error_index:
-            return None
-        n_obs, M = len(observations), len(self._keys)
-        rho, tau = self.reading_error.share, self.reading_error.time_s
-        has = np.array([k in self._error_index for k in self._keys], dtype=bool)
-        e = np.array([self._error_index.get(k, 0) for k in self._keys], dtype=np.intp)
-        cols = np.stack([e, e + 1], axis=1)  # (M, 2)
-        then = np.array([self._error_sigma[k] if h else (1.0, 1.0) for k, h in zip(self._keys, has)], dtype=float)
-        dt = np.array([self._time - self._error_time[k] if h else 0.0 for k, h in zip(self._keys, has)])
-        phi = np.exp(-np.maximum(dt, 0.0) / tau)
-        now = np.array([reading_sigmas(o) for o in observations], dtype=float).reshape(n_obs, 2)
-        ratio = np.where(has[None, :, None], now[:, None, :] / then[None, :, :], 0.0)  # (n, M, 2): G's diagonal
-        mean = phi[:, None] * self._mean[cols] * has[:, None]  # u (M, 2)
-        P = self._cov
-        P_xu = P[block[:, :, None], cols[:, None, :]] * phi[:, None, None]  # (M, 5, 2)
-        P_uu = P[cols[:, :, None], cols[:, None, :]] * (phi**2)[:, None, None]
-        P_uu = P_uu + np.eye(2) * (rho * then**2 * (1.0 - phi**2)[:, None])[:, None, :]
-        C = J @ P_xu  # (M, 2, 2): cov(h, u)
-        CG = C[None] * ratio[:, :, None, :]  # J Σ_xu G
-        added = np.zeros((n_obs, M, m, m))
-        added[:, :, :2, :2] = CG + np.swapaxes(CG, -1, -2) + ratio[..., :, None] * P_uu[None] * ratio[..., None, :]
-        if m == 3:  # the height row: cov(height, u) G
-            hi = np.asarray(self._h_index, dtype=np.intp)
-            with_h = (hi >= 0) & has
-            P_hu = np.where(with_h[:, None], P[np.where(with_h, hi, 0)[:, None], cols] * phi[:, None], 0.0)  # (M, 2)
-            added[:, :, 2, :2] = P_hu[None] * ratio
-            added[:, :, :2, 2] = added[:, :, 2, :2]
-        return _ReadingErrors(has, cols, phi, ratio, mean, added)
+        return _Linearised(m, nu, d2, dof, Hp, Hl, R_obs, obs_h, lm_h)
 
     def _associate_and_apply(self, observations: list[Observation]) -> list[int | None]:
         """One association problem for the id-less observations of a step, then the updates
@@ -1025,29 +977,15 @@ class EkfSlam:
         cand = np.flatnonzero(compatible[obs].any(axis=0))
         m = lin.m
         # Reduced state: pose, then each candidate's x, y (and h when m == 3 and it has one).
-        # With reading errors, then its errors u (see _reading_errors).
-        errors = lin.errors
         columns = [0, 1, 2]
-        offset, error_offset = [], []
+        offset = []
         for j in cand.tolist():
             offset.append(len(columns))
             columns += [self._x_index[j], self._x_index[j] + 1]
             if m == 3 and lin.lm_h[j]:
                 columns.append(self._h_index[j])
-            error_offset.append(len(columns) if errors is not None and errors.has[j] else None)
-            if error_offset[-1] is not None:
-                columns += errors.cols[j].tolist()
         columns_arr = np.asarray(columns, dtype=np.intp)
         P_red = self._cov[np.ix_(columns_arr, columns_arr)]
-        if errors is not None:  # the errors decayed to the step: u = φ·e, + ρσ²(1 − φ²)
-            scale = np.ones(len(columns))
-            added = np.zeros(len(columns))
-            for c, j in enumerate(cand.tolist()):
-                if error_offset[c] is not None:
-                    o, phi = error_offset[c], errors.phi[j]
-                    scale[o : o + 2] = phi
-                    added[o : o + 2] = self.reading_error.share * self._error_sigma[self._keys[j]] ** 2 * (1.0 - phi**2)
-            P_red = P_red * np.outer(scale, scale) + np.diag(added)
         d = len(columns)
         H = np.zeros((len(obs), len(cand), m, d))
         for c, j in enumerate(cand.tolist()):
@@ -1056,10 +994,6 @@ class EkfSlam:
             H[:, c, :2, o : o + 2] = lin.H_landmark[j]
             if m == 3 and lin.lm_h[j]:
                 H[:, c, 2, o + 2] = lin.obs_h[obs].astype(float)
-            if error_offset[c] is not None:
-                o = error_offset[c]
-                H[:, c, 0, o] = errors.ratio[obs, j, 0]
-                H[:, c, 1, o + 1] = errors.ratio[obs, j, 1]
         result = jcbb(
             lin.nu[np.ix_(obs, cand)],
             H,
@@ -1093,16 +1027,3 @@ class _Linearised:
     R: np.ndarray  # (n, m, m)
     obs_h: np.ndarray  # (n,) observation has a height
     lm_h: np.ndarray  # (M,) landmark has a height
-    errors: "_ReadingErrors | None" = None  # the landmarks' reading errors (EkfSlam._reading_errors)
-
-
-@dataclass(frozen=True)
-class _ReadingErrors:
-    """The reading errors' part of one step's association problem (``EkfSlam._reading_errors``)."""
-
-    has: np.ndarray  # (M,) the landmark carries error states
-    cols: np.ndarray  # (M, 2) their state indices
-    phi: np.ndarray  # (M,) decay from the landmark's last reading to the step
-    ratio: np.ndarray  # (n, M, 2) G's diagonal: the reading's σ over the landmark's last one
-    mean: np.ndarray  # (M, 2) u, the errors decayed to the step
-    added: np.ndarray  # (n, M, m, m) what the errors add to S
