@@ -30,11 +30,11 @@ def _mrclam_hidden(robot: int | None, estimator: str, read):
 #: The cells of a robot's row of the MRCLAM hidden-barcode table, in order, after the robot's number.
 _HIDDEN_CELLS = (lambda x: x["observations"], lambda x: x["correct"], lambda x: 100 * x["rate"],
                  lambda x: 100 * x["rate_seen"], lambda x: x["wrong"], lambda x: x["new"], lambda x: x["duplicates"],
-                 lambda x: x["rejected"], lambda x: x["ate_ids_m"], lambda x: x["ate_m"],
+                 lambda x: x["rejected"], lambda x: x["ambiguous"], lambda x: x["ate_ids_m"], lambda x: x["ate_m"],
                  lambda x: x["ate_m"] / x["ate_ids_m"])
 #: The cells of the median row.
 _MEDIAN_CELLS = (lambda x: 100 * x["rate"], lambda x: 100 * x["rate_seen"], lambda x: x["wrong"], lambda x: x["new"],
-                 lambda x: x["rejected"], lambda x: x["ate_ids_m"], lambda x: x["ate_m"],
+                 lambda x: x["rejected"], lambda x: x["ambiguous"], lambda x: x["ate_ids_m"], lambda x: x["ate_m"],
                  lambda x: x["ate_m"] / x["ate_ids_m"])
 
 
