@@ -203,14 +203,16 @@ def test_hidden_barcodes_the_smoother_settles_rejected_readings_at_the_end():
 
 
 @pytest.mark.slow
-def test_the_hidden_barcode_benchmark_scores_both_estimators_against_the_bound(tmp_path, capsys):
+def test_the_hidden_barcode_benchmark_scores_both_estimators_against_the_bound(tmp_path, capsys, monkeypatch):
     """scripts/bench_association_mrclam.py on the excerpt's robot 3 (noise fitted on robots 1
     and 2): every reading is correct, wrong or unused; "ambiguous" is part of "rejected"; and
     the bound with the Vicon pose and the surveyed map splits the readings into right,
     ambiguous and wrong (its right share at most the nearest-is-the-barcode share)."""
     import importlib.util
 
-    path = os.path.join(os.path.dirname(__file__), "..", "scripts", "bench_association_mrclam.py")
+    scripts = os.path.join(os.path.dirname(__file__), "..", "scripts")
+    monkeypatch.syspath_prepend(scripts)  # it imports bench_mrclam, as when run from there
+    path = os.path.join(scripts, "bench_association_mrclam.py")
     spec = importlib.util.spec_from_file_location("bench_association_mrclam", path)
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
