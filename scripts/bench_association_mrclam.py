@@ -16,9 +16,12 @@ thread, as ``scripts/bench_mrclam.py`` does:
 
 The "landmark seen" column scores the same keys against the landmark each reading saw
 (:func:`seen_landmark_ids`: the barcode's, unless Vicon shows the barcode was misread).
-``--diagnose`` also prints, per robot, how many readings are misread, what an association
-that knew the Vicon pose and the surveyed map would reach (:func:`with_truth_bound`), and
-the nearest-neighbour distance between the surveyed landmarks.
+"rejected" counts every reading left unused, of which "ambiguous" near a landmark but not
+safely one (:func:`ambiguous_count`; the rest are first sightings never confirmed).
+A second table gives, per robot, what an association that knew the Vicon pose and the
+surveyed map would reach (:func:`with_truth_bound`): the bound on the correct share.
+``--diagnose`` also prints, per robot, how many readings are misread and the
+nearest-neighbour distance between the surveyed landmarks.
 
 Usage::
 
@@ -71,7 +74,8 @@ def run_one(log: RunLog, name: str, seen_ids: list[int | None] | None = None) ->
     if score is not None:
         row.update(observations=score.observations, correct=score.correct, wrong=score.wrong,
                    rejected=score.rejected, new=score.landmarks_created, duplicates=len(score.duplicate_keys),
-                   rate=score.rate, counts=dict(getattr(est, "association_counts", None) or {}))
+                   rate=score.rate, ambiguous=ambiguous_count(est),
+                   counts=dict(getattr(est, "association_counts", None) or {}))
         if seen_ids is not None:
             keys = est.associations() if hasattr(est, "associations") else step_keys
             row["rate_seen"] = score_associations(seen_ids, keys).rate
@@ -114,14 +118,35 @@ def seen_landmark_ids(distances, probability: float = 0.999) -> list[int | None]
     return out
 
 
-def with_truth_bound(distances, margin: float = DEFAULT_AMBIGUITY_MARGIN) -> tuple[float, float]:
-    """What an association that knew the Vicon pose and the surveyed map would reach: (share
-    of readings whose nearest landmark is their barcode's, share whose second-nearest is
-    within ``margin`` of the nearest — ambiguous even then)."""
+def with_truth_bound(distances, margin: float = DEFAULT_AMBIGUITY_MARGIN) -> dict[str, float]:
+    """What an association that knew the Vicon pose and the surveyed map would reach, as
+    shares of the readings with a Vicon pose, scored against the barcodes:
+
+    * ``nearest_is_barcode`` — pairing every reading with its most likely landmark (smallest
+      ``d²``): the most any association that decides a reading from the reading alone can
+      get right, since none knows the pose and the map better;
+    * ``ambiguous_with_truth`` — the second most likely is within ``margin`` of the most
+      likely (less than ``exp(margin / 2)`` = 100 times less likely): the estimators' rule
+      (:func:`ekf.association.settle_pairing`) leaves such a reading unpaired even then;
+    * ``oracle_correct`` / ``oracle_wrong`` — the others, paired with the most likely landmark,
+      right or wrong: the bound for an association that follows that rule (the wrong ones are
+      mostly misread barcodes, right by the landmark seen)."""
     rows = [(barcode, sorted(d2, key=d2.get), d2) for barcode, d2 in distances if d2 is not None]
-    nearest_right = float(np.mean([order[0] == barcode for barcode, order, _ in rows]))
-    ambiguous = float(np.mean([d2[order[1]] - d2[order[0]] < margin for _, order, d2 in rows]))
-    return nearest_right, ambiguous
+    clear = [d2[order[1]] - d2[order[0]] >= margin for _, order, d2 in rows]
+    right = [order[0] == barcode for barcode, order, _ in rows]
+    return {"nearest_is_barcode": float(np.mean(right)), "ambiguous_with_truth": 1.0 - float(np.mean(clear)),
+            "oracle_correct": float(np.mean([c and r for c, r in zip(clear, right)])),
+            "oracle_wrong": float(np.mean([c and not r for c, r in zip(clear, right)]))}
+
+
+def ambiguous_count(est) -> int:
+    """Readings the estimator left unpaired as ambiguous (near a landmark, not safely one):
+    the filter's ``rejected_observations``, the smoother's ``association_counts["rejected"]``.
+    The rest of the score's "rejected" are first sightings never confirmed (smoother)."""
+    counts = getattr(est, "association_counts", None)
+    if counts:
+        return int(counts.get("rejected", 0))
+    return int(getattr(est, "rejected_observations", 0))
 
 
 def landmark_spacing_m(log: RunLog) -> tuple[float, float]:
@@ -144,8 +169,9 @@ def main(argv=None) -> int:
     raw = raw_logs(args.folder)
     robots = [int(r) for r in args.robots.split(",") if int(r) in raw]
     results: dict[int, dict] = {}
+    oracles: list[str] = []
     print("| robot | estimator | observations | correct (barcodes) | correct (landmark seen) | wrong | new (dup.) | rejected "
-          "| ATE ids m | ATE hidden m | ratio |")
+          "(ambiguous) | ATE ids m | ATE hidden m | ratio |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for k in robots:
         header, records, _ = leave_one_out(args.folder, k, raw)
@@ -155,32 +181,38 @@ def main(argv=None) -> int:
         distances = vicon_distances(hidden)
         seen = seen_landmark_ids(distances)
         barcodes = [barcode for barcode, _ in distances]
-        nearest_right, ambiguous = with_truth_bound(distances)
-        results[k] = {"misread": sum(a != b for a, b in zip(seen, barcodes)), "readings": len(seen),
-                      "nearest_is_barcode": nearest_right, "ambiguous_with_truth": ambiguous}
+        bound = with_truth_bound(distances)
+        results[k] = {"misread": sum(a != b for a, b in zip(seen, barcodes)), "readings": len(seen), **bound}
+        oracles.append(f"| {k} | {100 * bound['nearest_is_barcode']:.1f} % | {100 * bound['oracle_correct']:.1f} % | "
+                       f"{100 * bound['ambiguous_with_truth']:.1f} % | {100 * bound['oracle_wrong']:.1f} % | "
+                       f"{results[k]['misread']} |")
         if args.diagnose:
             closest, median = landmark_spacing_m(with_ids)
             print(f"robot {k}: {results[k]['misread']} of {len(seen)} readings misread (barcode's landmark outside the "
                   f"99.9 % gate from the Vicon pose, another inside); from the Vicon pose the nearest surveyed landmark "
-                  f"is the barcode's for {100 * nearest_right:.1f} %, a second within the ambiguity margin for "
-                  f"{100 * ambiguous:.1f} %; nearest-neighbour distance between surveyed landmarks {closest:.2f} m "
-                  f"min, {median:.2f} m median", file=sys.stderr, flush=True)
+                  f"is the barcode's for {100 * bound['nearest_is_barcode']:.1f} %, a second within the ambiguity "
+                  f"margin for {100 * bound['ambiguous_with_truth']:.1f} %; nearest-neighbour distance between "
+                  f"surveyed landmarks {closest:.2f} m min, {median:.2f} m median", file=sys.stderr, flush=True)
         for name in names:
             ids_row, hid_row = run_one(with_ids, name), run_one(hidden, name, seen)
             hid_row["ate_ids_m"] = ids_row["ate_m"]
             results[k][name] = hid_row
             print(f"| {k} | {name} | {hid_row['observations']} | {hid_row['correct']} ({100 * hid_row['rate']:.1f} %) | "
                   f"{100 * hid_row['rate_seen']:.1f} % | {hid_row['wrong']} | {hid_row['new']} ({hid_row['duplicates']}) | "
-                  f"{hid_row['rejected']} | {ids_row['ate_m']:.3f} | {hid_row['ate_m']:.3f} | "
+                  f"{hid_row['rejected']} ({hid_row['ambiguous']}) | {ids_row['ate_m']:.3f} | {hid_row['ate_m']:.3f} | "
                   f"{hid_row['ate_m'] / ids_row['ate_m']:.2f} |", flush=True)
             print(f"robot {k} {name}: {hid_row['counts']}", file=sys.stderr, flush=True)
     for name in names:
         rows = [results[k][name] for k in robots]
         med = {c: float(np.median([r[c] for r in rows]))
-               for c in ("rate", "rate_seen", "wrong", "new", "rejected", "ate_ids_m", "ate_m")}
+               for c in ("rate", "rate_seen", "wrong", "new", "rejected", "ambiguous", "ate_ids_m", "ate_m")}
         ratio = float(np.median([r["ate_m"] / r["ate_ids_m"] for r in rows]))
         print(f"| median | {name} | | {100 * med['rate']:.1f} % | {100 * med['rate_seen']:.1f} % | {med['wrong']:.0f} | "
-              f"{med['new']:.0f} | {med['rejected']:.0f} | {med['ate_ids_m']:.3f} | {med['ate_m']:.3f} | {ratio:.2f} |")
+              f"{med['new']:.0f} | {med['rejected']:.0f} ({med['ambiguous']:.0f}) | {med['ate_ids_m']:.3f} | {med['ate_m']:.3f} | {ratio:.2f} |")
+    print("\nWith the Vicon pose and the surveyed map (the bound; shares of the readings with a Vicon pose):\n")
+    print("| robot | nearest is the barcode's | paired, right | ambiguous (left unpaired) | paired, wrong | misread |")
+    print("|---|---|---|---|---|---|")
+    print("\n".join(oracles))
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=1) + "\n")
     return 0

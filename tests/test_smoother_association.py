@@ -147,3 +147,35 @@ def test_both_estimators_are_scored_on_a_hidden_id_log():
         run, _ = run_estimator(ESTIMATORS[name](header), steps[:300], covariances=False)
         assert run.association is not None and run.association.wrong == 0
         assert run.unused_observations is not None
+
+
+def _two_landmarks(separation_m: float, sigma_m: float):
+    """iSAM2 holding two landmarks the association created, each with a prior of σ ``sigma_m``
+    ``separation_m`` apart, and a third far away."""
+    from gtsam.symbol_shorthand import L
+
+    a, b, c = FIRST_ASSOCIATED_ID, FIRST_ASSOCIATED_ID + 1, FIRST_ASSOCIATED_ID + 2
+    graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+    noise = gtsam.noiseModel.Isotropic.Sigma(2, sigma_m)
+    for key, xy in ((a, (1.0, 2.0)), (b, (1.0 + separation_m, 2.0)), (c, (5.0, 2.0))):
+        graph.add(gtsam.PriorFactorPoint2(L(key), np.array(xy), noise))
+        values.insert(L(key), np.array(xy))
+    isam = gtsam.ISAM2()
+    isam.update(graph, values)
+    return isam, (a, b, c)
+
+
+def test_a_landmark_mapped_twice_is_merged_only_when_the_data_do_not_resolve_the_two():
+    """Two keys whose difference is inside the 0.999 joint gate are one landmark (the one with
+    fewer readings is the duplicate); resolved ones (0.18 m apart, each known to 2 cm:
+    d² = 0.18² / (2·0.02²) = 40.5 > 13.8), or two seen in one frame, are two landmarks."""
+    for separation_m, merged in ((0.05, True), (0.18, False)):  # d² 3.1 and 40.5 against 13.8
+        isam, (a, b, c) = _two_landmarks(separation_m, 0.02)
+        association = SmootherAssociation()
+        uses = {a: 5, b: 2, c: 7}
+        got = association.unresolved_duplicates(isam, [a, b, c], uses)
+        assert got == ({b: a} if merged else {})
+    association = SmootherAssociation()
+    association._keys = [a, b]
+    association._frames = {3: range(0, 2)}  # one frame saw both
+    assert association.unresolved_duplicates(_two_landmarks(0.05, 0.02)[0], [a, b, c], {a: 5, b: 2, c: 7}) == {}

@@ -32,6 +32,14 @@ functions it calls) but on the smoother's own uncertainty:
    ``max_wait_steps`` steps are dropped (counted in ``unconfirmed``):
    a single misdetection never seeds a landmark, and a wrong early pairing of a landmark
    seen once cannot happen.
+6. At the end of the run, readings still rejected are asked once more against the whole map
+   (:meth:`SmootherAssociation.settle`), and then every frame's id-less readings, paired or
+   rejected, are decided again all together from the final estimate
+   (:meth:`SmootherAssociation.redecide`, up to three passes): a pairing the settled map no
+   longer supports — another landmark is the one, or a free neighbour is nearly as likely —
+   is moved or dropped, and the smoother swaps the factors (``Isam2Smoother._redecide``).
+   Early pairings were made from a young map; a factor graph, unlike a filter, can take
+   them back.
 
 New landmarks get ids from :data:`FIRST_ASSOCIATED_ID` up, far above any id a log carries,
 so ``L(id)`` never clashes with a landmark named in the log. :meth:`keys` says, for every
@@ -83,6 +91,19 @@ class FirstSighting:
     observation: Observation
     point: np.ndarray  # world point it implies from its seed pose
     spread_m: float  # 1σ spread of that point (pose and measurement)
+
+
+@dataclass(frozen=True)
+class Change:
+    """An end-of-run re-decision (:meth:`SmootherAssociation.redecide`): observation ``slot``
+    (log order) made from pose ``pose_index``, used as landmark ``old``, now ``new`` (None: unused,
+    rejected as ambiguous)."""
+
+    slot: int
+    pose_index: int
+    observation: Observation
+    old: int | None
+    new: int | None
 
 
 @dataclass
@@ -153,11 +174,14 @@ class SmootherAssociation:
         self.spread_m: dict[int, float] = {}  # created landmark → its point's spread when created
         self.held: dict[int, np.ndarray] = {}  # created, not yet in iSAM2 → its point
         self._keys: list[int | None] = []
+        self._observations: list[Observation] = []  # every observation, parallel to _keys (for redecide)
         self._step_start = 0
         self.retry: list[FirstSighting] = []  # rejected observations to ask once more
         self.unsettled: list[FirstSighting] = []  # asked once more, still rejected: asked at the end (settle)
         self._frames: dict[int, range] = {}  # pose index → its step's observation slots
         self.paired = self.created = self.rejected = self.unconfirmed = self.retried = 0
+        self.repaired = self.unpaired = 0  # end-of-run re-decisions (redecide)
+        self._rejected_slots: set[int] = set()  # observations counted in ``rejected`` now
         self.jcbb_nodes_max = 0
 
     # -------------------------------------------------------------- bookkeeping
@@ -166,6 +190,7 @@ class SmootherAssociation:
         """Open the key slots of a new step's observations (ids known ones use their id)."""
         self._step_start = len(self._keys)
         self._keys.extend(o.landmark_id for o in observations)
+        self._observations.extend(observations)
 
     def step_keys(self) -> list[int | None]:
         """The ids the last step's observations were used as, as known now."""
@@ -199,8 +224,9 @@ class SmootherAssociation:
         found = self._pairing(seed, obs, isam, joint_marginal, known_points)
         if found is None:  # no marginal this step: use nothing, create nothing
             self.rejected += len(obs)
+            self._rejected_slots.update(self._step_start + position for position, _ in observations)
             return decision
-        pairing, near, points, spreads = found
+        pairing, near, points, spreads, _ = found
         for a, (position, _) in enumerate(observations):
             slot = self._step_start + position
             if pairing[a] is not None:
@@ -210,6 +236,7 @@ class SmootherAssociation:
             elif near[a]:  # ambiguous now; asked once more after the update (retry_rejected)
                 self._keys[slot] = None
                 self.rejected += 1
+                self._rejected_slots.add(slot)
                 self.retry.append(FirstSighting(slot, k, seed, obs[a], points[a], spreads[a]))
             else:
                 self._keys[slot] = None
@@ -220,15 +247,18 @@ class SmootherAssociation:
     def _pairing(self, seed: gtsam.Pose2, obs: list[Observation], isam: gtsam.ISAM2, joint_marginal,
                  known_points: list[int]):
         """JCBB of ``obs`` made from ``seed`` against the candidate landmarks (steps 1–3 of
-        the module docstring): ``(pairing, near, points, spreads)`` — the landmark id of each
-        observation or None, whether some landmark is inside its new-landmark gate, the world
-        point it implies and that point's spread — or None when iSAM2 cannot form the marginal."""
+        the module docstring): ``(pairing, near, points, spreads, ambiguous)`` — the landmark id
+        of each observation or None, whether some landmark is inside its new-landmark gate, the
+        world point it implies, that point's spread, and whether JCBB paired it but
+        :func:`~ekf.association.settle_pairing` dropped the pair as ambiguous — or None when
+        iSAM2 cannot form the marginal."""
         points = [observation_point(seed, o) for o in obs]
         pose_world = np.array([seed.x(), seed.y(), seed.theta()])
         pose_only = joint_marginal([]) if known_points else None
         pose_cov = pose_only if pose_only is not None else np.zeros((3, 3))
         spreads = [point_spread_m(pose_cov, o) for o in obs]
         near = np.zeros(len(obs), dtype=bool)
+        ambiguous = np.zeros(len(obs), dtype=bool)
         pairing: list[int | None] = [None] * len(obs)
         candidates: list[int] = []
         means: dict[int, np.ndarray] = {}
@@ -252,7 +282,8 @@ class SmootherAssociation:
                 self.jcbb_nodes_max = max(self.jcbb_nodes_max, result.nodes)
                 kept, near = settle_pairing(candidate, d2, result.pairing, self.ambiguity_margin)
                 pairing = [None if c is None else candidates[c] for c in kept]
-        return pairing, near, points, spreads
+                ambiguous = np.array([a is not None and b is None for a, b in zip(result.pairing, kept)], dtype=bool)
+        return pairing, near, points, spreads, ambiguous
 
     def retry_rejected(self, k: int, isam: gtsam.ISAM2, joint_marginal_at, known_points: list[int]):
         """Rejected observations of earlier poses that iSAM2 now holds, associated once more
@@ -280,6 +311,105 @@ class SmootherAssociation:
         self.unsettled, self.retry = [], []
         return self._associate_again(due, isam, joint_marginal_at, known_points)
 
+    def redecide(self, isam: gtsam.ISAM2, joint_marginal_at, known_points: list[int]) -> list[Change]:
+        """The run is over and the map has settled: every frame's id-less observations that
+        are paired or rejected as ambiguous are associated once more, all together, against the
+        whole map from the pose's final estimate (:meth:`_pairing`: the same joint gate, frame
+        exclusion and ambiguity margin as when they were first decided). Returns the pairings
+        to change: to another landmark (re-paired), to none (unpaired: ambiguous now — a free
+        landmark nearly as likely —, or outside every new-landmark gate), or from none to a
+        landmark. A pairing that only falls outside the joint gate, as a true one does with
+        probability 1 − ``gate_probability``, is kept. A landmark always keeps at least one
+        observation, so no variable is left without a factor. Nothing changes until
+        :meth:`apply` is given the changes."""
+        uses: dict[int, int] = {}
+        for key in self._keys:
+            if key is not None:
+                uses[key] = uses.get(key, 0) + 1
+        merged = self.unresolved_duplicates(isam, known_points, uses)
+        mapped = [i for i in known_points if i not in merged]
+        changes: list[Change] = []
+        for p in sorted(self._frames):
+            if not isam.valueExists(X(p)):
+                continue
+            slots = [j for j in self._frames[p] if (self._keys[j] is not None or j in self._rejected_slots)
+                     and self._observations[j].landmark_id is None and not self._observations[j].range_only]
+            if not slots:
+                continue
+            pose = isam.calculateEstimatePose2(X(p))
+            found = self._pairing(pose, [self._observations[j] for j in slots], isam,
+                                  lambda ids, p=p, pose=pose: joint_marginal_at(p, pose, ids), mapped)
+            if found is None:
+                continue
+            pairing, near, _, _, ambiguous = found
+            for j, new, near_j, ambiguous_j in zip(slots, pairing, near, ambiguous):
+                old = self._keys[j]
+                if new is None and old is not None and near_j and not ambiguous_j:
+                    continue  # outside the joint gate only (a 1 − p tail): the evidence for a change is weak
+                if new != old and (old is None or uses[old] > 1):
+                    if old is not None:
+                        uses[old] -= 1
+                    changes.append(Change(j, p, self._observations[j], old, new))
+        return changes
+
+    def unresolved_duplicates(self, isam: gtsam.ISAM2, known_points: list[int], uses: dict[int, int]) -> dict[int, int]:
+        """Landmarks the smoother created twice: ``{duplicate: landmark}`` for every pair of
+        landmarks it created whose separation the data do not resolve — the difference of
+        their estimates inside the joint gate (``d² = δᵀ(P_aa + P_bb − P_ab − P_ba)⁻¹δ ≤
+        χ²₂(gate_probability)`` with iSAM2's joint marginal) — and that no frame saw both (one
+        frame sees a landmark once: two keys seen together are two landmarks). The one with
+        fewer readings is the duplicate. Landmarks whose separation the data resolve, as
+        MRCLAM's neighbours 0.18 m apart once mapped, are never merged. Only pairs within
+        :data:`CANDIDATE_SIGMAS` of their spreads are tested (to keep the marginal queries few)."""
+        created = [i for i in known_points if i >= FIRST_ASSOCIATED_ID and uses.get(i, 0) > 0]
+        if len(created) < 2:
+            return {}
+        seen_together: set[tuple[int, int]] = set()
+        for slots in self._frames.values():
+            keys = sorted({self._keys[j] for j in slots if self._keys[j] is not None})
+            seen_together.update((a, b) for n, a in enumerate(keys) for b in keys[n + 1:])
+        xy = {i: np.asarray(isam.calculateEstimatePoint2(L(i)), dtype=float) for i in created}
+        sigma = {}
+        for i in created:
+            try:
+                sigma[i] = math.sqrt(float(np.linalg.eigvalsh(isam.marginalCovariance(L(i)))[-1]))
+            except RuntimeError:
+                sigma[i] = 0.0
+        gate = float(chi2_gate(2, self.gate_probability))
+        merged: dict[int, int] = {}
+        for n, a in enumerate(created):
+            for b in created[n + 1:]:
+                delta = xy[a] - xy[b]
+                if (a, b) in seen_together or np.linalg.norm(delta) > CANDIDATE_SIGMAS * (sigma[a] + sigma[b]):
+                    continue
+                try:
+                    joint = isam.jointMarginalCovariance(gtsam.KeyVector([L(a), L(b)]))
+                except RuntimeError:
+                    continue
+                S = (np.asarray(joint.at(L(a), L(a))) + np.asarray(joint.at(L(b), L(b)))
+                     - np.asarray(joint.at(L(a), L(b))) - np.asarray(joint.at(L(b), L(a))))
+                if float(mahalanobis_squared(delta, S)) <= gate:
+                    minor, major = (a, b) if uses[a] < uses[b] else (b, a)
+                    merged.setdefault(minor, major)
+        return {minor: major for minor, major in merged.items() if major not in merged}
+
+    def apply(self, changes: list[Change]) -> None:
+        """Book the changes :meth:`redecide` proposed, once the smoother has made them."""
+        for c in changes:
+            self._keys[c.slot] = c.new
+            if c.new is None:
+                self.unpaired += 1
+                self.paired -= 1
+                self.rejected += 1
+                self._rejected_slots.add(c.slot)
+            elif c.old is None:
+                self.retried += 1
+                self.paired += 1
+                self.rejected -= 1
+                self._rejected_slots.discard(c.slot)
+            else:
+                self.repaired += 1
+
     def _associate_again(self, due: list[FirstSighting], isam: gtsam.ISAM2, joint_marginal_at,
                          known_points: list[int]):
         out = []
@@ -297,6 +427,7 @@ class SmootherAssociation:
             for r, lid in zip(group, found[0]):
                 if lid is not None:
                     self._keys[r.index] = lid
+                    self._rejected_slots.discard(r.index)
                     self.rejected -= 1
                     self.paired += 1
                     self.retried += 1
@@ -388,5 +519,5 @@ def world_joint_marginal(isam: gtsam.ISAM2, since: OdometryChain, pose: gtsam.Po
     return 0.5 * (P + P.T)
 
 
-__all__ = ["SmootherAssociation", "FIRST_ASSOCIATED_ID", "association_problem", "world_joint_marginal",
+__all__ = ["SmootherAssociation", "Change", "FIRST_ASSOCIATED_ID", "association_problem", "world_joint_marginal",
            "observation_point", "point_spread_m"]

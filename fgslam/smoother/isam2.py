@@ -176,8 +176,11 @@ class Isam2Smoother:
         ``True`` (default): observations without a ``landmark_id`` are associated with the
         landmarks the smoother holds, on its own marginals, with JCBB, new landmarks entering
         only once three sightings agree (:mod:`fgslam.smoother.association`; counts in
-        :attr:`association_counts`, the ids used in :meth:`step_associations`). ``False``:
-        they are skipped and counted in ``skipped_unknown_observations``.
+        :attr:`association_counts`, the ids used in :meth:`step_associations`). At
+        :meth:`finish` the pairings are decided again against the settled map and the
+        factors the data no longer support are moved or dropped (the attribute ``redecide``,
+        default True; :meth:`_redecide`). ``False``: they are skipped and counted in
+        ``skipped_unknown_observations``.
     tags:
         ``False`` (default): every landmark is a point, as in the EKF. ``True``: a landmark
         whose first observation carries a tag yaw is a ``Pose2`` tag observed through
@@ -213,6 +216,9 @@ class Isam2Smoother:
 
     #: Robust mode: first sightings of a landmark kept waiting for one that agrees.
     MAX_UNCONFIRMED = MAX_UNCONFIRMED
+    #: End-of-run re-decisions of the id-less pairings (:meth:`_redecide`): at most this many
+    #: passes, each against the map the previous one left; they stop when a pass changes nothing.
+    REDECIDE_PASSES = 3
 
     def __init__(
         self,
@@ -319,6 +325,7 @@ class Isam2Smoother:
         self._estimate_cache: gtsam.Values | None = None
         # id-less observations: associated (fgslam/smoother/association.py) or skipped
         self.associate = bool(associate)
+        self.redecide = True  # re-decide the id-less pairings against the settled map at the end (_redecide)
         self._association = SmootherAssociation()
 
     # ------------------------------------------------------------------ Estimator protocol
@@ -405,6 +412,47 @@ class Isam2Smoother:
             elif obs.landmark_id is not None or obs.range_only:
                 out.append(obs)
         return out
+
+    def _redecide(self) -> bool:
+        """Re-decide the id-less pairings against the settled map
+        (:meth:`~fgslam.smoother.association.SmootherAssociation.redecide`): each changed
+        pairing's factor is removed from iSAM2 (and from the kept graph) and, when it was
+        re-paired, the factor to its new landmark added, in one update. If GTSAM refuses
+        the update, nothing changes (the iSAM2 it was given is rebuilt as it was)."""
+        points = [i for i in self._landmarks.ids if i not in self._landmarks.tag_ids]
+        changes = self._association.redecide(
+            self._isam, lambda p, pose, ids: world_joint_marginal(self._isam, OdometryChain(p), pose, ids), points)
+        if not changes:
+            return False
+        gone = {(X(c.pose_index), L(c.old)) for c in changes if c.old is not None}
+        held = self._isam.getFactorsUnsafe()
+        remove = [i for i in range(held.size()) if held.exists(i) and tuple(held.at(i).keys()) in gone]
+        added = gtsam.NonlinearFactorGraph()
+        for c in changes:
+            if c.new is not None:
+                pose = self._isam.calculateEstimatePose2(X(c.pose_index))
+                added.add(self._factors.observation(c.pose_index, pose, replace(c.observation, landmark_id=c.new),
+                                                    False).factor)
+        graph = gtsam.NonlinearFactorGraph()
+        for i in range(self._graph.size()):
+            f = self._graph.at(i)
+            if f is not None and tuple(f.keys()) not in gone:
+                graph.add(f)
+        graph.push_back(added)
+        before = self._isam.calculateBestEstimate()
+        try:
+            self._isam.update(added, gtsam.Values(), remove)
+            self._isam.update()  # one more relinearisation: the next pass reads a settled map
+        except RuntimeError as exc:  # leave the pairings as they were
+            self.update_failures += 1
+            self.last_failure = str(exc)
+            self._isam = gtsam.ISAM2(self._params())
+            self._isam.update(self._graph, before)
+            return False
+        self._graph = graph
+        self._association.apply(changes)
+        self._estimate_cache = None
+        return True
 
     def _add_observation(self, k: int, seed: gtsam.Pose2, obs: Observation) -> None:
         """Hold the factor of one observation made from pose ``k`` (and its height)."""
@@ -528,6 +576,10 @@ class Isam2Smoother:
                 self._add_observation(s.pose_index, s.seed, replace(s.observation, landmark_id=lid))
                 self._held.steps = max(self._held.steps, 1)
             self._flush()
+        if self.associate and self.redecide:
+            for _ in range(self.REDECIDE_PASSES):  # each pass settles the map the next one reads
+                if not self._redecide():
+                    break
         self._association.finish()
         self._estimate_cache = None
         self._landmark_xy.clear()
@@ -705,13 +757,16 @@ class Isam2Smoother:
     def association_counts(self) -> dict[str, int]:
         """What became of the id-less observations: ``paired`` (to a landmark, new ones
         included), ``created`` landmarks, ``rejected`` (ambiguous: near a landmark but not
-        jointly compatible), ``unconfirmed`` (first sightings nothing agreed with), and
+        jointly compatible, or nearly as likely another's), ``retried`` (paired when asked
+        again), ``repaired`` and ``unpaired`` (pairings moved to another landmark or dropped
+        at the end, :meth:`_redecide`), ``unconfirmed`` (first sightings nothing agreed with), and
         ``skipped`` (observations ignored because they had no id, with ``associate=False``
         or inside a keyframe chain)."""
         a = self._association
         counts = {"skipped": self.skipped_unknown_observations}
         if self.associate:
             counts.update(paired=a.paired, created=a.created, rejected=a.rejected, retried=a.retried,
+                          repaired=a.repaired, unpaired=a.unpaired,
                           unconfirmed=a.unconfirmed,
                           waiting=sum(len(g) for g in a.waiting))
         return counts

@@ -8,6 +8,7 @@ from doc_numbers.readers import association, association_rate, metric, scene
 from doc_numbers.registry.seeds import CALIBRATION_CELLS
 
 EST = "docs/estimators.md"
+DATASETS = "docs/datasets-mrclam-rosbag.md"
 
 
 def association_row(estimator: str, first: int, scenario: str | None = None, rejected: bool = False) -> dict:
@@ -30,11 +31,11 @@ def _mrclam_hidden(robot: int | None, estimator: str, read):
 #: The cells of a robot's row of the MRCLAM hidden-barcode table, in order, after the robot's number.
 _HIDDEN_CELLS = (lambda x: x["observations"], lambda x: x["correct"], lambda x: 100 * x["rate"],
                  lambda x: 100 * x["rate_seen"], lambda x: x["wrong"], lambda x: x["new"], lambda x: x["duplicates"],
-                 lambda x: x["rejected"], lambda x: x["ate_ids_m"], lambda x: x["ate_m"],
+                 lambda x: x["rejected"], lambda x: x["ambiguous"], lambda x: x["ate_ids_m"], lambda x: x["ate_m"],
                  lambda x: x["ate_m"] / x["ate_ids_m"])
 #: The cells of the median row.
 _MEDIAN_CELLS = (lambda x: 100 * x["rate"], lambda x: 100 * x["rate_seen"], lambda x: x["wrong"], lambda x: x["new"],
-                 lambda x: x["rejected"], lambda x: x["ate_ids_m"], lambda x: x["ate_m"],
+                 lambda x: x["rejected"], lambda x: x["ambiguous"], lambda x: x["ate_ids_m"], lambda x: x["ate_m"],
                  lambda x: x["ate_m"] / x["ate_ids_m"])
 
 
@@ -45,6 +46,18 @@ def mrclam_hidden_row(text: str, robot: int | None, estimator: str) -> list[Quot
     first = 1 if robot is not None else 0
     return row(EST, text, "mrclam6-hidden", f"MRCLAM 6 barcodes withheld, robot {robot or 'median'} {estimator}",
                {first + i: _mrclam_hidden(robot, estimator, read) for i, read in enumerate(cells)})
+
+
+#: The cells of a robot's row of the bound with the Vicon pose and the surveyed map, after the robot's number.
+_BOUND_CELLS = (lambda x: 100 * x["nearest_is_barcode"], lambda x: 100 * x["oracle_correct"],
+                lambda x: 100 * x["ambiguous_with_truth"], lambda x: 100 * x["oracle_wrong"], lambda x: x["misread"])
+
+
+def mrclam_bound_row(text: str, robot: int) -> list[Quote]:
+    """A row of docs/estimators.md's MRCLAM bound table (``with_truth_bound`` of
+    ``scripts/bench_association_mrclam.py``)."""
+    return row(EST, text, "mrclam6-hidden", f"MRCLAM 6 bound with the true pose and map, robot {robot}",
+               {1 + i: (lambda r, read=read: read(r[robot])) for i, read in enumerate(_BOUND_CELLS)})
 
 
 GATE_SENTENCE = "on the grid it is 0.403 m against\n0.403 m with ids"
@@ -68,35 +81,50 @@ QUOTES: list[Quote] = [
     *row(EST, GATE_SENTENCE, "grid200-hidden", "ekf hidden ids, grid", {0: metric("ekf", "ate_rmse_m")}),
     *row(EST, GATE_SENTENCE, "grid200", "ekf with ids, grid",
          {1: metric("ekf", "ate_rmse_m")}),
-    *mrclam_hidden_row("| 1 | ekf | 1517 | 743 (49.0 %) | 48.0 % | 230 | 19 (4) | 544 | 0.149 | 0.293 | 1.97 |", 1, "ekf"),
-    *mrclam_hidden_row("| 1 | isam2 | 1517 | 775 (51.1 %) | 50.0 % | 362 | 22 (7) | 380 | 0.136 | 0.589 | 4.32 |", 1, "isam2"),
-    *mrclam_hidden_row("| 2 | ekf | 3205 | 1895 (59.1 %) | 58.9 % | 43 | 16 (1) | 1267 | 0.642 | 0.777 | 1.21 |", 2, "ekf"),
-    *mrclam_hidden_row("| 2 | isam2 | 3205 | 1786 (55.7 %) | 55.7 % | 190 | 17 (2) | 1229 | 0.131 | 0.212 | 1.62 |", 2, "isam2"),
-    *mrclam_hidden_row("| 3 | ekf | 4314 | 3197 (74.1 %) | 74.2 % | 12 | 15 (0) | 1105 | 0.117 | 0.171 | 1.47 |", 3, "ekf"),
-    *mrclam_hidden_row("| 3 | isam2 | 4314 | 3117 (72.3 %) | 72.3 % | 221 | 19 (4) | 976 | 0.074 | 0.088 | 1.19 |", 3, "isam2"),
-    *mrclam_hidden_row("| 4 | ekf | 2008 | 1406 (70.0 %) | 69.3 % | 22 | 15 (0) | 580 | 0.221 | 0.496 | 2.25 |", 4, "ekf"),
-    *mrclam_hidden_row("| 4 | isam2 | 2008 | 1767 (88.0 %) | 86.5 % | 60 | 15 (0) | 181 | 0.239 | 0.164 | 0.69 |", 4, "isam2"),
-    *mrclam_hidden_row("| 5 | ekf | 4198 | 2695 (64.2 %) | 64.3 % | 63 | 18 (3) | 1440 | 1.349 | 0.916 | 0.68 |", 5, "ekf"),
-    *mrclam_hidden_row("| 5 | isam2 | 4198 | 2618 (62.4 %) | 62.5 % | 343 | 23 (8) | 1237 | 0.513 | 0.492 | 0.96 |", 5, "isam2"),
-    *mrclam_hidden_row("| median | ekf | | 64.2 % | 64.3 % | 43 | 16 | 1105 | 0.221 | 0.496 | 1.47 |", None, "ekf"),
-    *mrclam_hidden_row("| median | isam2 | | 62.4 % | 62.5 % | 221 | 19 | 976 | 0.136 | 0.212 | 1.19 |", None, "isam2"),
-    *row(EST, "barcode's for 94.0, 93.8, 99.3, 93.8 and 98.7 % of the readings (robots 1–5); for 6.5,\n"
-         "  13.9, 9.4, 15.0 and 10.6 % a second landmark", "mrclam6-hidden", "MRCLAM 6 with the true pose and map",
-         {**{i: (lambda r, k=i + 1: 100 * r[k]["nearest_is_barcode"]) for i in range(5)},
-          **{7 + i: (lambda r, k=i + 1: 100 * r[k]["ambiguous_with_truth"]) for i in range(5)}}),
-    *row(EST, "misread barcodes: 54, 47, 5,\n  33 and 8", "mrclam6-hidden", "MRCLAM 6 misread barcodes",
-         {i: (lambda r, k=i + 1: r[k]["misread"]) for i in range(5)}),
-    *row("README.md", "the five robots of Dataset 6: 64.2 % (`ekf`) and 62.4 % (`isam2`) of the readings used as the\n"
-         "right landmark, ATE 1.47× and 1.19× the run with barcodes", "mrclam6-hidden",
+    *mrclam_hidden_row("| 1 | ekf | 1517 | 743 (49.0 %) | 48.0 % | 230 | 19 (4) | 544 (544) | 0.149 | 0.293 | 1.97 |", 1, "ekf"),
+    *mrclam_hidden_row("| 1 | isam2 | 1517 | 1123 (74.0 %) | 72.1 % | 147 | 16 (1) | 247 (232) | 0.136 | 0.146 | 1.07 |", 1, "isam2"),
+    *mrclam_hidden_row("| 2 | ekf | 3205 | 1895 (59.1 %) | 58.9 % | 43 | 16 (1) | 1267 (1267) | 0.642 | 0.777 | 1.21 |", 2, "ekf"),
+    *mrclam_hidden_row("| 2 | isam2 | 3205 | 2548 (79.5 %) | 79.1 % | 95 | 16 (1) | 562 (536) | 0.131 | 0.250 | 1.90 |", 2, "isam2"),
+    *mrclam_hidden_row("| 3 | ekf | 4314 | 3197 (74.1 %) | 74.2 % | 12 | 15 (0) | 1105 (1105) | 0.117 | 0.171 | 1.47 |", 3, "ekf"),
+    *mrclam_hidden_row("| 3 | isam2 | 4314 | 3377 (78.3 %) | 78.4 % | 10 | 19 (4) | 927 (919) | 0.074 | 0.075 | 1.02 |", 3, "isam2"),
+    *mrclam_hidden_row("| 4 | ekf | 2008 | 1406 (70.0 %) | 69.3 % | 22 | 15 (0) | 580 (580) | 0.221 | 0.496 | 2.25 |", 4, "ekf"),
+    *mrclam_hidden_row("| 4 | isam2 | 2008 | 1831 (91.2 %) | 89.8 % | 17 | 15 (0) | 160 (145) | 0.239 | 0.179 | 0.75 |", 4, "isam2"),
+    *mrclam_hidden_row("| 5 | ekf | 4198 | 2695 (64.2 %) | 64.3 % | 63 | 18 (3) | 1440 (1440) | 1.349 | 0.916 | 0.68 |", 5, "ekf"),
+    *mrclam_hidden_row("| 5 | isam2 | 4198 | 2367 (56.4 %) | 56.5 % | 308 | 23 (8) | 1523 (1507) | 0.513 | 0.449 | 0.88 |", 5, "isam2"),
+    *mrclam_hidden_row("| median | ekf | | 64.2 % | 64.3 % | 43 | 16 | 1105 (1105) | 0.221 | 0.496 | 1.47 |", None, "ekf"),
+    *mrclam_hidden_row("| median | isam2 | | 78.3 % | 78.4 % | 95 | 16 | 562 (536) | 0.136 | 0.179 | 1.02 |", None, "isam2"),
+    *mrclam_bound_row("| 1 | 94.0 % | 88.9 % | 6.5 % | 4.5 % | 54 |", 1),
+    *mrclam_bound_row("| 2 | 93.8 % | 84.7 % | 13.9 % | 1.4 % | 47 |", 2),
+    *mrclam_bound_row("| 3 | 99.3 % | 90.5 % | 9.4 % | 0.1 % | 5 |", 3),
+    *mrclam_bound_row("| 4 | 93.8 % | 83.7 % | 15.0 % | 1.3 % | 33 |", 4),
+    *mrclam_bound_row("| 5 | 98.7 % | 89.2 % | 10.6 % | 0.2 % | 8 |", 5),
+    *row("README.md", "the five robots of Dataset 6: 64.2 % (`ekf`) and 78.3 % (`isam2`) of the readings used as the\n"
+         "right landmark, ATE 1.47× and 1.02× the run with barcodes", "mrclam6-hidden",
          "README: MRCLAM 6 barcodes withheld, medians",
          {1: _mrclam_hidden(None, "ekf", lambda x: 100 * x["rate"]),
           2: _mrclam_hidden(None, "isam2", lambda x: 100 * x["rate"]),
           3: _mrclam_hidden(None, "ekf", lambda x: x["ate_m"] / x["ate_ids_m"]),
           4: _mrclam_hidden(None, "isam2", lambda x: x["ate_m"] / x["ate_ids_m"])}),
-    *row("docs/datasets-mrclam-rosbag.md", "five robots 64 % (`ekf`) and 62 % (`isam2`) correct", "mrclam6-hidden",
+    *row("README.md", "surveyed map, the nearest landmark is the barcode's for only 93.8–99.3 % of the readings",
+         "mrclam6-hidden", "README: MRCLAM 6 bound with the true pose and map",
+         {0: lambda r: min(100 * x["nearest_is_barcode"] for x in r.values()),
+          1: lambda r: max(100 * x["nearest_is_barcode"] for x in r.values())}),
+    *row(DATASETS, "five robots 64 % (`ekf`) and 78 %\n(`isam2`) correct", "mrclam6-hidden",
          "MRCLAM 6 barcodes withheld, median rates", {0: _mrclam_hidden(None, "ekf", lambda x: 100 * x["rate"]),
                                                       1: _mrclam_hidden(None, "isam2", lambda x: 100 * x["rate"])}),
-    *row("docs/datasets-mrclam-rosbag.md", "ATE 1.47× and 1.19× the run with barcodes", "mrclam6-hidden",
+    *row(DATASETS, "| nearest is the barcode's | 94.0 % | 93.8 % | 99.3 % | 93.8 % | 98.7 % |", "mrclam6-hidden",
+         "MRCLAM 6 bound, nearest", {i: (lambda r, k=i + 1: 100 * r[k]["nearest_is_barcode"]) for i in range(5)}),
+    *row(DATASETS, "| with the 100× rule: right / ambiguous | 88.9 / 6.5 % | 84.7 / 13.9 % | 90.5 / 9.4 % | "
+         "83.7 / 15.0 % | 89.2 / 10.6 % |", "mrclam6-hidden", "MRCLAM 6 bound, 100x rule",
+         {**{1 + 2 * i: (lambda r, k=i + 1: 100 * r[k]["oracle_correct"]) for i in range(5)},
+          **{2 + 2 * i: (lambda r, k=i + 1: 100 * r[k]["ambiguous_with_truth"]) for i in range(5)}}),
+    *row(DATASETS, "| `isam2` correct (barcodes withheld) | 74.0 % | 79.5 % | 78.3 % | 91.2 % | 56.4 % |",
+         "mrclam6-hidden", "MRCLAM 6 isam2 correct per robot",
+         {i: (lambda r, k=i + 1: 100 * r[k]["isam2"]["rate"]) for i in range(5)}),
+    *row(DATASETS, "| `ekf` correct | 49.0 % | 59.1 % | 74.1 % | 70.0 % | 64.2 % |",
+         "mrclam6-hidden", "MRCLAM 6 ekf correct per robot",
+         {i: (lambda r, k=i + 1: 100 * r[k]["ekf"]["rate"]) for i in range(5)}),
+    *row(DATASETS, "ATE 1.47× and 1.02× the run with\nbarcodes", "mrclam6-hidden",
          "MRCLAM 6 barcodes withheld, median ATE ratios",
          {0: _mrclam_hidden(None, "ekf", lambda x: x["ate_m"] / x["ate_ids_m"]),
           1: _mrclam_hidden(None, "isam2", lambda x: x["ate_m"] / x["ate_ids_m"])}),
