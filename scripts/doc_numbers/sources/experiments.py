@@ -236,15 +236,3 @@ def live_band(context: Context) -> dict:
         out[factor] = run_nees_band(with_stated_noise_scaled(log, factor), EkfSlam, draws=30)
     return out
 
-
-def live_laps(context: Context) -> list[dict]:
-    """``scripts/live_nees.py --record 10 --draws 0``: ten lockstep laps (seeds 1–10), each
-    scored (reading z RMS, ekf and isam2 mean NEES)."""
-    import live_nees as script
-
-    scores = []
-    for seed in range(1, 11):
-        out = str(context.scratch / f"live-seed{seed}.jsonl")
-        script.record_lap(out, seed)
-        scores.append(script.score_log(out, ("ekf", "isam2"), draws=0))
-    return scores
