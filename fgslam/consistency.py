@@ -20,6 +20,7 @@ is as consistent as one run can show. The log needs truth at every pose.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Callable
 
@@ -27,10 +28,11 @@ import numpy as np
 
 from fgslam.compare import nees_band, nees_over_truth
 from fgslam.runner import run_estimator, truth_trajectory
+from slamio.geometry import wrap_angle
 from slamio.log import Observation, Odometry, RunLog
 from slamio.redraw import redraw_noise
 
-__all__ = ["RunNeesBand", "mean_nees", "run_nees_band", "with_stated_noise_scaled"]
+__all__ = ["RunNeesBand", "mean_nees", "reading_z_scores", "run_nees_band", "with_stated_noise_scaled"]
 
 
 @dataclass(frozen=True)
@@ -90,3 +92,20 @@ def with_stated_noise_scaled(log: RunLog, factor: float) -> RunLog:
                                     else factor * r.sigma_bearing_rad)
         records.append(r)
     return dataclasses.replace(log, records=tuple(records))
+
+
+def reading_z_scores(log: RunLog) -> tuple[np.ndarray, np.ndarray]:
+    """Each range-and-bearing reading's error against the log's truth over the σ it states:
+    ``(range z, bearing z)``. Standard normal when the log states the noise it has. Needs the
+    true pose of every step with readings and every seen landmark's truth (by id)."""
+    landmarks = {i: (t.x_m, t.y_m) for i, t in log.truth_landmarks().items()}
+    z_range, z_bearing = [], []
+    for step in log.steps():
+        for o in step.observations:
+            if o.range_only:
+                continue
+            x, y, theta = step.truth.x_m, step.truth.y_m, step.truth.theta_rad
+            dx, dy = landmarks[o.landmark_id][0] - x, landmarks[o.landmark_id][1] - y
+            z_range.append((o.range_m - math.hypot(dx, dy)) / o.sigma_range_m)
+            z_bearing.append(wrap_angle(o.bearing_rad - math.atan2(dy, dx) + theta) / o.sigma_bearing_rad)
+    return np.array(z_range), np.array(z_bearing)

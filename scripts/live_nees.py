@@ -31,7 +31,6 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
-import math  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -41,7 +40,7 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from fgslam.compare import nees_band  # noqa: E402
-from fgslam.consistency import mean_nees, run_nees_band  # noqa: E402
+from fgslam.consistency import mean_nees, reading_z_scores, run_nees_band  # noqa: E402
 from fgslam.live import (  # noqa: E402
     LiveSettings,
     Lockstep,
@@ -53,7 +52,6 @@ from fgslam.live import (  # noqa: E402
 from fgslam.runner import ESTIMATORS  # noqa: E402
 from slamio.create.link import CreateLink  # noqa: E402
 from slamio.create.sim import SimulatedCreate  # noqa: E402
-from slamio.geometry import wrap_angle  # noqa: E402
 from slamio.log import RunLog, read_log  # noqa: E402
 from slamio.sim import ARENA_PATH_WIDTH_M, ARENA_SIDE_M, simulate  # noqa: E402
 
@@ -74,15 +72,8 @@ def record_lap(out: str, seed: int) -> None:
 
 def reading_z_rms(log) -> tuple[float, float]:
     """RMS of (range error / stated σ) and (bearing error / stated σ) against the log's truth."""
-    landmarks = {i: (t.x_m, t.y_m) for i, t in log.truth_landmarks().items()}
-    z_range, z_bearing = [], []
-    for step in log.steps():
-        x, y, theta = step.truth.x_m, step.truth.y_m, step.truth.theta_rad
-        for o in step.observations:
-            dx, dy = landmarks[o.landmark_id][0] - x, landmarks[o.landmark_id][1] - y
-            z_range.append((o.range_m - math.hypot(dx, dy)) / o.sigma_range_m)
-            z_bearing.append(wrap_angle(o.bearing_rad - math.atan2(dy, dx) + theta) / o.sigma_bearing_rad)
-    return float(np.sqrt(np.mean(np.square(z_range)))), float(np.sqrt(np.mean(np.square(z_bearing))))
+    z_range, z_bearing = reading_z_scores(log)
+    return float(np.sqrt(np.mean(z_range**2))), float(np.sqrt(np.mean(z_bearing**2)))
 
 
 def exact_models_reference(runs: int) -> dict:

@@ -225,9 +225,9 @@ def test_hil_log_states_the_noise_its_camera_and_encoders_have(octagon_run):
     errors divided by the σ each observation states have an RMS near 1 (the simulated
     camera's σ, measured by scripts/measure_live_camera.py on other rendered frames); the
     header names the camera's model and the odometry's σ is the simulated encoders' model."""
+    from fgslam.consistency import reading_z_scores
     from fgslam.live import LIVE_SIM_RANGE_SIGMA_PER_M2, LIVE_SIM_SIGMA_BEARING_RAD
     from slamio.create.sim import wheel_odometry_noise
-    from slamio.geometry import wrap_angle
 
     out, _, _, _ = octagon_run
     log = read_log(out)
@@ -235,14 +235,7 @@ def test_hil_log_states_the_noise_its_camera_and_encoders_have(octagon_run):
     stated = log.header.noise["observation"]
     assert stated["sigma_bearing_rad"] == LIVE_SIM_SIGMA_BEARING_RAD
     assert stated["sigma_range_per_m2"] == LIVE_SIM_RANGE_SIGMA_PER_M2
-    landmarks = {i: (t.x_m, t.y_m) for i, t in log.truth_landmarks().items()}
-    z_range, z_bearing = [], []
-    for step in log.steps():
-        x, y, theta = step.truth.x_m, step.truth.y_m, step.truth.theta_rad
-        for o in step.observations:
-            dx, dy = landmarks[o.landmark_id][0] - x, landmarks[o.landmark_id][1] - y
-            z_range.append((o.range_m - math.hypot(dx, dy)) / o.sigma_range_m)
-            z_bearing.append(wrap_angle(o.bearing_rad - math.atan2(dy, dx) + theta) / o.sigma_bearing_rad)
+    z_range, z_bearing = reading_z_scores(log)
     assert len(z_range) > 100
     for name, z in (("range", z_range), ("bearing", z_bearing)):
         z = np.asarray(z)
