@@ -251,9 +251,12 @@ class Lockstep:
     every such piece of work gets a fixed budget of robot time: a frame's observations reach
     the live loop ``frame_s`` after the frame was asked for, a smoothed pose reaches the
     follower ``smoother_s`` after its step was submitted. Work done sooner waits for its
-    time; work not done by then stops the simulated Create's clock
-    (:meth:`slamio.create.sim.SimulatedCreate.hold`) until it is. A slow or busy machine
-    then only stretches the run in wall time. ``frame_s`` must be below the settings'
+    time; at that time the simulated Create's clock stops
+    (:meth:`slamio.create.sim.SimulatedCreate.hold`) until the work is done *and* the
+    control loop has taken its result, so the result is used at exactly its robot time
+    whatever the machine's speed (released on completion instead, the clock ran on by a
+    step or more on a busy machine before the loop saw the result, and the same seed drove
+    a different lap). A slow or busy machine then only stretches the run in wall time. ``frame_s`` must be below the settings'
     ``frame_timeout_s`` (no frame is ever late), and the recorder's wall-clock timeouts
     (``data_timeout_s``) must outlast the slowest frame: the robot streams nothing while
     its clock stands.
@@ -285,7 +288,8 @@ class CameraWorker:
     :meth:`request` hands it a zero-argument ``grab`` (called in the worker: it returns a
     :class:`slamio.camera.sources.Frame`) for pose ``index``; it is refused while a frame
     is in progress. :meth:`result` returns ``(index, observations)`` when one is ready (in
-    :class:`Lockstep`: not before the frame's budget of robot time has passed).
+    :class:`Lockstep`: not before the frame's budget of robot time has passed, and the
+    simulated clock stands at that time until the control loop has taken the result).
     """
 
     def __init__(self, process: Callable[[object], Sequence[Observation]], lockstep: Lockstep | None = None):
@@ -293,7 +297,7 @@ class CameraWorker:
         self.lockstep = lockstep
         self._requests: queue.Queue = queue.Queue(maxsize=1)
         self._results: queue.Queue = queue.Queue()
-        self._waiting: tuple[int, list[Observation], float | None] | None = None  # done, not yet due
+        self._waiting: tuple | None = None  # (index, observations, due_at, hold token): done, not yet due
         self._busy = threading.Event()
         self.error: BaseException | None = None
         self.frame_seconds: list[float] = []
@@ -314,11 +318,16 @@ class CameraWorker:
                 self._waiting = self._results.get_nowait()
             except queue.Empty:
                 return None
-        index, observations, due_at = self._waiting
+        index, observations, due_at, token = self._waiting
         if self.lockstep is not None and not self.lockstep.reached(due_at):
             return None
         self._waiting = None
+        self._release(token)  # the clock stood at due_at until the control loop had the result
         return index, observations
+
+    def _release(self, token) -> None:
+        if token is not None:
+            self.lockstep.release(token)  # type: ignore[union-attr]
 
     def _run(self) -> None:
         while True:
@@ -328,21 +337,26 @@ class CameraWorker:
             index, grab, due_at, token = item
             start = time.perf_counter()
             try:
-                try:
-                    observations = list(self.process(grab()))
-                except BaseException as exc:  # raised in the control loop (see LiveLoop.due)
-                    self.error = exc
-                    observations = []
-                self.frame_seconds.append(time.perf_counter() - start)
-                self._results.put((index, observations, due_at))
-                self._busy.clear()
-            finally:
-                if token is not None:
-                    self.lockstep.release(token)  # type: ignore[union-attr]
+                observations = list(self.process(grab()))
+            except BaseException as exc:  # raised in the control loop (see LiveLoop.due)
+                self.error = exc
+                observations = []
+            self.frame_seconds.append(time.perf_counter() - start)
+            # the hold goes with the result: released when the control loop takes it
+            self._results.put((index, observations, due_at, token))
+            self._busy.clear()
 
     def close(self) -> None:
         self._requests.put(None)
         self._thread.join(timeout=5.0)
+        if self._waiting is not None:  # results nobody will take: let the clock go
+            self._release(self._waiting[3])
+            self._waiting = None
+        while True:
+            try:
+                self._release(self._results.get_nowait()[3])
+            except queue.Empty:
+                return
 
 
 class SmootherWorker:
@@ -358,8 +372,8 @@ class SmootherWorker:
         self.lockstep = lockstep
         self._steps: queue.Queue = queue.Queue()
         self._latencies: queue.Queue = queue.Queue()
-        self._smoothed: queue.Queue = queue.Queue()  # lockstep: (due_at, index, pose) to publish
-        self._due: tuple[float, int, tuple] | None = None
+        self._smoothed: queue.Queue = queue.Queue()  # lockstep: (due_at, index, pose, hold token) to publish
+        self._due: tuple | None = None
         self.latencies_s: list[float] = []
         self.error: BaseException | None = None
         self.max_queue = 0
@@ -379,11 +393,16 @@ class SmootherWorker:
                     self._due = self._smoothed.get_nowait()
                 except queue.Empty:
                     return
-            due_at, index, pose = self._due
+            due_at, index, pose, token = self._due
             if self.lockstep is not None and not self.lockstep.reached(due_at):
                 return
             self._due = None
             self.tracker.smoothed(index, pose)
+            self._release(token)  # the clock stood at due_at until the follower had the pose
+
+    def _release(self, token) -> None:
+        if token is not None:
+            self.lockstep.release(token)  # type: ignore[union-attr]
 
     def drain_latencies(self) -> list[tuple[int, float]]:
         out = []
@@ -399,40 +418,51 @@ class SmootherWorker:
             if item is None:
                 return
             step, due_at, token = item
+            queued = False
             try:
-                self._smooth(step, due_at)
+                queued = self._smooth(step, due_at, token)
             finally:
-                if token is not None:
-                    self.lockstep.release(token)  # type: ignore[union-attr]
+                if not queued:
+                    self._release(token)
 
-    def _smooth(self, step: Step, due_at: float | None) -> None:
+    def _smooth(self, step: Step, due_at: float | None, token) -> bool:
+        """Smooth one step; True when its pose was queued for :meth:`publish` with ``token``."""
         if self.error is not None:
-            return
+            return False
         start = time.perf_counter()
         try:
             self.smoother.step(step)
             pose = self.smoother.current_pose()
         except BaseException as exc:  # raised in the control loop (see LiveLoop.due)
             self.error = exc
-            return
+            return False
         latency = time.perf_counter() - start
         self.latencies_s.append(latency)
         self._latencies.put((step.index, latency))
         if self.lockstep is None:
             self.tracker.smoothed(step.index, pose)
         else:
-            self._smoothed.put((due_at, step.index, pose))
+            self._smoothed.put((due_at, step.index, pose, token))
         if self.on_step is not None:
             try:
                 self.on_step(step.index, self.smoother, latency)
             except BaseException as exc:  # a failing status line stops the run like a failing smoother
                 self.error = exc
+        return self.lockstep is not None
 
     def close(self) -> None:
         """Wait for every submitted step to be smoothed, then stop the thread (an error of
-        the smoother stays in :attr:`error`)."""
+        the smoother stays in :attr:`error`); poses nobody will publish let the clock go."""
         self._steps.put(None)
         self._thread.join()
+        if self._due is not None:
+            self._release(self._due[3])
+            self._due = None
+        while True:
+            try:
+                self._release(self._smoothed.get_nowait()[3])
+            except queue.Empty:
+                return
 
 
 # --------------------------------------------------------------------------- the loop

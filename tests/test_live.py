@@ -57,6 +57,51 @@ def wheels_stopped(sim):
     return wait_for(lambda: sim.commanded_mm_s == (0.0, 0.0))
 
 
+class ManualClock:
+    """A simulated robot clock moved by hand, with SimulatedCreate's hold/release API."""
+
+    def __init__(self):
+        self.now_s, self.holds, self._next = 0.0, {}, 0
+
+    def clock(self):
+        return self.now_s
+
+    def hold(self, at_s=None):
+        self._next += 1
+        self.holds[self._next] = at_s
+        return self._next
+
+    def release(self, token):
+        del self.holds[token]
+
+
+def test_lockstep_frame_holds_the_clock_until_the_loop_takes_its_result():
+    """In lockstep a frame's observations are used at exactly their robot time: the hold on
+    the clock lasts until the control loop has taken the result, not only until the worker
+    finished (then the clock ran on a step or more on a busy machine before the loop looked)."""
+    from fgslam.live import CameraWorker
+
+    clock = ManualClock()
+    done = threading.Event()
+
+    def process(frame):
+        done.set()
+        return [frame]
+
+    camera = CameraWorker(process, lockstep=Lockstep(clock, frame_s=0.4))
+    try:
+        assert camera.request(7, lambda: "frame")
+        assert done.wait(30.0) and wait_for(lambda: not camera._busy.is_set())
+        (due_at,) = clock.holds.values()
+        assert due_at == pytest.approx(0.4)
+        assert camera.result() is None and clock.holds  # not due yet: held
+        clock.now_s = 0.4
+        assert camera.result() == (7, ["frame"])
+        assert not clock.holds  # released when taken
+    finally:
+        camera.close()
+
+
 def test_follower_turns_then_drives_then_arrives():
     s = LiveSettings()
     mode, v, w = waypoint_wheel_speeds((0.0, 0.0, 0.0), (0.0, 1.0), s, turning=True)
