@@ -76,7 +76,7 @@ class Isam2Smoother:
         ``(metres, radians)`` sets the translation and rotation thresholds apart (GTSAM's
         per-variable-type threshold map; a landmark's height counts as metres).
     relinearize_skip:
-        Check for relinearisation every this many updates. Default 10 (GTSAM's too).
+        Check for relinearisation every this many updates. Default 20 (GTSAM's is 10).
 
         Why these defaults, measured: with 0.01 a desk-sized robot's centimetre errors
         still trigger relinearisation (GTSAM's 0.1 lost the online ATE on the bundled
@@ -84,7 +84,12 @@ class Isam2Smoother:
         every 10th changed nothing measurable — arena-octagon seeds 1–20 gave identical
         ATEs, grid 200 (seed 1) online ATE 0.3082 vs 0.3083 m — but cost 2.2× the time on
         grid 200 (35 vs 15.6 s) and 2.7× on grid 500: each check can relinearise a large
-        part of the map after a loop closure. Very aggressive settings are where DESIGN.md
+        part of the map after a loop closure. Now that an update carries 10–50 held steps,
+        every 20th instead of every 10th: the checks were most of the update time (MRCLAM
+        Dataset 6 robot 3: 1.4 of 2.3 s, each relinearising about 1 000 of 3 000 poses;
+        Plaza1 10.4 of 14 s) and halving them changed the online ATE by −1.2…+0.1 % on
+        MRCLAM robots 1–5, Victoria Park and Plaza1; every 40th lost 3.5 % on MRCLAM robot 4
+        (docs/performance.md). Very aggressive settings are where DESIGN.md
         saw IndeterminantLinearSystem failures on real data; those are recovered from
         (:mod:`fgslam.smoother.recovery`).
     final_updates:
@@ -219,7 +224,7 @@ class Isam2Smoother:
         header: Header,
         *,
         relinearize_threshold: float | tuple[float, float] = 0.01,
-        relinearize_skip: int = 10,
+        relinearize_skip: int = 20,
         update_every: int = 50,
         update_on: str = "any",
         max_held_steps: int = 50,
