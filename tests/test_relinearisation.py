@@ -73,3 +73,17 @@ def test_default_matches_every_step_isam2_online_and_batch_at_the_end():
     default.finish()
     batch = batch_solve(default)
     assert default.error() < 1.001 * batch.final_error
+
+
+def test_while_associating_relinearisation_is_checked_on_every_10th_update():
+    """Observations without an id: the smoother's pairing decisions read the map, so the
+    check runs on every 10th update as well (the 10th, 30th, … are the smoother's own)."""
+    header, records = simulate("arena-octagon", 2, hide_ids=True)
+    steps = group_steps(header, records)
+    smoother = Isam2Smoother(header)
+    recording = smoother._isam = _RecordingIsam2(smoother._isam)
+    _online(smoother, steps)
+    assert smoother.update_failures == 0
+    checked = [i + 1 for i, n in enumerate(recording.relinearised) if n > 0]  # n-th update, from 1
+    assert all(n % 10 == 0 for n in checked)
+    assert any(n % 20 == 10 for n in checked)  # checks GTSAM's every-20th schedule would not run
