@@ -95,12 +95,14 @@ class Isam2Smoother:
         Plaza1 10.4 of 14 s in ``ISAM2.update``); halving them cut the CPU time by 11–29 %
         and kept the online ATE within 3 % of an every-step iSAM2 on MRCLAM robots 1–5
         (the importer's noise and the fitted one), arena seeds 1–20, Victoria Park and
-        Plaza1 (worst 1.023×); every 40th lost 3.5 % on MRCLAM robot 4 (docs/performance.md). While the smoother associates observations without an id
+        Plaza1 (worst 1.023×); every 40th lost 3.5 % on MRCLAM robot 4
+        (docs/performance.md). While the smoother associates observations without an id
         (``associate``), the check also runs on every
         :data:`ASSOCIATION_RELINEARIZE_SKIP`-th update, as before: its pairing decisions
         read the map, and every 20th moved MRCLAM Dataset 6 with barcodes withheld to a
         different association (robot 1's ATE 0.589 → 2.85 m, the median ratio to the run with
-        barcodes 1.19 → 1.26). Very aggressive settings are where DESIGN.md
+        barcodes 1.19 → 1.26; with the every-10th check 1.06: the pairings are that
+        sensitive, docs/estimators.md). Very aggressive settings are where DESIGN.md
         saw IndeterminantLinearSystem failures on real data; those are recovered from
         (:mod:`fgslam.smoother.recovery`).
     final_updates:
@@ -553,7 +555,7 @@ class Isam2Smoother:
         self._online.forget_marginal()  # the final updates below change iSAM2
         for _ in range(self.final_updates):
             try:
-                self._isam_update(gtsam.NonlinearFactorGraph(), gtsam.Values())
+                self._isam_update()
             except RuntimeError as exc:  # relinearisation hit a singular system: rebuild
                 self._recover(exc, gtsam.NonlinearFactorGraph(), gtsam.Values(), [])
         if self.final_iterations:
@@ -777,15 +779,18 @@ class Isam2Smoother:
             return
         self._accept(factors, values)
 
-    def _isam_update(self, factors: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> None:
-        """One ``ISAM2.update``; with observations being associated, a relinearisation check
-        on every :data:`ASSOCIATION_RELINEARIZE_SKIP`-th (GTSAM checks on the n-th update of
-        an ``ISAM2`` when n is a multiple of ``relinearize_skip``)."""
+    def _isam_update(self, factors: gtsam.NonlinearFactorGraph | None = None,
+                     values: gtsam.Values | None = None) -> None:
+        """One ``ISAM2.update`` (none: no new factors); with observations being associated, a
+        relinearisation check on every :data:`ASSOCIATION_RELINEARIZE_SKIP`-th (GTSAM checks
+        on the n-th update of an ``ISAM2`` when n is a multiple of ``relinearize_skip``)."""
         self._isam_updates += 1
         if self._unlabelled and self._isam_updates % ASSOCIATION_RELINEARIZE_SKIP == 0:
             update_params = gtsam.ISAM2UpdateParams()
             update_params.force_relinearize = True  # forces the check, not the relinearisation
-            self._isam.update(factors, values, update_params)
+            self._isam.update(factors or gtsam.NonlinearFactorGraph(), values or gtsam.Values(), update_params)
+        elif factors is None:
+            self._isam.update()
         else:
             self._isam.update(factors, values)
 
