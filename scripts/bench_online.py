@@ -14,6 +14,7 @@ Usage::
     .venv/bin/python scripts/bench_online.py arena:1-20
     .venv/bin/python scripts/bench_online.py victoria-park --reference-skip 10
     .venv/bin/python scripts/bench_online.py mrclam:/path/MRCLAM_Dataset6:1,3 plaza1
+    .venv/bin/python scripts/bench_online.py mrclam-fitted:/path/MRCLAM_Dataset6:4 --robust dcs   # bench_mrclam.py's noise
     .venv/bin/python scripts/bench_online.py arena:1-3 --candidate "update_every=5" --candidate "update_every=20"
 """
 
@@ -59,6 +60,14 @@ def logs(spec: str):
         from slamio.datasets.plaza import import_plaza
 
         yield spec, *import_plaza(spec)
+    elif spec.startswith("mrclam-fitted:"):  # each robot with noise fitted on the others, as bench_mrclam.py
+        from bench_mrclam import leave_one_out, raw_logs
+
+        folder, _, robots = spec.split(":", 1)[1].rpartition(":")
+        raw = raw_logs(folder)
+        for robot in robots.split(","):
+            header, records, _ = leave_one_out(folder, int(robot), raw)
+            yield f"{Path(folder).name} robot {robot} (noise fitted on the others)", header, records
     elif spec.startswith("mrclam:"):
         from slamio.datasets.mrclam import import_mrclam
 
@@ -66,7 +75,8 @@ def logs(spec: str):
         for robot in robots.split(","):
             yield f"{Path(folder).name} robot {robot}", *import_mrclam(folder, int(robot))
     else:
-        raise SystemExit(f"unknown log {spec!r}: arena:A-B, victoria-park, plaza1, plaza2 or mrclam:FOLDER:R1,R2")
+        raise SystemExit(f"unknown log {spec!r}: arena:A-B, victoria-park, plaza1, plaza2, mrclam:FOLDER:R1,R2 "
+                         "or mrclam-fitted:FOLDER:R1,R2")
 
 
 def parse_sets(text: str) -> dict:

@@ -63,6 +63,11 @@ from slamio.errors import FgslamError
 from slamio.log import Header, Observation, Step
 
 
+#: While observations without an id are associated, check relinearisation on every this
+#: many updates (``relinearize_skip``'s own schedule continues alongside).
+ASSOCIATION_RELINEARIZE_SKIP = 10
+
+
 class Isam2Smoother:
     """Online landmark SLAM with iSAM2 (implements :class:`slamio.estimator.Estimator`).
 
@@ -76,7 +81,7 @@ class Isam2Smoother:
         ``(metres, radians)`` sets the translation and rotation thresholds apart (GTSAM's
         per-variable-type threshold map; a landmark's height counts as metres).
     relinearize_skip:
-        Check for relinearisation every this many updates. Default 10 (GTSAM's too).
+        Check for relinearisation every this many updates. Default 20 (GTSAM's is 10).
 
         Why these defaults, measured: with 0.01 a desk-sized robot's centimetre errors
         still trigger relinearisation (GTSAM's 0.1 lost the online ATE on the bundled
@@ -84,7 +89,20 @@ class Isam2Smoother:
         every 10th changed nothing measurable — arena-octagon seeds 1–20 gave identical
         ATEs, grid 200 (seed 1) online ATE 0.3082 vs 0.3083 m — but cost 2.2× the time on
         grid 200 (35 vs 15.6 s) and 2.7× on grid 500: each check can relinearise a large
-        part of the map after a loop closure. Very aggressive settings are where DESIGN.md
+        part of the map after a loop closure. Now that an update carries 10–50 held steps,
+        every 20th instead of every 10th: the checks were most of the update time (MRCLAM
+        Dataset 6 robot 3: 1.4 of 2.3 s, each relinearising about 1 000 of 3 000 poses;
+        Plaza1 10.4 of 14 s in ``ISAM2.update``); halving them cut the CPU time by 11–29 %
+        and kept the online ATE within 3 % of an every-step iSAM2 on MRCLAM robots 1–5
+        (the importer's noise and the fitted one), arena seeds 1–20, Victoria Park and
+        Plaza1 (worst 1.023×); every 40th lost 3.5 % on MRCLAM robot 4
+        (docs/performance.md). While the smoother associates observations without an id
+        (``associate``), the check also runs on every
+        :data:`ASSOCIATION_RELINEARIZE_SKIP`-th update, as before: its pairing decisions
+        read the map, and every 20th moved MRCLAM Dataset 6 with barcodes withheld to a
+        different association (robot 1's ATE 0.589 → 2.85 m, the median ratio to the run with
+        barcodes 1.19 → 1.26; with the every-10th check 1.06: the pairings are that
+        sensitive, docs/estimators.md). Very aggressive settings are where DESIGN.md
         saw IndeterminantLinearSystem failures on real data; those are recovered from
         (:mod:`fgslam.smoother.recovery`).
     final_updates:
@@ -225,7 +243,7 @@ class Isam2Smoother:
         header: Header,
         *,
         relinearize_threshold: float | tuple[float, float] = 0.01,
-        relinearize_skip: int = 10,
+        relinearize_skip: int = 20,
         update_every: int = 50,
         update_on: str = "any",
         max_held_steps: int = 50,
@@ -306,6 +324,8 @@ class Isam2Smoother:
 
         self._factors = FactorBuilder(self._robust)
         self._isam = gtsam.ISAM2(self._params())
+        self._isam_updates = 0  # updates given to this ISAM2 (GTSAM counts them for relinearize_skip)
+        self._unlabelled = False  # observations without an id seen: the smoother associates them
         self._graph = gtsam.NonlinearFactorGraph()  # every factor accepted into iSAM2
         self._initial = gtsam.Values()  # the initial guess of every variable in iSAM2
         self._landmarks = LandmarkRegistry()
@@ -395,6 +415,7 @@ class Isam2Smoother:
             self._add_observation(s.pose_index, s.seed, replace(s.observation, landmark_id=lid))
         unknown = [(i, o) for i, o in enumerate(observations) if o.landmark_id is None and not o.range_only]
         self._held.uncorrected |= bool(unknown)
+        self._unlabelled |= bool(unknown)
         if not unknown:
             return list(observations)
         since = self._online._caught_up_since_chain()
@@ -586,7 +607,7 @@ class Isam2Smoother:
         self._online.forget_marginal()  # the final updates below change iSAM2
         for _ in range(self.final_updates):
             try:
-                self._isam.update()
+                self._isam_update()
             except RuntimeError as exc:  # relinearisation hit a singular system: rebuild
                 self._recover(exc, gtsam.NonlinearFactorGraph(), gtsam.Values(), [])
         if self.final_iterations:
@@ -598,6 +619,7 @@ class Isam2Smoother:
                 update_params.force_relinearize = True
                 update_params.forceFullSolve = True
                 try:
+                    self._isam_updates += 1
                     self._isam.update(gtsam.NonlinearFactorGraph(), gtsam.Values(), update_params)
                 except RuntimeError as exc:
                     self._recover(exc, gtsam.NonlinearFactorGraph(), gtsam.Values(), [])
@@ -806,11 +828,26 @@ class Isam2Smoother:
         self._estimate_cache = None
         factors, values = update_batch(core, core_values, entries, self._landmarks.known)
         try:
-            self._isam.update(factors, values)
+            self._isam_update(factors, values)
         except RuntimeError as exc:
             self._recover(exc, core, core_values, entries)
             return
         self._accept(factors, values)
+
+    def _isam_update(self, factors: gtsam.NonlinearFactorGraph | None = None,
+                     values: gtsam.Values | None = None) -> None:
+        """One ``ISAM2.update`` (none: no new factors); with observations being associated, a
+        relinearisation check on every :data:`ASSOCIATION_RELINEARIZE_SKIP`-th (GTSAM checks
+        on the n-th update of an ``ISAM2`` when n is a multiple of ``relinearize_skip``)."""
+        self._isam_updates += 1
+        if self._unlabelled and self._isam_updates % ASSOCIATION_RELINEARIZE_SKIP == 0:
+            update_params = gtsam.ISAM2UpdateParams()
+            update_params.force_relinearize = True  # forces the check, not the relinearisation
+            self._isam.update(factors or gtsam.NonlinearFactorGraph(), values or gtsam.Values(), update_params)
+        elif factors is None:
+            self._isam.update()
+        else:
+            self._isam.update(factors, values)
 
     def _accept(self, factors: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> None:
         self._graph.push_back(factors)
@@ -831,6 +868,7 @@ class Isam2Smoother:
                 f"GTSAM said: {self.last_failure}"
             )
         self._isam = rebuilt.isam
+        self._isam_updates = 0  # counted from the rebuild on (its own updates are not)
         self._accept(rebuilt.factors, rebuilt.values)
         self._pending.withhold(rebuilt.withheld)
 
