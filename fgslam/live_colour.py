@@ -46,8 +46,8 @@ def simulated_kinect(sim, options: ColourOptions = ColourOptions(), *, supersamp
     front_end = colour_front_end(camera, options)
     rng = np.random.default_rng(seed)  # used only in the camera worker
 
-    def grab_for(index: int, odometry: Odometry):
-        pose = sim.true_pose  # now, in the control loop
+    def grab_for(index: int, odometry: Odometry, true_pose=None):
+        pose = sim.true_pose if true_pose is None else true_pose  # now, or the truth the loop just wrote
 
         def grab():
             frame = render(camera, pose, scene, supersample=supersample, depth_model="kinect",

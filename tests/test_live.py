@@ -292,8 +292,10 @@ def test_hil_log_states_the_noise_its_camera_and_encoders_have(octagon_run):
         # misdetection: on a loaded machine the frames that reach the front-end differ, and
         # under stress-ng the plain bearing RMS once came out at 2.0 (an RMS over ~500
         # readings that a few far readings can make); readings beyond 5σ must stay rare.
+        # Measured: 0–2 bearings per lap (4 of 606 readings over seeds 1–5, 2.2–2.7 mrad,
+        # mostly driving straight: the front-end's own tail, not the frame's timing).
         assert 0.7 < rms < 1.4, (name, rms)
-        assert len(inliers) >= 0.99 * len(z), (name, len(z) - len(inliers))
+        assert len(inliers) >= 0.97 * len(z), (name, len(z) - len(inliers))
 
 
 @pytest.mark.slow
