@@ -282,6 +282,20 @@ class Lockstep:
         return due_at is None or self.sim.clock() >= due_at - 1e-9
 
 
+def release_untaken(lockstep: Lockstep | None, waiting: tuple | None, results: queue.Queue) -> None:
+    """Let the simulated clock go for results nobody will take any more (a worker closing):
+    ``waiting`` and every item of ``results`` end with their hold token."""
+    items = [waiting] if waiting is not None else []
+    while True:
+        try:
+            items.append(results.get_nowait())
+        except queue.Empty:
+            break
+    for item in items:
+        if item[-1] is not None:
+            lockstep.release(item[-1])  # type: ignore[union-attr]
+
+
 class CameraWorker:
     """Grabs and processes one frame at a time in its own thread.
 
@@ -349,14 +363,8 @@ class CameraWorker:
     def close(self) -> None:
         self._requests.put(None)
         self._thread.join(timeout=5.0)
-        if self._waiting is not None:  # results nobody will take: let the clock go
-            self._release(self._waiting[3])
-            self._waiting = None
-        while True:
-            try:
-                self._release(self._results.get_nowait()[3])
-            except queue.Empty:
-                return
+        release_untaken(self.lockstep, self._waiting, self._results)  # results nobody will take
+        self._waiting = None
 
 
 class SmootherWorker:
@@ -455,14 +463,8 @@ class SmootherWorker:
         the smoother stays in :attr:`error`); poses nobody will publish let the clock go."""
         self._steps.put(None)
         self._thread.join()
-        if self._due is not None:
-            self._release(self._due[3])
-            self._due = None
-        while True:
-            try:
-                self._release(self._smoothed.get_nowait()[3])
-            except queue.Empty:
-                return
+        release_untaken(self.lockstep, self._due, self._smoothed)
+        self._due = None
 
 
 # --------------------------------------------------------------------------- the loop
