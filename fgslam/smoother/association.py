@@ -179,9 +179,9 @@ class SmootherAssociation:
         self.retry: list[FirstSighting] = []  # rejected observations to ask once more
         self.unsettled: list[FirstSighting] = []  # asked once more, still rejected: asked at the end (settle)
         self._frames: dict[int, range] = {}  # pose index → its step's observation slots
-        self.paired = self.created = self.rejected = self.unconfirmed = self.retried = 0
+        self.paired = self.created = self.unconfirmed = self.retried = 0
         self.repaired = self.unpaired = 0  # end-of-run re-decisions (redecide)
-        self._rejected_slots: set[int] = set()  # observations counted in ``rejected`` now
+        self._rejected_slots: set[int] = set()  # the observations rejected now (``rejected``)
         self.jcbb_nodes_max = 0
 
     # -------------------------------------------------------------- bookkeeping
@@ -223,7 +223,6 @@ class SmootherAssociation:
         obs = [o for _, o in observations]
         found = self._pairing(seed, obs, isam, joint_marginal, known_points)
         if found is None:  # no marginal this step: use nothing, create nothing
-            self.rejected += len(obs)
             self._rejected_slots.update(self._step_start + position for position, _ in observations)
             return decision
         pairing, near, points, spreads, _ = found
@@ -235,7 +234,6 @@ class SmootherAssociation:
                 self.paired += 1
             elif near[a]:  # ambiguous now; asked once more after the update (retry_rejected)
                 self._keys[slot] = None
-                self.rejected += 1
                 self._rejected_slots.add(slot)
                 self.retry.append(FirstSighting(slot, k, seed, obs[a], points[a], spreads[a]))
             else:
@@ -284,6 +282,11 @@ class SmootherAssociation:
                 pairing = [None if c is None else candidates[c] for c in kept]
                 ambiguous = np.array([a is not None and b is None for a, b in zip(result.pairing, kept)], dtype=bool)
         return pairing, near, points, spreads, ambiguous
+
+    @property
+    def rejected(self) -> int:
+        """How many observations are rejected now (ambiguous, or no marginal that step)."""
+        return len(self._rejected_slots)
 
     def retry_rejected(self, k: int, isam: gtsam.ISAM2, joint_marginal_at, known_points: list[int]):
         """Rejected observations of earlier poses that iSAM2 now holds, associated once more
@@ -400,12 +403,10 @@ class SmootherAssociation:
             if c.new is None:
                 self.unpaired += 1
                 self.paired -= 1
-                self.rejected += 1
                 self._rejected_slots.add(c.slot)
             elif c.old is None:
                 self.retried += 1
                 self.paired += 1
-                self.rejected -= 1
                 self._rejected_slots.discard(c.slot)
             else:
                 self.repaired += 1
@@ -428,7 +429,6 @@ class SmootherAssociation:
                 if lid is not None:
                     self._keys[r.index] = lid
                     self._rejected_slots.discard(r.index)
-                    self.rejected -= 1
                     self.paired += 1
                     self.retried += 1
                     out.append((r, lid))

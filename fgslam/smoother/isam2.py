@@ -405,13 +405,21 @@ class Isam2Smoother:
         for obs in observations:
             self._add_observation(k, seed, obs)
 
+    def _point_landmarks(self) -> list[int]:
+        """The point landmarks iSAM2 holds (tags excluded): what association pairs with."""
+        return [i for i in self._landmarks.ids if i not in self._landmarks.tag_ids]
+
+    def _marginal_at_pose(self, p: int, pose: gtsam.Pose2, ids):
+        """iSAM2's joint marginal of pose ``p`` (at ``pose``) and landmarks ``ids``, in the world
+        frame (:func:`~fgslam.smoother.association.world_joint_marginal`)."""
+        return world_joint_marginal(self._isam, OdometryChain(p), pose, ids)
+
     def _associate(self, k: int, seed: gtsam.Pose2, observations) -> list[Observation]:
         """The step's observations with the id-less ones given the id association chose
         (:mod:`fgslam.smoother.association`); those it did not place are left out. First
         sightings confirmed now are held too, at their own poses."""
-        points = [i for i in self._landmarks.ids if i not in self._landmarks.tag_ids]
-        for s, lid in self._association.retry_rejected(
-                k, self._isam, lambda p, pose, ids: world_joint_marginal(self._isam, OdometryChain(p), pose, ids), points):
+        points = self._point_landmarks()
+        for s, lid in self._association.retry_rejected(k, self._isam, self._marginal_at_pose, points):
             self._add_observation(s.pose_index, s.seed, replace(s.observation, landmark_id=lid))
         unknown = [(i, o) for i, o in enumerate(observations) if o.landmark_id is None and not o.range_only]
         self._held.uncorrected |= bool(unknown)
@@ -440,9 +448,7 @@ class Isam2Smoother:
         pairing's factor is removed from iSAM2 (and from the kept graph) and, when it was
         re-paired, the factor to its new landmark added, in one update. If GTSAM refuses
         the update, nothing changes (the iSAM2 it was given is rebuilt as it was)."""
-        points = [i for i in self._landmarks.ids if i not in self._landmarks.tag_ids]
-        changes = self._association.redecide(
-            self._isam, lambda p, pose, ids: world_joint_marginal(self._isam, OdometryChain(p), pose, ids), points)
+        changes = self._association.redecide(self._isam, self._marginal_at_pose, self._point_landmarks())
         if not changes:
             return False
         gone = {(X(c.pose_index), L(c.old)) for c in changes if c.old is not None}
@@ -468,7 +474,8 @@ class Isam2Smoother:
             self.update_failures += 1
             self.last_failure = str(exc)
             self._isam = gtsam.ISAM2(self._params())
-            self._isam.update(self._graph, before)
+            self._isam_updates = 0
+            self._isam_update(self._graph, before)
             return False
         self._graph = graph
         self._association.apply(changes)
@@ -591,9 +598,8 @@ class Isam2Smoother:
             return
         self._flush()
         if self.associate and self._association.unsettled:  # the deferred decisions, against the whole map
-            points = [i for i in self._landmarks.ids if i not in self._landmarks.tag_ids]
-            for s, lid in self._association.settle(
-                    self._isam, lambda p, pose, ids: world_joint_marginal(self._isam, OdometryChain(p), pose, ids), points):
+            points = self._point_landmarks()
+            for s, lid in self._association.settle(self._isam, self._marginal_at_pose, points):
                 self._add_observation(s.pose_index, s.seed, replace(s.observation, landmark_id=lid))
                 self._held.steps = max(self._held.steps, 1)
             self._flush()
