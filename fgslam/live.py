@@ -292,8 +292,13 @@ def release_untaken(lockstep: Lockstep | None, waiting: tuple | None, results: q
         except queue.Empty:
             break
     for item in items:
-        if item[-1] is not None:
-            lockstep.release(item[-1])  # type: ignore[union-attr]
+        release_hold(lockstep, item[-1])
+
+
+def release_hold(lockstep: Lockstep | None, token: int | None) -> None:
+    """End a hold on the simulated clock (``token`` None: there is none, not lockstep)."""
+    if token is not None:
+        lockstep.release(token)  # type: ignore[union-attr]
 
 
 class CameraWorker:
@@ -336,12 +341,8 @@ class CameraWorker:
         if self.lockstep is not None and not self.lockstep.reached(due_at):
             return None
         self._waiting = None
-        self._release(token)  # the clock stood at due_at until the control loop had the result
+        release_hold(self.lockstep, token)  # the clock stood at due_at until the control loop had the result
         return index, observations
-
-    def _release(self, token) -> None:
-        if token is not None:
-            self.lockstep.release(token)  # type: ignore[union-attr]
 
     def _run(self) -> None:
         while True:
@@ -406,11 +407,7 @@ class SmootherWorker:
                 return
             self._due = None
             self.tracker.smoothed(index, pose)
-            self._release(token)  # the clock stood at due_at until the follower had the pose
-
-    def _release(self, token) -> None:
-        if token is not None:
-            self.lockstep.release(token)  # type: ignore[union-attr]
+            release_hold(self.lockstep, token)  # the clock stood at due_at until the follower had the pose
 
     def drain_latencies(self) -> list[tuple[int, float]]:
         out = []
@@ -431,7 +428,7 @@ class SmootherWorker:
                 queued = self._smooth(step, due_at, token)
             finally:
                 if not queued:
-                    self._release(token)
+                    release_hold(self.lockstep, token)
 
     def _smooth(self, step: Step, due_at: float | None, token) -> bool:
         """Smooth one step; True when its pose was queued for :meth:`publish` with ``token``."""
