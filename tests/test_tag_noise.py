@@ -7,18 +7,18 @@ import math
 import numpy as np
 import pytest
 
-from slamio.camera.detect import pinhole_tag_noise
 from slamio.camera.tag_noise import MEASURED_GAINS, TagNoise, TagNoiseGains, view_angle_rad
 
 UNIT = TagNoiseGains(bearing=1.0, range=1.0, range_view_power=0.0, yaw=1.0)
 
 
-def test_unit_gains_give_the_pinhole_formulas_of_the_front_end():
+def test_unit_gains_give_the_pinhole_formulas():
+    """Gain 1: the tag's centre moves by σ_px (σ_b = σ_px/fx) and its apparent size fx·s/r by
+    σ_px (σ_r = r²·σ_px/(fx·s))."""
     model = TagNoise(525.0, 0.16, 0.3, UNIT)
-    reference = pinhole_tag_noise(525.0, 0.16, 0.3)  # σ_b = σ_px/fx, σ_r = r²·σ_px/(fx·s)
     for r in (0.5, 1.0, 2.5):
-        assert model.sigma_range_m(r, 0.0) == pytest.approx(reference.sigma_range(r))
-    assert model.sigma_bearing_rad() == pytest.approx(reference.sigma_bearing_rad)
+        assert model.sigma_range_m(r, 0.0) == pytest.approx(r**2 * 0.3 / (525.0 * 0.16))
+    assert model.sigma_bearing_rad() == pytest.approx(0.3 / 525.0)
 
 
 def test_yaw_sigma_limits_frontal_and_oblique():

@@ -117,21 +117,6 @@ class NoiseModel:
 TAG_NOISE = NoiseModel(0.01, 0.0, 0.005, 0.01, None, 0.05)
 
 
-def pinhole_tag_noise(fx_px: float, tag_size_m: float, corner_sigma_px: float, *,
-                      sigma_tag_yaw_rad: float | None = TAG_NOISE.sigma_tag_yaw_rad) -> NoiseModel:
-    """Range and bearing noise of a square tag whose corners a pinhole camera finds to
-    ``corner_sigma_px`` pixels.
-
-    The tag's centre moves by about that much, so σ_bearing = σ_px / fx; its apparent size
-    fx·s/r pixels changes by about that much, so the range it gives changes by
-    r·σ_px/(fx·s/r): σ_range = r²·σ_px/(fx·s), the c of σ_r = a + b·r + c·r².
-    One physical number instead of a σ per quantity; the tag yaw's σ is given apart (IPPE's
-    yaw has heavy tails that no such formula describes).
-    """
-    if not (fx_px > 0 and tag_size_m > 0 and corner_sigma_px > 0):
-        raise FrontEndError(f"need fx, tag size and corner sigma > 0, got {fx_px}, {tag_size_m}, {corner_sigma_px}")
-    return NoiseModel(0.0, 0.0, corner_sigma_px / (fx_px * tag_size_m), corner_sigma_px / fx_px,
-                      None, sigma_tag_yaw_rad)
 COLOUR_NOISE = NoiseModel(0.01, 0.0, 1.425e-3, 0.01, 0.02, None)
 
 
