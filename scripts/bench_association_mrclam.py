@@ -46,13 +46,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
-from bench_mrclam import leave_one_out, raw_logs  # noqa: E402
+from bench_mrclam import add_dataset_arguments, chosen_robots, leave_one_out, raw_logs  # noqa: E402
 from ekf.association import DEFAULT_AMBIGUITY_MARGIN, chi2_gate  # noqa: E402
 from ekf.models import range_bearing  # noqa: E402
 from fgslam.cli.import_ import hide_landmark_ids  # noqa: E402
 from fgslam.compare import ate_rmse_m, score_associations  # noqa: E402
-from fgslam.runner import ESTIMATORS, run_estimator, truth_trajectory  # noqa: E402
-from slamio.datasets.mrclam import ROBOT_SUBJECTS  # noqa: E402
+from fgslam.runner import ESTIMATORS, parse_estimator_names, run_estimator, truth_trajectory  # noqa: E402
 from slamio.geometry import wrap_angle  # noqa: E402
 from slamio.log import RunLog  # noqa: E402
 
@@ -159,15 +158,14 @@ def landmark_spacing_m(log: RunLog) -> tuple[float, float]:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("folder", help="an MRCLAM_DatasetK folder")
-    parser.add_argument("--robots", default=",".join(map(str, ROBOT_SUBJECTS)), help="robots to score (default all five)")
+    add_dataset_arguments(parser)
     parser.add_argument("--estimators", default="ekf,isam2", help="default ekf,isam2")
     parser.add_argument("--diagnose", action="store_true", help="also count misread barcodes per robot")
     parser.add_argument("--json", default=None, metavar="FILE", help="write every figure here")
     args = parser.parse_args(argv)
-    names = args.estimators.split(",")
+    names = parse_estimator_names(args.estimators)
     raw = raw_logs(args.folder)
-    robots = [int(r) for r in args.robots.split(",") if int(r) in raw]
+    robots = chosen_robots(args.robots, raw)
     results: dict[int, dict] = {}
     oracles: list[str] = []
     print("| robot | estimator | observations | correct (barcodes) | correct (landmark seen) | wrong | new (dup.) | rejected "

@@ -165,10 +165,20 @@ def leave_one_out(folder: str, robot: int, raw: dict[int, RunLog]):
     return header, records, model
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def add_dataset_arguments(parser: argparse.ArgumentParser) -> None:
+    """The dataset folder and ``--robots`` (the MRCLAM scripts share them; :func:`chosen_robots`)."""
     parser.add_argument("folder", help="an MRCLAM_DatasetK folder")
     parser.add_argument("--robots", default=",".join(map(str, ROBOT_SUBJECTS)), help="robots to score (default all five)")
+
+
+def chosen_robots(robots: str, raw: dict[int, RunLog]) -> list[int]:
+    """The robots of ``--robots`` (comma separated) that the dataset has."""
+    return [int(r) for r in robots.split(",") if int(r) in raw]
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_dataset_arguments(parser)
     parser.add_argument("--estimators", default="ekf,isam2,dead_reckoning", help="default ekf,isam2,dead_reckoning")
     parser.add_argument("--no-model", action="store_true", help="use the round default noise instead of a fitted model")
     parser.add_argument("--figure", default=None, metavar="PNG", help="write the trajectories over Vicon here")
@@ -176,7 +186,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     names = parse_estimator_names(args.estimators)
     raw = raw_logs(args.folder)
-    robots = [int(r) for r in args.robots.split(",") if int(r) in raw]
+    robots = chosen_robots(args.robots, raw)
     results, models = {}, {}
     for k in robots:
         if args.no_model:
