@@ -20,12 +20,12 @@ is as consistent as one run can show. The log needs truth at every pose.
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
+from ekf.models import range_bearing
 from fgslam.compare import nees_band, nees_over_truth
 from fgslam.runner import run_estimator, truth_trajectory
 from slamio.geometry import wrap_angle
@@ -104,8 +104,8 @@ def reading_z_scores(log: RunLog) -> tuple[np.ndarray, np.ndarray]:
         for o in step.observations:
             if o.range_only:
                 continue
-            x, y, theta = step.truth.x_m, step.truth.y_m, step.truth.theta_rad
-            dx, dy = landmarks[o.landmark_id][0] - x, landmarks[o.landmark_id][1] - y
-            z_range.append((o.range_m - math.hypot(dx, dy)) / o.sigma_range_m)
-            z_bearing.append(wrap_angle(o.bearing_rad - math.atan2(dy, dx) + theta) / o.sigma_bearing_rad)
+            pose = (step.truth.x_m, step.truth.y_m, step.truth.theta_rad)
+            range_m, bearing_rad = range_bearing(pose, landmarks[o.landmark_id])
+            z_range.append((o.range_m - range_m) / o.sigma_range_m)
+            z_bearing.append(wrap_angle(o.bearing_rad - bearing_rad) / o.sigma_bearing_rad)
     return np.array(z_range), np.array(z_bearing)
