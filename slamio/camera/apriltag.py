@@ -49,6 +49,7 @@ from functools import cached_property
 
 import numpy as np
 
+from slamio.camera.aruco_codes import ArucoCandidates, family_codes, identify_quads
 from slamio.camera.model import CameraModel, floor_range_bearing, transform_points
 from slamio.errors import FgslamError
 
@@ -513,6 +514,12 @@ class AprilTagDetector:
                 params.adaptiveThreshWinSizeMin = params.adaptiveThreshWinSizeMax = int(aruco_window_px)
             params.minMarkerPerimeterRate = float(aruco_min_perimeter)
             self._detector = cv2.aruco.ArucoDetector(dictionary, params)
+            self._candidates = None
+            if aruco_refinement == "none" and aruco_window_px is not None:
+                # one window and unrefined corners: identify OpenCV's candidates in one array operation
+                # (aruco_codes; with several windows OpenCV tries each tag's candidates in turn)
+                self._codes = family_codes(ARUCO_DICTIONARIES[family])
+                self._candidates = ArucoCandidates(params, self._codes.marker_cells)
 
     def detect(self, grey: np.ndarray) -> list[TagDetection]:
         """Tags in a 2-D uint8 image, sorted by id (OpenCV's calls on ``nthreads`` threads too)."""
@@ -530,6 +537,9 @@ class AprilTagDetector:
                     corners = corners_from_upsampled(apriltag_to_opencv_corners(d.corners), self.upsample)
                     out.append(TagDetection(int(d.tag_id), self.family, corners, int(d.hamming),
                                             float(d.decision_margin)))
+            elif self._candidates is not None:
+                for tag_id, corners in identify_quads(grey, self._candidates.quads(grey), self._codes):
+                    out.append(TagDetection(tag_id, self.family, corners_from_upsampled(corners, self.upsample)))
             else:
                 corners, ids, _ = self._detector.detectMarkers(grey)
                 if ids is not None:
