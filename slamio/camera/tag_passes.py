@@ -9,7 +9,8 @@ Measured on the NASA photos against every tag that any of eight detector set-ups
   misses), so a second pass around its failed quads has nothing to work on.
 - The same detector on the image **enlarged 1.75×** (bilinear) finds 51 (2×: 53), and
 - **cv2.aruco** with one 3-pixel adaptive-threshold window and candidates of at least a
-  tenth of the image's side in perimeter — cheap: about a quarter of the first pass's time —
+  tenth of the image's side in perimeter, its candidates identified by
+  :mod:`slamio.camera.aruco_codes` — cheap: 0.15–0.3 of the single pass's time —
   decodes tags on cube tops and sides that AprilTag 3 rejects at any scale.
 - Enlarged, AprilTag 3's quad thresholds are raised (40 grey levels of tile contrast, 40 edge
   pixels per candidate, :data:`ENLARGED_MIN_WHITE_BLACK_DIFF`): fine texture stops making
@@ -19,7 +20,7 @@ Measured on the NASA photos against every tag that any of eight detector set-ups
 Together: 57 of 61 (2×: 59), none outside the union, at 1.3–1.5× the CPU time of the single
 pass at the camera's resolution (2×: 1.5×), one thread: 16–24 ms per 640×480 frame on the
 median frame of this project's shared 2-core machine, 21–31 ms on tag-dense frames of gravel
-(worst 30–39 ms), where the enlarged pass takes most and the aruco pass 3–6 ms.
+(worst 30–39 ms), where the enlarged pass takes most and the aruco pass 4–6 ms.
 
 Tags found by the first pass keep its corners; the second pass only adds tags whose centre is
 not within half a side of one already found. The front-end refines every tag's corners on the
