@@ -111,8 +111,9 @@ class Comparison:
     smoother: Isam2Smoother | None = None  # the iSAM2 run the batch solve started from (its graph)
 
 
-def parse_estimator_names(text: str) -> list[str]:
-    """``"ekf,isam2"`` → ``["ekf", "isam2"]``, rejecting unknown or missing names."""
+def parse_estimator_names(text: str, *, need_isam2: bool = True) -> list[str]:
+    """``"ekf,isam2"`` → ``["ekf", "isam2"]``, rejecting unknown or missing names, and (with
+    ``need_isam2``, for ``fgslam run``'s batch solve) a list without an iSAM2 estimator."""
     names = [n.strip() for n in text.split(",") if n.strip()]
     unknown = [n for n in names if n not in ESTIMATORS]
     if unknown or not names:
@@ -120,7 +121,7 @@ def parse_estimator_names(text: str) -> list[str]:
             f"unknown estimator(s) {', '.join(unknown) or '(none given)'}; "
             f"choose from {', '.join(ESTIMATORS)} (comma-separated)"
         )
-    if not any(n in ISAM2_NAMES for n in names):
+    if need_isam2 and not any(n in ISAM2_NAMES for n in names):
         raise FgslamError(
             "the batch solve (the smoothed reference) starts from iSAM2's result: keep isam2 in --estimators"
         )

@@ -52,6 +52,7 @@ from ekf.models import range_bearing  # noqa: E402
 from fgslam.cli.import_ import hide_landmark_ids  # noqa: E402
 from fgslam.compare import ate_rmse_m, score_associations  # noqa: E402
 from fgslam.runner import ESTIMATORS, parse_estimator_names, run_estimator, truth_trajectory  # noqa: E402
+from slamio.errors import FgslamError  # noqa: E402
 from slamio.geometry import wrap_angle  # noqa: E402
 from slamio.log import RunLog  # noqa: E402
 
@@ -163,7 +164,10 @@ def main(argv=None) -> int:
     parser.add_argument("--diagnose", action="store_true", help="also count misread barcodes per robot")
     parser.add_argument("--json", default=None, metavar="FILE", help="write every figure here")
     args = parser.parse_args(argv)
-    names = parse_estimator_names(args.estimators)
+    try:
+        names = parse_estimator_names(args.estimators, need_isam2=False)
+    except FgslamError as exc:
+        parser.error(str(exc))
     raw = raw_logs(args.folder)
     robots = chosen_robots(args.robots, raw)
     results: dict[int, dict] = {}

@@ -131,6 +131,12 @@ def test_user_errors_are_one_line_not_tracebacks(argv, message, short_log, tmp_p
     assert "Traceback" not in err
 
 
+def test_estimator_names_without_isam2_where_no_batch_solve_follows():
+    from fgslam.runner import parse_estimator_names
+
+    assert parse_estimator_names("ekf, ekf", need_isam2=False) == ["ekf"]
+
+
 def test_estimator_help_names_every_registered_estimator(capsys):
     from fgslam.cli import ESTIMATOR_HELP
     from fgslam.runner import ESTIMATORS
