@@ -45,8 +45,9 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from slamio.create.record import WheelRamp
+from slamio.create.record import SAME_TIME_S, WheelRamp
 from slamio.create.odometry import WHEEL_BASE_M
+from slamio.create.sim import STEP_S
 from slamio.errors import FgslamError
 from slamio.geometry import arc_increment, between_pose, compose_pose, wrap_angle
 from slamio.log import LiveStep, LogWriter, Observation, Odometry, Step, TruthLandmark, TruthPose
@@ -180,7 +181,7 @@ class WaypointFollower:
 
     def command(self, now_s: float, unread: tuple[float, float] = (0.0, 0.0)) -> tuple[float, float] | None:
         if self._settle_until is not None:
-            if now_s < self._settle_until:
+            if now_s < self._settle_until - SAME_TIME_S:
                 return self._ramp((0.0, 0.0), now_s)
             self._settle_until = None
         if self.index >= len(self.waypoints):
@@ -282,6 +283,42 @@ class Lockstep:
         return due_at is None or self.sim.clock() >= due_at - 1e-9
 
 
+class ControlHold:
+    """Lockstep for the control loop itself: the simulated Create takes one 15 ms step, then
+    waits for the loop to have read that step's stream frame and sent its command.
+
+    Without it the robot stepped on as soon as the host had *read* a frame, so a wheel
+    command reached it in one step or the next depending on thread timing, and the same seed
+    drove a slightly different lap. The clock stands from the moment the loop is made (the
+    robot has not been started yet); :meth:`passed` ends every pass of the loop — the
+    recorder's start-up polls and its control passes, after their command went out: it lets
+    the clock take one more step once the loop has caught up with the last one, then waits
+    until the robot has taken whatever step the holds allow
+    (:meth:`slamio.create.sim.SimulatedCreate.settle`), so the next pass reads a whole step."""
+
+    def __init__(self, lockstep: Lockstep):
+        self.sim = lockstep.sim
+        self._token: int | None = self.sim.hold()  # the clock stands until the first pass
+        self.sim.settle()  # it may have been in the middle of a step
+        self._seen = self.sim.clock()  # where the clock stood when the pass now running began
+        self._at: float | None = None  # the clock time the hold was last moved on from
+
+    def passed(self) -> None:
+        # The pass began with the clock at self._seen (it stood still since the last settle); a
+        # result the pass took may have let it step since, which the next pass will read.
+        if self._token is not None and (self._at is None or self._seen > self._at):
+            token = self.sim.hold(self._seen + 0.5 * STEP_S)  # stands again right after the next step
+            self.sim.release(self._token)
+            self._at, self._token = self._seen, token
+        self.sim.settle()
+        self._seen = self.sim.clock()
+
+    def close(self) -> None:
+        if self._token is not None:
+            self.sim.release(self._token)
+            self._token = None
+
+
 def release_untaken(lockstep: Lockstep | None, waiting: tuple | None, results: queue.Queue) -> None:
     """Let the simulated clock go for results nobody will take any more (a worker closing):
     ``waiting`` and every item of ``results`` end with their hold token."""
@@ -342,6 +379,8 @@ class CameraWorker:
             return None
         self._waiting = None
         release_hold(self.lockstep, token)  # the clock stood at due_at until the control loop had the result
+        if self.lockstep is not None:
+            self._busy.clear()  # busy until the loop took the result: the next request never races the worker
         return index, observations
 
     def _run(self) -> None:
@@ -359,7 +398,8 @@ class CameraWorker:
             self.frame_seconds.append(time.perf_counter() - start)
             # the hold goes with the result: released when the control loop takes it
             self._results.put((index, observations, due_at, token))
-            self._busy.clear()
+            if self.lockstep is None:
+                self._busy.clear()
 
     def close(self) -> None:
         self._requests.put(None)
@@ -499,8 +539,9 @@ class LiveLoop:
     def __init__(self, tracker: PoseTracker, camera: CameraWorker | None, smoother: SmootherWorker,
                  grab_for: Callable[[int, Odometry], Callable[[], object]] | None,
                  settings: LiveSettings = LiveSettings(), truth: Callable[[], tuple[float, float, float]] | None = None,
-                 truth_landmarks: Sequence[TruthLandmark] = ()):
+                 truth_landmarks: Sequence[TruthLandmark] = (), lockstep: Lockstep | None = None):
         self.tracker = tracker
+        self._control = ControlHold(lockstep) if lockstep is not None else None
         self.camera = camera
         self.smoother = smoother
         self.grab_for = grab_for
@@ -526,7 +567,21 @@ class LiveLoop:
             log.write(TruthPose(0.0, *self.truth()))
         log.flush()
 
+    def polled(self) -> None:
+        """The recorder read the robot while waiting for its first answer."""
+        self._pass_done()
+
     def due(self, now_s: float) -> bool:
+        """Called at the end of every pass of the control loop, after its command went out."""
+        record_now = self._due(now_s)
+        self._pass_done()
+        return record_now
+
+    def _pass_done(self) -> None:
+        if self._control is not None:
+            self._control.passed()
+
+    def _due(self, now_s: float) -> bool:
         for worker in (self.camera, self.smoother):
             if worker is not None and worker.error is not None:
                 raise FgslamError(f"live loop: {type(worker.error).__name__}: {worker.error}") from worker.error
@@ -546,7 +601,7 @@ class LiveLoop:
                 self._drop_pending()
             else:
                 return False
-        return now_s - self._last_record_s >= self.s.record_period_s
+        return now_s - self._last_record_s >= self.s.record_period_s - SAME_TIME_S
 
     def after_record(self, record, log: LogWriter) -> None:
         self._log = log
@@ -598,6 +653,8 @@ class LiveLoop:
         """After the recorder returned: give the last pose to the smoother (a frame still in
         progress is dropped: the log is closed) and wait for it."""
         self._drop_pending()
+        if self._control is not None:
+            self._control.close()
         if self.camera is not None:
             self.camera.close()
         self.smoother.close()
@@ -777,8 +834,8 @@ def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front
         on_step(index, smoother_, latency, loop)
 
     worker = SmootherWorker(smoother, tracker, step_hook if on_step is not None else None, lockstep=lockstep)
-    worker.submit(Step(0, 0.0, None, (), None))  # pose 0: the start pose
-    loop = LiveLoop(tracker, camera, worker, grab_for, settings, truth, truth_landmarks)
+    loop = LiveLoop(tracker, camera, worker, grab_for, settings, truth, truth_landmarks, lockstep=lockstep)
+    worker.submit(Step(0, 0.0, None, (), None))  # pose 0: the start pose (lockstep: the clock stands already)
     follower = WaypointFollower(waypoints, tracker.current, settings, on_advance=tracker.advance)
     recorder = RecorderSettings(speed_m_s=settings.speed_m_s, turn_rate_rad_s=settings.turn_rate_rad_s,
                                 accel_m_s2=settings.accel_m_s2, record_period_s=settings.record_period_s,

@@ -89,6 +89,11 @@ DEFAULT_SIDE_M = {"square": 1.0, "octagon": 0.5}
 STREAM_IDS = (7, 35, 43, 44)  # Create 2: bumps/drops, OI mode, left and right encoder counts
 POLL_IDS = (7, 35, 19, 20)  # Create 1: bumps/drops, OI mode, distance, angle
 
+#: Robot times closer than this are the same instant: a stamp difference of one 15 ms stream
+#: period can come out as 0.01499999… in floating point, and a comparison against the period
+#: must not depend on where the run's clock started.
+SAME_TIME_S = 1e-9
+
 
 # --------------------------------------------------------------------------- paths
 
@@ -260,7 +265,7 @@ class PathController:
         """Wheel speeds now; ``unread`` is the (distance, angle) the robot has made since its
         last reading, as predicted from the commands (the Create 1, read every 0.1 s)."""
         if self._settle_until is not None:
-            if now_s < self._settle_until:
+            if now_s < self._settle_until - SAME_TIME_S:
                 return self._ramp((0.0, 0.0), now_s)
             self._settle_until = None
             self.index += 1
@@ -376,7 +381,7 @@ class TeleopController:
                 self._quit_at = now_s + self.s.settle_s
             key = self.keys.read_key()
         if self._quit_at is not None:
-            return None if now_s >= self._quit_at else self._ramp((0.0, 0.0), now_s, limit_slowing=True)
+            return None if now_s >= self._quit_at - SAME_TIME_S else self._ramp((0.0, 0.0), now_s, limit_slowing=True)
         self.speed_m_s = max(-self.s.speed_m_s, min(self.s.speed_m_s, round(self.speed_m_s, 6)))
         self.turn_rad_s = max(-self.s.turn_rate_rad_s, min(self.s.turn_rate_rad_s, round(self.turn_rad_s, 6)))
         half = 0.5 * self.turn_rad_s * self.wheel_base_m
@@ -552,7 +557,8 @@ class RecordHooks(Protocol):
         """Called after each odometry record is written and flushed, from the control loop's
         thread; may write more records (observations) to ``log``."""
 
-    # optional: ``started(log)``, called once the log is open, before the first record
+    # optional: ``started(log)``, called once the log is open, before the first record;
+    # ``polled()``, called after every read while waiting for the robot's first answer
 
 
 def record(
@@ -646,7 +652,8 @@ def record(
                 link.write(protocol.start())
                 link.write(protocol.safe() if target_mode == OiMode.SAFE else protocol.full())
                 reader.setup()
-                reason = _first_reading(reader, odometry, target_mode, settings, now_s, frame_tap)
+                reason = _first_reading(reader, odometry, target_mode, settings, now_s, frame_tap,
+                                        getattr(hooks, "polled", None))
                 if reason is None:
                     started = True
                     monitor.expected_mode = target_mode
@@ -680,12 +687,16 @@ def record(
     )
 
 
-def _first_reading(reader, odometry, target_mode, settings, now_s, tap) -> StopReason | None:
-    """Wait for the robot to answer in the requested mode; initialise the odometry."""
+def _first_reading(reader, odometry, target_mode, settings, now_s, tap, polled=None) -> StopReason | None:
+    """Wait for the robot to answer in the requested mode; initialise the odometry
+    (``polled()``, if given, after every read)."""
     deadline = time.monotonic() + settings.startup_timeout_s
     seen_mode = None
     while time.monotonic() < deadline:
-        for values in reader.poll(now_s(), tap):
+        readings = reader.poll(now_s(), tap)
+        if polled is not None:
+            polled()
+        for values in readings:
             if values is None:
                 continue
             seen_mode = values.get(35)
@@ -728,17 +739,24 @@ def _drive(link, reader, odometry, controller, monitor, settings, now_s, tap, us
                     return StopReason("quit", "quit from the keyboard")
                 return StopReason("completed", "path driven to the end")
             wall = time.monotonic()
-            changed = wheels != last_command and (t - last_sent_s >= settings.command_interval_s or wheels == (0.0, 0.0))
-            if changed or wall - last_sent_wall >= settings.command_refresh_s:
+            changed = wheels != last_command and (t - last_sent_s >= settings.command_interval_s - SAME_TIME_S
+                                                  or wheels == (0.0, 0.0))
+            if changed:
                 link.drive_direct(*wheels)
                 monitor.command_sent()
                 if isinstance(odometry, Create1Odometry):
                     odometry.command(wheels[0], wheels[1], t)
                 last_command, last_sent_wall, last_sent_s = wheels, wall, t
+            elif last_command is not None and wall - last_sent_wall >= settings.command_refresh_s:
+                # keep-alive: the command in force again (a change waits for command_interval_s, which
+                # is robot time, so what the robot is told and when does not depend on this machine's speed)
+                link.drive_direct(*last_command)
+                monitor.command_sent()
+                last_sent_wall = wall
             if hooks is not None:
                 if hooks.due(t):
                     write_record()
-            elif t >= next_record:
+            elif t >= next_record - SAME_TIME_S:
                 write_record()
                 next_record = t + settings.record_period_s
             if settings.max_duration_s is not None and t >= settings.max_duration_s:

@@ -252,6 +252,8 @@ class SimulatedCreate:
         self._holds: dict[int, float] = {}  # token → robot time from which it stops the clock
         self._hold_tokens = 0
         self._held = threading.Condition(threading.Lock())
+        self._hold_changes = 0  # holds made or released so far
+        self._standing_after: int | None = None  # standing, having seen this many hold changes
         self.hold_wall_s = 0.0  # wall time the clock was held (how much a slow machine stretched the run)
 
     # ------------------------------------------------------------------ life cycle
@@ -396,6 +398,8 @@ class SimulatedCreate:
             self._hold_tokens += 1
             token = self._hold_tokens
             self._holds[token] = -math.inf if at_s is None else float(at_s)
+            self._hold_changes += 1
+            self._held.notify_all()
             return token
 
     def release(self, token: int) -> None:
@@ -403,7 +407,23 @@ class SimulatedCreate:
         with self._held:
             if self._holds.pop(token, None) is None:
                 raise RuntimeError(f"SimulatedCreate.release({token!r}): no such hold")
+            self._hold_changes += 1
             self._held.notify_all()
+
+    def settle(self, timeout_s: float | None = None) -> bool:
+        """Wait until the clock stands at a hold, with every hold made or released so far
+        seen and any step they allowed taken (its stream frame sent): what a lockstep host
+        calls before it reads, so that it always sees a whole step. False after ``timeout_s``
+        (wall; default ``max_hold_s``), or at once when no hold can stop the clock (it runs
+        freely) or the simulator is not running."""
+        give_up = time.monotonic() + (self.max_hold_s if timeout_s is None else timeout_s)
+        with self._held:
+            while self._standing_after != self._hold_changes:
+                remaining = give_up - time.monotonic()
+                if remaining <= 0 or not self._holds or not self._running.is_set():
+                    return False
+                self._held.wait(timeout=min(remaining, 0.05))
+            return True
 
     @contextlib.contextmanager
     def held(self, at_s: float | None = None) -> Iterator[None]:
@@ -438,9 +458,14 @@ class SimulatedCreate:
                 self._receive()  # a stop sent while the clock stands is obeyed at once
             with self._held:
                 if self._holding():
+                    self._standing_after = self._hold_changes  # settle() may return
+                    self._held.notify_all()
                     self._held.wait(timeout=0.005)
                 if not self._holding():
+                    self._standing_after = None
                     break
+        with self._held:
+            self._standing_after = None
         self.hold_wall_s += time.monotonic() - start
         return True
 
@@ -458,13 +483,13 @@ class SimulatedCreate:
         wall_step = STEP_S / self.time_scale
         next_wall = time.monotonic()
         while self._running.is_set():
+            if self._wait_while_held():  # host-side work in progress: time stands still
+                next_wall = time.monotonic()
             # Do not run ahead of a host that has not read the last frame yet (a busy
             # machine): simulated time waits, up to wait_for_host_s of real time.
             give_up = time.monotonic() + self.wait_for_host_s
             while self._unread_by_host() and time.monotonic() < give_up and self._running.is_set():
                 time.sleep(0.0002)
-                next_wall = time.monotonic()
-            if self._wait_while_held():  # host-side work in progress: time stands still
                 next_wall = time.monotonic()
             if not self._running.is_set():
                 break
