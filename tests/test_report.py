@@ -398,7 +398,7 @@ def test_error_axes_follow_the_estimators_not_the_baseline(tmp_path):
         figures[Path(path).name] = (fig, ax)
         return Path(path)
 
-    import fgslam.report as report
+    import fgslam.report.time_plots as report
 
     original = report._legend_and_save
     report._legend_and_save = capture
@@ -500,7 +500,7 @@ def test_page_shows_the_provenance(tmp_path):
 def test_provenance_stored_in_the_metrics_is_the_one_shown(tmp_path, monkeypatch):
     """The contract with ``fgslam run``: it puts ``provenance(...)`` under ``metrics["provenance"]``
     (a top-level key, not an estimator) before writing metrics.json; the page shows that."""
-    import fgslam.compare as compare
+    import fgslam.compare.metrics as compare
     from fgslam.report import provenance
 
     monkeypatch.setattr(compare, "TOP_LEVEL_KEYS", tuple(compare.TOP_LEVEL_KEYS) + ("provenance",))

@@ -1,0 +1,314 @@
+"""All comparison figures of a set of runs as one JSON-ready dictionary: :func:`compute_metrics`.
+
+Also the keys of that dictionary (:data:`TOP_LEVEL_KEYS`, :data:`METRIC_KEYS`), the SE(2)
+transform each run is measured with (:func:`estimator_alignment`; the report draws with the
+same one), the NEES of the online poses that have truth (:func:`nees_over_truth`) and the
+estimator entries of a dictionary (:func:`estimator_names`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Mapping
+
+import numpy as np
+
+from fgslam.compare.alignment import align_se2, apply_se2, resolve_alignment
+from fgslam.compare.association import AssociationScore
+from fgslam.compare.errors import (
+    _rmse,
+    final_pose_error_m,
+    map_rmse_m,
+    nees,
+    nees_band,
+    nis_summary,
+    position_errors_m,
+    relative_pose_errors,
+    rpe_delta_frames,
+)
+from fgslam.compare.runs import REFERENCE_KINDS, ComparisonError, EstimatorRun, Reference, _as_poses
+
+
+TOP_LEVEL_KEYS = (
+    "reference",
+    "log",
+    "poses",
+    "rpe_delta_frames",
+    "reference_poses_with_truth",
+    "landmark_reference",
+    "reference_landmarks",
+    "provenance",
+)
+METRIC_KEYS = (
+    "ate_rmse_m",
+    "ate_online_rmse_m",
+    "ate_aligned_rmse_m",
+    "ate_online_aligned_rmse_m",
+    "final_pose_error_m",
+    "rpe_trans_rmse_m",
+    "rpe_heading_rmse_rad",
+    "nees_mean",
+    "nees_inside_95",
+    "nees_count",
+    "nis_mean",
+    "nis_inside_95",
+    "nis_count",
+    "map_rmse_m",
+    "map_height_rmse_m",
+    "landmarks_estimated",
+    "landmarks_found",
+    "landmarks_missed",
+    "association",
+    "unused_observations",
+    "aligned",
+    "time_total_s",
+    "time_step_p50_s",
+    "time_step_p99_s",
+    "time_step_max_s",
+    "peak_memory_mb",
+    "steps",
+)
+
+
+def _json_float(value) -> float | None:
+    """A plain Python float, or None for NaN/inf/None (JSON has no NaN)."""
+    if value is None:
+        return None
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def estimator_alignment(run: EstimatorRun, reference: Reference) -> tuple[bool, float, np.ndarray]:
+    """The SE(2) transform :func:`compute_metrics` applies to one run (see :mod:`fgslam.compare.alignment`).
+
+    Computed from the run's final trajectory against the same number of reference poses,
+    over the poses that have truth; ``fgslam.report`` uses it to draw exactly what was
+    measured.
+    """
+    final = _as_poses(run.final, f"{run.name}.final")
+    ref = _as_poses(reference.trajectory, "reference.trajectory")
+    if len(final) > len(ref):
+        raise ComparisonError(
+            f"estimator {run.name!r} has {len(final)} poses but the reference only {len(ref)}; "
+            "compare runs of the same log"
+        )
+    m = len(final)
+    return resolve_alignment(final, ref[:m], None, has_pose=reference.has_pose[:m])
+
+
+def nees_over_truth(online, covariances, reference, has_pose) -> np.ndarray:
+    """NEES (:func:`nees`) of the online poses that have truth, in pose order; values of a
+    covariance that is not positive definite are NaN (the caller decides what they mean)."""
+    e = _as_poses(online, "online")
+    k = len(e)
+    valid = np.asarray(has_pose, dtype=bool).reshape(-1)[:k]
+    r = _as_poses(reference, "reference")[:k]
+    P = np.asarray(covariances, dtype=float)[:k]
+    return nees(e[valid], P[valid], r[valid])
+
+
+def aligned_ate_m(estimate, reference, has_pose) -> float | None:
+    """ATE after the least-squares SE(2) alignment over the poses with truth, metres.
+
+    The gauge-free figure: a SLAM map's frame is pinned only by the prior on the start
+    pose, so a heading error made before the first landmark is seen (on a real robot,
+    start-up motion the odometry describes badly) rotates the whole map and dominates the
+    anchored ATE. The aligned ATE (the TUM benchmark's ATE, evo's ``-a``) measures the
+    shape. None with fewer than two poses with truth.
+    """
+    e = _as_poses(estimate, "estimate")
+    n = min(len(e), len(reference))
+    mask = np.asarray(has_pose[:n], bool)
+    if mask.sum() < 2:
+        return None
+    e_xy = e[:n][mask, :2]
+    r_xy = np.asarray(reference, float)[:n][mask, :2]
+    rotation, translation = align_se2(e_xy, r_xy)
+    return _rmse(position_errors_m(apply_se2(e_xy, rotation, translation), r_xy))
+
+
+def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path: str) -> dict:
+    """All comparison figures as a JSON-ready dictionary (plain floats, ints, bools, None).
+
+    Every pose figure (ATE, final error, RPE, NEES) is computed over the poses that have a
+    reference (:attr:`Reference.has_pose`): with partial ground truth, poses in the gaps are
+    not scored. The map error is against ``reference.landmarks`` (the log's surveyed
+    landmarks whenever it has them, :attr:`Reference.landmark_reference`).
+
+    Shape::
+
+        {"reference": "ground_truth" | "smoothed",  # where the reference *trajectory* is from
+         "log": log_path, "poses": n,
+         "rpe_delta_frames": int,            # Δ of the RPE: the reference's frames per ~1 m
+         "reference_poses_with_truth": int,  # poses scored against ground truth (n when all
+                                             # have it; 0 against the smoothed solution)
+         "landmark_reference": "ground_truth" | "smoothed" | None,  # where the reference
+                                             # landmarks come from (None: there are none)
+         "reference_landmarks": int,         # how many reference landmarks
+         "<estimator name>": {
+             "ate_rmse_m": float,            # final trajectory vs reference
+             "ate_online_rmse_m": float|None,# online trajectory; None for batch
+             "ate_aligned_rmse_m": float,    # final, after the SE(2) fit over poses with truth
+             "ate_online_aligned_rmse_m": float|None,  # online, the same
+             "final_pose_error_m": float,    # position error of the last pose with truth
+             "rpe_trans_rmse_m": float|None, # RPE over rpe_delta_frames, final trajectory
+                                             # (pairs whose both ends have truth)
+             "rpe_heading_rmse_rad": float|None,
+             "nees_mean": float|None,        # mean NEES of the online poses with truth
+                                             # (3-DoF; 3 if consistent); None without
+                                             # covariances, against a smoothed reference,
+                                             # or when aligned
+             "nees_inside_95": float|None,   # share of them whose NEES is inside the 95 %
+                                             # χ²(3) band [0.216, 9.35]
+             "nees_count": int|None,         # how many online poses have a NEES (those with
+                                             # truth and a positive-definite covariance)
+             "nis_mean": float|None,         # mean NIS of the observations of landmarks
+                                             # already mapped, against the prediction before
+                                             # their step (2-DoF range-bearing; 2 if
+                                             # consistent; range-only readings 1-DoF, 1);
+                                             # needs no reference
+             "nis_inside_95": float|None,    # share of them inside their χ²(dof) band: χ²(2)
+                                             # [0.0506, 7.38], χ²(1) [0.000982, 5.02]
+             "nis_count": int|None,          # how many observations have a NIS
+             "map_rmse_m": float|None,       # None when no landmark id in common
+             "map_height_rmse_m": float|None,# 3-D maps against true heights, else None
+             "landmarks_estimated": int,
+             "landmarks_found": int,         # reference landmarks it estimated
+             "landmarks_missed": int,        # reference landmarks it never put in its map
+             "association": dict|None,       # when the log has observations without ids (or the
+                                             # estimator created landmarks): observations,
+                                             # correct, wrong, rate, rejected, new (=
+                                             # landmarks_created), duplicate_landmarks
+             "unused_observations": dict|None, # the estimator's own counts of observations it
+                                             # did not use (skipped, rejected, unconfirmed, ...)
+             "aligned": bool,                # SE(2) alignment applied (first poses differ)
+             "time_total_s": float,
+             "time_step_p50_s": float|None,  # median step time; None for batch
+             "time_step_p99_s": float|None,  # 99th percentile step time; None for batch
+             "time_step_max_s": float|None,  # slowest step; None for batch
+             "peak_memory_mb": float|None,   # resident memory the run added at its peak, MB
+                                             # (10⁶ bytes; fgslam.memory); None if unmeasured
+             "steps": int},                  # poses this estimator estimated
+         ...}
+
+    An estimator that estimated fewer poses than the reference (an interrupted run) is
+    compared over the poses it has: ``steps`` says how many. Any figure that is not finite
+    (e.g. a diverged filter, or no pose with truth among the ones it estimated) is ``None``.
+    """
+    if reference.kind not in REFERENCE_KINDS:
+        raise ComparisonError(f"reference kind {reference.kind!r}; expected one of {REFERENCE_KINDS}")
+    ref = _as_poses(reference.trajectory, "reference.trajectory")
+    valid = reference.has_pose
+    delta = rpe_delta_frames(ref, has_pose=valid)
+    metrics: dict = {
+        "reference": reference.kind,
+        "log": str(log_path),
+        "poses": int(len(ref)),
+        "rpe_delta_frames": delta,
+        "reference_poses_with_truth": reference.poses_with_truth,
+        "landmark_reference": reference.landmark_reference,
+        "reference_landmarks": int(len(reference.landmarks)),
+    }
+    for run in runs:
+        if run.name in TOP_LEVEL_KEYS or run.name in metrics:
+            raise ComparisonError(
+                f"estimator name {run.name!r} clashes with another key of the metrics; rename it"
+            )
+        final = _as_poses(run.final, f"{run.name}.final")
+        m = len(final)
+        aligned, rot, trans = estimator_alignment(run, reference)
+        final_a = apply_se2(final, rot, trans) if m else final
+
+        ate_online = None
+        if run.online is not None:
+            online = _as_poses(run.online, f"{run.name}.online")
+            if len(online) > len(ref):
+                raise ComparisonError(
+                    f"estimator {run.name!r}: online trajectory has {len(online)} poses, "
+                    f"reference {len(ref)}"
+                )
+            if len(online):
+                k = len(online)
+                online_a = apply_se2(online, rot, trans)
+                ate_online = _rmse(position_errors_m(online_a, ref[:k])[valid[:k]])
+
+        p50 = p99 = tmax = None
+        if run.step_times_s is not None:
+            times = np.asarray(run.step_times_s, dtype=float).reshape(-1)
+            if len(times):
+                p50, p99 = np.percentile(times, [50.0, 99.0])
+                tmax = float(np.max(times))
+        found = len(set(run.landmarks) & set(reference.landmarks))
+
+        rpe_trans, rpe_heading = relative_pose_errors(final, ref[:m], delta, has_pose=valid[:m])
+        nees_mean = nees_inside = nees_count = None
+        if (run.online_covariances is not None and run.online is not None and not aligned
+                and reference.kind == "ground_truth"):
+            values = nees_over_truth(run.online, run.online_covariances, ref, valid)
+            values = values[np.isfinite(values)]
+            if len(values):
+                low, high = nees_band()
+                nees_mean = float(np.mean(values))
+                nees_inside = float(np.mean((values >= low) & (values <= high)))
+            nees_count = int(len(values))
+        nis_mean, nis_inside, nis_count = nis_summary(run.nis, run.nis_dofs)
+        metrics[run.name] = {
+            "ate_rmse_m": _json_float(_rmse(position_errors_m(final_a, ref[:m])[valid[:m]])),
+            "ate_online_rmse_m": _json_float(ate_online),
+            "ate_aligned_rmse_m": _json_float(aligned_ate_m(final, ref[:m], valid[:m])),
+            "ate_online_aligned_rmse_m": _json_float(
+                aligned_ate_m(_as_poses(run.online, "online"), ref, valid) if run.online is not None else None
+            ),
+            "final_pose_error_m": _json_float(final_pose_error_m(final_a, ref[:m], has_pose=valid[:m])),
+            "rpe_trans_rmse_m": _json_float(_rmse(rpe_trans)),
+            "rpe_heading_rmse_rad": _json_float(_rmse(rpe_heading)),
+            "nees_mean": _json_float(nees_mean),
+            "nees_inside_95": _json_float(nees_inside),
+            "nees_count": nees_count,
+            "nis_mean": _json_float(nis_mean),
+            "nis_inside_95": _json_float(nis_inside),
+            "nis_count": nis_count,
+            "map_rmse_m": _json_float(map_rmse_m(run.landmarks, reference.landmarks, rot, trans)),
+            "map_height_rmse_m": _json_float(_height_rmse_m(run.landmark_heights, reference.landmark_heights)),
+            "landmarks_estimated": int(len(run.landmarks)),
+            "landmarks_found": int(found),
+            "landmarks_missed": int(len(reference.landmarks) - found),
+            "association": _association_dict(run.association),
+            "unused_observations": None if run.unused_observations is None else dict(run.unused_observations),
+            "aligned": bool(aligned),
+            "time_total_s": _json_float(run.total_time_s),
+            "time_step_p50_s": _json_float(p50),
+            "time_step_p99_s": _json_float(p99),
+            "time_step_max_s": _json_float(tmax),
+            "peak_memory_mb": None if run.peak_memory_bytes is None else round(run.peak_memory_bytes / 1e6, 3),
+            "steps": int(m),
+        }
+    return metrics
+
+
+def _height_rmse_m(estimated: Mapping[int, float] | None, reference: Mapping[int, float] | None) -> float | None:
+    """RMS height error over the landmarks both maps give a height for (None if none)."""
+    if not estimated or not reference:
+        return None
+    common = sorted(set(estimated) & set(reference))
+    return _rmse(np.array([estimated[i] - reference[i] for i in common], dtype=float)) if common else None
+
+
+def _association_dict(score: AssociationScore | None) -> dict | None:
+    if score is None:
+        return None
+    return {
+        "observations": score.observations,
+        "correct": score.correct,
+        "wrong": score.wrong,
+        "rate": _json_float(score.rate),
+        "rejected": score.rejected,
+        "new": score.landmarks_created,
+        "landmarks_created": score.landmarks_created,
+        "duplicate_landmarks": len(score.duplicate_keys),
+    }
+
+
+def estimator_names(metrics: dict) -> list[str]:
+    """The estimator entries of a metrics dictionary, in insertion order."""
+    return [k for k, v in metrics.items() if k not in TOP_LEVEL_KEYS and isinstance(v, dict)]

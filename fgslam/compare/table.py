@@ -1,0 +1,184 @@
+"""The metrics dictionary as a table: the terminal table and the rows the HTML report shows.
+
+:func:`table_rows` formats the figures (metres to 0.1 mm, times in milliseconds), shows the
+optional columns only when some run has them, and says what every column means
+(:data:`COLUMN_MEANINGS`); :func:`format_table` lays them out in fixed width under one line
+that says what the reference is (:func:`reference_line`).
+"""
+
+from __future__ import annotations
+
+from fgslam.compare.metrics import estimator_names
+from fgslam.compare.runs import describe_reference
+
+
+TABLE_HEADERS = (
+    "estimator",
+    "ATE final m",
+    "ATE online m",
+    "final err m",
+    "map RMSE m",
+    "landmarks",
+    "total ms",
+    "step p50 ms",
+    "step p99 ms",
+)
+
+def _association_cell(m: dict) -> str:
+    a = m.get("association")
+    return "-" if a is None or a.get("rate") is None else f"{100 * a['rate']:.2f}"
+
+
+def _association_counts_cell(m: dict) -> str:
+    a = m.get("association")
+    return "-" if a is None else f"{a.get('wrong', 0)}/{a.get('new', a.get('landmarks_created', 0))}/{a['rejected']}"
+
+
+def _unused_cell(m: dict) -> str:
+    u = m.get("unused_observations")
+    if u is None:
+        return "-"
+    return " ".join(f"{v} {k}" for k, v in u.items() if v) or "0"
+
+
+#: (header, metrics key, cell formatter) of the columns shown only when some run has them.
+OPTIONAL_COLUMNS = (
+    ("height RMSE m", "map_height_rmse_m", lambda m: _fmt(m.get("map_height_rmse_m"))),
+    ("assoc %", "association", _association_cell),
+    ("assoc wrong/new/rej", "association", _association_counts_cell),
+    ("unused obs", "unused_observations", _unused_cell),
+    ("NEES in %", "nees_inside_95", lambda m: _fmt(m.get("nees_inside_95"), 100.0, 1)),
+    ("NIS in %", "nis_inside_95", lambda m: _fmt(m.get("nis_inside_95"), 100.0, 1)),
+    ("peak MB", "peak_memory_mb", lambda m: _fmt(m.get("peak_memory_mb"), 1.0, 1)),
+)
+
+COLUMN_MEANINGS = {
+    "ATE final m": "absolute trajectory error, metres: RMS position error of every pose as "
+    "estimated after the last step",
+    "ATE online m": "RMS position error, metres, of each pose as estimated at its own step "
+    "(what the robot knew live); - for a one-shot batch solve",
+    "final err m": "position error of the last pose (the last pose with ground truth when the "
+    "truth has gaps), metres",
+    "map RMSE m": "RMS landmark position error, metres, over the landmark ids both maps contain "
+    "(against the log's surveyed landmarks whenever it has them)",
+    "landmarks": "number of landmarks the estimator mapped",
+    "total ms": "wall-clock time of the whole run, milliseconds",
+    "step p50 ms": "median wall-clock time per step, milliseconds; - for a one-shot batch solve",
+    "step p99 ms": "99th-percentile wall-clock time per step, milliseconds; - for a one-shot "
+    "batch solve",
+    "height RMSE m": "RMS error of the landmark heights, metres, for estimators with a 3-D map",
+    "assoc %": "share of observations associated with the right landmark, for estimators that "
+    "associate observations themselves (rejected ones count as wrong)",
+    "assoc wrong/new/rej": "observations associated with the wrong landmark (or a duplicate), "
+    "landmarks the estimator created, and observations it rejected (left unused), scored "
+    "against the log's truth_landmark_id",
+    "unused obs": "observations the estimator did not use, by reason, from its own counters: "
+    "skipped (no id and no association), rejected (ambiguous), unconfirmed (a new landmark's "
+    "first sighting no later one agreed with), gated (outside the gate of its id), dropped "
+    "(withheld after a failed update); 0 when it used every observation",
+    "NEES in %": "share of steps whose NEES (online pose error against ground truth, weighted by "
+    "the covariance the estimator stated) lies inside the 95 % chi-square(3) band; about 95 for "
+    "a consistent estimator, less when it is over-confident (only with ground truth, over the "
+    "steps that have it)",
+    "NIS in %": "share of observations of already mapped landmarks whose NIS (innovation against "
+    "the estimator's prediction, weighted by its predicted covariance) lies inside the 95 % "
+    "chi-square(2) band (chi-square(1) for a range-only reading); about 95 when consistent; needs no ground truth",
+    "peak MB": "how far the process's resident memory rose during the run, megabytes (10^6 bytes)",
+}
+
+
+def _fmt(value, scale: float = 1.0, digits: int = 4) -> str:
+    return "-" if value is None else f"{value * scale:.{digits}f}"
+
+
+def reference_description(metrics: dict) -> str:
+    """:func:`describe_reference` of a metrics dictionary (older dictionaries without the
+    truth counts read as full ground truth or the smoothed solution, as they meant)."""
+    kind = metrics.get("reference")
+    poses = int(metrics.get("poses") or 0)
+    with_truth = metrics.get("reference_poses_with_truth")
+    if with_truth is None:
+        with_truth = poses if kind == "ground_truth" else 0
+    landmark_reference = metrics.get("landmark_reference", kind)
+    return describe_reference(
+        str(kind), poses=poses, poses_with_truth=int(with_truth), landmark_reference=landmark_reference,
+        landmarks=int(metrics.get("reference_landmarks") or 0),
+    )
+
+
+def reference_line(metrics: dict) -> str:
+    """One sentence saying what the figures are measured against.
+
+    ``Reference: ground truth recorded in the log - run.jsonl, 660 poses`` with full truth;
+    with gaps ``Reference: ground truth recorded in the log, 1981 of 2238 poses (gaps in the
+    truth: 257 poses without truth are not scored) - r1.jsonl``.
+    """
+    what = reference_description(metrics)
+    poses = metrics.get("poses")
+    with_truth = metrics.get("reference_poses_with_truth")
+    if metrics.get("reference") == "ground_truth" and with_truth is not None and with_truth != poses:
+        return f"Reference: {what} - {metrics.get('log')}"  # the counts are in the description
+    return f"Reference: {what} - {metrics.get('log')}, {poses} poses"
+
+
+def table_rows(metrics: dict) -> tuple[tuple[str, ...], list[tuple[str, ...]], list[str]]:
+    """The table shared by :func:`format_table` and the HTML report.
+
+    Returns ``(headers, rows, notes)``: ``rows`` hold formatted strings (metres to 0.1 mm,
+    times in milliseconds, ``-`` for "not applicable"); an ``*`` after an ATE means the
+    estimate was aligned in SE(2); ``notes`` explain the marks that occur.
+    """
+    names = estimator_names(metrics)
+    # Columns that only matter for some runs appear only when some estimator has them.
+    optional = [
+        (header, cell)
+        for header, key, cell in OPTIONAL_COLUMNS
+        if any(metrics[n].get(key) is not None for n in names)
+    ]
+    rows = []
+    notes = []
+    any_aligned = False
+    for name in names:
+        m = metrics[name]
+        star = "*" if m.get("aligned") else ""
+        any_aligned |= bool(m.get("aligned"))
+        rows.append(
+            (
+                name,
+                _fmt(m.get("ate_rmse_m")) + star,
+                _fmt(m.get("ate_online_rmse_m")) + (star if m.get("ate_online_rmse_m") is not None else ""),
+                _fmt(m.get("final_pose_error_m")),
+                _fmt(m.get("map_rmse_m")),
+                str(m.get("landmarks_estimated")),
+                _fmt(m.get("time_total_s"), 1e3, 1),
+                _fmt(m.get("time_step_p50_s"), 1e3, 3),
+                _fmt(m.get("time_step_p99_s"), 1e3, 3),
+                *(cell(m) for _, cell in optional),
+            )
+        )
+        if m.get("steps") != metrics.get("poses"):
+            notes.append(f"{name} estimated {m.get('steps')} of {metrics.get('poses')} poses")
+    if any_aligned:
+        notes.insert(0, "* aligned to the reference in SE(2) (first poses differ)")
+    return TABLE_HEADERS + tuple(header for header, _ in optional), rows, notes
+
+
+def format_table(metrics: dict) -> str:
+    """A fixed-width terminal table of :func:`compute_metrics` output.
+
+    First line: what the reference is. Then one row per estimator with ATE final, ATE
+    online, final pose error, map RMSE (metres), landmark count, and total / median /
+    99th-percentile step time (milliseconds). ``-`` means not applicable.
+    """
+    headers, rows, notes = table_rows(metrics)
+    widths = [max(len(h), *(len(r[i]) for r in rows)) if rows else len(h) for i, h in enumerate(headers)]
+
+    def line(cells) -> str:
+        first = cells[0].ljust(widths[0])
+        rest = [c.rjust(w) for c, w in zip(cells[1:], widths[1:])]
+        return "  ".join([first, *rest]).rstrip()
+
+    out = [reference_line(metrics), line(headers), line(["-" * w for w in widths])]
+    out += [line(r) for r in rows]
+    out += notes
+    return "\n".join(out)
