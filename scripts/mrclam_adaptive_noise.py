@@ -157,15 +157,21 @@ class AdaptiveNoiseEkf:
     learned from its own innovations (module docstring). ``adapt`` picks which scales move:
     any of ``"range"``, ``"bearing"``, ``"odometry"``."""
 
-    def __init__(self, header, *, adapt=("range", "bearing", "odometry"), prior_weight=3.0, forgetting=0.95):
+    def __init__(self, header, *, adapt=("range", "bearing", "odometry"), prior_weight=3.0, forgetting=0.95,
+                 fixed=None):
         self.ekf = InnovationEkf(header)
         self.adapt = set(adapt)
+        self.fixed = dict(fixed or {})  # scales that are not adapted but set (an oracle's)
         self.scales = {name: ForgettingScale(prior_weight, forgetting) for name in ("range", "bearing", "odometry")}
         self.gate = chi2.ppf(0.9999, 2)
-        self.history: list[tuple[float, float, float]] = []
+        self.history: list[tuple[float, ...]] = []
+
+    def value(self, name: str) -> float:
+        """The scale in force: the estimate when ``name`` adapts, else the fixed one (1 by default)."""
+        return self.scales[name].value if name in self.adapt else self.fixed.get(name, 1.0)
 
     def scaled(self, step: Step) -> Step:
-        lr, lb, lq = (self.scales[n].value if n in self.adapt else 1.0 for n in ("range", "bearing", "odometry"))
+        lr, lb, lq = (self.value(n) for n in ("range", "bearing", "odometry"))
         odometry = step.odometry
         if odometry is not None and lq != 1.0:
             odometry = dataclasses.replace(odometry, covariance=tuple(tuple(lq * v for v in row) for row in odometry.covariance))
@@ -197,7 +203,7 @@ class AdaptiveNoiseEkf:
                 draw = self.scales["odometry"].value * float(np.trace(np.linalg.solve(A, state))) / 2.0
                 self.scales["odometry"].add(draw)
                 self.scales["odometry"].add(draw)
-        self.history.append(tuple(self.scales[n].value for n in ("range", "bearing", "odometry")))
+        self.history.append(tuple(self.value(n) for n in ("range", "bearing", "odometry")))
         return nis
 
 
@@ -228,11 +234,13 @@ def share_in_band(z: np.ndarray, range_scale: float, bearing_scale: float) -> fl
     return float(np.mean((d2 >= LOW) & (d2 <= HIGH)))
 
 
-def reading_ceiling(raws: dict[int, RunLog], models: dict) -> dict[int, tuple[float, float, float, float]]:
+def reading_ceiling(raws: dict[int, RunLog], models: dict) -> dict[int, tuple[float, ...]]:
     """Per robot, readings against Vicon (no estimator: every pose known; each run's own
     scale and bias removed, ``mrclam_models_tried.reading_z``): ``(share with the model's σ,
-    best share with the run's own variance scales, that range scale, that bearing scale)``,
-    the scales searched on a log grid 0.1–10 (an oracle: chosen after the fact)."""
+    best share with the run's own variance scales, that range scale, that bearing scale,
+    mean z_r², mean z_b²)``, the scales searched on a log grid 0.1–10 (an oracle: chosen
+    after the fact), the means over the readings within 5σ (the run's variance over the
+    model's: what an adaptive scale should find)."""
     from mrclam_models_tried import reading_z
 
     grid = np.exp(np.linspace(math.log(0.1), math.log(10.0), 41))
@@ -240,7 +248,8 @@ def reading_ceiling(raws: dict[int, RunLog], models: dict) -> dict[int, tuple[fl
     for k, raw in raws.items():
         z = reading_z(raw, models[k])
         best = max((share_in_band(z, a, c), a, c) for a in grid for c in grid)
-        out[k] = (share_in_band(z, 1.0, 1.0), *best)
+        inlier = np.all(np.abs(z) <= 5.0, axis=1)
+        out[k] = (share_in_band(z, 1.0, 1.0), *best, *np.mean(z[inlier] ** 2, axis=0))
     return out
 
 
@@ -276,13 +285,37 @@ def innovation_bounds(log: RunLog) -> dict:
             "centred": centred}
 
 
+def nis_by_revisit(logs: dict[int, RunLog]) -> dict[str, dict]:
+    """The product EKF's NIS (all robots pooled) split by the time since the same landmark's
+    previous reading: share below / inside / above the 95 % band and the median."""
+    bins = {"< 0.5 s": (0.0, 0.5), "0.5-2 s": (0.5, 2.0), "2-10 s": (2.0, 10.0), ">= 10 s": (10.0, math.inf)}
+    values: list[tuple[float, float]] = []
+    for log in logs.values():
+        f, last = InnovationEkf(log.header), {}
+        for s in log.steps():
+            for ob, p in zip(s.observations, f.innovation_parts(s)):
+                if p is not None and s.truth is not None:
+                    values.append((float(p[0] @ np.linalg.solve(p[1], p[0])), s.stamp_s - last[ob.landmark_id]))
+                if ob.landmark_id is not None:
+                    last[ob.landmark_id] = s.stamp_s
+            f.step(s)
+    nis, gap = np.array(values).T
+    out = {}
+    for name, (a, b) in bins.items():
+        v = nis[(gap >= a) & (gap < b)]
+        out[name] = {"count": int(len(v)), "below": float(np.mean(v < LOW)), "inside": float(np.mean((v >= LOW) & (v <= HIGH))),
+                     "above": float(np.mean(v > HIGH)), "median": float(np.median(v))}
+    return out
+
+
 def open_loop_bounds(logs: dict[int, RunLog], raws: dict[int, RunLog], models: dict) -> dict:
     """Print and return the readings' ceiling and the innovations' oracles, per robot."""
     print("## readings against Vicon, every pose known: share in band with the model's sigma; "
           "best share with the run's own variance scales (range, bearing)")
     ceiling = reading_ceiling(raws, models)
-    for k, (model_share, best, a, c) in ceiling.items():
-        print(f"robot {k}: {model_share:.3f}; {best:.3f} (x{a:.2f}, x{c:.2f})")
+    for k, (model_share, best, a, c, vr, vb) in ceiling.items():
+        print(f"robot {k}: {model_share:.3f}; {best:.3f} (x{a:.2f}, x{c:.2f}); variance over the model's "
+              f"within 5 sigma: range {vr:.2f}, bearing {vb:.2f}")
     print("## open loop: the product EKF's innovations rescaled after the fact")
     bounds = {}
     for k, log in logs.items():
@@ -290,8 +323,14 @@ def open_loop_bounds(logs: dict[int, RunLog], raws: dict[int, RunLog], models: d
         print(f"robot {k}: as run {b['as_run']:.3f}; best constant scales (state x{b['state_scale']}, reading "
               f"x{b['reading_scale']}) {b['best_constant']:.3f}; centred-window scale ±0.5 / ±1 / ±2 s: "
               + " / ".join(f"{v:.3f}" for v in b["centred"].values()))
-    return {"readings": {k: dict(zip(("model", "best", "range_scale", "bearing_scale"), v)) for k, v in ceiling.items()},
-            "innovations": bounds}
+    print("## the product EKF's NIS by the time since the landmark's previous reading (all robots): "
+          "count, below / inside / above the band, median")
+    revisit = nis_by_revisit(logs)
+    for name, r in revisit.items():
+        print(f"{name}: {r['count']}, {r['below']:.3f} / {r['inside']:.3f} / {r['above']:.3f}, {r['median']:.2f}")
+    names = ("model", "best", "range_scale", "bearing_scale", "range_variance_ratio", "bearing_variance_ratio")
+    return {"readings": {k: dict(zip(names, map(float, v))) for k, v in ceiling.items()},
+            "innovations": bounds, "revisit": revisit}
 
 
 # ----------------------------------------------------------------------------- main
@@ -305,6 +344,10 @@ VARIANTS = {
     "all three, f 0.95": {},
     "all three, f 0.99": {"forgetting": 0.99},
 }
+
+#: With ``--open-loop``: each robot's camera σ scaled by its own readings' variance against
+#: Vicon (an oracle, as if calibrated on another run of the same robot), nothing adapted.
+ORACLE = "camera variances set to the run's own against Vicon (oracle)"
 
 
 def main(argv=None) -> int:
@@ -320,13 +363,18 @@ def main(argv=None) -> int:
         header, records, models[k] = leave_one_out(args.folder, k, raw)
         logs[k] = RunLog(f"robot{k}", header, tuple(records))
     out: dict = {"variants": {}}
+    variants = {name: {k: kwargs for k in logs} for name, kwargs in VARIANTS.items()}
     if args.open_loop:
         out["open_loop"] = open_loop_bounds(logs, raw, models)
+        readings = out["open_loop"]["readings"]
+        variants[ORACLE] = {k: {"adapt": (), "fixed": {"range": readings[k]["range_variance_ratio"],
+                                                       "bearing": readings[k]["bearing_variance_ratio"]}} for k in logs}
     print("## closed loop: NIS in band / median NIS / ATE anchored / ATE aligned (m); scale medians (range, bearing, odometry)")
     sim = read_log(str(Path(__file__).resolve().parents[1] / "data" / "arena_octagon.jsonl")) if args.sim else None
     columns = ("nis_inside", "nis_median", "ate_m", "ate_aligned_m")
-    for name, kwargs in VARIANTS.items():
-        rows = {k: run_adaptive(log, **kwargs) for k, log in logs.items()}
+    for name, per_robot in variants.items():
+        rows = {k: run_adaptive(log, **per_robot[k]) for k, log in logs.items()}
+        kwargs = next(iter(per_robot.values()))
         cells = "; ".join(f"{k}: {r['nis_inside']:.3f}/{r['nis_median']:.2f}/{r['ate_m']:.3f}/{r['ate_aligned_m']:.3f} "
                           f"({', '.join(f'{v:.2f}' for v in r['scale_medians'])})" for k, r in rows.items())
         median = {c: float(np.median([r[c] for r in rows.values()])) for c in columns}
@@ -334,7 +382,7 @@ def main(argv=None) -> int:
         print("    median: " + " / ".join(f"{median[c]:.3f}" for c in columns))
         entry = out["variants"][name] = {"robots": {k: {c: r[c] for c in columns} | {"scale_medians": r["scale_medians"].tolist()}
                                                     for k, r in rows.items()}, "median": median}
-        if sim is not None:
+        if sim is not None and name != ORACLE:
             r = run_adaptive(sim, **kwargs)
             entry["arena_octagon"] = {c: r[c] for c in ("nis_inside", "nis_median", "ate_m")}
             print(f"    arena-octagon (simulated): {r['nis_inside']:.3f} / {r['nis_median']:.2f} / {r['ate_m']:.4f}")
