@@ -268,7 +268,7 @@ def innovation_bounds(log: RunLog) -> dict:
         f.step(s)
     nu = np.array([p[0] for p in rows])
     A, B = np.array([p[2] for p in rows]), np.array([p[3] for p in rows])
-    grid = (0.25, 0.35, 0.5, 0.7, 1.0, 1.4, 2.0)
+    grid = np.exp(np.linspace(math.log(0.1), math.log(10.0), 21))
     best = max((nis_inside(np.einsum("ni,nij,nj->n", nu, np.linalg.inv(mu * A + lam * B), nu)), mu, lam)
                for mu in grid for lam in grid)
     nis = np.einsum("ni,nij,nj->n", nu, np.linalg.inv(A + B), nu)
@@ -281,7 +281,7 @@ def innovation_bounds(log: RunLog) -> dict:
             near[i] = False
             c[i] = (1.0 + nis[near].sum() / 2.0) / (1.0 + near.sum())
         centred[half_s] = nis_inside(nis / c)
-    return {"as_run": nis_inside(nis), "best_constant": best[0], "state_scale": best[1], "reading_scale": best[2],
+    return {"as_run": nis_inside(nis), "best_constant": best[0], "state_scale": float(best[1]), "reading_scale": float(best[2]),
             "centred": centred}
 
 
@@ -320,8 +320,8 @@ def open_loop_bounds(logs: dict[int, RunLog], raws: dict[int, RunLog], models: d
     bounds = {}
     for k, log in logs.items():
         b = bounds[k] = innovation_bounds(log)
-        print(f"robot {k}: as run {b['as_run']:.3f}; best constant scales (state x{b['state_scale']}, reading "
-              f"x{b['reading_scale']}) {b['best_constant']:.3f}; centred-window scale ±0.5 / ±1 / ±2 s: "
+        print(f"robot {k}: as run {b['as_run']:.3f}; best constant scales (state x{b['state_scale']:.2f}, reading "
+              f"x{b['reading_scale']:.2f}) {b['best_constant']:.3f}; centred-window scale ±0.5 / ±1 / ±2 s: "
               + " / ".join(f"{v:.3f}" for v in b["centred"].values()))
     print("## the product EKF's NIS by the time since the landmark's previous reading (all robots): "
           "count, below / inside / above the band, median")
