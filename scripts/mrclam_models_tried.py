@@ -128,6 +128,19 @@ def odometry_report(raws: dict[int, RunLog], models: dict, folder: str) -> None:
               f"(below {below:.3f}, above {above:.3f}), median z^2 {median:.2f} (Gaussian 0.455){extra}")
 
 
+def reading_z(raw: RunLog, model) -> np.ndarray:
+    """(n, 2): each reading's range and bearing error against Vicon at the picture time, less
+    the run's own scale and bias (a line fitted to the run), over ``model``'s σ."""
+    obs, odometry = model.observation, model.odometry
+    data = _log_data(raw)
+    rm, bm, r, b, t, _ = _true_range_bearing(data, obs.camera_latency_s)
+    omega = odometry.turn_scale * turn_rate_radps(data.chain, t - odometry.lag_s)
+    along = r * np.cos(b) if obs.range_is_depth else r
+    sigma_r = np.array([obs.sigma_range_m(float(v)) for v in r])
+    sigma_b = np.array([obs.sigma_bearing_rad(float(w)) for w in omega])
+    return np.column_stack([_line_fit(along, rm)[2] / sigma_r, _line_fit(b, bm)[2] / sigma_b])
+
+
 def readings_report(raws: dict[int, RunLog], models: dict) -> None:
     """The NIS an estimator that knew every pose exactly would see.
 
@@ -144,14 +157,7 @@ def readings_report(raws: dict[int, RunLog], models: dict) -> None:
     low, high = chi2.ppf(0.025, 2), chi2.ppf(0.975, 2)
     shares = []
     for k, raw in raws.items():
-        obs, odometry = models[k].observation, models[k].odometry
-        data = _log_data(raw)
-        rm, bm, r, b, t, _ = _true_range_bearing(data, obs.camera_latency_s)
-        omega = odometry.turn_scale * turn_rate_radps(data.chain, t - odometry.lag_s)
-        along = r * np.cos(b) if obs.range_is_depth else r
-        sigma_r = np.array([obs.sigma_range_m(float(v)) for v in r])
-        sigma_b = np.array([obs.sigma_bearing_rad(float(w)) for w in omega])
-        z = np.column_stack([_line_fit(along, rm)[2] / sigma_r, _line_fit(b, bm)[2] / sigma_b])
+        z = reading_z(raw, models[k])
         d2 = np.sum(z**2, axis=1)
         row = [np.mean((d2 >= low) & (d2 <= high)), np.mean(d2 < low), np.mean(d2 > high)]
         shares.append(row[0])

@@ -9,7 +9,7 @@ quote them.
 from __future__ import annotations
 
 from doc_numbers.quotes import Quote
-from doc_numbers.registry import camera, estimators, live, plaza, readme, seeds
+from doc_numbers.registry import camera, estimators, live, mrclam_consistency, plaza, readme, seeds
 
 QUOTES: list[Quote] = [*readme.QUOTES, *seeds.QUOTES, *estimators.QUOTES, *camera.QUOTES, *plaza.QUOTES,
-                      *live.QUOTES]
+                      *live.QUOTES, *mrclam_consistency.QUOTES]

@@ -151,6 +151,27 @@ def mrclam_dataset6(context: Context) -> dict:
     return {int(k): v for k, v in json.loads(out.read_text(encoding="utf-8"))["results"].items()}
 
 
+def mrclam_dataset6_adaptive(context: Context) -> dict:
+    """``scripts/mrclam_adaptive_noise.py SHARED/data/mrclam/MRCLAM_Dataset6 --open-loop --sim``:
+    the adaptive-noise variants per robot and their medians, the open-loop bounds, the NIS by
+    time since a landmark's previous reading (robot keys as ints)."""
+    import contextlib
+    import io
+    import json
+
+    import mrclam_adaptive_noise as script
+
+    out = context.scratch / "mrclam6_adaptive.json"
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        script.main([str(context.shared / MRCLAM6), "--open-loop", "--sim", "--json", str(out)])
+    result = json.loads(out.read_text(encoding="utf-8"))
+    for variant in result["variants"].values():
+        variant["robots"] = {int(k): v for k, v in variant["robots"].items()}
+    for part in ("readings", "innovations"):
+        result["open_loop"][part] = {int(k): v for k, v in result["open_loop"][part].items()}
+    return result
+
+
 def mrclam_dataset6_hidden(context: Context) -> dict:
     """``scripts/bench_association_mrclam.py SHARED/data/mrclam/MRCLAM_Dataset6``: robot →
     estimator → association score and ATE with the barcodes withheld (and ATE with them)."""
