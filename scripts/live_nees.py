@@ -105,6 +105,19 @@ def score_log(path: str, estimators, draws: int) -> dict:
     return out
 
 
+def recorded_laps(runs: int, folder: str | None = None) -> list[str]:
+    """Record lockstep laps of seeds 1…``runs`` into ``folder`` (a new temporary one if None);
+    their paths. Lockstep laps are reproducible: the same seed gives the same log."""
+    folder = folder or tempfile.mkdtemp(prefix="fgslam-live-nees-")
+    logs = []
+    for seed in range(1, runs + 1):
+        out = os.path.join(folder, f"seed{seed}.jsonl")
+        print(f"recording lap {seed}/{runs} -> {out}", file=sys.stderr, flush=True)
+        record_lap(out, seed)
+        logs.append(out)
+    return logs
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("logs", nargs="*", help="live-simulation logs with truth at every pose")
@@ -121,14 +134,7 @@ def main(argv=None) -> int:
               f"{len(m)} inside the independent-pose band [{band[0]:.2f}, {band[1]:.2f}]; mean of the run means "
               f"{m.mean():.2f} (band of {len(m)} runs [{runs_band[0]:.2f}, {runs_band[1]:.2f}])", flush=True)
 
-    logs = list(args.logs)
-    if args.record:
-        folder = tempfile.mkdtemp(prefix="fgslam-live-nees-")
-        for seed in range(1, args.record + 1):
-            out = os.path.join(folder, f"seed{seed}.jsonl")
-            print(f"recording lap {seed}/{args.record} -> {out}", file=sys.stderr, flush=True)
-            record_lap(out, seed)
-            logs.append(out)
+    logs = list(args.logs) + (recorded_laps(args.record) if args.record else [])
     if not logs:
         if args.simulate:
             return 0

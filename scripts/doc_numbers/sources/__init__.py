@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from doc_numbers.quotes import Source
 from doc_numbers.sources.experiments import (MRCLAM6, RGBD_REAL, SEED003, apriltag_photos, camera_accuracy,
-                                             colour_real, exact_models_nees, live_band, mrclam_dataset6,
+                                             colour_real, exact_models_nees, live_band, live_laps, mrclam_dataset6,
                                              mrclam_dataset6_adaptive, mrclam_dataset6_hidden, plaza_range_model,
                                              real_corner_sigma, seed001_association, seed002_shapes, seed003_drives,
                                              seed004_paths)
@@ -50,6 +50,7 @@ SOURCES = [
     Source("live-replay", "fgslam run tests/data/live-sim/octagon.jsonl --estimators ekf,isam2 (NEES)", "cheap",
            live_replay),
     Source("exact-models-nees", "python scripts/live_nees.py --simulate 30", "slow", exact_models_nees),
+    Source("live-laps", "python scripts/live_nees.py --record 10", "long", live_laps),
     Source("live-band", "fgslam.consistency.run_nees_band(tests/data/live-sim/octagon.jsonl, ekf), stated sigma "
            "x 1, 0.4, 0.5, 0.7", "slow", live_band),
     Source("octagon-outliers-ekf-no-gate", "fgslam sim arena-octagon --seed 1 --outliers 0.1 "

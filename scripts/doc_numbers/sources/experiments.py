@@ -4,6 +4,8 @@ MRCLAM Dataset 6. Each calls the function the script itself uses."""
 
 from __future__ import annotations
 
+import tempfile
+
 from doc_numbers.quotes import Context
 
 MRCLAM6 = "data/mrclam/MRCLAM_Dataset6"  # under the shared data folder
@@ -242,6 +244,18 @@ def exact_models_nees(context: Context) -> dict:
     import live_nees as script
 
     return script.exact_models_reference(30)
+
+
+def live_laps(context: Context) -> dict:
+    """``scripts/live_nees.py --record 10``: ten lockstep octagon laps (seeds 1–10, reproducible),
+    each scored with the EKF and iSAM2 (``scores``, as :func:`live_nees.score_log`, 100 draws)
+    and the band of ten runs' mean NEES (``runs_band``)."""
+    import live_nees as script
+    from fgslam.compare import nees_band
+
+    with tempfile.TemporaryDirectory(prefix="fgslam-live-laps-") as folder:
+        scores = [script.score_log(path, ("ekf", "isam2"), 100) for path in script.recorded_laps(10, folder)]
+    return {"scores": scores, "runs_band": nees_band(3, runs=10)}
 
 
 def live_band(context: Context) -> dict:
