@@ -1,19 +1,23 @@
 """When the default ``isam2`` relinearises, and what checking less often costs.
 
-The default checks relinearisation on every 20th iSAM2 update (``relinearize_skip``;
-docs/performance.md has the measurements behind it). Checked here against independent
-references: GTSAM's own per-update report of the variables it relinearised, an iSAM2 that
-updates and checks relinearisation at every step, and the batch optimum.
+The default checks relinearisation on every 20th iSAM2 update (``relinearize_skip``) and
+relinearises at most 300 variables in a check (``relinearize_max_variables``;
+docs/performance.md has the measurements behind both). Checked here against independent
+references: GTSAM's own per-update report of the variables it relinearised, its
+linearisation point before and after each update, an iSAM2 that updates and checks
+relinearisation at every step, and the batch optimum.
 """
 
 from __future__ import annotations
 
 import gtsam
 import numpy as np
+import pytest
 from gtsam.symbol_shorthand import H, L, X
 
 from fgslam.smoother import Isam2Smoother, batch_solve
 from fgslam.smoother.relinearisation import component_thresholds, ratios
+from slamio.errors import FgslamError
 from slamio.log import group_steps
 from slamio.sim import simulate
 
@@ -178,3 +182,9 @@ def test_ratios_per_component_against_the_threshold():
     np.testing.assert_array_equal(starts, [0, 2, 5])
     np.testing.assert_allclose(ratios(delta, keys, 0.01), [5.0, 3.0, 20.0])
     np.testing.assert_allclose(ratios(delta, keys, (0.1, 0.01)), [0.5, 3.0, 2.0])
+
+
+def test_a_negative_cap_is_refused():
+    header, _ = simulate("arena-octagon", 2)
+    with pytest.raises(FgslamError, match="relinearize_max_variables"):
+        Isam2Smoother(header, relinearize_max_variables=-1)
