@@ -182,6 +182,7 @@ def test_ratios_per_component_against_the_threshold():
     np.testing.assert_array_equal(starts, [0, 2, 5])
     np.testing.assert_allclose(ratios(delta, keys, 0.01), [5.0, 3.0, 20.0])
     np.testing.assert_allclose(ratios(delta, keys, (0.1, 0.01)), [0.5, 3.0, 2.0])
+    assert np.isinf(ratios(delta, keys, (0.0, 0.01))).all()  # GTSAM relinearises every variable at 0
 
 
 def test_a_negative_cap_is_refused():

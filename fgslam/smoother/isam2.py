@@ -57,8 +57,8 @@ from fgslam.smoother.factors import (
 from fgslam.smoother.online import OnlinePose, landmark_covariances
 from fgslam.smoother.pending import MAX_UNCONFIRMED, PENDING_GATE, PendingObservations, RangeOnlyLandmarks
 from fgslam.smoother.policy import HeldSteps, Keyframes
-from fgslam.smoother.relinearisation import held_back
 from fgslam.smoother.recovery import rebuild
+from fgslam.smoother.relinearisation import held_back
 from fgslam.smoother.variables import LandmarkRegistry
 from slamio.errors import FgslamError
 from slamio.log import Header, Observation, Step

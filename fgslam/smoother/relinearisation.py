@@ -51,13 +51,14 @@ def component_thresholds(keys: list[int], threshold: float | tuple[float, float]
 
 def ratios(delta: gtsam.VectorValues, keys: list[int], threshold: float | tuple[float, float]) -> np.ndarray:
     """Per variable of ``keys``: its largest |step component| / threshold (GTSAM relinearises
-    a variable when a component reaches its threshold, i.e. this is at least 1)."""
+    a variable when a component reaches its threshold, i.e. this is at least 1; with a zero
+    threshold, always: infinity)."""
     if not keys:
         return np.empty(0)
     thresholds, starts = component_thresholds(keys, threshold)
     step = np.abs(np.asarray(delta.vector(keys)).ravel())
     with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.where(thresholds > 0, step / thresholds, np.where(step > 0, np.inf, 0.0))
+        ratio = np.where(thresholds > 0, step / thresholds, np.inf)
     return np.maximum.reduceat(ratio, starts)
 
 
