@@ -1,16 +1,23 @@
 """When the default ``isam2`` relinearises, and what checking less often costs.
 
-The default checks relinearisation on every 20th iSAM2 update (``relinearize_skip``;
-docs/performance.md has the measurements behind it). Checked here against independent
-references: GTSAM's own per-update report of the variables it relinearised, an iSAM2 that
-updates and checks relinearisation at every step, and the batch optimum.
+The default checks relinearisation on every 20th iSAM2 update (``relinearize_skip``) and
+relinearises at most 300 variables in a check (``relinearize_max_variables``;
+docs/performance.md has the measurements behind both). Checked here against independent
+references: GTSAM's own per-update report of the variables it relinearised, its
+linearisation point before and after each update, an iSAM2 that updates and checks
+relinearisation at every step, and the batch optimum.
 """
 
 from __future__ import annotations
 
+import gtsam
 import numpy as np
+import pytest
+from gtsam.symbol_shorthand import H, L, X
 
 from fgslam.smoother import Isam2Smoother, batch_solve
+from fgslam.smoother.relinearisation import component_thresholds, ratios
+from slamio.errors import FgslamError
 from slamio.log import group_steps
 from slamio.sim import simulate
 
@@ -87,3 +94,98 @@ def test_while_associating_relinearisation_is_checked_on_every_10th_update():
     checked = [i + 1 for i, n in enumerate(recording.relinearised) if n > 0]  # n-th update, from 1
     assert all(n % 10 == 0 for n in checked)
     assert any(n % 20 == 10 for n in checked)  # checks GTSAM's every-20th schedule would not run
+
+
+# ---------------------------------------------------------------- relinearize_max_variables
+
+
+class _LinearisationPoints:
+    """Forwards to an ``ISAM2`` and counts, per update, the variables it already held whose
+    linearisation point the update moved (read from GTSAM before and after, not from the
+    smoother's own bookkeeping)."""
+
+    def __init__(self, isam):
+        self._isam = isam
+        self.moved: list[int] = []
+
+    def update(self, *args):
+        before = gtsam.Values(self._isam.getLinearizationPoint())  # a copy: GTSAM returns its own
+        result = self._isam.update(*args)
+        after = self._isam.getLinearizationPoint()
+        self.moved.append(sum(_moved(before, after, key) for key in before.keys()))
+        return result
+
+    def __getattr__(self, name):
+        return getattr(self._isam, name)
+
+
+def _moved(before, after, key) -> bool:
+    symbol = chr(gtsam.Symbol(key).chr())
+    if symbol == "x":
+        return not after.atPose2(key).equals(before.atPose2(key), 0.0)
+    if symbol == "l":
+        return not np.array_equal(after.atPoint2(key), before.atPoint2(key))
+    raise AssertionError(f"unexpected variable {symbol}")
+
+
+def test_a_capped_check_relinearises_at_most_that_many_variables():
+    header, records = simulate("arena-octagon", 2)
+    steps = group_steps(header, records)
+    uncapped = Isam2Smoother(header, relinearize_skip=1, relinearize_max_variables=None)
+    capped = Isam2Smoother(header, relinearize_skip=1, relinearize_max_variables=5)
+    runs = {}
+    for name, smoother in (("uncapped", uncapped), ("capped", capped)):
+        recording = smoother._isam = _LinearisationPoints(smoother._isam)
+        _online(smoother, steps)
+        assert smoother.update_failures == 0
+        runs[name] = recording.moved
+    assert max(runs["uncapped"]) > 5  # without the cap some update relinearised more
+    assert max(runs["capped"]) <= 5
+    assert sum(runs["capped"]) > 0  # … and with it, the checks still relinearise
+
+
+def test_capped_relinearisation_matches_every_step_isam2_online_and_batch_at_the_end():
+    """The same accuracy gates as the default's (above) with the cap on every update's check."""
+    header, records = simulate("arena-octagon", 3)
+    steps = group_steps(header, records)
+    reference = Isam2Smoother(header, update_every=1, relinearize_skip=1, online_correction=False,
+                              wildfire_threshold=0.001)
+    capped = Isam2Smoother(header, relinearize_skip=10, relinearize_max_variables=20)
+    reference_ate = _ate_m(_online(reference, steps), steps)
+    capped_ate = _ate_m(_online(capped, steps), steps)
+    assert capped_ate < 1.03 * reference_ate
+    capped.finish()
+    batch = batch_solve(capped)
+    assert capped.error() < 1.001 * batch.final_error
+
+
+def test_while_associating_the_cap_is_not_applied():
+    """Observations without an id keep the every-10th uncapped check: the same online poses
+    with and without the cap."""
+    header, records = simulate("arena-octagon", 2, hide_ids=True)
+    steps = group_steps(header, records)
+    plain = _online(Isam2Smoother(header, relinearize_max_variables=None), steps)
+    capped = _online(Isam2Smoother(header, relinearize_max_variables=1), steps)
+    np.testing.assert_array_equal(plain, capped)
+
+
+def test_ratios_per_component_against_the_threshold():
+    """|step| / threshold per variable, the largest component: one threshold for all, and
+    the (metres, radians) pair the smoother gives GTSAM as its per-type map (θ in radians)."""
+    keys = [L(3), X(0), H(3)]
+    delta = gtsam.VectorValues()
+    delta.insert(X(0), np.array([0.002, -0.004, 0.03]))
+    delta.insert(L(3), np.array([-0.05, 0.01]))
+    delta.insert(H(3), np.array([0.2]))
+    thresholds, starts = component_thresholds(keys, (0.1, 0.01))
+    np.testing.assert_array_equal(thresholds, [0.1, 0.1, 0.1, 0.1, 0.01, 0.1])
+    np.testing.assert_array_equal(starts, [0, 2, 5])
+    np.testing.assert_allclose(ratios(delta, keys, 0.01), [5.0, 3.0, 20.0])
+    np.testing.assert_allclose(ratios(delta, keys, (0.1, 0.01)), [0.5, 3.0, 2.0])
+    assert np.isinf(ratios(delta, keys, (0.0, 0.01))).all()  # GTSAM relinearises every variable at 0
+
+
+def test_a_negative_cap_is_refused():
+    header, _ = simulate("arena-octagon", 2)
+    with pytest.raises(FgslamError, match="relinearize_max_variables"):
+        Isam2Smoother(header, relinearize_max_variables=-1)

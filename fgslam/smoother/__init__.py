@@ -13,6 +13,8 @@ Where things are
 ``pending.py``          observations not yet in iSAM2: withheld after a failure, robust first
                         sightings waiting for a second, unplaced range-only landmarks
 ``recovery.py``         rebuilding iSAM2 after an update failed (indeterminate system)
+``relinearisation.py``  which variables a relinearisation check may relinearise (the cap,
+                        ``relinearize_max_variables``)
 ``online.py``           the online pose, its covariance, predicted NIS, landmark marginals
 ``correction.py``       the online pose between updates: a pose-only EKF against the
                         landmarks iSAM2 holds (scalar maths, microseconds a step)

@@ -58,6 +58,7 @@ from fgslam.smoother.online import OnlinePose, landmark_covariances
 from fgslam.smoother.pending import MAX_UNCONFIRMED, PENDING_GATE, PendingObservations, RangeOnlyLandmarks
 from fgslam.smoother.policy import HeldSteps, Keyframes
 from fgslam.smoother.recovery import rebuild
+from fgslam.smoother.relinearisation import held_back
 from fgslam.smoother.variables import LandmarkRegistry
 from slamio.errors import FgslamError
 from slamio.log import Header, Observation, Step
@@ -105,6 +106,27 @@ class Isam2Smoother:
         sensitive, docs/estimators.md). Very aggressive settings are where DESIGN.md
         saw IndeterminantLinearSystem failures on real data; those are recovered from
         (:mod:`fgslam.smoother.recovery`).
+    relinearize_max_variables:
+        On each check, relinearise at most this many variables: those whose pending step
+        exceeds the threshold by the largest factor; the rest wait for a later check or for
+        :meth:`finish` (:mod:`fgslam.smoother.relinearisation`; GTSAM's
+        ``ISAM2UpdateParams.noRelinKeys``). Default 300; None relinearises every variable
+        past the threshold, as GTSAM does. Not applied while observations without an id are
+        associated (``associate``: the pairings are that sensitive, above).
+
+        Why, measured (docs/performance.md, ``scripts/bench_relinearisation.py``, same
+        process, one BLAS thread): an uncapped check relinearised up to 1 000 poses on MRCLAM
+        and re-eliminated up to 12 000 variables on Plaza1, 40–330 ms in one update. With 300
+        the slowest update fell 1.3–4.5× (Plaza1 326 → 73 ms, Victoria Park 121 → 28 ms,
+        MRCLAM Dataset 6 robots 10–68 ms), the CPU time of the whole run by 6–32 %, and the
+        online ATE stayed within 3 % of an every-step iSAM2 on MRCLAM robots 1–5 (the
+        importer's noise and the fitted one), Victoria Park, Plaza1 and arena seeds 1–20
+        (worst 1.024× and 1.021×, as without the cap); the final estimate is still the batch
+        optimum. 200 moved MRCLAM robot 1 to 1.026×; 100 on every 10th update lost 6.4 % on
+        robot 4, and 100 on every 20th 5.6 % on Victoria Park. The cap bounds
+        the variables relinearised, not the variables re-eliminated: a landmark seen from
+        every pose is in every pose's clique, so relinearising it re-eliminates most of the
+        tree (Plaza1's four beacons: up to 2 200 variables in one check).
     final_updates:
         Extra plain ``isam.update()`` calls (no new factors) at the start of
         :meth:`finish`, letting a pending relinearisation check happen. Cheap; the full
@@ -244,6 +266,7 @@ class Isam2Smoother:
         *,
         relinearize_threshold: float | tuple[float, float] = 0.01,
         relinearize_skip: int = 20,
+        relinearize_max_variables: int | None = 300,
         update_every: int = 50,
         update_on: str = "any",
         max_held_steps: int = 50,
@@ -315,6 +338,9 @@ class Isam2Smoother:
         self.header = header
         self.relinearize_threshold = threshold
         self.relinearize_skip = int(relinearize_skip)
+        if relinearize_max_variables is not None and relinearize_max_variables < 0:
+            raise FgslamError("Isam2Smoother: relinearize_max_variables must be None or >= 0")
+        self.relinearize_max_variables = None if relinearize_max_variables is None else int(relinearize_max_variables)
         self.final_updates = int(final_updates)
         self.max_retries = int(max_retries)
 
@@ -844,11 +870,19 @@ class Isam2Smoother:
                      values: gtsam.Values | None = None) -> None:
         """One ``ISAM2.update`` (none: no new factors); with observations being associated, a
         relinearisation check on every :data:`ASSOCIATION_RELINEARIZE_SKIP`-th (GTSAM checks
-        on the n-th update of an ``ISAM2`` when n is a multiple of ``relinearize_skip``)."""
+        on the n-th update of an ``ISAM2`` when n is a multiple of ``relinearize_skip``);
+        otherwise GTSAM's own check relinearises at most ``relinearize_max_variables``."""
         self._isam_updates += 1
         if self._unlabelled and self._isam_updates % ASSOCIATION_RELINEARIZE_SKIP == 0:
             update_params = gtsam.ISAM2UpdateParams()
             update_params.force_relinearize = True  # forces the check, not the relinearisation
+            self._isam.update(factors or gtsam.NonlinearFactorGraph(), values or gtsam.Values(), update_params)
+        elif (self.relinearize_max_variables is not None and not self._unlabelled
+              and self._isam_updates % self.relinearize_skip == 0):  # GTSAM's own check, capped
+            update_params = gtsam.ISAM2UpdateParams()
+            held = held_back(self._isam, self.relinearize_threshold, self.relinearize_max_variables)
+            if held.size():
+                update_params.noRelinKeys = held
             self._isam.update(factors or gtsam.NonlinearFactorGraph(), values or gtsam.Values(), update_params)
         elif factors is None:
             self._isam.update()

@@ -36,6 +36,7 @@ FAST_SETTINGS = {
     "keyframes": True,
     "relinearize_threshold": (1.0, 0.05),
     "relinearize_skip": 20,
+    "relinearize_max_variables": None,  # as tuned: every variable past its threshold
     "update_every": 50,
     "update_on": "observations",
     "wildfire_threshold": 1.0,

@@ -1,0 +1,75 @@
+"""A cap on how many variables one relinearisation check relinearises (``relinearize_max_variables``).
+
+On a checking update (every ``relinearize_skip``-th) GTSAM relinearises every variable whose
+pending step — its entry of iSAM2's delta — exceeds the threshold, and re-eliminates every
+clique that holds one of them (as a frontal or a separator variable) and all their
+ancestors. After iSAM2 has smoothed a stretch of poses seeded from the online correction
+that was up to a thousand poses on MRCLAM and twelve thousand variables re-eliminated on
+Plaza1, in one update of 50–570 ms (docs/performance.md). :func:`held_back` lets a check
+relinearise only the ``max_variables`` variables whose step exceeds the threshold by the
+largest factor and names the rest, which go to GTSAM as ``ISAM2UpdateParams.noRelinKeys``.
+Those stay linearised where they are until a later check chooses them (or
+:meth:`~fgslam.smoother.isam2.Isam2Smoother.finish`'s full Gauss–Newton steps); their delta
+still moves the estimate.
+
+The cap bounds the variables relinearised, not the variables re-eliminated: a landmark seen
+from every pose sits in the separator of every pose's clique, so relinearising it alone
+re-eliminates most of the tree. Choosing by GTSAM's own prediction of the re-elimination
+(``ISAM2.predictUpdateInfo``) instead was measured and cost more than it saved
+(docs/performance.md).
+"""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+
+#: The tangent dimension of each kind of variable, by the key's character
+#: (fgslam/smoother/variables.py): a pose or a tag (x, y, θ: the third component in
+#: radians), a point landmark (x, y), a height.
+_DIMENSIONS = {ord("x"): 3, ord("t"): 3, ord("l"): 2, ord("h"): 1}
+
+
+def component_thresholds(keys: list[int], threshold: float | tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """The relinearisation threshold of each tangent component of the variables ``keys``, in
+    order (one number for all, or the (metres, radians) pair the smoother gives GTSAM as its
+    per-type threshold map: θ in radians, the rest in metres), and where each variable's
+    components start."""
+    metres, radians = threshold if isinstance(threshold, tuple) else (threshold, threshold)
+    characters = (np.asarray(keys, dtype=np.uint64) >> np.uint64(56)).astype(np.intp)
+    lookup = np.zeros(256, dtype=np.intp)
+    for character, dim in _DIMENSIONS.items():
+        lookup[character] = dim
+    dims = lookup[characters]
+    if not dims.all():
+        raise ValueError("component_thresholds: a key of an unknown kind of variable")
+    starts = np.cumsum(dims) - dims
+    thresholds = np.full(int(dims.sum()), float(metres))
+    thresholds[starts[dims == 3] + 2] = radians
+    return thresholds, starts
+
+
+def ratios(delta: gtsam.VectorValues, keys: list[int], threshold: float | tuple[float, float]) -> np.ndarray:
+    """Per variable of ``keys``: its largest |step component| / threshold (GTSAM relinearises
+    a variable when a component reaches its threshold, i.e. this is at least 1; with a zero
+    threshold, always: infinity)."""
+    if not keys:
+        return np.empty(0)
+    thresholds, starts = component_thresholds(keys, threshold)
+    step = np.abs(np.asarray(delta.vector(keys)).ravel())
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(thresholds > 0, step / thresholds, np.inf)
+    return np.maximum.reduceat(ratio, starts)
+
+
+def held_back(isam: gtsam.ISAM2, threshold: float | tuple[float, float], max_variables: int) -> gtsam.KeyList:
+    """The variables of ``isam`` past the threshold beyond the ``max_variables`` furthest past
+    it: what its next check is not to relinearise (``ISAM2UpdateParams.noRelinKeys``)."""
+    keys = isam.getLinearizationPoint().keys()
+    ratio = ratios(isam.getDelta(), keys, threshold)
+    past = np.flatnonzero(ratio >= 1.0)
+    out = gtsam.KeyList()
+    if len(past) > max_variables:
+        for i in past[np.argsort(-ratio[past], kind="stable")][max_variables:].tolist():
+            out.push_back(keys[i])
+    return out
