@@ -269,6 +269,7 @@ class Lockstep:
         self.sim = sim  # clock(), hold(at_s) -> token, release(token)
         self.frame_s = float(frame_s)
         self.smoother_s = float(smoother_s)
+        self.end_of_pass: list[int] | None = None  # with a ControlHold: holds to end when the pass ends
 
     def hold_for(self, budget_s: float) -> tuple[float, int]:
         """``(due_at, token)``: the work started now is due at ``due_at`` (robot time); the
@@ -278,6 +279,16 @@ class Lockstep:
 
     def release(self, token: int) -> None:
         self.sim.release(token)
+
+    def release_taken(self, token: int) -> None:
+        """End the hold of a result the control loop has just taken: when the loop itself is in
+        lockstep (:class:`ControlHold`), at the end of its pass, so that the robot does not
+        step while the pass still writes its records (the truth pose read for a record would
+        be a step late); otherwise now."""
+        if self.end_of_pass is None:
+            self.release(token)
+        else:
+            self.end_of_pass.append(token)
 
     def reached(self, due_at: float | None) -> bool:
         return due_at is None or self.sim.clock() >= due_at - 1e-9
@@ -291,29 +302,38 @@ class ControlHold:
     command reached it in one step or the next depending on thread timing, and the same seed
     drove a slightly different lap. The clock stands from the moment the loop is made (the
     robot has not been started yet); :meth:`passed` ends every pass of the loop — the
-    recorder's start-up polls and its control passes, after their command went out: it lets
+    recorder's start-up polls and its control passes, after their command and records went
+    out: it ends the holds of the results the pass took (:meth:`Lockstep.release_taken`), lets
     the clock take one more step once the loop has caught up with the last one, then waits
     until the robot has taken whatever step the holds allow
     (:meth:`slamio.create.sim.SimulatedCreate.settle`), so the next pass reads a whole step."""
 
     def __init__(self, lockstep: Lockstep):
+        self.lockstep = lockstep
         self.sim = lockstep.sim
+        lockstep.end_of_pass = []
         self._token: int | None = self.sim.hold()  # the clock stands until the first pass
         self.sim.settle()  # it may have been in the middle of a step
-        self._seen = self.sim.clock()  # where the clock stood when the pass now running began
         self._at: float | None = None  # the clock time the hold was last moved on from
 
     def passed(self) -> None:
-        # The pass began with the clock at self._seen (it stood still since the last settle); a
-        # result the pass took may have let it step since, which the next pass will read.
-        if self._token is not None and (self._at is None or self._seen > self._at):
-            token = self.sim.hold(self._seen + 0.5 * STEP_S)  # stands again right after the next step
+        self._release_taken()
+        now = self.sim.clock()  # the clock stood here through the pass: nothing was released in it
+        if self._token is not None and (self._at is None or now > self._at):
+            token = self.sim.hold(now + 0.5 * STEP_S)  # stands again right after the next step
             self.sim.release(self._token)
-            self._at, self._token = self._seen, token
+            self._at, self._token = now, token
         self.sim.settle()
-        self._seen = self.sim.clock()
+
+    def _release_taken(self) -> None:
+        pending = self.lockstep.end_of_pass or []
+        self.lockstep.end_of_pass = []
+        for token in pending:
+            self.sim.release(token)
 
     def close(self) -> None:
+        self._release_taken()
+        self.lockstep.end_of_pass = None
         if self._token is not None:
             self.sim.release(self._token)
             self._token = None
@@ -378,7 +398,8 @@ class CameraWorker:
         if self.lockstep is not None and not self.lockstep.reached(due_at):
             return None
         self._waiting = None
-        release_hold(self.lockstep, token)  # the clock stood at due_at until the control loop had the result
+        if self.lockstep is not None:  # the clock stood at due_at until the control loop had the result
+            self.lockstep.release_taken(token)
         if self.lockstep is not None:
             self._busy.clear()  # busy until the loop took the result: the next request never races the worker
         return index, observations
@@ -447,7 +468,8 @@ class SmootherWorker:
                 return
             self._due = None
             self.tracker.smoothed(index, pose)
-            release_hold(self.lockstep, token)  # the clock stood at due_at until the follower had the pose
+            if self.lockstep is not None:  # the clock stood at due_at until the follower had the pose
+                self.lockstep.release_taken(token)
 
     def drain_latencies(self) -> list[tuple[int, float]]:
         out = []
@@ -567,21 +589,13 @@ class LiveLoop:
             log.write(TruthPose(0.0, *self.truth()))
         log.flush()
 
-    def polled(self) -> None:
-        """The recorder read the robot while waiting for its first answer."""
-        self._pass_done()
-
-    def due(self, now_s: float) -> bool:
-        """Called at the end of every pass of the control loop, after its command went out."""
-        record_now = self._due(now_s)
-        self._pass_done()
-        return record_now
-
-    def _pass_done(self) -> None:
+    def passed(self) -> None:
+        """A pass of the recorder's loop is over: its command and records went out (lockstep:
+        the robot may take its next step)."""
         if self._control is not None:
             self._control.passed()
 
-    def _due(self, now_s: float) -> bool:
+    def due(self, now_s: float) -> bool:
         for worker in (self.camera, self.smoother):
             if worker is not None and worker.error is not None:
                 raise FgslamError(f"live loop: {type(worker.error).__name__}: {worker.error}") from worker.error

@@ -558,7 +558,8 @@ class RecordHooks(Protocol):
         thread; may write more records (observations) to ``log``."""
 
     # optional: ``started(log)``, called once the log is open, before the first record;
-    # ``polled()``, called after every read while waiting for the robot's first answer
+    # ``passed()``, called at the end of every pass of the control loop (after its command
+    # and any record went out) and after every read while waiting for the robot's first answer
 
 
 def record(
@@ -653,7 +654,7 @@ def record(
                 link.write(protocol.safe() if target_mode == OiMode.SAFE else protocol.full())
                 reader.setup()
                 reason = _first_reading(reader, odometry, target_mode, settings, now_s, frame_tap,
-                                        getattr(hooks, "polled", None))
+                                        getattr(hooks, "passed", None))
                 if reason is None:
                     started = True
                     monitor.expected_mode = target_mode
@@ -687,15 +688,15 @@ def record(
     )
 
 
-def _first_reading(reader, odometry, target_mode, settings, now_s, tap, polled=None) -> StopReason | None:
+def _first_reading(reader, odometry, target_mode, settings, now_s, tap, passed=None) -> StopReason | None:
     """Wait for the robot to answer in the requested mode; initialise the odometry
-    (``polled()``, if given, after every read)."""
+    (``passed()``, if given, after every read)."""
     deadline = time.monotonic() + settings.startup_timeout_s
     seen_mode = None
     while time.monotonic() < deadline:
         readings = reader.poll(now_s(), tap)
-        if polled is not None:
-            polled()
+        if passed is not None:
+            passed()
         for values in readings:
             if values is None:
                 continue
@@ -723,6 +724,7 @@ def _drive(link, reader, odometry, controller, monitor, settings, now_s, tap, us
     last_sent_wall = -math.inf
     last_sent_s = -math.inf
     next_record = settings.record_period_s
+    passed = getattr(hooks, "passed", None)
     with monitor:
         while True:
             if monitor.tripped.is_set():
@@ -759,5 +761,7 @@ def _drive(link, reader, odometry, controller, monitor, settings, now_s, tap, us
             elif t >= next_record - SAME_TIME_S:
                 write_record()
                 next_record = t + settings.record_period_s
+            if passed is not None:
+                passed()
             if settings.max_duration_s is not None and t >= settings.max_duration_s:
                 return StopReason("time-limit", f"stopped after the {settings.max_duration_s} s time limit")
