@@ -8,6 +8,7 @@ for two existing logs (e.g. ``fgslam import mrclam ... [--hide-ids]``).
 
 from __future__ import annotations
 
+import argparse
 import subprocess
 import sys
 from pathlib import Path
@@ -47,24 +48,39 @@ def pair(ids: str, hidden: str, estimators: str) -> None:
               f"{len(score.duplicate_keys)} {getattr(est, 'association_counts', '')}", flush=True)
 
 
-def main() -> None:
-    if sys.argv[1] == "--pair":
-        pair(*sys.argv[2:5])
+def seed_range(text: str) -> range:
+    """``"1-5"`` → seeds 1…5, ``"3"`` → seed 3 (an argparse type)."""
+    a, _, b = text.partition("-")
+    try:
+        return range(int(a), int(b or a) + 1)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"seeds must be N or N-M, got {text!r}") from None
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0],
+                                     epilog="--pair IDS.jsonl HIDDEN.jsonl ESTIMATOR[,...] scores two existing logs")
+    parser.add_argument("--pair", nargs=3, metavar=("IDS", "HIDDEN", "ESTIMATORS"),
+                        help="two existing logs of one run (with ids, ids hidden) and the estimators to run")
+    parser.add_argument("outdir", nargs="?", type=Path, help="folder for the simulated logs (made if missing)")
+    parser.add_argument("scenarios", nargs="?", help="SCENARIO[,SCENARIO...], e.g. arena-octagon,cylinders")
+    parser.add_argument("seeds", nargs="?", type=seed_range, help="N or N-M")
+    parser.add_argument("outliers", nargs="?", type=float, default=0.0, help="share of misdetections (default 0)")
+    parser.add_argument("estimator", nargs="?", default="isam2", choices=sorted(ESTIMATORS))
+    args = parser.parse_args(argv)
+    if args.pair:
+        pair(*args.pair)
         return
-    out = Path(sys.argv[1])
-    out.mkdir(parents=True, exist_ok=True)
-    scenarios = sys.argv[2].split(",")
-    a, _, b = sys.argv[3].partition("-")
-    seeds = range(int(a), int(b or a) + 1)
-    outliers = float(sys.argv[4]) if len(sys.argv) > 4 else 0.0
-    estimator = sys.argv[5] if len(sys.argv) > 5 else "isam2"
+    if args.seeds is None:
+        parser.error("give OUTDIR SCENARIO[,SCENARIO...] SEEDS, or --pair IDS HIDDEN ESTIMATORS")
+    args.outdir.mkdir(parents=True, exist_ok=True)
     print("scenario seed outliers | ATE ids m | ATE hidden m | ratio | obs correct wrong rejected created dup")
-    for scenario in scenarios:
-        for seed in seeds:
-            ids_ate, _, _ = ate(sim(out, scenario, seed, outliers, False), estimator)
-            hid_ate, score, est = ate(sim(out, scenario, seed, outliers, True), estimator)
+    for scenario in args.scenarios.split(","):
+        for seed in args.seeds:
+            ids_ate, _, _ = ate(sim(args.outdir, scenario, seed, args.outliers, False), args.estimator)
+            hid_ate, score, est = ate(sim(args.outdir, scenario, seed, args.outliers, True), args.estimator)
             wrong = score.observations - score.correct - score.rejected
-            print(f"{scenario} {seed} {outliers} | {ids_ate:.4f} | {hid_ate:.4f} | {hid_ate / ids_ate:.3f} | "
+            print(f"{scenario} {seed} {args.outliers} | {ids_ate:.4f} | {hid_ate:.4f} | {hid_ate / ids_ate:.3f} | "
                   f"{score.observations} {score.correct} {wrong} {score.rejected} {score.landmarks_created} "
                   f"{len(score.duplicate_keys)} {getattr(est, 'association_counts', '')}", flush=True)
 
