@@ -179,3 +179,77 @@ def test_a_landmark_mapped_twice_is_merged_only_when_the_data_do_not_resolve_the
     association._keys = [a, b]
     association._frames = {3: range(0, 2)}  # one frame saw both
     assert association.unresolved_duplicates(_two_landmarks(0.05, 0.02)[0], [a, b, c], {a: 5, b: 2, c: 7}) == {}
+
+
+def _readings_of_two_points(b_offset_m: float, as_a: int, landmark_sigma_m: float = 0.005, frames: int = 6):
+    """iSAM2 holding ``frames`` poses on the x axis (tight priors) and three landmarks the
+    association created: a at (3, 0), b at (3, ``b_offset_m``), c far away, each known to
+    ``landmark_sigma_m``. Each frame reads one landmark exactly (σ 1 cm, 2 mrad): the first
+    ``as_a`` frames a, the others b. Returns the association, iSAM2, the joint-marginal
+    callback and the keys."""
+    from gtsam.symbol_shorthand import L, X
+
+    from fgslam.smoother.association import world_joint_marginal
+    from fgslam.smoother.chain import OdometryChain
+
+    a, b, c = FIRST_ASSOCIATED_ID, FIRST_ASSOCIATED_ID + 1, FIRST_ASSOCIATED_ID + 2
+    graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+    landmark_noise = gtsam.noiseModel.Isotropic.Sigma(2, landmark_sigma_m)
+    for key, xy in ((a, (3.0, 0.0)), (b, (3.0, b_offset_m)), (c, (3.0, 4.0))):
+        graph.add(gtsam.PriorFactorPoint2(L(key), np.array(xy), landmark_noise))
+        values.insert(L(key), np.array(xy))
+    pose_noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([0.005, 0.005, 0.001]))
+    association = SmootherAssociation()
+    for p in range(frames):
+        pose = gtsam.Pose2(0.1 * p, 0.0, 0.0)
+        graph.add(gtsam.PriorFactorPose2(X(p), pose, pose_noise))
+        values.insert(X(p), pose)
+        y = 0.0 if p < as_a else b_offset_m
+        reading = Observation(stamp_s=float(p), landmark_id=None, range_m=math.hypot(3.0 - 0.1 * p, y),
+                              bearing_rad=math.atan2(y, 3.0 - 0.1 * p), sigma_range_m=0.01, sigma_bearing_rad=0.002)
+        association._frames[p] = range(len(association._keys), len(association._keys) + 1)
+        association._keys.append(a if p < as_a else b)
+        association._observations.append(reading)
+    association.spread_m.update({a: 0.05, b: 0.05, c: 0.05})
+    isam = gtsam.ISAM2()
+    isam.update(graph, values)
+
+    def joint_marginal_at(p, pose, ids):
+        return world_joint_marginal(isam, OdometryChain(p), pose, ids)
+
+    return association, isam, joint_marginal_at, (a, b, c)
+
+
+def test_a_created_landmark_the_others_explain_is_retired_at_the_end():
+    """Left out of the map, a landmark whose readings pair safely with another is redundant.
+    With b 3 cm from a, each known to 5 mm, the two landmarks are told apart (d² of their
+    difference ≈ 18 > 13.8, so they are no duplicates by their marginals) but no single
+    reading tells them apart (its d² against the other ≈ 10, inside the 0.999 gate): one of
+    them is not needed, and the one with fewer readings goes. b 0.5 m away is a landmark of
+    its own (its readings cannot pair with a: d² in the thousands), and so is b 3 cm away
+    once a frame saw both."""
+    association, isam, marginal, (a, b, c) = _readings_of_two_points(0.03, as_a=2)
+    assert association.unresolved_duplicates(isam, [a, b, c], {a: 2, b: 4}) == {}
+    assert association.redundant_landmark(isam, marginal, [a, b, c], {a: 2, b: 4}) == a
+    association, isam, marginal, (a, b, c) = _readings_of_two_points(0.03, as_a=4)
+    assert association.redundant_landmark(isam, marginal, [a, b, c], {a: 4, b: 2}) == b
+    association, isam, marginal, (a, b, c) = _readings_of_two_points(0.5, as_a=2)
+    assert association.redundant_landmark(isam, marginal, [a, b, c], {a: 2, b: 4}) is None
+    # one frame that saw both: two landmarks, whatever their readings say
+    association, isam, marginal, (a, b, c) = _readings_of_two_points(0.03, as_a=2)
+    association._frames[99] = range(len(association._keys), len(association._keys) + 2)
+    association._keys += [a, b]
+    association._observations += association._observations[:2]
+    assert association.redundant_landmark(isam, marginal, [a, b, c], {a: 3, b: 5}) is None
+
+
+def test_retired_landmarks_stay_out_of_later_re_decisions():
+    """redecide leaves a retired landmark out of the map it pairs against: b's readings move
+    to a but one (a landmark keeps a factor), and b is not offered again."""
+    association, isam, marginal, (a, b, c) = _readings_of_two_points(0.03, as_a=4)
+    changes = association.redecide(isam, marginal, [a, b, c])
+    assert association.retired == {b}
+    assert [(ch.old, ch.new) for ch in changes] == [(b, a)]
+    association.apply(changes)
+    assert association.redecide(isam, marginal, [a, b, c]) == []
+    assert association.retired == {b}

@@ -35,11 +35,13 @@ functions it calls) but on the smoother's own uncertainty:
 6. At the end of the run, readings still rejected are asked once more against the whole map
    (:meth:`SmootherAssociation.settle`), and then every frame's id-less readings, paired or
    rejected, are decided again all together from the final estimate
-   (:meth:`SmootherAssociation.redecide`, up to three passes): a pairing the settled map no
+   (:meth:`SmootherAssociation.redecide`, a few passes): a pairing the settled map no
    longer supports — another landmark is the one, or a free neighbour is nearly as likely —
    is moved or dropped, and the smoother swaps the factors (``Isam2Smoother._redecide``).
    Early pairings were made from a young map; a factor graph, unlike a filter, can take
-   them back.
+   them back. Each pass also retires one landmark the others explain, if there is one
+   (:meth:`SmootherAssociation.redundant_landmark`: a duplicate, or a landmark that
+   gathered two neighbours' readings and sits between them), and later passes leave it out.
 
 New landmarks get ids from :data:`FIRST_ASSOCIATED_ID` up, far above any id a log carries,
 so ``L(id)`` never clashes with a landmark named in the log. :meth:`keys` says, for every
@@ -79,6 +81,9 @@ MIN_SIGHTINGS = 3
 
 #: Candidate radius, in standard deviations of the observation's and the landmark's spread.
 CANDIDATE_SIGMAS = 6.0
+#: End of run: a created landmark is retired when, left out, at least this share of its
+#: readings pair safely with other landmarks (:meth:`SmootherAssociation.redundant_landmark`).
+REDUNDANT_SHARE = 0.5
 
 
 @dataclass
@@ -182,6 +187,7 @@ class SmootherAssociation:
         self.paired = self.created = self.unconfirmed = self.retried = 0
         self.repaired = self.unpaired = 0  # end-of-run re-decisions (redecide)
         self._rejected_slots: set[int] = set()  # the observations rejected now (``rejected``)
+        self.retired: set[int] = set()  # landmarks found redundant at the end (redundant_landmark)
         self.jcbb_nodes_max = 0
 
     # -------------------------------------------------------------- bookkeeping
@@ -330,13 +336,16 @@ class SmootherAssociation:
             if key is not None:
                 uses[key] = uses.get(key, 0) + 1
         merged = self.unresolved_duplicates(isam, known_points, uses)
-        mapped = [i for i in known_points if i not in merged]
+        mapped = [i for i in known_points if i not in merged and i not in self.retired]
+        redundant = self.redundant_landmark(isam, joint_marginal_at, mapped, uses)
+        if redundant is not None:  # one a pass: each retirement changes the map the next pass reads
+            self.retired.add(redundant)
+            mapped = [i for i in mapped if i != redundant]
         changes: list[Change] = []
         for p in sorted(self._frames):
             if not isam.valueExists(X(p)):
                 continue
-            slots = [j for j in self._frames[p] if (self._keys[j] is not None or j in self._rejected_slots)
-                     and self._observations[j].landmark_id is None and not self._observations[j].range_only]
+            slots = self._undecided_or_paired(p)
             if not slots:
                 continue
             pose = isam.calculateEstimatePose2(X(p))
@@ -355,6 +364,75 @@ class SmootherAssociation:
                     changes.append(Change(j, p, self._observations[j], old, new))
         return changes
 
+    def redundant_landmark(self, isam: gtsam.ISAM2, joint_marginal_at, mapped: list[int],
+                           uses: dict[int, int]) -> int | None:
+        """A landmark the smoother created that the others explain, to retire, or None.
+
+        The data's own test of "is this landmark needed": leave it out of the map and decide
+        each of its readings' frames again (:meth:`_pairing`: the same gates, frame exclusion
+        and ambiguity margin); if at least :data:`REDUNDANT_SHARE` of its readings then pair
+        safely with landmarks it was never seen together with, it is redundant. Two landmarks
+        one frame saw together are two landmarks, so only those can stand in for it; a
+        neighbour in a cluster, seen beside it, never does. Two ways a smoother makes a
+        redundant landmark from readings without ids, both seen on MRCLAM's clusters of
+        cylinders 0.18–0.36 m apart: a duplicate of one cylinder, mapped a little away from
+        the first by a heading error, that its marginals tell apart from it
+        (:meth:`unresolved_duplicates` does not merge it) but no single reading does; and a
+        landmark that gathered the readings of two neighbours and sits between them. Of the
+        redundant ones, the one with the largest share goes (on a tie, the one with fewer
+        readings). Only landmarks with such a candidate within :data:`CANDIDATE_SIGMAS` of
+        their creation spreads are tested, so maps whose neighbours are seen together pay
+        nothing."""
+        created = [i for i in mapped if i >= FIRST_ASSOCIATED_ID and uses.get(i, 0) >= 2]  # one reading stays
+        if not created:
+            return None
+        xy = {i: np.asarray(isam.calculateEstimatePoint2(L(i)), dtype=float) for i in mapped}
+        reach = {i: CANDIDATE_SIGMAS * self.spread_m.get(i, 0.0) for i in mapped}
+        together = self._seen_together()
+        frames_of: dict[int, list[int]] = {}
+        for p, slots in self._frames.items():
+            for j in slots:
+                if self._keys[j] in uses:
+                    frames_of.setdefault(self._keys[j], []).append(p)
+        best: tuple[float, int, int] | None = None  # (share, −readings, landmark)
+        for lid in created:
+            others = [i for i in mapped if i != lid]
+            if not any(np.linalg.norm(xy[lid] - xy[i]) <= reach[lid] + reach[i] and (lid, i) not in together
+                       for i in others):
+                continue  # no landmark near enough that could be the same one
+            explained: dict[int, int] = {}
+            for p in sorted(set(frames_of.get(lid, ()))):
+                if not isam.valueExists(X(p)):
+                    continue
+                slots = self._undecided_or_paired(p)
+                pose = isam.calculateEstimatePose2(X(p))
+                found = self._pairing(pose, [self._observations[j] for j in slots], isam,
+                                      lambda ids, p=p, pose=pose: joint_marginal_at(p, pose, ids), others)
+                if found is None:
+                    continue
+                pairing, _, _, _, ambiguous = found
+                for j, new, ambiguous_j in zip(slots, pairing, ambiguous):
+                    if self._keys[j] == lid and new is not None and not ambiguous_j and (lid, new) not in together:
+                        explained[new] = explained.get(new, 0) + 1
+            share = sum(explained.values()) / uses[lid]
+            if share >= REDUNDANT_SHARE and (best is None or (share, -uses[lid]) > best[:2]):
+                best = (share, -uses[lid], lid)
+        return None if best is None else best[2]
+
+    def _seen_together(self) -> set[tuple[int, int]]:
+        """Pairs of landmarks (both orders) some frame's observations were used as: one frame
+        sees a landmark once, so two keys seen together are two landmarks."""
+        together: set[tuple[int, int]] = set()
+        for slots in self._frames.values():
+            keys = sorted({self._keys[j] for j in slots if self._keys[j] is not None})
+            together.update((a, b) for a in keys for b in keys if a != b)
+        return together
+
+    def _undecided_or_paired(self, p: int) -> list[int]:
+        """Frame ``p``'s id-less slots that are paired or rejected (what a re-decision asks)."""
+        return [j for j in self._frames[p] if (self._keys[j] is not None or j in self._rejected_slots)
+                and self._observations[j].landmark_id is None and not self._observations[j].range_only]
+
     def unresolved_duplicates(self, isam: gtsam.ISAM2, known_points: list[int], uses: dict[int, int]) -> dict[int, int]:
         """Landmarks the smoother created twice: ``{duplicate: landmark}`` for every pair of
         landmarks it created whose separation the data do not resolve — the difference of
@@ -367,10 +445,7 @@ class SmootherAssociation:
         created = [i for i in known_points if i >= FIRST_ASSOCIATED_ID and uses.get(i, 0) > 0]
         if len(created) < 2:
             return {}
-        seen_together: set[tuple[int, int]] = set()
-        for slots in self._frames.values():
-            keys = sorted({self._keys[j] for j in slots if self._keys[j] is not None})
-            seen_together.update((a, b) for n, a in enumerate(keys) for b in keys[n + 1:])
+        seen_together = self._seen_together()
         xy = {i: np.asarray(isam.calculateEstimatePoint2(L(i)), dtype=float) for i in created}
         sigma = {}
         for i in created:

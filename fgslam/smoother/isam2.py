@@ -258,7 +258,10 @@ class Isam2Smoother:
     MAX_UNCONFIRMED = MAX_UNCONFIRMED
     #: End-of-run re-decisions of the id-less pairings (:meth:`_redecide`): at most this many
     #: passes, each against the map the previous one left; they stop when a pass changes nothing.
-    REDECIDE_PASSES = 3
+    #: Each pass retires at most one redundant landmark, so a map with several needs several;
+    #: the passes alone pay too (MRCLAM robot 2 with the barcodes withheld, nothing retired:
+    #: 2 548 readings right after 3 passes, 2 600 after 8, ATE 0.250 → 0.177 m).
+    REDECIDE_PASSES = 8
 
     def __init__(
         self,
