@@ -343,14 +343,7 @@ class SmootherAssociation:
             mapped = [i for i in mapped if i != redundant]
         changes: list[Change] = []
         for p in sorted(self._frames):
-            if not isam.valueExists(X(p)):
-                continue
-            slots = self._undecided_or_paired(p)
-            if not slots:
-                continue
-            pose = isam.calculateEstimatePose2(X(p))
-            found = self._pairing(pose, [self._observations[j] for j in slots], isam,
-                                  lambda ids, p=p, pose=pose: joint_marginal_at(p, pose, ids), mapped)
+            slots, found = self._decide_frame_again(p, isam, joint_marginal_at, mapped)
             if found is None:
                 continue
             pairing, near, _, _, ambiguous = found
@@ -402,12 +395,7 @@ class SmootherAssociation:
                 continue  # no landmark near enough that could be the same one
             explained: dict[int, int] = {}
             for p in sorted(set(frames_of.get(lid, ()))):
-                if not isam.valueExists(X(p)):
-                    continue
-                slots = self._undecided_or_paired(p)
-                pose = isam.calculateEstimatePose2(X(p))
-                found = self._pairing(pose, [self._observations[j] for j in slots], isam,
-                                      lambda ids, p=p, pose=pose: joint_marginal_at(p, pose, ids), others)
+                slots, found = self._decide_frame_again(p, isam, joint_marginal_at, others)
                 if found is None:
                     continue
                 pairing, _, _, _, ambiguous = found
@@ -427,6 +415,17 @@ class SmootherAssociation:
             keys = sorted({self._keys[j] for j in slots if self._keys[j] is not None})
             together.update((a, b) for a in keys for b in keys if a != b)
         return together
+
+    def _decide_frame_again(self, p: int, isam: gtsam.ISAM2, joint_marginal_at, landmarks: list[int]):
+        """Frame ``p``'s id-less slots that are paired or rejected, and :meth:`_pairing` of
+        their observations from the pose's current estimate against ``landmarks`` (None when
+        iSAM2 does not hold the pose, there is nothing to decide, or no marginal)."""
+        slots = self._undecided_or_paired(p) if isam.valueExists(X(p)) else []
+        if not slots:
+            return slots, None
+        pose = isam.calculateEstimatePose2(X(p))
+        return slots, self._pairing(pose, [self._observations[j] for j in slots], isam,
+                                    lambda ids: joint_marginal_at(p, pose, ids), landmarks)
 
     def _undecided_or_paired(self, p: int) -> list[int]:
         """Frame ``p``'s id-less slots that are paired or rejected (what a re-decision asks)."""
