@@ -253,3 +253,14 @@ def test_retired_landmarks_stay_out_of_later_re_decisions():
     association.apply(changes)
     assert association.redecide(isam, marginal, [a, b, c]) == []
     assert association.retired == {b}
+
+
+def test_the_smoother_counts_the_landmarks_it_retired():
+    """association_counts carries the redundancy test's outcome (nothing to retire on a
+    simulated run whose landmarks are all told apart)."""
+    header, steps = _steps("cylinders", 2, True)
+    smoother = Isam2Smoother(header)
+    run_estimator(smoother, steps[:300], covariances=False)
+    assert smoother.association_counts["retired"] == 0
+    smoother._association.retired.add(FIRST_ASSOCIATED_ID)  # as redecide does when one goes
+    assert smoother.association_counts["retired"] == 1

@@ -816,14 +816,15 @@ class Isam2Smoother:
         included), ``created`` landmarks, ``rejected`` (ambiguous: near a landmark but not
         jointly compatible, or nearly as likely another's), ``retried`` (paired when asked
         again), ``repaired`` and ``unpaired`` (pairings moved to another landmark or dropped
-        at the end, :meth:`_redecide`), ``unconfirmed`` (first sightings nothing agreed with), and
+        at the end, :meth:`_redecide`), ``retired`` (landmarks found redundant at the end, whose
+        readings moved to the others but one), ``unconfirmed`` (first sightings nothing agreed with), and
         ``skipped`` (observations ignored because they had no id, with ``associate=False``
         or inside a keyframe chain)."""
         a = self._association
         counts = {"skipped": self.skipped_unknown_observations}
         if self.associate:
             counts.update(paired=a.paired, created=a.created, rejected=a.rejected, retried=a.retried,
-                          repaired=a.repaired, unpaired=a.unpaired,
+                          repaired=a.repaired, unpaired=a.unpaired, retired=len(a.retired),
                           unconfirmed=a.unconfirmed,
                           waiting=sum(len(g) for g in a.waiting))
         return counts
