@@ -15,6 +15,7 @@ from pathlib import Path
 
 from fgslam.compare import ate_rmse_m
 from fgslam.runner import ESTIMATORS, run_estimator, truth_trajectory
+from seed_sweep import parse_seeds  # scripts/ is on the path when this script runs
 from slamio.log import read_log
 
 
@@ -48,15 +49,6 @@ def pair(ids: str, hidden: str, estimators: str) -> None:
               f"{len(score.duplicate_keys)} {getattr(est, 'association_counts', '')}", flush=True)
 
 
-def seed_range(text: str) -> range:
-    """``"1-5"`` → seeds 1…5, ``"3"`` → seed 3 (an argparse type)."""
-    a, _, b = text.partition("-")
-    try:
-        return range(int(a), int(b or a) + 1)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"seeds must be N or N-M, got {text!r}") from None
-
-
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0],
                                      epilog="--pair IDS.jsonl HIDDEN.jsonl ESTIMATOR[,...] scores two existing logs")
@@ -64,7 +56,7 @@ def main(argv: list[str] | None = None) -> None:
                         help="two existing logs of one run (with ids, ids hidden) and the estimators to run")
     parser.add_argument("outdir", nargs="?", type=Path, help="folder for the simulated logs (made if missing)")
     parser.add_argument("scenarios", nargs="?", help="SCENARIO[,SCENARIO...], e.g. arena-octagon,cylinders")
-    parser.add_argument("seeds", nargs="?", type=seed_range, help="N or N-M")
+    parser.add_argument("seeds", nargs="?", type=parse_seeds, help="N-M or N,N,...")
     parser.add_argument("outliers", nargs="?", type=float, default=0.0, help="share of misdetections (default 0)")
     parser.add_argument("estimator", nargs="?", default="isam2", choices=sorted(ESTIMATORS))
     args = parser.parse_args(argv)

@@ -382,11 +382,11 @@ class SmootherAssociation:
         xy = {i: np.asarray(isam.calculateEstimatePoint2(L(i)), dtype=float) for i in mapped}
         reach = {i: CANDIDATE_SIGMAS * self.spread_m.get(i, 0.0) for i in mapped}
         together = self._seen_together()
-        frames_of: dict[int, list[int]] = {}
+        frames_of: dict[int, set[int]] = {}  # landmark → the frames that used it
         for p, slots in self._frames.items():
             for j in slots:
-                if self._keys[j] in uses:
-                    frames_of.setdefault(self._keys[j], []).append(p)
+                if self._keys[j] is not None:
+                    frames_of.setdefault(self._keys[j], set()).add(p)
         best: tuple[float, int, int] | None = None  # (share, −readings, landmark)
         for lid in created:
             others = [i for i in mapped if i != lid]
@@ -394,7 +394,7 @@ class SmootherAssociation:
                        for i in others):
                 continue  # no landmark near enough that could be the same one
             explained: dict[int, int] = {}
-            for p in sorted(set(frames_of.get(lid, ()))):
+            for p in sorted(frames_of.get(lid, ())):
                 slots, found = self._decide_frame_again(p, isam, joint_marginal_at, others)
                 if found is None:
                     continue
