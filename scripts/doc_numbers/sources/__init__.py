@@ -6,7 +6,8 @@ from __future__ import annotations
 from doc_numbers.quotes import Source
 from doc_numbers.sources.experiments import (MRCLAM6, RGBD_REAL, SEED003, apriltag_photos, camera_accuracy,
                                              colour_real, exact_models_nees, live_band, live_laps, mrclam_dataset6,
-                                             mrclam_dataset6_adaptive, mrclam_dataset6_hidden, plaza_range_model,
+                                             mrclam_dataset6_adaptive, mrclam_dataset6_hidden, mrclam_dataset6_motor_lens,
+                                             plaza_range_model,
                                              real_corner_sigma, seed001_association, seed002_shapes, seed003_drives,
                                              seed004_paths)
 from doc_numbers.sources.runs import (ASSOCIATING, DEFAULT, OUTLIERS, PAPERS, ROBUST, against_truth, bundled,
@@ -59,6 +60,8 @@ SOURCES = [
            mrclam_dataset6, shared=MRCLAM6),
     Source("mrclam6-adaptive", "python scripts/mrclam_adaptive_noise.py ../shared/data/mrclam/MRCLAM_Dataset6 "
            "--open-loop --sim", "slow", mrclam_dataset6_adaptive, shared=MRCLAM6),
+    Source("mrclam6-motor-lens", "python scripts/mrclam_motor_lens_tried.py ../shared/data/mrclam/MRCLAM_Dataset6",
+           "cheap", mrclam_dataset6_motor_lens, shared=MRCLAM6),
     Source("mrclam6-hidden", "python scripts/bench_association_mrclam.py ../shared/data/mrclam/MRCLAM_Dataset6",
            "long", mrclam_dataset6_hidden, shared=MRCLAM6),
     Source("bench-octagon", "fgslam bench arena-octagon --runs 50 --jobs 2", "long", monte_carlo_octagon),

@@ -174,6 +174,24 @@ def mrclam_dataset6_adaptive(context: Context) -> dict:
     return result
 
 
+def mrclam_dataset6_motor_lens(context: Context) -> dict:
+    """``scripts/mrclam_motor_lens_tried.py SHARED/data/mrclam/MRCLAM_Dataset6``: the motor-lag
+    and lens-distortion fits (robot keys as ints)."""
+    import contextlib
+    import io
+    import json
+
+    import mrclam_motor_lens_tried as script
+
+    out = context.scratch / "mrclam6_motor_lens.json"
+    with contextlib.redirect_stdout(io.StringIO()):
+        script.main([str(context.shared / MRCLAM6), "--json", str(out)])
+    result = json.loads(out.read_text(encoding="utf-8"))
+    result["motor"]["robots"] = {int(k): v for k, v in result["motor"]["robots"].items()}
+    result["lens"] = {int(k): v for k, v in result["lens"].items()}
+    return result
+
+
 def mrclam_dataset6_hidden(context: Context) -> dict:
     """``scripts/bench_association_mrclam.py SHARED/data/mrclam/MRCLAM_Dataset6``: robot →
     estimator → association score and ATE with the barcodes withheld (and ATE with them)."""
