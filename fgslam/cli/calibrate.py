@@ -40,7 +40,8 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     """Add ``fgslam calibrate`` to the sub-parsers ``verbs``; returns its parser."""
     p = verbs.add_parser(
         "calibrate",
-        help="noise covariances from measured forward/rotate/sensor trials (seed 001's method)",
+        help="learn the noise: a model fitted to logs with ground truth, or covariances from "
+        "measured forward/rotate/sensor trials (seed 001's method)",
         description=CALIBRATE_DESCRIPTION,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
