@@ -1,7 +1,7 @@
 """ekf: the independent reference estimators — EKF-SLAM, the seed papers' filters, dead reckoning.
 
 ``EkfSlam`` is the textbook EKF-SLAM (with NN/JCBB data association and optional 3-D
-landmark heights); ``EkfS000``, ``EkfS001``, ``EkfS003`` and ``EkfS004`` reproduce the seed
+landmark heights), ``FejEkfSlam`` the same with first-estimates Jacobians; ``EkfS000``, ``EkfS001``, ``EkfS003`` and ``EkfS004`` reproduce the seed
 papers' filters as written, flaws included (docs/estimators.md); ``g_height`` is seed 002's
 landmark-height formula. ``VioEkf`` is the textbook stereo + IMU EKF-SLAM on SE(3) for
 seed 003's drives (``ekf.drive3d`` feeds them; ``slamio.se3`` and ``slamio.stereo`` hold the maths).
@@ -12,6 +12,7 @@ return estimates; they never print, plot or read files.
 """
 
 from ekf.dead_reckoning import DeadReckoning
+from ekf.fej import FejEkfSlam
 from ekf.models import (
     landmark_from_range_bearing,
     landmark_init_jacobians,
@@ -35,6 +36,7 @@ __all__ = [
     "EkfS003",
     "EkfS004",
     "EkfSlam",
+    "FejEkfSlam",
     "exact_height_m",
     "g_height",
     "joseph_update",

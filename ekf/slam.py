@@ -678,6 +678,11 @@ class EkfSlam:
     def _landmark_dim(self, key: int) -> int:
         return 3 if self._has_height[key] else LANDMARK_DIM
 
+    def _linearisation_point(self, key: int, pose: np.ndarray, landmark: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Where an update's measurement Jacobian is taken: at the current estimate (the
+        textbook EKF). :class:`ekf.fej.FejEkfSlam` takes it at first estimates instead."""
+        return pose, landmark
+
     def _add_landmark(self, key: int, observation: Observation) -> None:
         n = self._dim
         with_height = has_height(observation)
@@ -760,16 +765,17 @@ class EkfSlam:
         mean = self._mean[:n]
         P = self._cov[:n, :n]
         pose, landmark = mean[:ROBOT_DIM], mean[i : i + k]
+        at_pose, at_landmark = self._linearisation_point(key, pose, landmark)
         R = measurement_covariance(observation, use_height)
         if use_height:
             predicted = observation_model(pose, landmark)
-            H_pose, H_landmark = observation_jacobians(pose, landmark)
+            H_pose, H_landmark = observation_jacobians(at_pose, at_landmark)
             cols = np.array([0, 1, 2, i, i + 1, i + 2])
             innovation = np.array([observation.range_m, observation.bearing_rad, observation.height_m]) - predicted
             innovation[1] = wrap_angle(float(innovation[1]))
         else:  # the plain range-bearing update (5 non-zero columns of H)
             predicted_range, predicted_bearing = range_bearing(pose, landmark)
-            H_pose, H_landmark = range_bearing_jacobians(pose, landmark)
+            H_pose, H_landmark = range_bearing_jacobians(at_pose, at_landmark)
             cols = np.array([0, 1, 2, i, i + 1])
             innovation = np.array(
                 [observation.range_m - predicted_range, wrap_angle(observation.bearing_rad - predicted_bearing)]
@@ -806,7 +812,7 @@ class EkfSlam:
         P = self._cov[:n, :n]
         pose, landmark = mean[:ROBOT_DIM], mean[i : i + 2]
         predicted_range, _ = range_bearing(pose, landmark)
-        H_pose, H_landmark = range_bearing_jacobians(pose, landmark)
+        H_pose, H_landmark = range_bearing_jacobians(*self._linearisation_point(key, pose, landmark))
         cols = np.array([0, 1, 2, i, i + 1])
         H_cols = np.hstack([H_pose[:1], H_landmark[:1]])
         R = np.array([[observation.sigma_range_m**2]])

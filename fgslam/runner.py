@@ -29,7 +29,7 @@ import numpy as np
 import scipy.linalg  # noqa: F401  (scipy's own BLAS is loaded now, so the thread limit below covers it)
 from threadpoolctl import threadpool_limits
 
-from ekf import DeadReckoning, EkfS000, EkfS001, EkfS004, EkfSlam
+from ekf import DeadReckoning, EkfS000, EkfS001, EkfS004, EkfSlam, FejEkfSlam
 from fgslam.compare import NIS_DOF, EstimatorRun, Reference, relabel_landmarks, score_associations
 from fgslam.memory import PeakMemory
 from fgslam.smoother import FAST_SETTINGS, Isam2Smoother, batch_solve
@@ -42,6 +42,7 @@ from slamio.noise_model import noise_expects_outliers
 ESTIMATORS: dict[str, Callable[[Header], Estimator]] = {
     "ekf": EkfSlam,  # textbook EKF-SLAM; JCBB for observations without an id
     "ekf-nn": lambda header: EkfSlam(header, association="nn"),  # the same with gated NN
+    "ekf-fej": FejEkfSlam,  # the same with first-estimates Jacobians (consistent heading)
     "ekf-s000": EkfS000,  # seed 000's linear KF, as written
     "ekf-s001": EkfS001,  # seed 001's GoPiGo EKF, as written
     "ekf-s004": EkfS004,  # seed 004's AprilTag KF, as written

@@ -6,6 +6,7 @@ from __future__ import annotations
 ESTIMATOR_HELP = {
     "ekf": "textbook EKF-SLAM; JCBB data association for observations without an id",
     "ekf-nn": "the same EKF with Mahalanobis-gated nearest-neighbour association",
+    "ekf-fej": "the same EKF with first-estimates Jacobians (the global heading stays unobservable)",
     "ekf-s000": "seed 000's linear KF (Trinity College, Create + Kinect), as written",
     "ekf-s001": "seed 001's EKF (GoPiGo, forward/rotate moves, nearest neighbour), as written",
     "ekf-s004": "seed 004's KF over robot and AprilTag poses, as written",
