@@ -35,6 +35,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
 import json  # noqa: E402
+import math  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -81,6 +82,7 @@ def score_robot(log: RunLog, names: list[str]) -> dict:
     for run in comparison.runs:
         row: dict = {"total_s": run.total_time_s}
         row["ate_final_m"], row["ate_final_aligned_m"] = ate_pair_m(run.final, truth_xy, mask)
+        row["rotation_deg"] = math.degrees(align_se2(np.asarray(run.final)[: len(mask)][mask, :2], truth_xy[mask])[0])
         if run.online is not None:
             row["ate_online_m"], row["ate_online_aligned_m"] = ate_pair_m(run.online, truth_xy, mask)
         common = sorted(set(run.landmarks) & set(surveyed))

@@ -15,8 +15,8 @@ from doc_numbers.sources.runs import (ASSOCIATING, DEFAULT, OUTLIERS, PAPERS, RO
                                       seed_sweep, sim_then_run, trial_calibration, victoria_park)
 
 SOURCES = [
-    Source("octagon", f"fgslam run data/arena_octagon.jsonl --estimators {DEFAULT},{PAPERS}", "cheap",
-           bundled("arena_octagon.jsonl", f"{DEFAULT},{PAPERS}")),
+    Source("octagon", f"fgslam run data/arena_octagon.jsonl --estimators {DEFAULT},{PAPERS},ekf-fej", "cheap",
+           bundled("arena_octagon.jsonl", f"{DEFAULT},{PAPERS},ekf-fej")),
     Source("square-papers", f"fgslam run data/arena_square.jsonl --estimators {PAPERS}", "cheap",
            bundled("arena_square.jsonl", PAPERS, consistency=False)),
     Source("octagon-outliers", f"fgslam sim arena-octagon --seed 1 --outliers 0.1 --outlier-mode add; "
@@ -39,13 +39,13 @@ SOURCES = [
     Source("colour-real", "python scripts/bench_colour_real.py ../shared/data/rgbd-real", "slow", colour_real,
            shared=RGBD_REAL),
     Source("seed002-shapes", "python scripts/seed002_shapes.py", "slow", seed002_shapes),
-    Source("grid200", f"fgslam sim grid --landmarks 200 --seed 1; fgslam run --estimators {DEFAULT},isam2-fast",
-           "slow", sim_then_run("grid200", "grid", f"{DEFAULT},isam2-fast", landmarks=200)),
+    Source("grid200", f"fgslam sim grid --landmarks 200 --seed 1; fgslam run --estimators {DEFAULT},isam2-fast,ekf-fej",
+           "slow", sim_then_run("grid200", "grid", f"{DEFAULT},isam2-fast,ekf-fej", landmarks=200)),
     Source("grid200-hidden", f"fgslam sim grid --landmarks 200 --seed 1 --hide-ids; fgslam run --estimators "
            f"{ASSOCIATING},isam2", "slow",
            against_truth("grid200_hidden", "grid", ASSOCIATING, landmarks=200, hide_ids=True)),
     Source("victoria-park", "fgslam import victoria-park vp.jsonl; fgslam run vp.jsonl --estimators "
-           "ekf,isam2-fast,dead_reckoning", "slow", victoria_park),
+           "ekf,ekf-fej,isam2-fast,dead_reckoning", "slow", victoria_park),
     Source("plaza", "python scripts/plaza_range_model.py (fgslam import plazaN --noise OTHER.json; fgslam run "
            "--estimators ekf,isam2,isam2-fast,dead_reckoning)", "long", plaza_range_model),
     Source("live-replay", "fgslam run tests/data/live-sim/octagon.jsonl --estimators ekf,isam2 (NEES)", "cheap",
@@ -56,7 +56,8 @@ SOURCES = [
            "x 1, 0.4, 0.5, 0.7", "slow", live_band),
     Source("octagon-outliers-ekf-no-gate", "fgslam sim arena-octagon --seed 1 --outliers 0.1 "
            "--outlier-mode add; EkfSlam(known_id_gate_probability=None)", "cheap", ekf_without_gate),
-    Source("mrclam6", "python scripts/bench_mrclam.py ../shared/data/mrclam/MRCLAM_Dataset6", "slow",
+    Source("mrclam6", "python scripts/bench_mrclam.py ../shared/data/mrclam/MRCLAM_Dataset6 --estimators "
+           "ekf,ekf-fej,isam2,dead_reckoning", "slow",
            mrclam_dataset6, shared=MRCLAM6),
     Source("mrclam6-adaptive", "python scripts/mrclam_adaptive_noise.py ../shared/data/mrclam/MRCLAM_Dataset6 "
            "--open-loop --sim", "slow", mrclam_dataset6_adaptive, shared=MRCLAM6),

@@ -174,7 +174,7 @@ def seed_sweep(scenario: str, seeds: range, landmarks: int = 200):
 
 def victoria_park(context: Context) -> dict:
     """``fgslam import victoria-park vp.jsonl`` (the gtsam wheel's copy), then
-    ``fgslam run vp.jsonl --estimators ekf,isam2-fast,dead_reckoning``; and, as
+    ``fgslam run vp.jsonl --estimators ekf,ekf-fej,isam2-fast,dead_reckoning``; and, as
     ``ekf-gated``, the EKF with its known-id validation gate forced on, against the same reference."""
     from ekf import EkfSlam
     from fgslam.compare import compute_metrics
@@ -185,7 +185,7 @@ def victoria_park(context: Context) -> dict:
     path = context.scratch / "vp.jsonl"
     write_log(path, *import_victoria_park())
     log = read_log(path)
-    result = compare_log(log, parse_estimator_names("ekf,isam2-fast,dead_reckoning"))
+    result = compare_log(log, parse_estimator_names("ekf,ekf-fej,isam2-fast,dead_reckoning"))
     gated, _ = run_estimator(EkfSlam(log.header, known_id_gate_probability=0.9999), log.steps(), covariances=False)
     metrics = compute_metrics(result.runs, result.reference, log_path=str(path))
     metrics["ekf-gated"] = compute_metrics([gated], result.reference, log_path=str(path))["ekf"]
