@@ -213,3 +213,16 @@ QUOTES += [
          "victoria-park", "README: ekf-fej on Victoria Park",
          {0: _run("ekf", "ate_rmse_m"), 1: _run("ekf-fej", "ate_rmse_m")}),
 ]
+
+QUOTES += [
+    *row(EST, "inside its band at 98.5 % of the steps for both, median ATE 0.0154 against 0.0158 m)", "bench-octagon",
+         "ekf-fej: Monte Carlo arena", {0: lambda r: r["ekf"][0], 1: lambda r: r["ekf"][3], 2: lambda r: r["ekf-fej"][3]}),
+    *row(EST, "inside its band at 98.5 % of the steps for both", "bench-octagon", "ekf-fej: Monte Carlo arena, ekf-fej",
+         {0: lambda r: r["ekf-fej"][0]}),
+]
+
+QUOTES += [
+    *row(EST, "(median 64.2 → 58.3 % correct;\n  robot 2 59.1 → 33.6 %", "mrclam6-hidden", "ekf-fej: MRCLAM hidden ids",
+         {0: _mrclam_hidden(None, "ekf", lambda x: 100 * x["rate"]), 1: _mrclam_hidden(None, "ekf-fej", lambda x: 100 * x["rate"]),
+          3: _mrclam_hidden(2, "ekf", lambda x: 100 * x["rate"]), 4: _mrclam_hidden(2, "ekf-fej", lambda x: 100 * x["rate"])}),
+]

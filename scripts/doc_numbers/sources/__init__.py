@@ -63,9 +63,11 @@ SOURCES = [
            "--open-loop --sim", "slow", mrclam_dataset6_adaptive, shared=MRCLAM6),
     Source("mrclam6-motor-lens", "python scripts/mrclam_motor_lens_tried.py ../shared/data/mrclam/MRCLAM_Dataset6",
            "cheap", mrclam_dataset6_motor_lens, shared=MRCLAM6),
-    Source("mrclam6-hidden", "python scripts/bench_association_mrclam.py ../shared/data/mrclam/MRCLAM_Dataset6",
+    Source("mrclam6-hidden", "python scripts/bench_association_mrclam.py ../shared/data/mrclam/MRCLAM_Dataset6 "
+           "--estimators ekf,ekf-fej,isam2",
            "long", mrclam_dataset6_hidden, shared=MRCLAM6),
-    Source("bench-octagon", "fgslam bench arena-octagon --runs 50 --jobs 2", "long", monte_carlo_octagon),
+    Source("bench-octagon", "fgslam bench arena-octagon --runs 50 --jobs 2 --estimators ekf,ekf-fej,isam2", "long",
+           monte_carlo_octagon),
     Source("sweep-octagon", "python scripts/seed_sweep.py arena-octagon --seeds 0-19 --jobs 2", "long",
            seed_sweep("arena-octagon", range(0, 20))),
     Source("sweep-grid200", "python scripts/seed_sweep.py grid --landmarks 200 --seeds 0-5 --jobs 2", "long",

@@ -204,7 +204,7 @@ def mrclam_dataset6_hidden(context: Context) -> dict:
 
     out = context.scratch / "mrclam6_hidden.json"
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-        script.main([str(context.shared / MRCLAM6), "--json", str(out)])
+        script.main([str(context.shared / MRCLAM6), "--estimators", "ekf,ekf-fej,isam2", "--json", str(out)])
     return {int(k): v for k, v in json.loads(out.read_text(encoding="utf-8")).items()}
 
 

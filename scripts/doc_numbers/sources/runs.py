@@ -145,15 +145,15 @@ def flaw_costs(context: Context) -> dict:
 
 
 def monte_carlo_octagon(context: Context) -> dict:
-    """``fgslam bench arena-octagon --runs 50 --jobs 2``: band, steps and per estimator the
+    """``fgslam bench arena-octagon --runs 50 --jobs 2 --estimators ekf,ekf-fej,isam2``: band, steps and per estimator the
     share inside/above the band (%), mean NEES and the final ATE's median and max."""
     import numpy as np
 
     from fgslam.montecarlo import monte_carlo
 
-    result = monte_carlo("arena-octagon", 50, estimators=("ekf", "isam2"), jobs=2)
+    result = monte_carlo("arena-octagon", 50, estimators=("ekf", "ekf-fej", "isam2"), jobs=2)
     out = {"band": result.band, "steps": len(next(iter(result.average_nees.values())))}
-    for name in ("ekf", "isam2"):
+    for name in ("ekf", "ekf-fej", "isam2"):
         finals = np.array([r.ate_final_m[name] for r in result.runs])
         out[name] = (100 * result.share_inside(name), 100 * result.share_above(name), result.mean_nees(name),
                      float(np.median(finals)), float(np.max(finals)))
