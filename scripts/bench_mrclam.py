@@ -124,7 +124,7 @@ def draw_figure(results: dict[int, dict], path: str, names: list[str]) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, len(results), figsize=(4.2 * len(results), 6.5), squeeze=False)
-    colours = {"ekf": "tab:blue", "isam2": "tab:red", "dead_reckoning": "0.6"}
+    colours = {"ekf": "tab:blue", "ekf-fej": "tab:purple", "isam2": "tab:red", "dead_reckoning": "0.6"}
     for ax, (robot, res) in zip(axes[0], results.items()):
         truth = np.array(res["_truth"]["xy"])
         ax.plot(truth[:, 0], truth[:, 1], color="k", lw=2.2, alpha=0.5, label="Vicon")
