@@ -58,14 +58,15 @@ def fej_motion_jacobian(prior_xy, predicted_xy) -> np.ndarray:
 class FejEkfSlam(EkfSlam):
     """:class:`~ekf.slam.EkfSlam` with first-estimates Jacobians (see the module docstring).
 
-    Takes the same keyword arguments; ``name`` is "ekf-fej".
+    Takes the same keyword arguments; ``name`` is "ekf-fej" ("ekf-fej-nn" with
+    ``association="nn"``, "ekf-fej-ids" with None, as :class:`~ekf.slam.EkfSlam` names its own).
     """
 
     name = "ekf-fej"
 
     def __init__(self, header: Header, **kwargs):
         super().__init__(header, **kwargs)
-        self.name = "ekf-fej" if self.association == "jcbb" else f"ekf-fej ({self.association})"
+        self.name = {"jcbb": "ekf-fej", "nn": "ekf-fej-nn", None: "ekf-fej-ids"}[self.association]
         self._prior_xy = self._mean[:2].copy()  # p̂_{k|k−1}: the start pose, before any update
         self._first_xy: dict[int, np.ndarray] = {}  # landmark key → its first estimate (x, y)
 

@@ -156,7 +156,7 @@ def test_the_innovation_still_uses_the_latest_estimate():
         np.testing.assert_allclose(estimator.landmarks()[1], landmark, atol=1e-12)
 
 
-@pytest.mark.parametrize("association, name", [("jcbb", "ekf-fej"), ("nn", "ekf-fej (nn)")])
+@pytest.mark.parametrize("association, name", [("jcbb", "ekf-fej"), ("nn", "ekf-fej-nn"), (None, "ekf-fej-ids")])
 def test_names(association, name):
     assert FejEkfSlam(minimal_header(), association=association).name == name
 
