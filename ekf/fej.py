@@ -41,8 +41,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ekf.models import motion_jacobians, predict_pose
-from ekf.slam import ROBOT_DIM, EkfSlam, predict_covariance
+from ekf.slam import EkfSlam
 from slamio.log import Header
 
 
@@ -66,20 +65,15 @@ class FejEkfSlam(EkfSlam):
 
     def __init__(self, header: Header, **kwargs):
         super().__init__(header, **kwargs)
-        self.name = {"jcbb": "ekf-fej", "nn": "ekf-fej-nn", None: "ekf-fej-ids"}[self.association]
+        self.name = "ekf-fej" + self.name[len("ekf"):]  # ekf-fej, ekf-fej-nn, ekf-fej-ids
         self._prior_xy = self._mean[:2].copy()  # p̂_{k|k−1}: the start pose, before any update
         self._first_xy: dict[int, np.ndarray] = {}  # landmark key → its first estimate (x, y)
 
-    def _predict(self, odometry) -> None:
-        increment = (odometry.dx_m, odometry.dy_m, odometry.dtheta_rad)
-        pose = self._mean[:ROBOT_DIM]
-        _, F_increment = motion_jacobians(pose, increment)  # the noise enters at the latest heading
-        Q = F_increment @ np.asarray(odometry.covariance, dtype=float) @ F_increment.T
-        predicted = predict_pose(pose, increment)
-        F_pose = fej_motion_jacobian(self._prior_xy, predicted)
-        self._mean[:ROBOT_DIM] = predicted
+    def _propagation_jacobian(self, F_pose: np.ndarray, predicted: np.ndarray) -> np.ndarray:
+        """Φ from the predicted positions; ``predicted`` becomes the prior of the next step."""
+        F = fej_motion_jacobian(self._prior_xy, predicted)
         self._prior_xy = predicted[:2].copy()
-        predict_covariance(self._cov[: self._dim, : self._dim], F_pose, Q)
+        return F
 
     def _register_landmark(self, key: int, n: int, with_height: bool) -> None:
         super()._register_landmark(key, n, with_height)

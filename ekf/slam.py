@@ -672,11 +672,18 @@ class EkfSlam:
         pose = self._mean[:ROBOT_DIM]
         F_pose, F_increment = motion_jacobians(pose, increment)
         Q = F_increment @ np.asarray(odometry.covariance, dtype=float) @ F_increment.T
-        self._mean[:ROBOT_DIM] = predict_pose(pose, increment)
-        predict_covariance(self._cov[: self._dim, : self._dim], F_pose, Q)
+        predicted = predict_pose(pose, increment)
+        self._mean[:ROBOT_DIM] = predicted
+        predict_covariance(self._cov[: self._dim, : self._dim], self._propagation_jacobian(F_pose, predicted), Q)
 
     def _landmark_dim(self, key: int) -> int:
         return 3 if self._has_height[key] else LANDMARK_DIM
+
+    def _propagation_jacobian(self, F_pose: np.ndarray, predicted: np.ndarray) -> np.ndarray:
+        """The pose Jacobian the covariance is propagated with: ``F_pose``, taken at the latest
+        estimate (the textbook EKF). :class:`ekf.fej.FejEkfSlam` takes it at the predicted
+        positions instead (``predicted`` is the pose just predicted)."""
+        return F_pose
 
     def _linearisation_point(self, key: int, pose: np.ndarray, landmark: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Where an update's measurement Jacobian is taken: at the current estimate (the
