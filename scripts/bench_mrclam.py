@@ -55,11 +55,16 @@ def _rmse(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1))))
 
 
+def ate_and_turn(estimate: np.ndarray, truth_xy: np.ndarray, mask: np.ndarray) -> tuple[float, float, float]:
+    """(anchored ATE m, SE(2)-aligned ATE m, the aligning rotation rad) over the poses in ``mask``."""
+    e, t = np.asarray(estimate)[: len(mask)][mask, :2], truth_xy[mask]
+    rotation, translation = align_se2(e, t)
+    return _rmse(e, t), _rmse(apply_se2(e, rotation, translation), t), rotation
+
+
 def ate_pair_m(estimate: np.ndarray, truth_xy: np.ndarray, mask: np.ndarray) -> tuple[float, float]:
     """(anchored ATE, SE(2)-aligned ATE) over the poses in ``mask``, metres."""
-    e, t = estimate[: len(mask)][mask, :2], truth_xy[mask]
-    rotation, translation = align_se2(e, t)
-    return _rmse(e, t), _rmse(apply_se2(e, rotation, translation), t)
+    return ate_and_turn(estimate, truth_xy, mask)[:2]
 
 
 def nis_inside(values) -> float | None:
@@ -81,8 +86,8 @@ def score_robot(log: RunLog, names: list[str]) -> dict:
     out = {}
     for run in comparison.runs:
         row: dict = {"total_s": run.total_time_s}
-        row["ate_final_m"], row["ate_final_aligned_m"] = ate_pair_m(run.final, truth_xy, mask)
-        row["rotation_deg"] = math.degrees(align_se2(np.asarray(run.final)[: len(mask)][mask, :2], truth_xy[mask])[0])
+        row["ate_final_m"], row["ate_final_aligned_m"], rotation = ate_and_turn(run.final, truth_xy, mask)
+        row["rotation_deg"] = math.degrees(rotation)
         if run.online is not None:
             row["ate_online_m"], row["ate_online_aligned_m"] = ate_pair_m(run.online, truth_xy, mask)
         common = sorted(set(run.landmarks) & set(surveyed))
