@@ -19,8 +19,9 @@ def association_row(estimator: str, first: int, scenario: str | None = None, rej
     return {first + i: read if scenario is None else scene(scenario, read) for i, read in enumerate(reads)}
 
 
-def _mrclam_hidden(robot: int | None, estimator: str, read):
-    """One robot's value (``read(row)``), or (robot None) the median over the robots."""
+def _mrclam_robots(robot: int | None, estimator: str, read):
+    """From an MRCLAM bench's robot → estimator → row results: one robot's value
+    (``read(row)``), or (robot None) the median over the robots."""
     from statistics import median
 
     if robot is None:
@@ -45,7 +46,7 @@ def mrclam_hidden_row(text: str, robot: int | None, estimator: str) -> list[Quot
     cells = _HIDDEN_CELLS if robot is not None else _MEDIAN_CELLS
     first = 1 if robot is not None else 0
     return row(EST, text, "mrclam6-hidden", f"MRCLAM 6 barcodes withheld, robot {robot or 'median'} {estimator}",
-               {first + i: _mrclam_hidden(robot, estimator, read) for i, read in enumerate(cells)})
+               {first + i: _mrclam_robots(robot, estimator, read) for i, read in enumerate(cells)})
 
 
 #: The cells of a robot's row of the bound with the Vicon pose and the surveyed map, after the robot's number.
@@ -101,17 +102,17 @@ QUOTES: list[Quote] = [
     *row("README.md", "the five robots of Dataset 6: 64.2 % (`ekf`) and 81.1 % (`isam2`) of the readings used as the\n"
          "right landmark, ATE 1.47× and 0.96× the run with barcodes", "mrclam6-hidden",
          "README: MRCLAM 6 barcodes withheld, medians",
-         {1: _mrclam_hidden(None, "ekf", lambda x: 100 * x["rate"]),
-          2: _mrclam_hidden(None, "isam2", lambda x: 100 * x["rate"]),
-          3: _mrclam_hidden(None, "ekf", lambda x: x["ate_m"] / x["ate_ids_m"]),
-          4: _mrclam_hidden(None, "isam2", lambda x: x["ate_m"] / x["ate_ids_m"])}),
+         {1: _mrclam_robots(None, "ekf", lambda x: 100 * x["rate"]),
+          2: _mrclam_robots(None, "isam2", lambda x: 100 * x["rate"]),
+          3: _mrclam_robots(None, "ekf", lambda x: x["ate_m"] / x["ate_ids_m"]),
+          4: _mrclam_robots(None, "isam2", lambda x: x["ate_m"] / x["ate_ids_m"])}),
     *row("README.md", "surveyed map, the nearest landmark is the barcode's for only 93.8–99.3 % of the readings",
          "mrclam6-hidden", "README: MRCLAM 6 bound with the true pose and map",
          {0: lambda r: min(100 * x["nearest_is_barcode"] for x in r.values()),
           1: lambda r: max(100 * x["nearest_is_barcode"] for x in r.values())}),
     *row(DATASETS, "five robots 64 % (`ekf`) and 81 %\n(`isam2`) correct", "mrclam6-hidden",
-         "MRCLAM 6 barcodes withheld, median rates", {0: _mrclam_hidden(None, "ekf", lambda x: 100 * x["rate"]),
-                                                      1: _mrclam_hidden(None, "isam2", lambda x: 100 * x["rate"])}),
+         "MRCLAM 6 barcodes withheld, median rates", {0: _mrclam_robots(None, "ekf", lambda x: 100 * x["rate"]),
+                                                      1: _mrclam_robots(None, "isam2", lambda x: 100 * x["rate"])}),
     *row(DATASETS, "| nearest is the barcode's | 94.0 % | 93.8 % | 99.3 % | 93.8 % | 98.7 % |", "mrclam6-hidden",
          "MRCLAM 6 bound, nearest", {i: (lambda r, k=i + 1: 100 * r[k]["nearest_is_barcode"]) for i in range(5)}),
     *row(DATASETS, "| with the 100× rule: right / ambiguous | 88.9 / 6.5 % | 84.7 / 13.9 % | 90.5 / 9.4 % | "
@@ -126,8 +127,8 @@ QUOTES: list[Quote] = [
          {i: (lambda r, k=i + 1: 100 * r[k]["ekf"]["rate"]) for i in range(5)}),
     *row(DATASETS, "ATE 1.47× and 0.96× the run with\nbarcodes", "mrclam6-hidden",
          "MRCLAM 6 barcodes withheld, median ATE ratios",
-         {0: _mrclam_hidden(None, "ekf", lambda x: x["ate_m"] / x["ate_ids_m"]),
-          1: _mrclam_hidden(None, "isam2", lambda x: x["ate_m"] / x["ate_ids_m"])}),
+         {0: _mrclam_robots(None, "ekf", lambda x: x["ate_m"] / x["ate_ids_m"]),
+          1: _mrclam_robots(None, "isam2", lambda x: x["ate_m"] / x["ate_ids_m"])}),
     *row(EST, "the bundled logs' ATE\ngoes from 0.0337 to 0.0295 m (octagon) and from 0.0162 to 0.0107 m (square), "
          "while the\nNEES inside its band falls to 3–11 %", "trial-calibration", "ekf-s001 trial calibration",
          CALIBRATION_CELLS),
@@ -137,18 +138,15 @@ QUOTES: list[Quote] = [
 # ------------------------------------------------------------------ ekf-fej (docs/estimators.md, "ekf-fej")
 
 
-def _mrclam(estimator: str, key: str, robot: int | None = None):
-    """bench_mrclam's ``key`` of ``estimator`` on one robot, or (None) its median over the robots."""
-    from statistics import median
-
-    if robot is None:
-        return lambda r: median(r[k][estimator][key] for k in r)
-    return lambda r: r[robot][estimator][key]
+def _mrclam(estimator: str, key: str, robot: int | None = None, scale: float = 1.0):
+    """bench_mrclam's ``key`` of ``estimator`` (× ``scale``) on one robot, or (None) its median."""
+    return _mrclam_robots(robot, estimator, lambda row: scale * row[key])
 
 
-def _per_robot_then_median(estimator: str, key: str, scale: float = 1.0) -> dict:
-    cells = {i: (lambda r, f=_mrclam(estimator, key, i + 1): scale * f(r)) for i in range(5)}
-    cells[5] = lambda r, f=_mrclam(estimator, key): scale * f(r)
+def _five_robots_then_median(estimator: str, key: str, first: int) -> dict:
+    """The cells "robot 1, …, robot 5 (median M)" from number ``first`` of a quote."""
+    cells = {first + i: _mrclam(estimator, key, i + 1) for i in range(5)}
+    cells[first + 5] = _mrclam(estimator, key)
     return cells
 
 
@@ -159,13 +157,12 @@ def _run(estimator: str, key: str):
 QUOTES += [
     *row(EST, "| MRCLAM robots 1–5 (Vicon) | 0.149, 0.642, 0.117, 0.221, 1.349 (median 0.221) | 0.172, 0.249, 0.115, "
          "0.321, 0.508 (median 0.249) | median 0.136 / 0.266 |", "mrclam6", "ekf-fej: MRCLAM anchored ATE",
-         {2 + i: f for i, f in _per_robot_then_median("ekf", "ate_final_m").items()}
-         | {8 + i: f for i, f in _per_robot_then_median("ekf-fej", "ate_final_m").items()}
+         _five_robots_then_median("ekf", "ate_final_m", 2) | _five_robots_then_median("ekf-fej", "ate_final_m", 8)
          | {14: _mrclam("isam2", "ate_final_m"), 15: _mrclam("isam2", "ate_online_m")}),
     *row(EST, "| the same, SE(2)-aligned | 0.128, 0.194, 0.088, 0.185, 0.255 (median 0.185) | 0.119, 0.235, 0.089, "
          "0.176, 0.134 (median 0.134) | median 0.064 / 0.176 |", "mrclam6", "ekf-fej: MRCLAM aligned ATE",
-         {1 + i: f for i, f in _per_robot_then_median("ekf", "ate_final_aligned_m").items()}
-         | {7 + i: f for i, f in _per_robot_then_median("ekf-fej", "ate_final_aligned_m").items()}
+         _five_robots_then_median("ekf", "ate_final_aligned_m", 1)
+         | _five_robots_then_median("ekf-fej", "ate_final_aligned_m", 7)
          | {13: _mrclam("isam2", "ate_final_aligned_m"), 14: _mrclam("isam2", "ate_online_aligned_m")}),
     *row(EST, "| +0.4, −15.3, +0.8, −2.7, +24.2 | −0.2, −1.8, +0.4, −4.9, +9.0 | (−1.5, −2.1, +0.8, −4.9, +8.8) |",
          "mrclam6", "ekf-fej: MRCLAM final map's turn against Vicon",
@@ -175,8 +172,8 @@ QUOTES += [
     *row(EST, "| MRCLAM map RMSE, median | 0.219 | 0.143 | 0.175 |", "mrclam6", "ekf-fej: MRCLAM map RMSE",
          {0: _mrclam("ekf", "map_rmse_m"), 1: _mrclam("ekf-fej", "map_rmse_m"), 2: _mrclam("isam2", "map_rmse_m")}),
     *row(EST, "| MRCLAM NIS inside the 95 % band, median | 89.6 % | 86.7 % | 91.6 % |", "mrclam6", "ekf-fej: MRCLAM NIS",
-         {1: lambda r: 100 * _mrclam("ekf", "nis_inside")(r), 2: lambda r: 100 * _mrclam("ekf-fej", "nis_inside")(r),
-          3: lambda r: 100 * _mrclam("isam2", "nis_inside")(r)}),
+         {1: _mrclam("ekf", "nis_inside", scale=100), 2: _mrclam("ekf-fej", "nis_inside", scale=100),
+          3: _mrclam("isam2", "nis_inside", scale=100)}),
     *row(EST, "| Victoria Park (the smoothed solution) | 15.112 | 8.298 | `isam2-fast` 0.008 / 7.321 |", "victoria-park",
          "ekf-fej: Victoria Park ATE",
          {0: _run("ekf", "ate_rmse_m"), 1: _run("ekf-fej", "ate_rmse_m"), 2: _run("isam2-fast", "ate_rmse_m"),
@@ -223,6 +220,6 @@ QUOTES += [
 
 QUOTES += [
     *row(EST, "(median 64.2 → 58.3 % correct;\n  robot 2 59.1 → 33.6 %", "mrclam6-hidden", "ekf-fej: MRCLAM hidden ids",
-         {0: _mrclam_hidden(None, "ekf", lambda x: 100 * x["rate"]), 1: _mrclam_hidden(None, "ekf-fej", lambda x: 100 * x["rate"]),
-          3: _mrclam_hidden(2, "ekf", lambda x: 100 * x["rate"]), 4: _mrclam_hidden(2, "ekf-fej", lambda x: 100 * x["rate"])}),
+         {0: _mrclam_robots(None, "ekf", lambda x: 100 * x["rate"]), 1: _mrclam_robots(None, "ekf-fej", lambda x: 100 * x["rate"]),
+          3: _mrclam_robots(2, "ekf", lambda x: 100 * x["rate"]), 4: _mrclam_robots(2, "ekf-fej", lambda x: 100 * x["rate"])}),
 ]
