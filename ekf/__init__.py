@@ -26,7 +26,8 @@ from ekf.seed001 import EkfS001
 from ekf.seed002 import exact_height_m, g_height
 from ekf.seed003 import EkfS003
 from ekf.seed004 import EkfS004
-from ekf.slam import EkfSlam, joseph_update, kalman_gain
+from ekf.covariance import joseph_update, kalman_gain
+from ekf.slam import EkfSlam
 from ekf.vio import VioEkf
 
 __all__ = [

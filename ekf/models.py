@@ -40,6 +40,8 @@ import numpy as np
 from slamio.geometry import wrap_angle
 
 __all__ = [
+    "ROBOT_DIM",
+    "LANDMARK_DIM",
     "predict_pose",
     "motion_jacobians",
     "range_bearing",
@@ -49,6 +51,9 @@ __all__ = [
     "range_bearing_nis",
     "range_nis",
 ]
+
+ROBOT_DIM = 3  # x_m, y_m, theta_rad
+LANDMARK_DIM = 2  # x_m, y_m
 
 
 # --------------------------------------------------------------------------- motion

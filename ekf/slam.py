@@ -9,7 +9,7 @@ State layout
     joint covariance. Both live in buffers that grow by doubling their capacity, so adding
     thousands of landmarks copies the n×n matrix only O(log n) times. The covariance
     buffer is Fortran-ordered so that the one O(n²) pass of an update is a single in-place
-    BLAS call (see :func:`add_low_rank_in_place`).
+    BLAS call (see :func:`ekf.covariance.add_low_rank_in_place`).
 
 One step (:meth:`EkfSlam.step`)
     1. Predict with the odometry increment u (SE(2), previous robot frame) and its 3×3
@@ -21,7 +21,7 @@ One step (:meth:`EkfSlam.step`)
          landmark (``P_ll = G_p P_rr G_pᵀ + G_z R G_zᵀ``, ``P_lx = G_p P_rx``). The
          measurement is then fully used: it is not applied a second time as an update;
        * later sightings → one sequential EKF update with the bearing innovation wrapped,
-         the Joseph-form covariance update in O(n²) (see :func:`joseph_factors`) and the
+         the Joseph-form covariance update in O(n²) (see :func:`ekf.covariance.joseph_factors`) and the
          heading wrapped.
     3. The observations with ``landmark_id is None`` form one association problem against
        the current map (χ² gate, then gated nearest neighbour or JCBB, see
@@ -47,16 +47,17 @@ Observation model with a height
     ``1 / Σ 1/σ_h,k²``. An observation with a height of a landmark without one (or the
     reverse) uses range and bearing only.
 
-The module-level functions are the filter's arithmetic (each one small and testable on
-its own); :class:`EkfSlam` only holds the state and the bookkeeping.
+The filter's arithmetic is in small pure functions, each testable on its own:
+:mod:`ekf.covariance` (prediction, augmentation, gain, the O(n²) Joseph update),
+:mod:`ekf.observation` (R, the model and its Jacobians with a height, the inverse model,
+NIS), :mod:`ekf.map_association` (the association problem from the state) and
+:mod:`ekf.association` (gates, nearest neighbour, JCBB). :class:`EkfSlam` holds the state
+and the bookkeeping.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
-from scipy.linalg import blas as _blas
 
 from ekf.association import (
     DEFAULT_AMBIGUITY_MARGIN,
@@ -65,19 +66,27 @@ from ekf.association import (
     chi2_gate,
     gated_nearest_neighbour,
     jcbb,
-    mahalanobis_squared,
     settle_pairing,
 )
+from ekf.covariance import add_low_rank_in_place, augment_covariance, joseph_factors, kalman_gain, predict_covariance
+from ekf.map_association import Linearised, linearise_map, reduced_problem
 from ekf.models import (
-    landmark_from_range_bearing,
-    landmark_init_jacobians,
+    LANDMARK_DIM,
+    ROBOT_DIM,
     motion_jacobians,
     normalised_innovation_squared,
     predict_pose,
     range_bearing,
     range_bearing_jacobians,
-    range_bearing_nis,
-    range_nis,
+)
+from ekf.observation import (
+    has_height,
+    landmark_from_observation,
+    landmark_from_observation_jacobians,
+    measurement_covariance,
+    observation_jacobians,
+    observation_model,
+    observation_nis,
 )
 from ekf.range_only import DelayedInitRule, try_initialise
 from ekf.reading_error import gauss_markov_step, reading_error_model, reading_sigmas
@@ -87,210 +96,9 @@ from slamio.noise_model import noise_expects_outliers
 
 __all__ = [
     "EkfSlam",
-    "measurement_covariance",
-    "predict_covariance",
-    "augment_covariance",
-    "kalman_gain",
-    "joseph_factors",
-    "joseph_update",
-    "add_low_rank_in_place",
-    "has_height",
-    "observation_model",
-    "observation_jacobians",
-    "landmark_from_observation",
-    "landmark_from_observation_jacobians",
     "ASSOCIATION_METHODS",
     "DEFAULT_NEW_LANDMARK_PROBABILITY",
 ]
-
-ROBOT_DIM = 3  # x_m, y_m, theta_rad
-LANDMARK_DIM = 2  # x_m, y_m
-
-
-# --------------------------------------------------------------------------- filter arithmetic
-
-
-def measurement_covariance(observation: Observation, with_height: bool = False) -> np.ndarray:
-    """R = diag(σ_range², σ_bearing²) from the observation's own standard deviations;
-    with ``with_height``, diag(σ_range², σ_bearing², σ_height²)."""
-    if with_height:
-        return np.diag([observation.sigma_range_m**2, observation.sigma_bearing_rad**2, observation.sigma_height_m**2])
-    return np.diag([observation.sigma_range_m**2, observation.sigma_bearing_rad**2])
-
-
-def observation_nis(pose, landmark_xy, joint_covariance, observation: Observation) -> float:
-    """NIS of one observation of a mapped landmark, given the 5×5 joint covariance of the
-    pose and the landmark: :func:`ekf.models.range_nis` (1 degree of freedom) for a
-    range-only reading, else :func:`ekf.models.range_bearing_nis` with
-    :func:`measurement_covariance`. Every estimator's ``predicted_nis`` asks it."""
-    if observation.range_only:
-        return range_nis(pose, landmark_xy, joint_covariance, observation.range_m, observation.sigma_range_m)
-    return range_bearing_nis(pose, landmark_xy, joint_covariance, observation.range_m, observation.bearing_rad,
-                             measurement_covariance(observation))
-
-
-def has_height(observation: Observation) -> bool:
-    """True when the observation carries a usable height (a value and a positive σ)."""
-    return (
-        observation.height_m is not None
-        and observation.sigma_height_m is not None
-        and observation.sigma_height_m > 0.0
-    )
-
-
-def observation_model(pose, landmark) -> np.ndarray:
-    """Predicted measurement of a landmark state: ``(range, bearing)`` for ``(x, y)``,
-    ``(range, bearing, height)`` for ``(x, y, h)`` — the height is measured directly."""
-    r, b = range_bearing(pose, landmark[:2])
-    if len(landmark) == 3:
-        return np.array([r, b, float(landmark[2])])
-    return np.array([r, b])
-
-
-def observation_jacobians(pose, landmark) -> tuple[np.ndarray, np.ndarray]:
-    """Jacobians of :func:`observation_model`: ``(H_pose m×3, H_landmark m×m)``, m = len(landmark).
-
-    The height row is ``[0 0 0 | 0 0 1]``: the height depends on nothing but h.
-    """
-    H_pose, H_landmark = range_bearing_jacobians(pose, landmark[:2])
-    if len(landmark) == 3:
-        H_pose = np.vstack([H_pose, np.zeros((1, ROBOT_DIM))])
-        H_landmark = np.block([[H_landmark, np.zeros((2, 1))], [np.zeros((1, 2)), np.ones((1, 1))]])
-    return H_pose, H_landmark
-
-
-def landmark_from_observation(pose, range_m: float, bearing_rad: float, height_m: float | None = None) -> np.ndarray:
-    """Inverse observation model: ``(x, y)``, or ``(x, y, h)`` with ``h = height_m`` when given."""
-    x, y = landmark_from_range_bearing(pose, range_m, bearing_rad)
-    return np.array([x, y] if height_m is None else [x, y, float(height_m)])
-
-
-def landmark_from_observation_jacobians(
-    pose, range_m: float, bearing_rad: float, with_height: bool = False
-) -> tuple[np.ndarray, np.ndarray]:
-    """Jacobians of :func:`landmark_from_observation`: ``(G_pose k×3, G_measurement k×k)``.
-
-    Without a height these are :func:`ekf.models.landmark_init_jacobians`. With one, the
-    height row of ``G_pose`` is zero and ``G_measurement`` gets a 1 for the height, so a new
-    landmark's h has variance σ_h² and no correlation with anything else.
-    """
-    G_pose, G_measurement = landmark_init_jacobians(pose, range_m, bearing_rad)
-    if with_height:
-        G_pose = np.vstack([G_pose, np.zeros((1, ROBOT_DIM))])
-        G_measurement = np.block([[G_measurement, np.zeros((2, 1))], [np.zeros((1, 2)), np.ones((1, 1))]])
-    return G_pose, G_measurement
-
-
-def predict_covariance(P: np.ndarray, F_pose: np.ndarray, Q: np.ndarray) -> None:
-    """Propagate the covariance through the motion model, **in place**, in O(n).
-
-    ``P`` is the n×n joint covariance with the robot in rows/columns 0–2. The motion
-    Jacobian of the full state is ``blockdiag(F_pose, I)``, so only the robot rows and
-    columns change::
-
-        P_rr ← F P_rr Fᵀ + Q,    P_rm ← F P_rm,    P_mr ← P_rmᵀ
-    """
-    r = slice(0, ROBOT_DIM)
-    m = slice(ROBOT_DIM, P.shape[0])
-    P[r, r] = F_pose @ P[r, r] @ F_pose.T + Q
-    P[r, m] = F_pose @ P[r, m]
-    P[m, r] = P[r, m].T
-
-
-def augment_covariance(
-    P: np.ndarray, n: int, G_pose: np.ndarray, G_measurement: np.ndarray, R: np.ndarray
-) -> None:
-    """Fill rows/columns ``n … n+k−1`` of ``P`` for a new k-dimensional landmark, **in place**, in O(n).
-
-    ``P[:n, :n]`` is the covariance before augmentation; ``P`` must have room for k more
-    rows and columns (k = ``G_pose.shape[0]``: 2 for a point, 3 with a height). The new
-    landmark l = g(pose, z) gets
-
-        P_ll = G_p P_rr G_pᵀ + G_z R G_zᵀ     (own covariance)
-        P_lx = G_p P_rx                        (with the robot and every old landmark)
-    """
-    new = slice(n, n + G_pose.shape[0])
-    P_lx = G_pose @ P[:ROBOT_DIM, :n]  # 2×n
-    P[new, :n] = P_lx
-    P[:n, new] = P_lx.T
-    P[new, new] = G_pose @ P[:ROBOT_DIM, :ROBOT_DIM] @ G_pose.T + G_measurement @ R @ G_measurement.T
-
-
-def kalman_gain(
-    P: np.ndarray, cols: np.ndarray, H_cols: np.ndarray, R: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Kalman gain for a measurement whose Jacobian H is zero outside the columns ``cols``.
-
-    ``H_cols`` (m×k) holds the non-zero columns of the m×n Jacobian H. Returns
-    ``(K n×m, S m×m, PHt n×m)`` with ``PHt = P Hᵀ``, ``S = H P Hᵀ + R`` and
-    ``K = PHt S⁻¹``, all in O(n·k).
-    """
-    PHt = P[:, cols] @ H_cols.T
-    S = H_cols @ PHt[cols, :] + R
-    S = 0.5 * (S + S.T)
-    K = np.linalg.solve(S, PHt.T).T
-    return K, S, PHt
-
-
-def joseph_factors(
-    P: np.ndarray, cols: np.ndarray, H_cols: np.ndarray, K: np.ndarray, R: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Factors ``(X, Y)``, both n×4m, of the Joseph-form update: ``P_new = P + X Yᵀ``.
-
-    The Joseph form ``P_new = (I − KH) P (I − KH)ᵀ + K R Kᵀ`` is valid for any gain K
-    (not only the optimal one). H is given by its non-zero columns ``cols`` and their values
-    ``H_cols`` (m×k, k = 5 for a landmark observation), which makes it O(n²) instead of
-    the O(n³) of the dense formula:
-
-    * ``A = (I − KH) P = P − K (P Hᵀ)ᵀ``; only A's columns ``cols`` are formed (n×k);
-    * ``A (I − KH)ᵀ = A − (A Hᵀ) Kᵀ`` with ``A Hᵀ = A[:, cols] H_colsᵀ`` (n×m);
-    * so ``P_new = P + U Vᵀ`` with ``U = [−K, K R − A Hᵀ]`` and ``V = [P Hᵀ, K]`` (n×2m).
-
-    The increment is returned symmetrised, ``½(U Vᵀ + V Uᵀ) = X Yᵀ`` with
-    ``X = ½[U, V]`` and ``Y = [V, U]``: for a symmetric P this *is* the symmetric part of
-    ``P + U Vᵀ``, obtained without a pass over P (``P ← ½(P + Pᵀ)`` would cost two, one
-    of them a cache-unfriendly transpose). P stays symmetric to round-off, without drift.
-    Everything here is O(n·k); no n×n identity or n×n×n product is formed.
-    """
-    Pc = P[:, cols]  # n×k
-    PHt = Pc @ H_cols.T  # n×m
-    A_cols = Pc - K @ PHt[cols, :].T  # columns `cols` of A = (I − KH) P
-    AHt = A_cols @ H_cols.T  # A Hᵀ
-    U = np.hstack([-K, K @ R - AHt])  # n×2m
-    V = np.hstack([PHt, K])  # n×2m
-    return 0.5 * np.hstack([U, V]), np.hstack([V, U])
-
-
-def joseph_update(
-    P: np.ndarray, cols: np.ndarray, H_cols: np.ndarray, K: np.ndarray, R: np.ndarray
-) -> None:
-    """Joseph-form covariance update ``P ← (I − KH) P (I − KH)ᵀ + K R Kᵀ``, **in place**, O(n²).
-
-    See :func:`joseph_factors` for the arithmetic; the result is symmetrised.
-    """
-    X, Y = joseph_factors(P, cols, H_cols, K, R)
-    P += X @ Y.T
-
-
-def add_low_rank_in_place(buffer: np.ndarray, n: int, X: np.ndarray, Y: np.ndarray) -> None:
-    """``buffer[:n, :n] += X Yᵀ`` for n×r factors X, Y, without an n×n temporary.
-
-    This is the single O(n²) pass of an EKF update, so it is worth doing well: when
-    ``buffer`` is Fortran-ordered, its first n columns ``buffer[:, :n]`` are one contiguous
-    block and BLAS ``dgemm`` accumulates into it directly (X is padded with zero rows to
-    the buffer's height, so rows n and beyond get ``+= 0``). That is about 3× faster than
-    numpy's ``P += X @ Y.T`` on a strided view, which writes and re-reads a temporary.
-    Any other buffer takes the plain numpy path.
-    """
-    block = buffer[:, :n]
-    if block.flags.f_contiguous and buffer.dtype == np.float64:
-        X_padded = np.zeros((buffer.shape[0], X.shape[1]), order="F")
-        X_padded[:n] = X
-        out = _blas.dgemm(1.0, X_padded, Y, beta=1.0, c=block, trans_b=1, overwrite_c=1)
-        if not np.shares_memory(out, block):  # the wrapper had to copy: write it back
-            block[...] = out
-    else:
-        buffer[:n, :n] += X @ Y.T
 
 
 # --------------------------------------------------------------------------- the filter
@@ -662,7 +470,7 @@ class EkfSlam:
         residual wrapped; with the height row when both carry a height) and ``dof[i, j]`` its
         number of measured components. Nothing is changed.
         """
-        problem = self._linearise(list(observations))
+        problem = linearise_map(self._mean, self._cov, self._x_index, self._h_index, list(observations))
         return list(self._keys), problem.d2, problem.dof
 
     # ------------------------------------------------------------------ the three operations
@@ -872,80 +680,6 @@ class EkfSlam:
 
     # ------------------------------------------------------------------ data association
 
-    def _linearise(self, observations: list[Observation]) -> "_Linearised":
-        """Innovations, their covariances and d² of every (observation, landmark) pair, O(n·M).
-
-        Vectorised over the M landmarks: with ``e = landmark − position``, every landmark's
-        ``J = [H_pose | H_landmark]`` (2×5) and ``S_j = J P_j Jᵀ``, where ``P_j`` is the 5×5
-        block of P over the robot and that landmark. Height rows are
-        added (m = 3) when some observation and some landmark carry a height; a pair where
-        either lacks it gets a padded row (zero residual, unit variance, no correlation),
-        which adds nothing to d² (see :mod:`ekf.association`).
-        """
-        n_obs, M = len(observations), len(self._keys)
-        obs_h = np.array([has_height(o) for o in observations], dtype=bool)
-        xi = np.asarray(self._x_index, dtype=np.intp)
-        hi = np.asarray(self._h_index, dtype=np.intp)
-        lm_h = hi >= 0
-        m = 3 if (obs_h.any() and lm_h.any()) else 2
-        mean, P = self._mean, self._cov
-        x, y, th = (float(v) for v in mean[:ROBOT_DIM])
-        ex, ey = mean[xi] - x, mean[xi + 1] - y
-        q = ex * ex + ey * ey
-        degenerate = q < 1e-12
-        q = np.where(degenerate, 1.0, q)
-        r = np.sqrt(q)
-        # J = [H_pose | H_landmark] (M, 2, 5) against each landmark's 5×5 block of P.
-        J = np.zeros((M, 2, 5))
-        J[:, 0, 0], J[:, 0, 1] = -ex / r, -ey / r
-        J[:, 1, 0], J[:, 1, 1], J[:, 1, 2] = ey / q, -ex / q, -1.0
-        J[:, 0, 3], J[:, 0, 4] = ex / r, ey / r
-        J[:, 1, 3], J[:, 1, 4] = -ey / q, ex / q
-        Hp, Hl = J[:, :, :3], J[:, :, 3:]
-        block = np.empty((M, 5), dtype=np.intp)
-        block[:, :3] = np.arange(3)
-        block[:, 3], block[:, 4] = xi, xi + 1
-        P5 = P[block[:, :, None], block[:, None, :]]  # (M, 5, 5)
-        S_lm = np.zeros((M, m, m))
-        S_lm[:, :2, :2] = J @ P5 @ np.swapaxes(J, 1, 2)
-
-        z = np.array([[o.range_m, o.bearing_rad] for o in observations], dtype=float).reshape(n_obs, 2)
-        nu = np.zeros((n_obs, M, m))
-        nu[:, :, 0] = z[:, None, 0] - r[None, :]
-        nu[:, :, 1] = wrap_angle(z[:, None, 1] - np.arctan2(ey, ex)[None, :] + th)
-        R_obs = np.zeros((n_obs, m, m))
-        R_obs[:, 0, 0] = [o.sigma_range_m**2 for o in observations]
-        R_obs[:, 1, 1] = [o.sigma_bearing_rad**2 for o in observations]
-        dof = np.full((n_obs, M), 2, dtype=int)
-        if m == 3:
-            hj = np.where(lm_h)[0]
-            h_col = hi[hj]
-            # S rows of the height: H_h = e_h, so S_hh = P_hh and S_(rb),h = H_p P_rh + H_l P_lh.
-            P_rh = P[:ROBOT_DIM, h_col].T  # (k, 3)
-            P_lh = np.stack([P[xi[hj], h_col], P[xi[hj] + 1, h_col]], axis=1)  # (k, 2)
-            s_cross = (Hp[hj] @ P_rh[:, :, None])[:, :, 0] + (Hl[hj] @ P_lh[:, :, None])[:, :, 0]
-            S_lm[hj, :2, 2] = s_cross
-            S_lm[hj, 2, :2] = s_cross
-            S_lm[hj, 2, 2] = P[h_col, h_col]
-            h_obs = np.array([o.height_m if has_height(o) else 0.0 for o in observations], dtype=float)
-            R_obs[:, 2, 2] = [o.sigma_height_m**2 if has_height(o) else 1.0 for o in observations]
-            valid = obs_h[:, None] & lm_h[None, :]
-            h_lm = np.where(lm_h, mean[np.where(lm_h, hi, 0)], 0.0)
-            nu[:, :, 2] = np.where(valid, h_obs[:, None] - h_lm[None, :], 0.0)
-            dof = np.where(valid, 3, 2)
-            S = np.broadcast_to(S_lm, (n_obs, M, m, m)).copy()
-            S[:, :, 2, :] *= valid[:, :, None]
-            S[:, :, :, 2] *= valid[:, :, None]
-            S = S + R_obs[:, None]
-            d2 = mahalanobis_squared(nu, S)
-        else:
-            S = S_lm[None] + R_obs[:, None]
-            a, b, c = S[..., 0, 0], S[..., 0, 1], S[..., 1, 1]
-            v0, v1 = nu[..., 0], nu[..., 1]
-            d2 = (c * v0 * v0 - 2.0 * b * v0 * v1 + a * v1 * v1) / (a * c - b * b)
-        d2 = np.where(degenerate[None, :], np.inf, d2)
-        return _Linearised(m, nu, d2, dof, Hp, Hl, R_obs, obs_h, lm_h)
-
     def _associate_and_apply(self, observations: list[Observation]) -> list[int | None]:
         """One association problem for the id-less observations of a step, then the updates
         and new landmarks it implies. Returns the key used by each observation (or None)."""
@@ -953,7 +687,7 @@ class EkfSlam:
         pairing: list[int | None] = [None] * n
         near = np.zeros(n, dtype=bool)
         if self._keys:
-            lin = self._linearise(observations)
+            lin = linearise_map(self._mean, self._cov, self._x_index, self._h_index, observations)
             candidate = lin.d2 <= chi2_gate(lin.dof, self.new_landmark_probability)  # the new-landmark gate
             near = candidate.any(axis=1)
             if self.association == "nn":
@@ -980,33 +714,10 @@ class EkfSlam:
             keys[i] = key
         return keys
 
-    def _jcbb(self, lin: "_Linearised", compatible: np.ndarray) -> list[int | None]:
+    def _jcbb(self, lin: Linearised, compatible: np.ndarray) -> list[int | None]:
         """JCBB over the reduced state: the pose and the landmarks that are candidates
         (``compatible``, the new-landmark gate) of some observation."""
-        obs = np.flatnonzero(compatible.any(axis=1))
-        # Fewest candidates first, then the most distinctive (smallest best d²) first.
-        best_d2 = np.where(compatible[obs], lin.d2[obs], np.inf).min(axis=1)
-        obs = obs[np.lexsort((best_d2, compatible[obs].sum(axis=1)))]
-        cand = np.flatnonzero(compatible[obs].any(axis=0))
-        m = lin.m
-        # Reduced state: pose, then each candidate's x, y (and h when m == 3 and it has one).
-        columns = [0, 1, 2]
-        offset = []
-        for j in cand.tolist():
-            offset.append(len(columns))
-            columns += [self._x_index[j], self._x_index[j] + 1]
-            if m == 3 and lin.lm_h[j]:
-                columns.append(self._h_index[j])
-        columns_arr = np.asarray(columns, dtype=np.intp)
-        P_red = self._cov[np.ix_(columns_arr, columns_arr)]
-        d = len(columns)
-        H = np.zeros((len(obs), len(cand), m, d))
-        for c, j in enumerate(cand.tolist()):
-            o = offset[c]
-            H[:, c, :2, :3] = lin.H_pose[j]
-            H[:, c, :2, o : o + 2] = lin.H_landmark[j]
-            if m == 3 and lin.lm_h[j]:
-                H[:, c, 2, o + 2] = lin.obs_h[obs].astype(float)
+        obs, cand, H, P_red = reduced_problem(lin, compatible, self._cov, self._x_index, self._h_index)
         result = jcbb(
             lin.nu[np.ix_(obs, cand)],
             H,
@@ -1025,18 +736,3 @@ class EkfSlam:
             if c is not None:
                 pairing[int(obs[a])] = int(cand[c])
         return pairing
-
-
-@dataclass(frozen=True)
-class _Linearised:
-    """One step's association problem against the whole map (see ``EkfSlam._linearise``)."""
-
-    m: int
-    nu: np.ndarray  # (n, M, m)
-    d2: np.ndarray  # (n, M)
-    dof: np.ndarray  # (n, M)
-    H_pose: np.ndarray  # (M, 2, 3)
-    H_landmark: np.ndarray  # (M, 2, 2)
-    R: np.ndarray  # (n, m, m)
-    obs_h: np.ndarray  # (n,) observation has a height
-    lm_h: np.ndarray  # (M,) landmark has a height

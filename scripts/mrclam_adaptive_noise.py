@@ -60,7 +60,8 @@ from scipy.stats import chi2  # noqa: E402
 
 from bench_mrclam import ate_pair_m, leave_one_out, nis_inside, raw_logs  # noqa: E402
 from ekf.models import motion_jacobians, predict_pose, range_bearing, range_bearing_jacobians  # noqa: E402
-from ekf.slam import EkfSlam, measurement_covariance  # noqa: E402
+from ekf.observation import measurement_covariance  # noqa: E402
+from ekf.slam import EkfSlam  # noqa: E402
 from slamio.geometry import wrap_angle  # noqa: E402
 from slamio.log import RunLog, Step, read_log  # noqa: E402
 

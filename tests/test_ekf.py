@@ -30,7 +30,7 @@ from ekf.models import (
     range_bearing,
     range_bearing_jacobians,
 )
-from ekf.slam import (
+from ekf.covariance import (
     add_low_rank_in_place,
     augment_covariance,
     joseph_factors,
@@ -629,7 +629,7 @@ def test_estimators_follow_the_protocol_and_never_import_gtsam():
 # ambiguous scene, and whole simulated runs scored against ``truth_landmark_id``.
 
 from ekf.association import chi2_gate  # noqa: E402
-from ekf.slam import (  # noqa: E402
+from ekf.observation import (  # noqa: E402
     landmark_from_observation,
     landmark_from_observation_jacobians,
     observation_jacobians,

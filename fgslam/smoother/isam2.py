@@ -41,7 +41,7 @@ import numpy as np
 from gtsam.symbol_shorthand import H, L, X
 
 from ekf.range_only import DelayedInitRule
-from ekf.slam import has_height  # the same rule as the EKF's for a usable height
+from ekf.observation import has_height  # the same rule as the EKF's for a usable height
 from fgslam.smoother.correction import PoseCorrector
 from fgslam.smoother.association import SmootherAssociation, world_joint_marginal
 from fgslam.smoother.chain import OdometryChain

@@ -17,7 +17,7 @@ import numpy as np
 from gtsam.symbol_shorthand import L, T, X
 
 from ekf.models import motion_jacobians, predict_pose, range_bearing_jacobians
-from ekf.slam import observation_nis
+from ekf.observation import observation_nis
 from fgslam.smoother.chain import OdometryChain
 from fgslam.smoother.factors import odometry_noise_covariance
 from slamio.log import Odometry, Step

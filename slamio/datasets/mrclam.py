@@ -90,7 +90,7 @@ import bisect
 import hashlib
 import math
 import os
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 
 import numpy as np
 
