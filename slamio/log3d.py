@@ -26,7 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from slamio import log as _log
+from slamio.errors import FgslamError
+from slamio.log import fields as _fields
 from slamio.se3 import quaternion_from_rotation, rotation_from_quaternion
 
 __all__ = [
@@ -187,13 +188,13 @@ def top_view(pose: Pose3) -> tuple[float, float, float]:
 
 # --------------------------------------------------------------------------- parsing
 
-_Bad = _log._BadLine
+_Bad = _fields._BadLine
 
 
 def _vector(value: Any, n: int, what: str) -> tuple[float, ...]:
     if not (isinstance(value, list) and len(value) == n):
         raise _Bad(f"{what} must be a list of {n} numbers")
-    return tuple(_log._number({"v": v}, "v", label=f"each entry of {what}") for v in value)  # type: ignore[misc]
+    return tuple(_fields._number({"v": v}, "v", label=f"each entry of {what}") for v in value)  # type: ignore[misc]
 
 
 def _bounded(values: tuple[float, ...], limit: float, what: str, unit: str) -> tuple[float, ...]:
@@ -220,12 +221,12 @@ def parse_pose3(value: Any, what: str) -> Pose3:
 
 def parse_sigma3(value: Any, what: str) -> tuple[float, ...]:
     sigma = _vector(value, 6, what + " [x, y, z in m; rotation x, y, z in rad]")
-    bounds = [_log.SIGMA_LENGTH_M] * 3 + [_log.SIGMA_ANGLE_RAD] * 3
+    bounds = [_fields.SIGMA_LENGTH_M] * 3 + [_fields.SIGMA_ANGLE_RAD] * 3
     for v, (lo, hi) in zip(sigma, bounds):
         if not lo <= v <= hi:
             raise _Bad(
-                f"{what} {list(sigma)!r} is outside {_log.SIGMA_LENGTH_M[0]:g}..{_log.SIGMA_LENGTH_M[1]:g} m for the "
-                f"position and {_log.SIGMA_ANGLE_RAD[0]:g}..{_log.SIGMA_ANGLE_RAD[1]:.4g} rad for the rotation; "
+                f"{what} {list(sigma)!r} is outside {_fields.SIGMA_LENGTH_M[0]:g}..{_fields.SIGMA_LENGTH_M[1]:g} m for the "
+                f"position and {_fields.SIGMA_ANGLE_RAD[0]:g}..{_fields.SIGMA_ANGLE_RAD[1]:.4g} rad for the rotation; "
                 "1e-6 pins the start pose"
             )
     return sigma
@@ -257,7 +258,7 @@ def _twist_covariance(value: Any) -> Matrix6:
 
 
 def _pixel(d: dict, key: str) -> float:
-    value = _log._number(d, key)
+    value = _fields._number(d, key)
     if abs(value) > MAX_PIXEL_PX:  # type: ignore[arg-type]
         raise _Bad(f"field '{key}' is {value!r}, beyond ±{MAX_PIXEL_PX:g} px: write pixel coordinates")
     return value  # type: ignore[return-value]
@@ -266,7 +267,7 @@ def _pixel(d: dict, key: str) -> float:
 def parse_record3(kind: str, d: dict):
     """The 3-D record of type ``kind`` from its JSON object (fields already checked for unknowns)."""
     if kind == "velocity_odometry":
-        dt = _log._finite(d, "dt_s", positive=True)
+        dt = _fields._finite(d, "dt_s", positive=True)
         if dt > MAX_DT_S:  # type: ignore[operator]
             raise _Bad(f"field 'dt_s' is {dt!r}, above {MAX_DT_S:g} s: a velocity is not held that long")
         if "covariance" not in d:
@@ -275,7 +276,7 @@ def parse_record3(kind: str, d: dict):
             if key not in d:
                 raise _Bad(f"missing field '{key}' (a list of 3 numbers, IMU frame)")
         return VelocityOdometry(
-            stamp_s=_log._finite(d, "stamp_s"),  # type: ignore[arg-type]
+            stamp_s=_fields._finite(d, "stamp_s"),  # type: ignore[arg-type]
             dt_s=dt,  # type: ignore[arg-type]
             v_mps=_bounded(_vector(d["v_mps"], 3, "'v_mps'"), MAX_SPEED_MPS, "'v_mps'", "m/s"),  # type: ignore[arg-type]
             w_radps=_bounded(_vector(d["w_radps"], 3, "'w_radps'"), MAX_TURN_RATE_RADPS, "'w_radps'", "rad/s"),  # type: ignore[arg-type]
@@ -283,26 +284,26 @@ def parse_record3(kind: str, d: dict):
         )
     if kind == "stereo_observation":
         return StereoObservation(
-            stamp_s=_log._finite(d, "stamp_s"),  # type: ignore[arg-type]
-            track_id=_log._integer(d, "track_id", id_range=True),  # type: ignore[arg-type]
+            stamp_s=_fields._finite(d, "stamp_s"),  # type: ignore[arg-type]
+            track_id=_fields._integer(d, "track_id", id_range=True),  # type: ignore[arg-type]
             u_left_px=_pixel(d, "u_left_px"),
             v_left_px=_pixel(d, "v_left_px"),
             u_right_px=_pixel(d, "u_right_px"),
             v_right_px=_pixel(d, "v_right_px"),
-            sigma_px=_log._within(
-                "sigma_px", _log._number(d, "sigma_px"), SIGMA_PIXEL_PX, "px",
+            sigma_px=_fields._within(
+                "sigma_px", _fields._number(d, "sigma_px"), SIGMA_PIXEL_PX, "px",
                 "no detector resolves below 1e-6 px and no image is 1e4 px wide; write σ in pixels",
             ),  # type: ignore[arg-type]
         )
     if kind == "truth_pose3":
-        values = {k: _log._finite(d, k) for k in ("stamp_s", "x_m", "y_m", "z_m", "qx", "qy", "qz", "qw")}
+        values = {k: _fields._finite(d, k) for k in ("stamp_s", "x_m", "y_m", "z_m", "qx", "qy", "qz", "qw")}
         check_quaternion(tuple(values[k] for k in ("qx", "qy", "qz", "qw")), "truth_pose3's quaternion")  # type: ignore[misc]
         return TruthPose3(**values)  # type: ignore[arg-type]
     return TruthLandmark3(
-        landmark_id=_log._integer(d, "landmark_id", id_range=True),  # type: ignore[arg-type]
-        x_m=_log._finite(d, "x_m"),  # type: ignore[arg-type]
-        y_m=_log._finite(d, "y_m"),  # type: ignore[arg-type]
-        z_m=_log._finite(d, "z_m"),  # type: ignore[arg-type]
+        landmark_id=_fields._integer(d, "landmark_id", id_range=True),  # type: ignore[arg-type]
+        x_m=_fields._finite(d, "x_m"),  # type: ignore[arg-type]
+        y_m=_fields._finite(d, "y_m"),  # type: ignore[arg-type]
+        z_m=_fields._finite(d, "z_m"),  # type: ignore[arg-type]
     )
 
 
@@ -313,13 +314,13 @@ def parse_stereo_sensor(sensor: dict) -> StereoCalibration:
     """The calibration in a 3-D header's ``sensor`` (kind ``"stereo"``)."""
     if sensor.get("kind") != "stereo":
         raise _Bad(
-            f"a 3-D log's header field 'sensor.kind' must be \"stereo\", got {_log._show(sensor.get('kind'))} "
+            f"a 3-D log's header field 'sensor.kind' must be \"stereo\", got {_fields._show(sensor.get('kind'))} "
             "(the 3-D records are stereo observations)"
         )
     missing = [k for k in _STEREO_KEYS if k not in sensor]
     if missing:
         raise _Bad(f"header field 'sensor' lacks {', '.join(repr(k) for k in missing)}: a stereo sensor needs {', '.join(_STEREO_KEYS)}")
-    values = {k: _log._number(sensor, k, label=f"header field 'sensor.{k}'") for k in _STEREO_KEYS[:5]}
+    values = {k: _fields._number(sensor, k, label=f"header field 'sensor.{k}'") for k in _STEREO_KEYS[:5]}
     for k in ("fx_px", "fy_px", "baseline_m"):
         if not values[k] > 0.0:  # type: ignore[operator]
             raise _Bad(f"header field 'sensor.{k}' must be > 0, got {values[k]!r}")
@@ -355,4 +356,4 @@ def stereo_calibration(header) -> StereoCalibration:
     try:
         return parse_stereo_sensor(header.sensor)
     except _Bad as bad:
-        raise _log.FgslamError(str(bad)) from None
+        raise FgslamError(str(bad)) from None

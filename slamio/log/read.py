@@ -1,0 +1,392 @@
+"""Reading a run log: every line validated, the first bad one reported as ``file:line``
+with how to fix it, everything good before it kept (:class:`LogFormatError`'s ``partial``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+from typing import Any
+
+from slamio.errors import FgslamError
+from slamio.log.fields import (
+    _WHY_RANGE, MAX_ID, RANGE_M, SENSOR_LIMIT_SIGMAS, SIGMA_ANGLE_RAD, SIGMA_LENGTH_M, _angle, _BadLine,
+    _check_fields, _covariance, _finite, _integer, _NotJson, _number, _object, _paired, _reject_constant, _show,
+    _sigma_angle, _sigma_length, _vector3, _within,
+)
+from slamio.log.records import (
+    _CLASS_OF, _PLANAR_TYPES, _TYPES_3D, FORMAT_NAME, UNITS, VERSIONS, Header, LiveStep, Observation, Odometry,
+    Record, Rejected, RunLog, TruthLandmark, TruthPose,
+)
+
+class LogFormatError(FgslamError):
+    """A run log that cannot be read past some line.
+
+    ``partial`` is the :class:`RunLog` of everything before the bad line (``None`` when
+    the header itself is bad), so a caller can still use the good part.
+    """
+
+    def __init__(self, path: str, line: int, message: str, partial: "RunLog | None" = None):
+        super().__init__(f"{path}:{line}: {message}")
+        self.path = path
+        self.line = line
+        self.partial = partial
+
+
+def _sensor_limit(sensor: dict, key: str) -> float | None:
+    if key not in sensor or sensor[key] is None:
+        return None
+    value = sensor[key]
+    # a 400-digit integer is a number too, but no float: float() would raise OverflowError
+    metres = float(value) if isinstance(value, float) or (isinstance(value, int) and abs(value) < 1e300) else None
+    if isinstance(value, bool) or metres is None or not math.isfinite(metres) or metres < 0:
+        raise _BadLine(
+            f"header field 'sensor.{key}' must be a number of metres ≥ 0, got {_show(value)}; "
+            "it bounds the ranges the sensor reports (leave it out if there is no limit)"
+        )
+    return metres
+
+
+def sensor_range_limits(header: Header) -> tuple[float | None, float | None]:
+    """The header sensor's ``(min_range_m, max_range_m)``; None where the header has none."""
+    sensor = header.sensor if isinstance(header.sensor, dict) else {}
+    try:
+        return _sensor_limit(sensor, "min_range_m"), _sensor_limit(sensor, "max_range_m")
+    except _BadLine as bad:
+        raise FgslamError(str(bad)) from None
+
+
+def parse_header(d: dict) -> Header:
+    if d.get("type") != "header" or d.get("format") != FORMAT_NAME:
+        raise _BadLine(
+            f"the first line must be the header, {{\"type\": \"header\", \"format\": \"{FORMAT_NAME}\", ...}}; "
+            "is this an fgslam run log?"
+        )
+    version = d.get("version")
+    if isinstance(version, bool) or not isinstance(version, int):
+        raise _BadLine(
+            f"header field 'version' must be the integer 1 or 2, got {_show(version)}"
+        )
+    if version not in VERSIONS:
+        raise _BadLine(
+            f"format version {_show(version)} is not supported; this fgslam reads versions "
+            f"{' and '.join(str(v) for v in VERSIONS)} (upgrade fgslam to read newer logs)"
+        )
+    _check_fields(d, ("format", "version", "units", "start", "robot", "sensor", "noise", "source"), "header")
+    if d.get("units") != UNITS:
+        raise _BadLine(f"header 'units' must be {json.dumps(UNITS)}: convert at the edge, store SI")
+    if isinstance(d.get("start"), dict) and "pose3" in d["start"]:
+        return _parse_header3(d, version)
+    start = _object(d, "start", ("stamp_s", "pose", "sigma"))
+    sigma = _vector3(start["sigma"], "start.sigma")
+    if min(sigma) <= 0.0:
+        raise _BadLine("start.sigma must be > 0 (a tiny value such as 1e-6 pins the start pose)")
+    for value, (lo, hi), unit in zip(sigma, (SIGMA_LENGTH_M, SIGMA_LENGTH_M, SIGMA_ANGLE_RAD), ("m", "m", "rad")):
+        if not lo <= value <= hi:
+            raise _BadLine(
+                f"start.sigma {list(sigma)!r} is outside {SIGMA_LENGTH_M[0]:g}..{SIGMA_LENGTH_M[1]:g} m for x, y "
+                f"and {SIGMA_ANGLE_RAD[0]:g}..{SIGMA_ANGLE_RAD[1]:.4g} rad for theta; 1e-6 pins the start pose, "
+                "a larger σ says how well it is known"
+            )
+    sensor = _object(d, "sensor", ("kind",))
+    low, high = _sensor_limit(sensor, "min_range_m"), _sensor_limit(sensor, "max_range_m")
+    if low is not None and high is not None and not low < high:
+        raise _BadLine(f"header field 'sensor.min_range_m' ({low!r}) must be below 'sensor.max_range_m' ({high!r})")
+    return Header(
+        stamp_s=_finite(start, "stamp_s"),  # type: ignore[arg-type]
+        start_pose=_vector3(start["pose"], "start.pose"),
+        start_sigma=sigma,
+        robot=_object(d, "robot", ("name",)),
+        sensor=sensor,
+        noise=_object(d, "noise", ("odometry", "observation")),
+        source=_object(d, "source") if "source" in d else {},
+        version=version,
+    )
+
+
+def _parse_header3(d: dict, version: int) -> Header:
+    """The header of a 3-D log: ``start.pose3``/``sigma3`` and a stereo ``sensor``."""
+    from slamio import log3d
+
+    if version < 2:
+        raise _BadLine("'start.pose3' (a 3-D log) needs \"version\": 2; version 1 logs are planar")
+    start = _object(d, "start", ("stamp_s", "pose3", "sigma3"))
+    _check_fields(start, ("stamp_s", "pose3", "sigma3"), "header 'start' of a 3-D log")
+    pose3 = log3d.parse_pose3(start["pose3"], "start.pose3")
+    sigma3 = log3d.parse_sigma3(start["sigma3"], "start.sigma3")
+    sensor = _object(d, "sensor", ("kind",))
+    log3d.parse_stereo_sensor(sensor)
+    return Header(
+        stamp_s=_finite(start, "stamp_s"),  # type: ignore[arg-type]
+        start_pose=log3d.top_view(pose3),
+        start_sigma=(sigma3[0], sigma3[1], sigma3[5]),
+        robot=_object(d, "robot", ("name",)),
+        sensor=sensor,
+        noise=_object(d, "noise", ("odometry", "observation")),
+        source=_object(d, "source") if "source" in d else {},
+        version=version,
+        start_pose3=pose3,
+        start_sigma3=sigma3,
+    )
+
+
+def parse_record(d: dict) -> Record:
+    kind = d.get("type")
+    if not isinstance(kind, str):
+        raise _BadLine(
+            f"field 'type' must be a string naming the record type, got {_show(kind)}; "
+            f"expected one of {', '.join(sorted(_CLASS_OF))}"
+        )
+    from slamio import log3d
+
+    cls = _CLASS_OF.get(kind) or log3d.RECORDS_3D.get(kind)
+    if cls is None:
+        raise _BadLine(
+            f"unknown record type {_show(kind)}; expected one of {', '.join(sorted(_PLANAR_TYPES + _TYPES_3D[:-1]))}"
+        )
+    _check_fields(d, cls.__dataclass_fields__, kind)
+    if kind in log3d.RECORDS_3D:
+        return log3d.parse_record3(kind, d)
+    if cls is Odometry:
+        distance, angle = _finite(d, "distance_m", optional=True), _finite(d, "angle_rad", optional=True)
+        if (distance is None) != (angle is None):
+            raise _BadLine("'distance_m' and 'angle_rad' (the Create's reading) go together: give both or neither")
+        if "covariance" not in d:
+            raise _BadLine("missing field 'covariance' (3×3 over dx, dy, dtheta)")
+        return Odometry(
+            stamp_s=_finite(d, "stamp_s"),
+            dx_m=_finite(d, "dx_m"),
+            dy_m=_finite(d, "dy_m"),
+            dtheta_rad=_finite(d, "dtheta_rad"),
+            covariance=_covariance(d["covariance"]),
+            distance_m=distance,
+            angle_rad=angle,
+        )  # type: ignore[arg-type]
+    if cls is Observation:
+        if "landmark_id" not in d:
+            raise _BadLine("missing field 'landmark_id' (an integer, or null when unknown)")
+        height, sigma_height = _finite(d, "height_m", optional=True), _sigma_length(d, "sigma_height_m", optional=True)
+        _paired(height, sigma_height, "height_m", "sigma_height_m")
+        yaw, sigma_yaw = _angle(d, "tag_yaw_rad", optional=True), _sigma_angle(d, "sigma_tag_yaw_rad", optional=True)
+        _paired(yaw, sigma_yaw, "tag_yaw_rad", "sigma_tag_yaw_rad")
+        bearing, sigma_bearing = _angle(d, "bearing_rad", optional=True), _sigma_angle(d, "sigma_bearing_rad", optional=True)
+        _paired(bearing, sigma_bearing, "bearing_rad", "sigma_bearing_rad")
+        if bearing is None and yaw is not None:
+            raise _BadLine("a range-only observation (no 'bearing_rad') cannot have a tag yaw")
+        return Observation(
+            stamp_s=_finite(d, "stamp_s"),
+            landmark_id=_integer(d, "landmark_id", optional=True, id_range=True),
+            range_m=_within("range_m", _number(d, "range_m"), RANGE_M, "m", _WHY_RANGE),
+            bearing_rad=bearing,
+            sigma_range_m=_sigma_length(d, "sigma_range_m"),
+            sigma_bearing_rad=sigma_bearing,
+            height_m=height,
+            sigma_height_m=sigma_height,
+            tag_yaw_rad=yaw,
+            sigma_tag_yaw_rad=sigma_yaw,
+            truth_landmark_id=_integer(d, "truth_landmark_id", optional=True, id_range=True),
+        )  # type: ignore[arg-type]
+    if cls is LiveStep:
+        index = _integer(d, "pose_index")
+        latency = _finite(d, "latency_s")
+        if index < 0 or latency < 0:  # type: ignore[operator]
+            raise _BadLine("'pose_index' and 'latency_s' must be >= 0")
+        if index > MAX_ID:  # type: ignore[operator]
+            raise _BadLine(f"'pose_index' is {_show(index)}, above 2^56-1 (a GTSAM key holds a 56-bit index)")
+        return LiveStep(stamp_s=_finite(d, "stamp_s"), pose_index=index, latency_s=latency)  # type: ignore[arg-type]
+    if cls is TruthPose:
+        return TruthPose(
+            stamp_s=_finite(d, "stamp_s"),
+            x_m=_finite(d, "x_m"),
+            y_m=_finite(d, "y_m"),
+            theta_rad=_finite(d, "theta_rad"),
+        )  # type: ignore[arg-type]
+    return TruthLandmark(
+        landmark_id=_integer(d, "landmark_id", id_range=True),
+        x_m=_finite(d, "x_m"),
+        y_m=_finite(d, "y_m"),
+        height_m=_finite(d, "height_m", optional=True),
+        yaw_rad=_finite(d, "yaw_rad", optional=True),
+    )  # type: ignore[arg-type]
+
+
+def _outside_sensor(obs: Observation, low: float | None, high: float | None) -> tuple[str, str] | None:
+    """(reason, message) when the sensor cannot have measured ``obs.range_m``, else None."""
+    slack = SENSOR_LIMIT_SIGMAS * obs.sigma_range_m
+    if low is not None and obs.range_m < low - min(slack, 0.5 * low):
+        return (
+            "with range_m below the sensor's min_range_m",
+            f"range_m {obs.range_m!r} is below the header's sensor.min_range_m {low!r} by more than "
+            f"{SENSOR_LIMIT_SIGMAS:g} σ ({obs.sigma_range_m!r} m) or half the minimum: the sensor cannot have "
+            "measured it; the observation is left out (fix the front-end, or the header's limit if it is wrong)",
+        )
+    if high is not None and obs.range_m > high + slack:
+        return (
+            "with range_m above the sensor's max_range_m",
+            f"range_m {obs.range_m!r} is above the header's sensor.max_range_m {high!r} by more than "
+            f"{SENSOR_LIMIT_SIGMAS:g} σ ({obs.sigma_range_m!r} m): the sensor cannot have measured it; "
+            "the observation is left out (fix the front-end, or the header's limit if it is wrong)",
+        )
+    return None
+
+
+def _decode(raw: bytes, number: int) -> str:
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        message = (
+            f"not UTF-8 text: byte 0x{raw[exc.start]:02x} at column {exc.start + 1} ({exc.reason}); "
+            "a run log is UTF-8 — was the file damaged, or is this not a run log?"
+        )
+        try:  # complete JSON apart from the bad byte: an error, never a cut-off line
+            json.loads(raw.decode("utf-8", errors="replace"))
+        except (ValueError, RecursionError):
+            raise _NotJson(message) from None
+        raise _BadLine(message) from None
+    if number == 1 and text.startswith("\ufeff"):
+        raise _BadLine("the file starts with a byte-order mark (BOM); save it as UTF-8 without BOM")
+    return text
+
+
+def _loads(text: str) -> dict:
+    if not text.strip():
+        raise _NotJson("empty line; remove it (every line must be one JSON object)")
+    try:
+        d = json.loads(text, parse_constant=_reject_constant)
+    except json.JSONDecodeError as exc:
+        raise _NotJson(
+            f"not valid JSON ({exc.msg} at column {exc.colno}); each line must be one JSON object"
+        ) from None
+    except RecursionError:
+        raise _BadLine(
+            "JSON nested too deeply to read (arrays or objects inside each other about a thousand levels "
+            "deep); no field of a run log nests like that — is the line corrupted?"
+        ) from None
+    except ValueError as exc:
+        if "digits" not in str(exc):
+            raise _BadLine(f"not valid JSON ({exc}); each line must be one JSON object") from None
+        raise _BadLine(  # Python's limit on the digits of an integer
+            f"an integer with more than {sys.get_int_max_str_digits()} digits, more than Python reads; "
+            "no field of a run log needs one — is the line corrupted?"
+        ) from None
+    if not isinstance(d, dict):
+        raise _BadLine("each line must be one JSON object {...}")
+    return d
+
+
+def _lines(data: bytes) -> list[tuple[int, bytes, bool]]:
+    """(line number, bytes without the line ending, whether a newline ended it)."""
+    parts = data.split(b"\n")
+    last_ended = parts[-1] == b""
+    if last_ended:
+        parts.pop()
+    count = len(parts)
+    return [
+        (number, raw[:-1] if raw.endswith(b"\r") else raw, number < count or last_ended)
+        for number, raw in enumerate(parts, start=1)
+    ]
+
+
+def _check_dimension(kind: Any, header: Header) -> None:
+    """Planar records only in a planar log, 3-D records only in a 3-D log."""
+    if header.is_3d and kind in _PLANAR_TYPES and kind not in _TYPES_3D:
+        raise _BadLine(
+            f"a {kind} record in a 3-D log (the header has start.pose3); a 3-D log holds "
+            f"{', '.join(_TYPES_3D)}"
+        )
+    if not header.is_3d and kind in _TYPES_3D and kind not in _PLANAR_TYPES:
+        raise _BadLine(
+            f"a {kind} record in a planar log; 3-D records need a version-2 header with start.pose3 "
+            "and a stereo sensor (docs/log-format.md, \"3-D logs\")"
+        )
+
+
+#: How far a velocity record's ``dt_s`` may differ from the time since the previous pose (s).
+DT_TOLERANCE_S = 1e-6
+
+
+def _check_interval(record: Record, pose_stamp: float) -> float:
+    """A 3-D log's velocity record spans the time since the previous pose; the latest pose's stamp."""
+    from slamio.log3d import VelocityOdometry
+
+    if not isinstance(record, VelocityOdometry):
+        return pose_stamp
+    gap = record.stamp_s - pose_stamp
+    if abs(record.dt_s - gap) > DT_TOLERANCE_S + 1e-15 * abs(record.stamp_s):  # + the stamps' rounding
+        raise _BadLine(
+            f"field 'dt_s' is {record.dt_s!r} s but the previous pose is {gap!r} s earlier: the velocity is "
+            "held from the previous pose to this one, so dt_s must be the difference of their stamps"
+        )
+    return record.stamp_s
+
+
+def read_log(path: str | os.PathLike[str]) -> RunLog:
+    """Read and validate a run log.
+
+    Raises :class:`LogFormatError` at the first bad line, carrying the records before it
+    in ``partial``. A last line without a newline that is not valid JSON (a recording cut
+    off mid-line) is dropped and reported in :attr:`RunLog.truncated` instead; a complete
+    JSON object on that line is checked like any other. Observations the header's sensor
+    cannot have made (range outside its limits by more than :data:`SENSOR_LIMIT_SIGMAS` σ,
+    or below half its minimum) are left out of the records and listed in
+    :attr:`RunLog.rejected`.
+    """
+    path = os.fspath(path)
+    try:
+        with open(path, "rb") as f:
+            data = f.read()
+    except OSError as exc:
+        raise FgslamError(f"{path}: cannot open the log ({exc.strerror})") from None
+    lines = _lines(data)
+    del data
+    if not lines:
+        raise LogFormatError(path, 1, "the file is empty; a run log starts with a header line")
+    header: Header | None = None
+    records: list[Record] = []
+    rejected: list[Rejected] = []
+    limits: tuple[float | None, float | None] = (None, None)
+    last_stamp = -math.inf
+    truncated: str | None = None
+    pose_stamp = -math.inf  # stamp of the latest pose (3-D logs: velocity_odometry.dt_s must span from it)
+    for number, raw, ended in lines:
+        try:
+            d = _loads(_decode(raw, number))
+            if header is None:
+                header = parse_header(d)
+                limits = sensor_range_limits(header)
+                last_stamp = pose_stamp = header.stamp_s
+                continue
+            if d.get("type") == "header":
+                raise _BadLine("a second header; a log holds one run — split the file")
+            _check_dimension(d.get("type"), header)
+            record = parse_record(d)
+            stamp = getattr(record, "stamp_s", None)
+            if stamp is not None:
+                if stamp < last_stamp:
+                    raise _BadLine(
+                        f"stamp_s {stamp!r} goes back in time (previous {last_stamp!r}); "
+                        "records must be written in time order"
+                    )
+                last_stamp = stamp
+            if header.is_3d:
+                pose_stamp = _check_interval(record, pose_stamp)
+            if isinstance(record, Observation):
+                outside = _outside_sensor(record, *limits)
+                if outside is not None:
+                    reason, message = outside
+                    rejected.append(Rejected(number, reason, f"{path}:{number}: {message}", record))
+                    continue
+            records.append(record)
+        except _BadLine as bad:
+            if isinstance(bad, _NotJson) and number == len(lines) and not ended and header is not None:
+                truncated = (
+                    f"{path}:{number}: the last line is cut off (recording interrupted?); "
+                    f"using the {number - 1} complete lines before it"
+                )
+                break
+            partial = None if header is None else RunLog(path, header, tuple(records), None, tuple(rejected))
+            raise LogFormatError(path, number, str(bad), partial) from None
+    assert header is not None
+    return RunLog(path, header, tuple(records), truncated, tuple(rejected))

@@ -1,0 +1,270 @@
+"""The run log's records as frozen dataclasses, and how they group into per-pose steps.
+
+The format is specified in docs/log-format.md; :mod:`slamio.log` has the overview.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Iterable, Union
+
+import numpy as np
+
+FORMAT_NAME = "fgslam-run-log"
+#: The newest version this reader reads; version 2 added the 3-D logs (slamio.log3d).
+FORMAT_VERSION = 2
+#: Every version it reads. A planar log is written as version 1.
+VERSIONS = (1, 2)
+PLANAR_VERSION = 1
+UNITS = {"length": "m", "angle": "rad", "time": "s"}
+
+
+Matrix3 = tuple[tuple[float, float, float], tuple[float, float, float], tuple[float, float, float]]
+
+
+@dataclass(frozen=True)
+class Header:
+    """First line of a log: what produced it and the models needed to interpret it.
+
+    ``start_pose`` is pose 0 in the world frame (x_m, y_m, theta_rad) and ``start_sigma``
+    the standard deviations of the prior on it; a real run usually starts at (0, 0, 0),
+    which defines the world frame. ``robot``, ``sensor`` and ``noise`` describe the
+    hardware and the noise models in JSON objects (required keys in docs/log-format.md);
+    ``source`` says how the log was made (command line, seed, recorder version).
+
+    A 3-D log (version 2) has ``start_pose3`` = ``(x_m, y_m, z_m, qx, qy, qz, qw)`` of
+    world_T_imu at pose 0 and ``start_sigma3`` (3 lengths in m, 3 rotation angles in rad,
+    a right perturbation); its ``start_pose`` and ``start_sigma`` then hold the top view
+    ``(x, y, yaw)`` and ``(σx, σy, σ_rz)`` for code that only needs a planar summary.
+    """
+
+    stamp_s: float
+    start_pose: tuple[float, float, float]
+    start_sigma: tuple[float, float, float]
+    robot: dict[str, Any]
+    sensor: dict[str, Any]
+    noise: dict[str, Any]
+    source: dict[str, Any] = field(default_factory=dict)
+    version: int = PLANAR_VERSION
+    start_pose3: tuple[float, ...] | None = None
+    start_sigma3: tuple[float, ...] | None = None
+
+    @property
+    def is_3d(self) -> bool:
+        """True for a 3-D log (SE(3) poses, stereo observations, velocity odometry)."""
+        return self.start_pose3 is not None
+
+
+@dataclass(frozen=True)
+class Odometry:
+    """Motion since the previous odometry reading, ending a step and starting a new pose.
+
+    ``dx_m, dy_m, dtheta_rad`` is the SE(2) increment expressed in the frame of the
+    previous pose (x forward, y left). ``covariance`` is its 3×3 covariance over
+    (dx, dy, dtheta). ``distance_m``/``angle_rad`` optionally keep the Create's own reading
+    (distance travelled by the centre and heading change, counter-clockwise) that the
+    increment was computed from with the arc model.
+    """
+
+    stamp_s: float
+    dx_m: float
+    dy_m: float
+    dtheta_rad: float
+    covariance: Matrix3
+    distance_m: float | None = None
+    angle_rad: float | None = None
+
+
+@dataclass(frozen=True)
+class Observation:
+    """One landmark seen from the current pose, in the robot frame.
+
+    ``landmark_id`` is ``None`` when the front-end cannot tell which landmark it is.
+    ``bearing_rad`` is counter-clockwise from the robot's x (forward) axis. ``height_m`` is
+    the landmark's height above the floor (seed 002); ``tag_yaw_rad`` the direction the
+    tag's face points to, relative to the robot's x axis (seed 004). Each measured value
+    carries its standard deviation.
+
+    A **range-only** observation (a ranging radio, Plaza) has ``bearing_rad`` and
+    ``sigma_bearing_rad`` None (:attr:`range_only`); it needs a ``landmark_id``-aware
+    estimator that can place a landmark from ranges alone (delayed initialisation).
+
+    ``truth_landmark_id`` is ground truth, not a measurement: which landmark this really
+    is, kept when ``landmark_id`` is hidden (``fgslam sim --hide-ids``) so that data
+    association can be scored. Estimators must never read it.
+    """
+
+    stamp_s: float
+    landmark_id: int | None
+    range_m: float
+    bearing_rad: float | None
+    sigma_range_m: float
+    sigma_bearing_rad: float | None
+    height_m: float | None = None
+    sigma_height_m: float | None = None
+    tag_yaw_rad: float | None = None
+    sigma_tag_yaw_rad: float | None = None
+    truth_landmark_id: int | None = None
+
+    @property
+    def range_only(self) -> bool:
+        """True for a range-only observation (no bearing)."""
+        return self.bearing_rad is None
+
+
+@dataclass(frozen=True)
+class TruthPose:
+    """Ground truth of the current pose (simulation, motion capture)."""
+
+    stamp_s: float
+    x_m: float
+    y_m: float
+    theta_rad: float
+
+
+@dataclass(frozen=True)
+class TruthLandmark:
+    """Ground truth of one landmark: position, optional height and facing direction."""
+
+    landmark_id: int
+    x_m: float
+    y_m: float
+    height_m: float | None = None
+    yaw_rad: float | None = None
+
+
+@dataclass(frozen=True)
+class LiveStep:
+    """How long the live loop's smoother took for one pose (``fgslam live``).
+
+    Written by the live loop after the smoother consumed pose ``pose_index``;
+    ``latency_s`` is the wall-clock time of that smoother step. Estimators ignore it.
+    """
+
+    stamp_s: float
+    pose_index: int
+    latency_s: float
+
+
+Record = Union[Odometry, Observation, TruthPose, TruthLandmark, LiveStep, Any]  # Any: the 3-D records (slamio.log3d)
+
+_TYPE_OF = {
+    Odometry: "odometry",
+    Observation: "observation",
+    TruthPose: "truth_pose",
+    TruthLandmark: "truth_landmark",
+    LiveStep: "live_step",
+}
+_CLASS_OF = {name: cls for cls, name in _TYPE_OF.items()}
+#: Record types of a planar log and of a 3-D log (live_step is in both).
+_PLANAR_TYPES = ("odometry", "observation", "truth_pose", "truth_landmark", "live_step")
+_TYPES_3D = ("velocity_odometry", "stereo_observation", "truth_pose3", "truth_landmark3", "live_step")
+
+
+# --------------------------------------------------------------------------- steps
+
+
+@dataclass(frozen=True)
+class Step:
+    """Everything an estimator consumes at one pose.
+
+    Step 0 is the start pose (``odometry`` is None); step k ≥ 1 begins with the k-th
+    odometry record. ``observations`` and ``truth`` are those logged while this pose was
+    the latest one.
+    """
+
+    index: int
+    stamp_s: float
+    odometry: Odometry | None
+    observations: tuple[Observation, ...]
+    truth: TruthPose | None
+
+
+@dataclass(frozen=True)
+class Rejected:
+    """An observation the reader left out of :attr:`RunLog.records` (see :func:`read_log`).
+
+    ``line`` is its line in the file, ``reason`` a short key for counting (the same for
+    every observation rejected for the same reason), ``message`` the full
+    ``file:line: ...`` explanation and ``record`` the observation itself.
+    """
+
+    line: int
+    reason: str
+    message: str
+    record: Observation
+
+
+@dataclass(frozen=True)
+class RunLog:
+    """A log as read: header, records in file order, and notes on what was not used.
+
+    ``truncated`` says when the last line was cut off and dropped; ``rejected`` lists the
+    observations left out of ``records`` because the sensor cannot have made them (so no
+    estimator sees them); :meth:`rejection_summary` puts them in one line.
+    """
+
+    path: str
+    header: Header
+    records: tuple[Record, ...]
+    truncated: str | None = None
+    rejected: tuple[Rejected, ...] = ()
+
+    def rejection_summary(self) -> str | None:
+        """One line counting the rejected observations by reason, or None when there are none."""
+        if not self.rejected:
+            return None
+        by_reason: dict[str, list[int]] = {}
+        for r in self.rejected:
+            by_reason.setdefault(r.reason, []).append(r.line)
+        parts = []
+        for reason, lines in by_reason.items():
+            where = f"line {lines[0]}" if len(lines) == 1 else f"lines {lines[0]}, ..., {lines[-1]}"
+            parts.append(f"{len(lines)} {reason} ({where})")
+        n = len(self.rejected)
+        return (
+            f"{self.path}: {n} observation{'s' if n != 1 else ''} rejected and kept from the estimators: "
+            + "; ".join(parts)
+        )
+
+    def steps(self) -> list[Step]:
+        """Group the records into per-pose steps (see :class:`Step`)."""
+        return group_steps(self.header, self.records)
+
+    def truth_landmarks(self) -> dict[int, TruthLandmark]:
+        return {r.landmark_id: r for r in self.records if isinstance(r, TruthLandmark)}
+
+    def has_full_truth(self) -> bool:
+        """True when every pose has a ground-truth pose."""
+        steps = self.steps()
+        return bool(steps) and all(s.truth is not None for s in steps)
+
+
+def group_steps(header: Header, records: Iterable[Record]) -> list[Step]:
+    """Group records into steps: pose 0 at the header's start, one new pose per odometry.
+
+    In a 3-D log ``velocity_odometry`` starts a pose, ``stereo_observation`` records are
+    its observations and ``truth_pose3`` its truth.
+    """
+    from slamio.log3d import StereoObservation, TruthPose3, VelocityOdometry
+
+    steps: list[Step] = []
+    stamp, odometry, observations, truth = header.stamp_s, None, [], None
+    for record in records:
+        if isinstance(record, (Odometry, VelocityOdometry)):
+            steps.append(Step(len(steps), stamp, odometry, tuple(observations), truth))
+            stamp, odometry, observations, truth = record.stamp_s, record, [], None
+        elif isinstance(record, (Observation, StereoObservation)):
+            observations.append(record)
+        elif isinstance(record, (TruthPose, TruthPose3)):
+            truth = record
+    steps.append(Step(len(steps), stamp, odometry, tuple(observations), truth))
+    return steps
+
+
+def as_matrix3(m: Any) -> Matrix3:
+    """A 3×3 array-like as the nested tuple of floats that records hold."""
+    a = np.asarray(m, dtype=float)
+    if a.shape != (3, 3):
+        raise ValueError(f"expected a 3×3 matrix, got shape {a.shape}")
+    return tuple(tuple(float(v) for v in row) for row in a)  # type: ignore[return-value]
