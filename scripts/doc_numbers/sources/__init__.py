@@ -6,7 +6,8 @@ from __future__ import annotations
 from doc_numbers.quotes import Source
 from doc_numbers.sources.experiments import (MRCLAM6, RGBD_REAL, SEED003, apriltag_photos, camera_accuracy,
                                              colour_real, exact_models_nees, live_band, live_laps, mrclam_dataset6,
-                                             mrclam_dataset6_adaptive, mrclam_dataset6_hidden, mrclam_dataset6_motor_lens,
+                                             mrclam_dataset6_adaptive, mrclam_dataset6_camera, mrclam_dataset6_hidden,
+                                             mrclam_dataset6_motor_lens,
                                              plaza_range_model,
                                              real_corner_sigma, seed001_association, seed002_shapes, seed003_drives,
                                              seed004_paths)
@@ -63,6 +64,8 @@ SOURCES = [
            "--open-loop --sim", "slow", mrclam_dataset6_adaptive, shared=MRCLAM6),
     Source("mrclam6-motor-lens", "python scripts/mrclam_motor_lens_tried.py ../shared/data/mrclam/MRCLAM_Dataset6",
            "cheap", mrclam_dataset6_motor_lens, shared=MRCLAM6),
+    Source("mrclam6-camera", "python scripts/mrclam_camera_tried.py ../shared/data/mrclam/MRCLAM_Dataset6",
+           "slow", mrclam_dataset6_camera, shared=MRCLAM6),
     Source("mrclam6-hidden", "python scripts/bench_association_mrclam.py ../shared/data/mrclam/MRCLAM_Dataset6 "
            "--estimators ekf,ekf-fej,isam2",
            "long", mrclam_dataset6_hidden, shared=MRCLAM6),

@@ -175,6 +175,24 @@ def mrclam_dataset6_adaptive(context: Context) -> dict:
     return result
 
 
+def mrclam_dataset6_camera(context: Context) -> dict:
+    """``scripts/mrclam_camera_tried.py SHARED/data/mrclam/MRCLAM_Dataset6``: the readings'
+    error correlations by time and by place in the picture, and the per-run picture-error
+    oracle (robot keys as ints)."""
+    import contextlib
+    import io
+    import json
+
+    import mrclam_camera_tried as script
+
+    out = context.scratch / "mrclam6_camera.json"
+    with contextlib.redirect_stdout(io.StringIO()):
+        script.main([str(context.shared / MRCLAM6), "--json", str(out)])
+    result = json.loads(out.read_text(encoding="utf-8"))
+    result["oracle"] = {(int(k) if k.isdigit() else k): v for k, v in result["oracle"].items()}
+    return result
+
+
 def mrclam_dataset6_motor_lens(context: Context) -> dict:
     """``scripts/mrclam_motor_lens_tried.py SHARED/data/mrclam/MRCLAM_Dataset6``: the motor-lag
     and lens-distortion fits (robot keys as ints)."""

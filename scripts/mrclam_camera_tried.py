@@ -1,0 +1,244 @@
+"""MRCLAM: where a reading's error comes from — the place in the picture, per camera.
+
+docs/datasets-mrclam-rosbag.md ("Consistency and accuracy: what was tried") quotes this
+script's output. The product models the readings' error as white noise plus a Gauss–Markov
+part in *time* (``correlated_share``, ``correlation_time_s``). Against Vicon this script asks
+what the correlated part depends on, and what knowing it would be worth:
+
+1. ``pairs``: the correlation of two readings' errors (range and bearing, each run's own
+   scale and bias removed and divided by the fitted σ, as ``fgslam calibrate`` fits them;
+   the model pooled over all robots, which only describes the data here), binned three ways:
+   readings of one landmark by the time between them; readings of one landmark less than
+   0.5 s apart, and 2–8 s apart, by how far the landmark moved in the picture (|Δ bearing|); and readings of
+   *different* landmarks in the same run less than 30 s apart, by |Δ bearing|.
+2. ``oracle``: each robot imported with the noise model fitted on the other four (as
+   ``scripts/bench_mrclam.py``), then each reading corrected by a cubic in its bearing fitted
+   to *its own run's* errors against Vicon (robust: refitted inside 5 robust σ) — a camera
+   calibrated perfectly on the run it is scored on, which no product may do. Printed: the
+   range and bearing RMS against Vicon before and after, and the ATE (anchored and
+   SE(2)-aligned) of ``ekf`` and ``isam2`` on both logs: what a per-camera model of the
+   picture's errors could buy at most.
+
+Usage::
+
+    .venv/bin/python scripts/mrclam_camera_tried.py ../shared/data/mrclam/MRCLAM_Dataset6 [pairs|oracle ...]
+
+``pairs`` takes seconds, ``oracle`` a few minutes.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import math  # noqa: E402
+import sys  # noqa: E402
+from dataclasses import replace  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import numpy as np  # noqa: E402
+
+from bench_mrclam import leave_one_out, raw_logs, score_robot  # noqa: E402
+from slamio.geometry import wrap_angle  # noqa: E402
+from slamio.log import Observation, RunLog  # noqa: E402
+from slamio.noise_fit import (  # noqa: E402
+    GATE_SIGMAS, _log_data, _mad_sigma, _residuals_about_own_lines, _true_range_bearing, fit_noise_model,
+    turn_rate_radps,
+)
+
+#: Bins of the time between two readings of one landmark (s).
+TIME_BINS_S = (0.0, 0.5, 2.0, 8.0, 32.0, 64.0)
+#: Bins of how far a landmark moved in the picture between two readings (|Δ bearing|, rad).
+PICTURE_BINS_RAD = (0.0, 0.005, 0.02, 0.05, 0.1, 0.3, math.pi)
+#: Readings of different landmarks are paired when less than this far apart in time (s).
+CROSS_WINDOW_S = 30.0
+#: The oracle's correction: a polynomial of this degree in the measured bearing.
+ORACLE_DEGREE = 3
+ESTIMATORS = ("ekf", "isam2")
+
+
+# ----------------------------------------------------------------------------- pairs
+
+
+def normalised_errors(raw: dict[int, RunLog]) -> dict[str, np.ndarray]:
+    """Every reading with truth: its run, landmark, time, true bearing and (range, bearing)
+    error over σ, about its run's own scale and bias (``slamio.noise_fit``'s residuals)."""
+    model = fit_noise_model(list(raw.values()))
+    obs, odo = model.observation, model.odometry
+    datas = [_log_data(log) for log in raw.values()]
+    parts = [_true_range_bearing(d, obs.camera_latency_s) for d in datas]
+    rm, bm, r, b, t = (np.concatenate([p[j] for p in parts]) for j in range(5))
+    landmark = np.unique(np.vstack([p[5] for p in parts]), axis=0, return_inverse=True)[1].ravel()
+    run = np.concatenate([np.full(len(p[0]), j) for j, p in enumerate(parts)])
+    omega = np.concatenate([odo.turn_scale * turn_rate_radps(d.chain, p[4] - odo.lag_s) for d, p in zip(datas, parts)])
+    along = r * np.cos(b) if obs.range_is_depth else r
+    res_r = _residuals_about_own_lines(along, rm, run, (obs.range_scale, obs.range_bias_m))
+    res_b = _residuals_about_own_lines(b, bm, run, (obs.bearing_scale, obs.bearing_bias_rad))
+    inlier = (np.abs(res_r) <= GATE_SIGMAS * _mad_sigma(res_r)) & (np.abs(res_b) <= GATE_SIGMAS * _mad_sigma(res_b))
+    sigma_r = np.array([obs.sigma_range_m(float(v)) for v in r])
+    sigma_b = np.array([obs.sigma_bearing_rad(float(w)) for w in omega])
+    z = np.column_stack([res_r / sigma_r, res_b / sigma_b])
+    return {"run": run[inlier], "landmark": landmark[inlier], "t": t[inlier], "b": b[inlier], "z": z[inlier]}
+
+
+def _pairs(e: dict[str, np.ndarray], same_landmark: bool, max_dt_s: float) -> np.ndarray:
+    """(Δt, |Δb|, z_a·z_b for range and bearing, z_a², z_b² for both) of every pair of
+    readings in one run less than ``max_dt_s`` apart, of the same landmark or of different ones."""
+    order = np.lexsort((e["t"], e["run"]))
+    run, lm, t, b, z = (e[k][order] for k in ("run", "landmark", "t", "b", "z"))
+    rows = []
+    for shift in range(1, len(t)):
+        dt = t[shift:] - t[:-shift]
+        same_run = run[shift:] == run[:-shift]
+        if not (same_run & (dt < max_dt_s)).any():
+            break
+        same = lm[shift:] == lm[:-shift]
+        ok = same_run & (dt < max_dt_s) & (same if same_landmark else ~same)
+        a = np.flatnonzero(ok)
+        c = a + shift
+        rows.append(np.column_stack([dt[ok], np.abs(wrap_angle(b[c] - b[a])), z[a] * z[c], z[a] ** 2, z[c] ** 2]))
+    return np.vstack(rows) if rows else np.zeros((0, 8))
+
+
+def _binned(pairs: np.ndarray, column: int, edges, mask=None) -> list[dict]:
+    """Correlation of the range and of the bearing errors per bin of ``pairs[:, column]``."""
+    out = []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        m = (pairs[:, column] >= lo) & (pairs[:, column] < hi)
+        if mask is not None:
+            m &= mask
+        p = pairs[m]
+        if len(p) < 30:
+            continue
+        corr = [float(p[:, 2 + j].sum() / math.sqrt(p[:, 4 + j].sum() * p[:, 6 + j].sum())) for j in range(2)]
+        out.append({"low": lo, "high": hi, "pairs": int(len(p)), "range": corr[0], "bearing": corr[1]})
+    return out
+
+
+def pairs_report(raw: dict[int, RunLog]) -> dict:
+    e = normalised_errors(raw)
+    same = _pairs(e, True, TIME_BINS_S[-1])
+    cross = _pairs(e, False, CROSS_WINDOW_S)
+    result = {
+        "by_time": _binned(same, 0, TIME_BINS_S),
+        "by_picture_within_0_5s": _binned(same, 1, PICTURE_BINS_RAD, mask=same[:, 0] < 0.5),
+        "by_picture_2_to_8s": _binned(same, 1, PICTURE_BINS_RAD, mask=(same[:, 0] >= 2.0) & (same[:, 0] < 8.0)),
+        "other_landmarks_by_picture": _binned(cross, 1, PICTURE_BINS_RAD),
+    }
+    for name, rows, unit in (("one landmark, by time apart", result["by_time"], "s"),
+                             ("one landmark < 0.5 s apart, by |Δ bearing|", result["by_picture_within_0_5s"], "rad"),
+                             ("one landmark 2–8 s apart, by |Δ bearing|", result["by_picture_2_to_8s"], "rad"),
+                             (f"other landmarks < {CROSS_WINDOW_S:g} s apart, by |Δ bearing|",
+                              result["other_landmarks_by_picture"], "rad")):
+        print(f"correlation of two readings' errors (range, bearing): {name}")
+        for row in rows:
+            print(f"  {row['low']:g}–{row['high']:.3g} {unit}: {row['range']:+.2f}, {row['bearing']:+.2f} "
+                  f"({row['pairs']} pairs)")
+    return result
+
+
+# ----------------------------------------------------------------------------- oracle
+
+
+def picture_errors(log: RunLog) -> np.ndarray:
+    """(measured bearing, range error m, bearing error rad) of every reading against Vicon."""
+    surveyed = {i: (t.x_m, t.y_m) for i, t in log.truth_landmarks().items()}
+    rows = []
+    for step in log.steps():
+        if step.truth is None:
+            continue
+        for o in step.observations:
+            if o.landmark_id not in surveyed or o.bearing_rad is None:
+                continue
+            dx, dy = surveyed[o.landmark_id][0] - step.truth.x_m, surveyed[o.landmark_id][1] - step.truth.y_m
+            rows.append((o.bearing_rad, o.range_m - math.hypot(dx, dy),
+                         float(wrap_angle(o.bearing_rad - (math.atan2(dy, dx) - step.truth.theta_rad)))))
+    return np.array(rows).reshape(-1, 3)
+
+
+def robust_polyfit(x: np.ndarray, y: np.ndarray, degree: int) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares polynomial, refitted inside 5 robust σ of its residuals: (coefficients, inliers)."""
+    keep = np.ones(len(x), bool)
+    for _ in range(4):
+        coef = np.polyfit(x[keep], y[keep], degree)
+        res = y - np.polyval(coef, x)
+        keep = np.abs(res - np.median(res[keep])) <= GATE_SIGMAS * max(_mad_sigma(res[keep]), 1e-12)
+    return coef, keep
+
+
+def corrected(log: RunLog, range_coef: np.ndarray, bearing_coef: np.ndarray) -> RunLog:
+    """The log with every reading's picture error (the polynomials in its bearing) taken out."""
+    records = []
+    for r in log.records:
+        if isinstance(r, Observation) and r.bearing_rad is not None:
+            r = replace(r, range_m=r.range_m - float(np.polyval(range_coef, r.bearing_rad)),
+                        bearing_rad=float(wrap_angle(r.bearing_rad - np.polyval(bearing_coef, r.bearing_rad))))
+        records.append(r)
+    return RunLog(log.path + " (picture errors removed)", log.header, tuple(records))
+
+
+def oracle_report(folder: str, raw: dict[int, RunLog]) -> dict:
+    result = {}
+    for k in raw:
+        header, records, _ = leave_one_out(folder, k, raw)
+        log = RunLog(f"robot{k}", header, tuple(records))
+        err = picture_errors(log)
+        range_coef, keep_r = robust_polyfit(err[:, 0], err[:, 1], ORACLE_DEGREE)
+        bearing_coef, keep_b = robust_polyfit(err[:, 0], err[:, 2], ORACLE_DEGREE)
+        keep = keep_r & keep_b
+        after_r = err[:, 1] - np.polyval(range_coef, err[:, 0])
+        after_b = err[:, 2] - np.polyval(bearing_coef, err[:, 0])
+        row = {"range_rms_m": [float(np.sqrt(np.mean(v[keep] ** 2))) for v in (err[:, 1], after_r)],
+               "bearing_rms_rad": [float(np.sqrt(np.mean(v[keep] ** 2))) for v in (err[:, 2], after_b)]}
+        for variant, scored in (("model", log), ("oracle", corrected(log, range_coef, bearing_coef))):
+            runs = score_robot(scored, list(ESTIMATORS))
+            row[variant] = {n: {"ate_m": runs[n]["ate_final_m"], "ate_aligned_m": runs[n]["ate_final_aligned_m"]}
+                            for n in ESTIMATORS}
+        result[k] = row
+        print(f"robot {k}: range RMS {row['range_rms_m'][0]:.3f} → {row['range_rms_m'][1]:.3f} m, bearing RMS "
+              f"{row['bearing_rms_rad'][0]:.4f} → {row['bearing_rms_rad'][1]:.4f} rad; "
+              + "; ".join(f"{n} ATE {row['model'][n]['ate_m']:.3f} → {row['oracle'][n]['ate_m']:.3f} m, aligned "
+                          f"{row['model'][n]['ate_aligned_m']:.3f} → {row['oracle'][n]['ate_aligned_m']:.3f} m"
+                          for n in ESTIMATORS), flush=True)
+    robots = list(result)
+    result["median"] = {}
+    for n in ESTIMATORS:
+        med = {v: {m: float(np.median([result[k][v][n][m] for k in robots])) for m in ("ate_m", "ate_aligned_m")}
+               for v in ("model", "oracle")}
+        result["median"][n] = med
+        print(f"median {n}: ATE {med['model']['ate_m']:.3f} → {med['oracle']['ate_m']:.3f} m, aligned "
+              f"{med['model']['ate_aligned_m']:.3f} → {med['oracle']['ate_aligned_m']:.3f} m")
+    return result
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("folder", help="an MRCLAM dataset folder")
+    parser.add_argument("parts", nargs="*", metavar="pairs|oracle", help="what to run (default: both)")
+    parser.add_argument("--json", default=None, metavar="FILE", help="write every figure here")
+    args = parser.parse_args(argv)
+    parts = args.parts or ["pairs", "oracle"]
+    unknown = sorted(set(parts) - {"pairs", "oracle"})
+    if unknown:
+        parser.error(f"unknown part(s) {', '.join(unknown)}: choose pairs and/or oracle")
+    if not os.path.exists(os.path.join(args.folder, "Robot1_Odometry.dat")):
+        parser.error(f"{args.folder}: no Robot1_Odometry.dat here; give an MRCLAM dataset folder")
+    raw = raw_logs(args.folder)
+    result = {}
+    if "pairs" in parts:
+        result["pairs"] = pairs_report(raw)
+    if "oracle" in parts:
+        result["oracle"] = oracle_report(args.folder, raw)
+    if args.json:
+        Path(args.json).write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
