@@ -211,3 +211,16 @@ QUOTES += [
           4: _oracle_median("isam2", "model", "ate_m"), 5: _oracle_median("isam2", "oracle", "ate_m"),
           6: _oracle_median("ekf", "model", "ate_m"), 7: _oracle_median("ekf", "oracle", "ate_m")}),
 ]
+
+_PRODUCT, _PICTURE, _PICTURE_SLOW = ("product (decay in time)", "decay in time and picture",
+                                     "decay in time and picture, ρ 0.7, τ 40 s")
+
+QUOTES += [
+    *row(DATASETS, "bearing, where the correlations above halve), the median NIS share moves from 89.6 to\n"
+         "  90.1 % (90.6 % with ρ 0.7 and τ 40 s) and the median ATE from 0.221 to 0.212 m", CAMERA,
+         "camera: EKF with a picture decay",
+         {0: lambda r: 100 * r["ekf"]["median"][_PRODUCT]["nis_inside"],
+          1: lambda r: 100 * r["ekf"]["median"][_PICTURE]["nis_inside"],
+          2: lambda r: 100 * r["ekf"]["median"][_PICTURE_SLOW]["nis_inside"],
+          5: lambda r: r["ekf"]["median"][_PRODUCT]["ate_m"], 6: lambda r: r["ekf"]["median"][_PICTURE]["ate_m"]}),
+]

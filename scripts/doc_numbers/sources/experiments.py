@@ -177,8 +177,8 @@ def mrclam_dataset6_adaptive(context: Context) -> dict:
 
 def mrclam_dataset6_camera(context: Context) -> dict:
     """``scripts/mrclam_camera_tried.py SHARED/data/mrclam/MRCLAM_Dataset6``: the readings'
-    error correlations by time and by place in the picture, and the per-run picture-error
-    oracle (robot keys as ints)."""
+    error correlations by time and by place in the picture, the per-run picture-error oracle
+    and the EKF with a picture decay (robot keys as ints)."""
     import contextlib
     import io
     import json
@@ -189,7 +189,8 @@ def mrclam_dataset6_camera(context: Context) -> dict:
     with contextlib.redirect_stdout(io.StringIO()):
         script.main([str(context.shared / MRCLAM6), "--json", str(out)])
     result = json.loads(out.read_text(encoding="utf-8"))
-    result["oracle"] = {(int(k) if k.isdigit() else k): v for k, v in result["oracle"].items()}
+    for part in ("oracle", "ekf"):
+        result[part] = {(int(k) if k.isdigit() else k): v for k, v in result[part].items()}
     return result
 
 
