@@ -4,7 +4,6 @@ the shipped MRCLAM excerpt (three real robots)."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
 import os
@@ -12,6 +11,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+
+from builders import load_script
 
 from slamio.log import Observation, RunLog, read_log
 
@@ -22,11 +23,7 @@ ARENA = os.path.join(HERE, "..", "data", "arena_octagon.jsonl")
 
 @pytest.fixture(scope="module")
 def script():
-    path = os.path.join(HERE, "..", "scripts", "mrclam_camera_tried.py")
-    spec = importlib.util.spec_from_file_location("mrclam_camera_tried", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("mrclam_camera_tried")
 
 
 def test_the_bins_give_the_correlation_the_pairs_were_drawn_with(script):

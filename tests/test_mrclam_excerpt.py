@@ -20,6 +20,8 @@ from slamio.datasets.mrclam import import_mrclam
 from slamio.log import RunLog, read_log
 from slamio.noise_fit import fit_noise_model
 
+from builders import load_script
+
 EXCERPT = os.path.join(os.path.dirname(__file__), "data", "mrclam_excerpt")
 
 
@@ -134,12 +136,7 @@ def test_a_missing_noise_file_is_one_clear_line(tmp_path, capsys):
 
 def test_the_real_robot_benchmark_script_runs_on_the_excerpt(tmp_path, capsys):
     """scripts/bench_mrclam.py end to end (leave-one-out over the excerpt's three robots)."""
-    import importlib.util
-
-    path = os.path.join(os.path.dirname(__file__), "..", "scripts", "bench_mrclam.py")
-    spec = importlib.util.spec_from_file_location("bench_mrclam", path)
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_script("bench_mrclam")
     out = tmp_path / "bench.json"
     assert bench.main([EXCERPT, "--estimators", "ekf,isam2", "--json", str(out), "--figure", str(tmp_path / "f.png")]) == 0
     table = capsys.readouterr().out
@@ -203,19 +200,12 @@ def test_hidden_barcodes_the_smoother_settles_rejected_readings_at_the_end():
 
 
 @pytest.mark.slow
-def test_the_hidden_barcode_benchmark_scores_both_estimators_against_the_bound(tmp_path, capsys, monkeypatch):
+def test_the_hidden_barcode_benchmark_scores_both_estimators_against_the_bound(tmp_path, capsys):
     """scripts/bench_association_mrclam.py on the excerpt's robot 3 (noise fitted on robots 1
     and 2): every reading is correct, wrong or unused; "ambiguous" is part of "rejected"; and
     the bound with the Vicon pose and the surveyed map splits the readings into right,
     ambiguous and wrong (its right share at most the nearest-is-the-barcode share)."""
-    import importlib.util
-
-    scripts = os.path.join(os.path.dirname(__file__), "..", "scripts")
-    monkeypatch.syspath_prepend(scripts)  # it imports bench_mrclam, as when run from there
-    path = os.path.join(scripts, "bench_association_mrclam.py")
-    spec = importlib.util.spec_from_file_location("bench_association_mrclam", path)
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_script("bench_association_mrclam")  # it imports bench_mrclam, as when run from scripts/
     out = tmp_path / "hidden.json"
     assert bench.main([EXCERPT, "--robots", "3", "--json", str(out)]) == 0
     table = capsys.readouterr().out

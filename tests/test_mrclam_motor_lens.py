@@ -3,7 +3,6 @@ whole script on the shipped MRCLAM excerpt (three real robots)."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
 import os
@@ -11,17 +10,15 @@ import os
 import numpy as np
 import pytest
 
+from builders import load_script
+
 HERE = os.path.dirname(__file__)
 EXCERPT = os.path.join(HERE, "data", "mrclam_excerpt")
 
 
 @pytest.fixture(scope="module")
 def script():
-    path = os.path.join(HERE, "..", "scripts", "mrclam_motor_lens_tried.py")
-    spec = importlib.util.spec_from_file_location("mrclam_motor_lens_tried", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("mrclam_motor_lens_tried")
 
 
 def test_a_pure_delay_shifts_the_command_by_whole_grid_steps(script):
