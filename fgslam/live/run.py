@@ -1,0 +1,169 @@
+"""Assembling a live run: the simulated camera (a render of seed 004's arena tags) and its
+measured noise, and :func:`run_live`, which wires the recorder, the workers and the loop."""
+
+from __future__ import annotations
+
+import time
+from typing import Callable
+
+import numpy as np
+
+from fgslam.live.loop import LiveLoop, LiveResult
+from fgslam.live.steering import LiveSettings, PoseTracker, WaypointFollower
+from fgslam.live.workers import CameraWorker, Lockstep, SmootherWorker
+from slamio.errors import FgslamError
+from slamio.log import Odometry, Step, TruthLandmark
+
+
+#: What the AprilTag front-end reports from :func:`simulated_camera`'s frames (640×480, the
+#: Kinect's intrinsics, rendered with pixel noise σ 2 grey levels and no supersampling):
+#: σ_bearing constant, σ_range = c·r² (:class:`slamio.camera.detect.NoiseModel`). Measured by
+#: ``scripts/measure_live_camera.py`` on frames rendered at poses drawn along the octagon and
+#: square paths (RMS errors against the truth, outliers included), not on the runs it is
+#: then checked with (docs/camera.md, "The simulated live camera").
+#: Two draws of 400 frames (seeds 0 and 1): bearing 0.404 / 0.396 mrad, c 3.98 / 3.85 mm/m².
+LIVE_SIM_SIGMA_BEARING_RAD = 4.0e-4
+LIVE_SIM_RANGE_SIGMA_PER_M2 = 4.0e-3  # for LIVE_SIM_TAG_SIZE_M; c grows as 1/tag size
+LIVE_SIM_TAG_SIZE_M = 0.16
+#: The tag yaw's σ of those frames: RMS 0.070 / 0.121 rad over the same draws. IPPE's yaw of
+#: a near-frontal tag is heavy-tailed (a flipped solution now and then), so this is a
+#: second moment, not a Gaussian's width.
+LIVE_SIM_SIGMA_TAG_YAW_RAD = 0.1
+
+
+def live_sim_tag_noise(tag_size_m: float = LIVE_SIM_TAG_SIZE_M):
+    """The :class:`slamio.camera.detect.NoiseModel` of :func:`simulated_camera`'s observations
+    for tags of ``tag_size_m`` (a tag's apparent size, and so its range error, scales with it)."""
+    from slamio.camera.detect import NoiseModel
+
+    c = LIVE_SIM_RANGE_SIGMA_PER_M2 * LIVE_SIM_TAG_SIZE_M / tag_size_m
+    return NoiseModel(0.0, 0.0, c, LIVE_SIM_SIGMA_BEARING_RAD, None, LIVE_SIM_SIGMA_TAG_YAW_RAD)
+
+
+def arena_tag_scene(tag_size_m: float = 0.16):
+    """Seed 004's eight arena tags as a render :class:`slamio.camera.render.Scene`."""
+    from slamio.camera.render import Scene, TagSpec
+    from slamio.sim import TAG_HEIGHT_M, arena_tags
+
+    world = arena_tags()
+    return Scene(tags=tuple(
+        TagSpec(i, float(x), float(y), TAG_HEIGHT_M, float(yaw), size_m=tag_size_m)
+        for i, ((x, y), yaw) in enumerate(zip(world.landmarks_xy, world.yaws_rad))
+    ))
+
+
+def live_sim_camera(mount_height_m: float = 0.2):
+    """The simulated live camera: the Kinect's intrinsics on the robot's centre, looking ahead."""
+    from slamio.camera.model import T_robot_camera_from_mount, kinect_v1_default
+
+    return kinect_v1_default(T_robot_camera_from_mount(0.0, 0.0, mount_height_m))
+
+
+def simulated_camera(sim, *, supersample: int = 1, pixel_noise: float = 2.0, seed: int = 0,
+                     tag_size_m: float = 0.16, mount_height_m: float = 0.2):
+    """The camera of a hardware-in-the-loop run: seed 004's eight arena tags rendered from
+    the simulated Create's true pose at the instant each pose is made. Its observations
+    carry the noise those frames have (:func:`live_sim_tag_noise`), so a replay of the log
+    is consistent.
+
+    Returns ``(grab_for, front_end, truth_landmarks)``: ``grab_for(index, odometry,
+    true_pose=None)`` takes ``true_pose`` (the truth the live loop has just written) or
+    snapshots the true pose now (in the control loop) and returns the grabber that renders
+    it (run in the camera worker); ``truth_landmarks`` are the tags as log records.
+    """
+    from slamio.camera.detect import FrontEnd, FrontEndConfig
+    from slamio.camera.render import render
+    from slamio.camera.sources import Frame
+
+    scene = arena_tag_scene(tag_size_m)
+    camera = live_sim_camera(mount_height_m)
+    front_end = FrontEnd(camera, FrontEndConfig(tag_size_m=tag_size_m, noise=live_sim_tag_noise(tag_size_m)))
+    rng = np.random.default_rng(seed)  # used only in the camera worker
+
+    def grab_for(index: int, odometry: Odometry, true_pose=None):
+        pose = sim.true_pose if true_pose is None else true_pose  # now, or the truth the loop just wrote
+
+        def grab():
+            frame = render(camera, pose, scene, supersample=supersample, noise_sigma=pixel_noise, rng=rng)
+            return Frame(odometry.stamp_s, index, f"sim:{index}", frame.bgr, frame.depth_m)
+
+        return grab
+
+    truth_landmarks = [TruthLandmark(t.tag_id, t.x_m, t.y_m, t.z_m, t.yaw_rad) for t in scene.tags]
+    return grab_for, front_end, truth_landmarks
+
+
+def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front_end=None,
+             settings: LiveSettings = LiveSettings(), smoother=None, truth=None, truth_landmarks=(),
+             clock: Callable[[], float] = time.monotonic, sensor: dict | None = None,
+             observation_noise: dict | None = None, odometry_noise=None, on_step=None,
+             lockstep: Lockstep | None = None) -> LiveResult:
+    """Drive ``waypoints`` on the robot behind ``link`` with iSAM2 in the loop; log to
+    ``out_path``. ``grab_for``/``front_end`` give the camera (None: odometry only);
+    ``smoother`` defaults to :class:`fgslam.smoother.Isam2Smoother` (its defaults: an update
+    every 10 poses, the online correction in between).
+    ``on_step(index, smoother, latency_s, loop)`` is called in the smoother worker after
+    each pose (the CLI's status line and map; ``loop`` is the :class:`LiveLoop` with its
+    frame counts). ``odometry_noise`` (an :class:`slamio.create.odometry.OdometryNoise`) is
+    the odometry noise the log states; None: the recorder's nominal model.
+    ``observation_noise`` is the header's observation-model entry; None: the front-end's
+    noise model (every observation record carries its own σ either way).
+
+    ``lockstep`` (simulation only, :class:`Lockstep`) gives every frame and smoother step a
+    fixed budget of robot time, so how fast this machine renders, detects and smooths
+    changes the run's wall time, never what happens in robot time. On a real robot time
+    does not stop: leave it None."""
+    from fgslam.smoother import Isam2Smoother
+    from slamio.create.record import RecorderSettings, record
+    from slamio.log import Header
+
+    start_pose = tuple(float(v) for v in start_pose)
+    if lockstep is not None and not lockstep.frame_s < settings.frame_timeout_s:
+        raise FgslamError(f"lockstep frame budget {lockstep.frame_s} s must be below frame_timeout_s "
+                          f"{settings.frame_timeout_s} s")
+    if smoother is None:
+        header = Header(stamp_s=0.0, start_pose=start_pose, start_sigma=(1e-3, 1e-3, 1e-3),  # as the recorder's
+                        robot={"name": "live"}, sensor={"kind": "live"}, noise={"odometry": {}, "observation": {}})
+        smoother = Isam2Smoother(header)
+    tracker = PoseTracker(start_pose)
+    camera = None
+    if grab_for is not None and front_end is not None:
+        camera = CameraWorker(lambda frame: front_end.process(frame).observations, lockstep=lockstep)
+    def step_hook(index, smoother_, latency):
+        on_step(index, smoother_, latency, loop)
+
+    worker = SmootherWorker(smoother, tracker, step_hook if on_step is not None else None, lockstep=lockstep)
+    loop = LiveLoop(tracker, camera, worker, grab_for, settings, truth, truth_landmarks, lockstep=lockstep)
+    worker.submit(Step(0, 0.0, None, (), None))  # pose 0: the start pose (lockstep: the clock stands already)
+    follower = WaypointFollower(waypoints, tracker.current, settings, on_advance=tracker.advance)
+    recorder = RecorderSettings(speed_m_s=settings.speed_m_s, turn_rate_rad_s=settings.turn_rate_rad_s,
+                                accel_m_s2=settings.accel_m_s2, record_period_s=settings.record_period_s,
+                                command_timeout_s=settings.command_timeout_s, data_timeout_s=settings.data_timeout_s)
+    sensor = sensor or {"kind": "range-bearing", "landmark_kind": "apriltag" if camera else "none",
+                        "source": "fgslam live"}
+    if observation_noise is None and camera is not None and getattr(front_end, "noise", None) is not None:
+        # the header states the σ the front-end gives each observation (each record carries its own)
+        observation_noise = {**front_end.noise.describe(), "source": "the camera front-end's noise model"}
+    try:
+        result = record(link, out_path, follower, settings=recorder, clock=clock, hooks=loop,
+                        start_pose=start_pose, sensor=sensor, observation_noise=observation_noise,
+                        noise=odometry_noise,
+                        source={"generator": "fgslam.live", "waypoints": np.asarray(waypoints).tolist()})
+    finally:
+        loop.close()
+    if worker.error is not None:  # after the last record: the recorder did not see it
+        raise FgslamError(f"live loop: {type(worker.error).__name__}: {worker.error}") from worker.error
+    smoother.finish()
+    return LiveResult(
+        record=result,
+        final_pose=tuple(float(v) for v in smoother.current_pose()),  # type: ignore[arg-type]
+        poses=loop.poses,
+        frames_requested=loop.frames_requested,
+        frames_used=loop.frames_used,
+        frames_skipped=loop.frames_skipped,
+        frames_dropped=loop.frames_dropped,
+        observations=loop.observations,
+        latencies_s=np.array(worker.latencies_s),
+        frame_seconds=np.array(camera.frame_seconds if camera else []),
+        landmarks=dict(smoother.landmarks()),
+    )
