@@ -96,6 +96,7 @@ import math
 import os
 import re
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -467,6 +468,127 @@ def _read_run_log(path: str, reader, connections) -> tuple[Header, list[Record]]
     return log.header, list(log.records)
 
 
+def _check_options(tag_normal_axis: str, start_from: str, truth_topic: str | None, odom_min_period_s: float,
+                   **positive: float) -> None:
+    """:func:`import_rosbag`'s options that the bag does not decide; ``positive``: the σ and gaps."""
+    if tag_normal_axis not in ("+z", "-z"):
+        raise FgslamError(f"tag_normal_axis must be '+z' or '-z', got {tag_normal_axis!r}")
+    if start_from not in ("odom", "truth", "zero"):
+        raise FgslamError(f"start_from must be 'odom', 'truth' or 'zero', got {start_from!r}")
+    if start_from == "truth" and truth_topic is None:
+        raise FgslamError("start_from='truth' needs a truth_topic")
+    for name, value in positive.items():
+        if not (math.isfinite(value) and value > 0.0):
+            raise FgslamError(f"{name} must be a positive number, got {value!r}")
+    if not (math.isfinite(odom_min_period_s) and odom_min_period_s >= 0.0):
+        raise FgslamError(f"odom_min_period_s must be >= 0, got {odom_min_period_s!r}")
+
+
+def _robot_camera_transform(T_robot_camera: Any) -> np.ndarray:
+    """The camera's pose on the robot as a checked 4×4 (default: :data:`T_ROBOT_OPTICAL`)."""
+    T_rc = T_ROBOT_OPTICAL.copy() if T_robot_camera is None else np.asarray(T_robot_camera, dtype=float)
+    if T_rc.shape != (4, 4) or not np.allclose(T_rc[:3, :3] @ T_rc[:3, :3].T, np.eye(3), atol=1e-6) \
+            or not np.allclose(T_rc[3], [0, 0, 0, 1]) or np.linalg.det(T_rc[:3, :3]) < 0:
+        raise FgslamError("T_robot_camera must be a 4x4 rigid transform (orthonormal rotation, det +1, last row 0 0 0 1)")
+    return T_rc
+
+
+def _checked_topics(path: str, topics, odom_topic: str, detections_topic: str | None, tag_pose_topic: str | None,
+                    truth_topic: str | None) -> dict[str, int]:
+    """Check that every topic asked for is in the bag with a type we read; the tag pose
+    topics found under ``tag_pose_topic`` with their tag ids."""
+    _check_topic(path, topics, odom_topic, _ODOMETRY_TYPES, "the robot's odometry")
+    if detections_topic is not None:
+        # any package's AprilTagDetectionArray with apriltag_ros's fields (forks add fields)
+        msgtype = topics[detections_topic].msgtype if detections_topic in topics else None
+        accepted = (msgtype,) if msgtype and msgtype.endswith("/AprilTagDetectionArray") else (_DETECTION_ARRAY_TYPE,)
+        _check_topic(path, topics, detections_topic, accepted, "tag detections")
+    tag_topics: dict[str, int] = {}
+    if tag_pose_topic is not None:
+        pattern = re.compile(re.escape(tag_pose_topic) + r"\D*?(\d+)\Z")
+        for name in sorted(topics):
+            m = pattern.match(name)
+            if m:
+                _check_topic(path, topics, name, _POSE_TYPES, "one tag's pose in the camera frame")
+                tag_topics[name] = int(m.group(1))
+        if not tag_topics:
+            raise BagFormatError(
+                path, tag_pose_topic + "<id>",
+                "no topic starts with this prefix and ends in a tag id; expected one "
+                f"geometry_msgs/PoseStamped topic per tag such as {tag_pose_topic}0; the bag's topics: "
+                f"{', '.join(sorted(topics))}",
+            )
+    if truth_topic is not None:
+        _check_topic(path, topics, truth_topic, _TRUTH_TYPES, "ground-truth poses")
+    return tag_topics
+
+
+@dataclass
+class _Messages:
+    """What a bag's topics hold, in time order (stamps in ns)."""
+
+    odometry: list[tuple[int, tuple[float, float, float], np.ndarray]]  # (stamp, pose, 3×3 covariance of x, y, yaw)
+    truth: list[tuple[int, tuple[float, float, float]]]
+    sightings: list[tuple[int, int, Any, Any]]  # (stamp, tag id, position, quaternion) in the camera frame
+    dropped: dict[str, int]
+
+
+def _read_messages(path: str, reader, odom_topic: str, detections_topic: str | None, truth_topic: str | None,
+                   tag_topics: dict[str, int], use_header_stamps: bool) -> _Messages:
+    """Decode every message of the topics used; a message that cannot be used is a
+    :class:`BagFormatError` naming its topic and index."""
+    wanted = {odom_topic, detections_topic, truth_topic, *tag_topics} - {None}
+    connections = [c for c in reader.connections if c.topic in wanted]
+    odometry: list[tuple[int, tuple[float, float, float], np.ndarray]] = []
+    truth: list[tuple[int, tuple[float, float, float]]] = []
+    sightings: list[tuple[int, int, Any, Any]] = []  # (stamp, tag id, position, quaternion)
+    dropped = {"tag_bundles": 0, "zero_range": 0, "before_first_odometry": 0, "after_last_odometry": 0}
+    counts = {t: 0 for t in wanted}
+    for connection, bag_time, raw in reader.messages(connections=connections):
+        topic = connection.topic
+        counts[topic] += 1
+        index = counts[topic]
+        try:
+            msg = reader.deserialize(raw, connection.msgtype)
+        except Exception as exc:
+            raise BagFormatError(path, topic, f"cannot be decoded as {connection.msgtype} ({exc})", index) from None
+        stamp = _stamp_ns(msg, bag_time, use_header_stamps)
+        if topic == odom_topic:
+            pose = _planar(msg.pose.pose)
+            C = np.asarray(msg.pose.covariance, dtype=float).reshape(6, 6)[np.ix_((0, 1, 5), (0, 1, 5))]
+            if not all(math.isfinite(v) for v in pose):
+                raise BagFormatError(path, topic, f"pose {pose} is not finite", index)
+            odometry.append((stamp, pose, C))
+        elif topic == truth_topic:
+            truth.append((stamp, _planar(_pose_of(msg))))
+        elif topic == detections_topic:
+            detections = getattr(msg, "detections", None)
+            if detections is None or (detections and not hasattr(detections[0], "pose")):
+                raise BagFormatError(
+                    path, topic,
+                    f"{connection.msgtype} has no detections[].pose; expected apriltag_ros's "
+                    "AprilTagDetectionArray (id[], size[], pose). The ROS 2 apriltag_msgs detections "
+                    "carry no pose (that node puts tag poses on /tf): record one PoseStamped per tag "
+                    "and use tag_pose_topic",
+                    index,
+                )
+            for d in detections:
+                ids = [int(i) for i in d.id]
+                if len(ids) != 1:
+                    dropped["tag_bundles"] += 1
+                    continue
+                p = d.pose.pose.pose
+                sightings.append((stamp, ids[0], (p.position.x, p.position.y, p.position.z),
+                                  (p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)))
+        else:
+            p = _pose_of(msg)
+            sightings.append((stamp, tag_topics[topic], (p.position.x, p.position.y, p.position.z),
+                              (p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)))
+    for messages in (odometry, truth, sightings):
+        messages.sort(key=lambda m: m[0])
+    return _Messages(odometry, truth, sightings, dropped)
+
+
 def import_rosbag(
     path: str | os.PathLike[str],
     *,
@@ -507,23 +629,10 @@ def import_rosbag(
 
     path = os.fspath(path)
     bag, ros_version = _bag_paths(path)
-    if tag_normal_axis not in ("+z", "-z"):
-        raise FgslamError(f"tag_normal_axis must be '+z' or '-z', got {tag_normal_axis!r}")
-    if start_from not in ("odom", "truth", "zero"):
-        raise FgslamError(f"start_from must be 'odom', 'truth' or 'zero', got {start_from!r}")
-    if start_from == "truth" and truth_topic is None:
-        raise FgslamError("start_from='truth' needs a truth_topic")
-    for name, value in (("sigma_range_m", sigma_range_m), ("sigma_bearing_rad", sigma_bearing_rad),
-                        ("sigma_tag_yaw_rad", sigma_tag_yaw_rad), ("sigma_height_m", sigma_height_m),
-                        ("max_truth_gap_s", max_truth_gap_s)):
-        if not (math.isfinite(value) and value > 0.0):
-            raise FgslamError(f"{name} must be a positive number, got {value!r}")
-    if not (math.isfinite(odom_min_period_s) and odom_min_period_s >= 0.0):
-        raise FgslamError(f"odom_min_period_s must be >= 0, got {odom_min_period_s!r}")
-    T_rc = T_ROBOT_OPTICAL.copy() if T_robot_camera is None else np.asarray(T_robot_camera, dtype=float)
-    if T_rc.shape != (4, 4) or not np.allclose(T_rc[:3, :3] @ T_rc[:3, :3].T, np.eye(3), atol=1e-6) \
-            or not np.allclose(T_rc[3], [0, 0, 0, 1]) or np.linalg.det(T_rc[:3, :3]) < 0:
-        raise FgslamError("T_robot_camera must be a 4x4 rigid transform (orthonormal rotation, det +1, last row 0 0 0 1)")
+    _check_options(tag_normal_axis, start_from, truth_topic, odom_min_period_s,
+                   sigma_range_m=sigma_range_m, sigma_bearing_rad=sigma_bearing_rad,
+                   sigma_tag_yaw_rad=sigma_tag_yaw_rad, sigma_height_m=sigma_height_m, max_truth_gap_s=max_truth_gap_s)
+    T_rc = _robot_camera_transform(T_robot_camera)
     noise = odometry_noise if odometry_noise is not None else CommandOdometryNoise()
     normal_sign = 1.0 if tag_normal_axis == "+z" else -1.0
 
@@ -547,85 +656,14 @@ def import_rosbag(
                 f"no {RUN_LOG_TOPIC} topic (the bag was not written by fgslam export), so name the "
                 f"odometry topic (nav_msgs/Odometry); candidates: {', '.join(candidates) or '(none)'}",
             )
-        _check_topic(path, topics, odom_topic, _ODOMETRY_TYPES, "the robot's odometry")
-        if detections_topic is not None:
-            # any package's AprilTagDetectionArray with apriltag_ros's fields (forks add fields)
-            msgtype = topics[detections_topic].msgtype if detections_topic in topics else None
-            accepted = (msgtype,) if msgtype and msgtype.endswith("/AprilTagDetectionArray") else (_DETECTION_ARRAY_TYPE,)
-            _check_topic(path, topics, detections_topic, accepted, "tag detections")
-        tag_topics: dict[str, int] = {}
-        if tag_pose_topic is not None:
-            pattern = re.compile(re.escape(tag_pose_topic) + r"\D*?(\d+)\Z")
-            for name in sorted(topics):
-                m = pattern.match(name)
-                if m:
-                    _check_topic(path, topics, name, _POSE_TYPES, "one tag's pose in the camera frame")
-                    tag_topics[name] = int(m.group(1))
-            if not tag_topics:
-                raise BagFormatError(
-                    path, tag_pose_topic + "<id>",
-                    "no topic starts with this prefix and ends in a tag id; expected one "
-                    f"geometry_msgs/PoseStamped topic per tag such as {tag_pose_topic}0; the bag's topics: "
-                    f"{', '.join(sorted(topics))}",
-                )
-        if truth_topic is not None:
-            _check_topic(path, topics, truth_topic, _TRUTH_TYPES, "ground-truth poses")
-
-        wanted = {odom_topic, detections_topic, truth_topic, *tag_topics} - {None}
-        connections = [c for c in reader.connections if c.topic in wanted]
-        odometry: list[tuple[int, tuple[float, float, float], np.ndarray]] = []
-        truth: list[tuple[int, tuple[float, float, float]]] = []
-        sightings: list[tuple[int, int, Any, Any]] = []  # (stamp, tag id, position, quaternion)
-        dropped = {"tag_bundles": 0, "zero_range": 0, "before_first_odometry": 0, "after_last_odometry": 0}
-        counts = {t: 0 for t in wanted}
-        for connection, bag_time, raw in reader.messages(connections=connections):
-            topic = connection.topic
-            counts[topic] += 1
-            index = counts[topic]
-            try:
-                msg = reader.deserialize(raw, connection.msgtype)
-            except Exception as exc:
-                raise BagFormatError(path, topic, f"cannot be decoded as {connection.msgtype} ({exc})", index) from None
-            stamp = _stamp_ns(msg, bag_time, use_header_stamps)
-            if topic == odom_topic:
-                pose = _planar(msg.pose.pose)
-                C = np.asarray(msg.pose.covariance, dtype=float).reshape(6, 6)[np.ix_((0, 1, 5), (0, 1, 5))]
-                if not all(math.isfinite(v) for v in pose):
-                    raise BagFormatError(path, topic, f"pose {pose} is not finite", index)
-                odometry.append((stamp, pose, C))
-            elif topic == truth_topic:
-                truth.append((stamp, _planar(_pose_of(msg))))
-            elif topic == detections_topic:
-                detections = getattr(msg, "detections", None)
-                if detections is None or (detections and not hasattr(detections[0], "pose")):
-                    raise BagFormatError(
-                        path, topic,
-                        f"{connection.msgtype} has no detections[].pose; expected apriltag_ros's "
-                        "AprilTagDetectionArray (id[], size[], pose). The ROS 2 apriltag_msgs detections "
-                        "carry no pose (that node puts tag poses on /tf): record one PoseStamped per tag "
-                        "and use tag_pose_topic",
-                        index,
-                    )
-                for d in detections:
-                    ids = [int(i) for i in d.id]
-                    if len(ids) != 1:
-                        dropped["tag_bundles"] += 1
-                        continue
-                    p = d.pose.pose.pose
-                    sightings.append((stamp, ids[0], (p.position.x, p.position.y, p.position.z),
-                                      (p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)))
-            else:
-                p = _pose_of(msg)
-                sightings.append((stamp, tag_topics[topic], (p.position.x, p.position.y, p.position.z),
-                                  (p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)))
+        tag_topics = _checked_topics(path, topics, odom_topic, detections_topic, tag_pose_topic, truth_topic)
+        messages = _read_messages(path, reader, odom_topic, detections_topic, truth_topic, tag_topics, use_header_stamps)
     finally:
         reader.close()
 
+    odometry, truth, sightings, dropped = messages.odometry, messages.truth, messages.sightings, messages.dropped
     if not odometry:
         raise BagFormatError(path, odom_topic, "has no messages; expected nav_msgs/Odometry poses of the robot")
-    odometry.sort(key=lambda m: m[0])
-    truth.sort(key=lambda m: m[0])
-    sightings.sort(key=lambda m: m[0])
     if odom_min_period_s > 0.0:
         thinned = [odometry[0]]
         for m in odometry[1:-1]:
