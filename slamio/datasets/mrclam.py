@@ -389,6 +389,153 @@ def _sha256(path: str) -> str:
 # --------------------------------------------------------------------------- import
 
 
+def _read_barcodes(path: str) -> dict[int, int]:
+    """``Barcodes.dat``: subject of each barcode (both directions unique)."""
+    subject_of_barcode: dict[int, int] = {}
+    seen_subjects: set[int] = set()
+    for number, (subject, barcode) in _read_table(path, "barcodes", integer_columns=(0, 1)):
+        subject, barcode = int(subject), int(barcode)
+        if subject in seen_subjects:
+            raise DatasetFormatError(path, number, f"subject {subject} is listed twice; each subject has one barcode")
+        if barcode in subject_of_barcode:
+            raise DatasetFormatError(
+                path, number,
+                f"barcode {barcode} is already subject {subject_of_barcode[barcode]}'s; a barcode names one subject",
+            )
+        seen_subjects.add(subject)
+        subject_of_barcode[barcode] = subject
+    if not subject_of_barcode:
+        raise DatasetFormatError(path, 1, f"no data lines; expected the layout {_layout('barcodes')}")
+    return subject_of_barcode
+
+
+def _read_landmarks(path: str) -> tuple[list[TruthLandmark], dict[str, list[float]]]:
+    """``Landmark_Groundtruth.dat``: the surveyed landmarks and their stated std-devs."""
+    truth_landmarks: list[TruthLandmark] = []
+    landmark_std: dict[str, list[float]] = {}
+    for number, (subject, x, y, x_std, y_std) in _read_table(path, "landmarks", integer_columns=(0,)):
+        lid = int(subject)
+        if lid in ROBOT_SUBJECTS:
+            raise DatasetFormatError(
+                path, number, f"subject {lid} is a robot (1-5), not a landmark (6-20)"
+            )
+        if str(lid) in landmark_std:
+            raise DatasetFormatError(path, number, f"landmark {lid} is listed twice")
+        truth_landmarks.append(TruthLandmark(landmark_id=lid, x_m=x, y_m=y))
+        landmark_std[str(lid)] = [x_std, y_std]
+    return truth_landmarks, landmark_std
+
+
+def _read_commands(path: str, model: NoiseModel | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """``RobotN_Odometry.dat``: command times and commanded (v, ω) with the zero blips filled
+    (and the blips' count); with a fitted ``model``, the motion they caused: later by its lag,
+    scaled, curving by its turn per metre."""
+    odo_rows = _read_table(path, "odometry")
+    _check_time_order(path, "odometry", odo_rows)
+    if len(odo_rows) < 2:
+        raise DatasetFormatError(
+            path, odo_rows[-1][0] if odo_rows else 1,
+            f"fewer than two odometry lines; a run needs at least two (layout {_layout('odometry')})",
+        )
+    odo = np.array([v for _, v in odo_rows])
+    t_odo = odo[:, 0]
+    v_cmd, w_cmd, zero_blips = fill_zero_blips(t_odo, odo[:, 1], odo[:, 2], MAX_ZERO_BLIP_S)
+    if model is not None:  # the motion the commands caused: later, and scaled
+        t_odo = t_odo + model.odometry.lag_s
+        v_cmd = v_cmd * model.odometry.forward_scale
+        w_cmd = w_cmd * model.odometry.turn_scale + model.odometry.turn_per_m_rad * v_cmd
+    return t_odo, v_cmd, w_cmd, zero_blips
+
+
+def _read_groundtruth(path: str) -> tuple[np.ndarray, np.ndarray]:
+    """``RobotN_Groundtruth.dat``: Vicon's times and (x, y, θ)."""
+    gt_rows = _read_table(path, "groundtruth")
+    _check_time_order(path, "groundtruth", gt_rows)
+    if not gt_rows:
+        raise DatasetFormatError(path, 1, f"no data lines; expected the layout {_layout('groundtruth')}")
+    gt = np.array([v for _, v in gt_rows])
+    t_gt, gt_poses = gt[:, 0], gt[:, 1:4]
+    return t_gt, gt_poses
+
+
+def _noise_description(noise: CommandOdometryNoise | OdometryNoiseRates, model: NoiseModel | None,
+                       sigma_range_m: float, sigma_bearing_rad: float) -> dict:
+    """The header's ``noise``: the round defaults, or the fitted model applied."""
+    return {
+        "odometry": {
+            "model": (
+                "commands (v, w) held until the next command, integrated as exact arcs; each "
+                "stretch adds independent forward/sideways/heading errors in its start frame with "
+                "variances forward_m2_per_m*|ds| + forward_m2_per_s*dt, lateral_m2_per_m*|ds| + "
+                "lateral_m2_per_s*dt, heading_rad2_per_rad*|dtheta| + heading_rad2_per_m*|ds| + "
+                "heading_rad2_per_s*dt, propagated to first order through the composition; "
+                "round numbers, not fitted to the data"
+            ),
+            **asdict(noise),
+        },
+        "observation": {
+            "model": "constant sigmas (options of the importer), not fitted to the data",
+            "sigma_range_m": sigma_range_m,
+            "sigma_bearing_rad": sigma_bearing_rad,
+        },
+    } if model is None else {
+        "odometry": {
+            "model": (
+                "commands (v, w) held until the next command, delayed by lag_s and scaled "
+                "by forward_scale/turn_scale, integrated as exact arcs; per-stretch variance "
+                "rates as in slamio.noise_model.OdometryNoiseRates; fitted by fgslam calibrate"
+            ),
+            "lag_s": model.odometry.lag_s,
+            "forward_scale": model.odometry.forward_scale,
+            "turn_scale": model.odometry.turn_scale,
+            "turn_per_m_rad": model.odometry.turn_per_m_rad,
+            **asdict(noise),
+        },
+        "observation": {
+            "model": (
+                "readings corrected by slamio.noise_model.correct_observation (depth to range, "
+                "scale, bias); per-reading sigmas from range and turn rate; fitted by fgslam calibrate"
+            ),
+            **asdict(model.observation),
+        },
+        "fitted_on": list(model.fitted_on),
+    }
+
+
+def _kept_readings(rows, subject_of_barcode: dict[int, int], start: float, end: float, latency_s: float,
+                   t_odo: np.ndarray, v_cmd: np.ndarray, w_cmd: np.ndarray):
+    """The readings of ``RobotN_Measurement.dat`` (``rows``) that become observations, at their
+    picture's time (``latency_s`` earlier), as ``(time, landmark id, range, bearing)``; and
+    the counts of those dropped, by reason, and of each unknown barcode."""
+    dropped = {"robot_sightings": 0, "unknown_barcodes": 0, "outside_run": 0, "non_positive_range": 0,
+               "uncorrectable": 0, "stale_repeats": 0}
+    # commanded travel so far (|v|·dt + |ω|·dt) at each command time: did the robot move?
+    travel = np.concatenate([[0.0], np.cumsum((np.abs(v_cmd[:-1]) + np.abs(w_cmd[:-1])) * np.diff(t_odo))])
+    last_reading: dict[int, tuple[float, float, float]] = {}  # barcode -> (time, range, bearing)
+    unknown_barcodes: dict[str, int] = {}
+    kept: list[tuple[float, int, float, float]] = []  # (file time, landmark id, range, bearing)
+    # in time order (stable: same-time sightings keep their file order), so "the previous
+    # reading of this barcode" means the one before in time
+    for number, (t, barcode, range_m, bearing_rad) in sorted(rows, key=lambda row: row[1][0]):
+        t = t - latency_s  # the time the picture was taken
+        subject = subject_of_barcode.get(int(barcode))
+        if subject is None:
+            dropped["unknown_barcodes"] += 1
+            unknown_barcodes[str(int(barcode))] = unknown_barcodes.get(str(int(barcode)), 0) + 1
+        elif subject in ROBOT_SUBJECTS:
+            dropped["robot_sightings"] += 1
+        elif not (start <= t <= end):
+            dropped["outside_run"] += 1
+        elif not range_m > 0.0:
+            dropped["non_positive_range"] += 1
+        elif _is_stale_repeat(last_reading.get(int(barcode)), t, range_m, bearing_rad, t_odo, travel):
+            dropped["stale_repeats"] += 1
+        else:
+            kept.append((t, subject, range_m, bearing_rad))
+        last_reading[int(barcode)] = (t, range_m, bearing_rad)
+    return kept, dropped, unknown_barcodes
+
+
 def import_mrclam(
     folder: str | os.PathLike[str],
     robot: int = 1,
@@ -451,60 +598,13 @@ def import_mrclam(
         "groundtruth": os.path.join(folder, f"Robot{robot}_Groundtruth.dat"),
     }
 
-    # ---- Barcodes.dat: subject -> barcode, both directions unique
-    subject_of_barcode: dict[int, int] = {}
-    seen_subjects: set[int] = set()
-    for number, (subject, barcode) in _read_table(paths["barcodes"], "barcodes", integer_columns=(0, 1)):
-        subject, barcode = int(subject), int(barcode)
-        if subject in seen_subjects:
-            raise DatasetFormatError(paths["barcodes"], number, f"subject {subject} is listed twice; each subject has one barcode")
-        if barcode in subject_of_barcode:
-            raise DatasetFormatError(
-                paths["barcodes"], number,
-                f"barcode {barcode} is already subject {subject_of_barcode[barcode]}'s; a barcode names one subject",
-            )
-        seen_subjects.add(subject)
-        subject_of_barcode[barcode] = subject
-    if not subject_of_barcode:
-        raise DatasetFormatError(paths["barcodes"], 1, f"no data lines; expected the layout {_layout('barcodes')}")
+    subject_of_barcode = _read_barcodes(paths["barcodes"])
 
-    # ---- Landmark_Groundtruth.dat
-    truth_landmarks: list[TruthLandmark] = []
-    landmark_std: dict[str, list[float]] = {}
-    for number, (subject, x, y, x_std, y_std) in _read_table(paths["landmarks"], "landmarks", integer_columns=(0,)):
-        lid = int(subject)
-        if lid in ROBOT_SUBJECTS:
-            raise DatasetFormatError(
-                paths["landmarks"], number, f"subject {lid} is a robot (1-5), not a landmark (6-20)"
-            )
-        if str(lid) in landmark_std:
-            raise DatasetFormatError(paths["landmarks"], number, f"landmark {lid} is listed twice")
-        truth_landmarks.append(TruthLandmark(landmark_id=lid, x_m=x, y_m=y))
-        landmark_std[str(lid)] = [x_std, y_std]
+    truth_landmarks, landmark_std = _read_landmarks(paths["landmarks"])
 
-    # ---- RobotN_Odometry.dat
-    odo_rows = _read_table(paths["odometry"], "odometry")
-    _check_time_order(paths["odometry"], "odometry", odo_rows)
-    if len(odo_rows) < 2:
-        raise DatasetFormatError(
-            paths["odometry"], odo_rows[-1][0] if odo_rows else 1,
-            f"fewer than two odometry lines; a run needs at least two (layout {_layout('odometry')})",
-        )
-    odo = np.array([v for _, v in odo_rows])
-    t_odo = odo[:, 0]
-    v_cmd, w_cmd, zero_blips = fill_zero_blips(t_odo, odo[:, 1], odo[:, 2], MAX_ZERO_BLIP_S)
-    if model is not None:  # the motion the commands caused: later, and scaled
-        t_odo = t_odo + model.odometry.lag_s
-        v_cmd = v_cmd * model.odometry.forward_scale
-        w_cmd = w_cmd * model.odometry.turn_scale + model.odometry.turn_per_m_rad * v_cmd
+    t_odo, v_cmd, w_cmd, zero_blips = _read_commands(paths["odometry"], model)
 
-    # ---- RobotN_Groundtruth.dat
-    gt_rows = _read_table(paths["groundtruth"], "groundtruth")
-    _check_time_order(paths["groundtruth"], "groundtruth", gt_rows)
-    if not gt_rows:
-        raise DatasetFormatError(paths["groundtruth"], 1, f"no data lines; expected the layout {_layout('groundtruth')}")
-    gt = np.array([v for _, v in gt_rows])
-    t_gt, gt_poses = gt[:, 0], gt[:, 1:4]
+    t_gt, gt_poses = _read_groundtruth(paths["groundtruth"])
     t_gt_list = t_gt.tolist()
 
     # ---- the run's time span and its start pose
@@ -520,35 +620,10 @@ def import_mrclam(
     start_pose = interpolate_pose(t_gt_list, gt_poses, start, math.inf)
     assert start_pose is not None
 
-    # ---- RobotN_Measurement.dat
     meas_rows = _read_table(paths["measurement"], "measurement", integer_columns=(1,))
-    dropped = {"robot_sightings": 0, "unknown_barcodes": 0, "outside_run": 0, "non_positive_range": 0,
-               "uncorrectable": 0, "stale_repeats": 0}
-    # commanded travel so far (|v|·dt + |ω|·dt) at each command time: did the robot move?
-    travel = np.concatenate([[0.0], np.cumsum((np.abs(v_cmd[:-1]) + np.abs(w_cmd[:-1])) * np.diff(t_odo))])
-    last_reading: dict[int, tuple[float, float, float]] = {}  # barcode -> (time, range, bearing)
     latency = model.observation.camera_latency_s if model is not None else 0.0
-    unknown_barcodes: dict[str, int] = {}
-    kept: list[tuple[float, int, float, float]] = []  # (file time, landmark id, range, bearing)
-    # in time order (stable: same-time sightings keep their file order), so "the previous
-    # reading of this barcode" means the one before in time
-    for number, (t, barcode, range_m, bearing_rad) in sorted(meas_rows, key=lambda row: row[1][0]):
-        t = t - latency  # the time the picture was taken
-        subject = subject_of_barcode.get(int(barcode))
-        if subject is None:
-            dropped["unknown_barcodes"] += 1
-            unknown_barcodes[str(int(barcode))] = unknown_barcodes.get(str(int(barcode)), 0) + 1
-        elif subject in ROBOT_SUBJECTS:
-            dropped["robot_sightings"] += 1
-        elif not (start <= t <= end):
-            dropped["outside_run"] += 1
-        elif not range_m > 0.0:
-            dropped["non_positive_range"] += 1
-        elif _is_stale_repeat(last_reading.get(int(barcode)), t, range_m, bearing_rad, t_odo, travel):
-            dropped["stale_repeats"] += 1
-        else:
-            kept.append((t, subject, range_m, bearing_rad))
-        last_reading[int(barcode)] = (t, range_m, bearing_rad)
+    kept, dropped, unknown_barcodes = _kept_readings(meas_rows, subject_of_barcode, start, end, latency,
+                                                     t_odo, v_cmd, w_cmd)
 
     # ---- poses and records
     obs_by_time: dict[float, list[tuple[int, float, float]]] = {}
@@ -616,45 +691,7 @@ def import_mrclam(
             "camera": "monocular, 960x720, aligned with the robot body frame",
             "landmark_ids": "MRCLAM subject numbers 6-20, mapped from barcodes through Barcodes.dat",
         },
-        noise={
-            "odometry": {
-                "model": (
-                    "commands (v, w) held until the next command, integrated as exact arcs; each "
-                    "stretch adds independent forward/sideways/heading errors in its start frame with "
-                    "variances forward_m2_per_m*|ds| + forward_m2_per_s*dt, lateral_m2_per_m*|ds| + "
-                    "lateral_m2_per_s*dt, heading_rad2_per_rad*|dtheta| + heading_rad2_per_m*|ds| + "
-                    "heading_rad2_per_s*dt, propagated to first order through the composition; "
-                    "round numbers, not fitted to the data"
-                ),
-                **asdict(noise),
-            },
-            "observation": {
-                "model": "constant sigmas (options of the importer), not fitted to the data",
-                "sigma_range_m": sigma_range_m,
-                "sigma_bearing_rad": sigma_bearing_rad,
-            },
-        } if model is None else {
-            "odometry": {
-                "model": (
-                    "commands (v, w) held until the next command, delayed by lag_s and scaled "
-                    "by forward_scale/turn_scale, integrated as exact arcs; per-stretch variance "
-                    "rates as in slamio.noise_model.OdometryNoiseRates; fitted by fgslam calibrate"
-                ),
-                "lag_s": model.odometry.lag_s,
-                "forward_scale": model.odometry.forward_scale,
-                "turn_scale": model.odometry.turn_scale,
-                "turn_per_m_rad": model.odometry.turn_per_m_rad,
-                **asdict(noise),
-            },
-            "observation": {
-                "model": (
-                    "readings corrected by slamio.noise_model.correct_observation (depth to range, "
-                    "scale, bias); per-reading sigmas from range and turn rate; fitted by fgslam calibrate"
-                ),
-                **asdict(model.observation),
-            },
-            "fitted_on": list(model.fitted_on),
-        },
+        noise=_noise_description(noise, model, sigma_range_m, sigma_bearing_rad),
         source={
             "dataset": "utias-mrclam",
             "url": MRCLAM_URL,
