@@ -243,3 +243,21 @@ def test_measured_tag_noise_from_the_command_line_reaches_the_estimators(tmp_pat
     assert main(["run", str(log), "--out", str(out), "--no-report", "--estimators", "ekf,isam2"]) == 0
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["ekf"]["ate_rmse_m"] < 0.05 and metrics["isam2"]["ate_rmse_m"] < 0.05
+
+
+@pytest.mark.parametrize("argv", [
+    ["sim", "arena-octagon", "--seed", "abc", "--out", "x.jsonl"],
+    ["record", "--port", "sim", "--model", "create2", "--out", "r.jsonl", "--speed", "-0.2"],
+    ["nosuchverb"],
+    [],
+])
+def test_a_mistake_in_the_command_line_is_one_error_line_and_status_1(argv, capsys, tmp_path, monkeypatch):
+    """argparse's own errors follow the product's error path: one ``fgslam: error:`` line
+    pointing at the verb's --help, exit status 1 (argparse would print a usage block, exit 2)."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exit_:
+        main(argv)
+    assert exit_.value.code == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("fgslam: error: ") and "--help)" in err
+    assert not list(tmp_path.iterdir())  # nothing written

@@ -52,8 +52,17 @@ typical use:
 VERBS = (sim, run, import_, export, validate, check, bench, detect, tune_colours, record, calibrate, live)
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with fgslam's one error path: a mistake in the command line is one line,
+    ``fgslam: error: ...`` with the verb's ``--help`` to read, and exit status 1 (argparse's
+    own is a usage block and status 2)."""
+
+    def error(self, message: str):  # type: ignore[override]
+        self.exit(1, f"fgslam: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="fgslam", description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--version", action="version", version=f"fgslam {_version()}")
