@@ -11,6 +11,10 @@ from hypothesis import strategies as st
 
 from slamio.errors import FgslamError
 from slamio.log import (
+    COORDINATE_M,
+    INCREMENT_M,
+    INCREMENT_RAD,
+    WORLD_ANGLE_RAD,
     MAX_ID,
     RANGE_M,
     SIGMA_ANGLE_RAD,
@@ -36,6 +40,15 @@ sigma_rad = st.one_of(st.floats(min_value=SIGMA_ANGLE_RAD[0], max_value=SIGMA_AN
 range_m = st.one_of(st.floats(min_value=RANGE_M[0], max_value=RANGE_M[1]), st.sampled_from(RANGE_M))
 angle = st.one_of(st.floats(min_value=-math.pi, max_value=math.pi), st.sampled_from([-math.pi, math.pi]))
 landmark_id = st.one_of(st.integers(0, 10**9), st.just(MAX_ID))
+
+
+def within(limit):
+    """Floats in ±limit, the edges included."""
+    return st.one_of(st.floats(min_value=-limit, max_value=limit), st.sampled_from([-limit, limit]))
+
+
+increment_m, increment_rad = within(INCREMENT_M), within(INCREMENT_RAD)
+coordinate_m, world_angle = within(COORDINATE_M), within(WORLD_ANGLE_RAD)
 json_scalar = st.one_of(st.none(), st.booleans(), st.integers(-(2**53), 2**53), finite, st.text(max_size=8))
 json_object = st.dictionaries(st.text(max_size=6), json_scalar, max_size=3)
 
@@ -81,12 +94,12 @@ def records_in_time_order(draw, start_stamp_s):
             raw = draw(st.booleans())
             out.append(
                 Odometry(
-                    stamp, draw(finite), draw(finite), draw(finite), draw(covariances()),
-                    draw(finite) if raw else None, draw(finite) if raw else None,
+                    stamp, draw(increment_m), draw(increment_m), draw(increment_rad), draw(covariances()),
+                    draw(increment_m) if raw else None, draw(increment_rad) if raw else None,
                 )
             )
         elif kind == "observation":
-            height, sigma_height = optional_pair(draw, finite, sigma_m)
+            height, sigma_height = optional_pair(draw, coordinate_m, sigma_m)
             yaw, sigma_yaw = optional_pair(draw, angle, sigma_rad)
             out.append(
                 Observation(
@@ -96,12 +109,12 @@ def records_in_time_order(draw, start_stamp_s):
                 )
             )
         elif kind == "truth_pose":
-            out.append(TruthPose(stamp, draw(finite), draw(finite), draw(finite)))
+            out.append(TruthPose(stamp, draw(coordinate_m), draw(coordinate_m), draw(world_angle)))
         else:
             out.append(
                 TruthLandmark(
-                    draw(landmark_id), draw(finite), draw(finite),
-                    draw(st.one_of(st.none(), finite)), draw(st.one_of(st.none(), finite)),
+                    draw(landmark_id), draw(coordinate_m), draw(coordinate_m),
+                    draw(st.one_of(st.none(), coordinate_m)), draw(st.one_of(st.none(), world_angle)),
                 )
             )
     return out

@@ -20,6 +20,10 @@ from hypothesis import strategies as st
 
 from fgslam.cli import main
 from slamio.log import (
+    COORDINATE_M,
+    INCREMENT_M,
+    INCREMENT_RAD,
+    WORLD_ANGLE_RAD,
     MAX_ID,
     RANGE_M,
     SIGMA_ANGLE_RAD,
@@ -225,6 +229,37 @@ def test_observation_bounds(tmp_path, capsys, field, inside, outside, words):
     path = write(tmp_path / "out.jsonl", *lines, obs(**{field: outside}))
     expect_error(path, BAD_LINE, f"field '{field}'", words, partial_records=3)
     expect_cli_error(path, BAD_LINE, capsys, f"field '{field}'", words)
+
+
+TRUTH_POSE = json.loads(format_line(TruthPose(0.2, 1.0, 2.0, 0.5)))
+TRUTH_LANDMARK = {"type": "truth_landmark", "landmark_id": 3, "x_m": 1.0, "y_m": 2.0, "height_m": 0.1, "yaw_rad": 0.0}
+RAW_ODO = {**ODO, "distance_m": 0.1, "angle_rad": 0.0}
+#: Magnitude bounds of increments, coordinates and world angles: (record, field, limit).
+MAGNITUDE_BOUNDS = [
+    (ODO, "dx_m", INCREMENT_M), (ODO, "dy_m", INCREMENT_M), (ODO, "dtheta_rad", INCREMENT_RAD),
+    (RAW_ODO, "distance_m", INCREMENT_M), (RAW_ODO, "angle_rad", INCREMENT_RAD),
+    (TRUTH_POSE, "x_m", COORDINATE_M), (TRUTH_POSE, "y_m", COORDINATE_M), (TRUTH_POSE, "theta_rad", WORLD_ANGLE_RAD),
+    (TRUTH_LANDMARK, "x_m", COORDINATE_M), (TRUTH_LANDMARK, "height_m", COORDINATE_M),
+    (TRUTH_LANDMARK, "yaw_rad", WORLD_ANGLE_RAD), (OBS, "height_m", COORDINATE_M),
+]
+
+
+@pytest.mark.parametrize("record, field, limit", MAGNITUDE_BOUNDS, ids=lambda v: v if isinstance(v, str) else None)
+def test_increments_coordinates_and_world_angles_are_bounded(tmp_path, capsys, record, field, limit):
+    """Each value at ±its bound is read; the next float beyond it, and 1e300, are one error
+    naming the field. A 1e30 m odometry step or a 1e300 m truth once crashed `fgslam run`."""
+    for value in (limit, -limit):
+        assert getattr(read_log(log_with(tmp_path, {**record, field: value})).records[-1], field) == value
+    for value in (up(limit), down(-limit), 1e300):
+        path = log_with(tmp_path, {**record, field: value})
+        expect_error(path, BAD_LINE, f"field '{field}'", "beyond", "corrupted", partial_records=3)
+        expect_cli_error(path, BAD_LINE, capsys, f"field '{field}'")
+
+
+@pytest.mark.parametrize("pose", [[up(COORDINATE_M), 0.0, 0.0], [0.0, -1e300, 0.0], [0.0, 0.0, up(WORLD_ANGLE_RAD)]])
+def test_start_pose_is_bounded(tmp_path, pose):
+    path = write(tmp_path / "h.jsonl", {**HDR, "start": {**HDR["start"], "pose": pose}})
+    expect_error(path, 1, "start.pose", "beyond")
 
 
 MAX_VAR, MAX_HEADING_VAR, MIN_EIG = HIGH_M**2, HIGH_RAD**2, LOW_M**2

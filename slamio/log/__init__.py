@@ -39,6 +39,9 @@ The package, one responsibility per file: :mod:`~slamio.log.records` (the record
 """
 
 from slamio.log.fields import (
+    COORDINATE_M,
+    INCREMENT_M,
+    INCREMENT_RAD,
     MAX_HEADING_VARIANCE_RAD2,
     MAX_ID,
     MAX_NESTING,
@@ -48,6 +51,7 @@ from slamio.log.fields import (
     SENSOR_LIMIT_SIGMAS,
     SIGMA_ANGLE_RAD,
     SIGMA_LENGTH_M,
+    WORLD_ANGLE_RAD,
 )
 from slamio.log.read import DT_TOLERANCE_S, LogFormatError, parse_header, parse_record, read_log, sensor_range_limits
 from slamio.log.records import (
@@ -73,6 +77,7 @@ from slamio.log.records import (
 from slamio.log.write import LogWriter, format_line, header_to_dict, record_to_dict, write_log
 
 __all__ = [
+    "COORDINATE_M", "INCREMENT_M", "INCREMENT_RAD", "WORLD_ANGLE_RAD",
     "DT_TOLERANCE_S", "FORMAT_NAME", "FORMAT_VERSION", "MAX_HEADING_VARIANCE_RAD2", "MAX_ID", "MAX_NESTING",
     "MAX_POSITION_VARIANCE_M2", "MIN_COVARIANCE_EIGENVALUE", "PLANAR_VERSION", "RANGE_M", "SENSOR_LIMIT_SIGMAS",
     "SIGMA_ANGLE_RAD", "SIGMA_LENGTH_M", "UNITS", "VERSIONS",

@@ -34,6 +34,19 @@ RANGE_M = (1e-6, 1e4)
 MIN_COVARIANCE_EIGENVALUE = SIGMA_LENGTH_M[0] ** 2
 MAX_POSITION_VARIANCE_M2 = SIGMA_LENGTH_M[1] ** 2
 MAX_HEADING_VARIANCE_RAD2 = SIGMA_ANGLE_RAD[1] ** 2
+#: Odometry increments (m): ``dx_m``, ``dy_m`` and the Create's ``distance_m`` of one record
+#: within ±1 km (100 m/s for 10 s; no ground robot moves that far between two readings).
+INCREMENT_M = 1e3
+#: Turn of one odometry record (rad): ``dtheta_rad`` and ``angle_rad`` within ±1000 rad
+#: (160 turns between two readings).
+INCREMENT_RAD = 1e3
+#: World coordinates (m) of the start pose, truth poses and landmarks, and heights: within
+#: ±10 000 km of the origin (a UTM northing is below that). Squares of them stay far from
+#: float overflow, and a landmark placed 1 m from a robot there is still 1 m away in floats.
+COORDINATE_M = 1e7
+#: Headings and yaws in the world frame (rad): within ±10⁶ rad (unwrapped headings of the
+#: longest runs stay far below).
+WORLD_ANGLE_RAD = 1e6
 #: An observation is rejected when its range is further outside the sensor's
 #: [min_range_m, max_range_m] than this many of its own σ (noise puts a real one just
 #: outside now and then; 5σ happens once in 1.7 million draws) — and below the minimum,
@@ -94,6 +107,20 @@ def _within(key: str, value: float | None, bounds: tuple[float, float], unit: st
     if not lo <= value <= hi:
         raise _BadLine(f"field '{key}' is {value!r}, outside {lo:g}..{hi:g} {unit}: {why}")
     return value
+
+
+def _magnitude(d: dict, key: str, limit: float, unit: str, why: str, *, optional: bool = False) -> float | None:
+    """``d[key]`` as a finite float within ±``limit`` (None when optional and absent)."""
+    value = _finite(d, key, optional=optional)
+    if value is not None and abs(value) > limit:
+        raise _BadLine(f"field '{key}' is {value!r}, beyond ±{limit:g} {unit}: {why}")
+    return value
+
+
+_WHY_INCREMENT = ("one odometry record is the motion between two readings, and no ground robot moves 1 km "
+                  "or turns 1000 rad between two; is the record corrupted, or in other units?")
+_WHY_COORDINATE = "no place on Earth is 10 000 km from a sensible origin; is the value corrupted, or in other units?"
+_WHY_WORLD_ANGLE = "a heading or yaw of a million radians is no angle a run reaches; is the value corrupted?"
 
 
 _WHY_SIGMA_LENGTH = (

@@ -12,7 +12,8 @@ from typing import Any
 
 from slamio.errors import FgslamError
 from slamio.log.fields import (
-    _WHY_RANGE, MAX_ID, RANGE_M, SENSOR_LIMIT_SIGMAS, SIGMA_ANGLE_RAD, SIGMA_LENGTH_M, _angle, _BadLine,
+    _WHY_COORDINATE, _WHY_INCREMENT, _WHY_WORLD_ANGLE, COORDINATE_M, INCREMENT_M, INCREMENT_RAD, WORLD_ANGLE_RAD,
+    _magnitude, _WHY_RANGE, MAX_ID, RANGE_M, SENSOR_LIMIT_SIGMAS, SIGMA_ANGLE_RAD, SIGMA_LENGTH_M, _angle, _BadLine,
     _check_fields, _covariance, _finite, _integer, _NotJson, _number, _object, _paired, _reject_constant, _show,
     _sigma_angle, _sigma_length, _vector3, _within,
 )
@@ -96,7 +97,7 @@ def parse_header(d: dict) -> Header:
         raise _BadLine(f"header field 'sensor.min_range_m' ({low!r}) must be below 'sensor.max_range_m' ({high!r})")
     return Header(
         stamp_s=_finite(start, "stamp_s"),  # type: ignore[arg-type]
-        start_pose=_vector3(start["pose"], "start.pose"),
+        start_pose=_start_pose(start["pose"]),
         start_sigma=sigma,
         robot=_object(d, "robot", ("name",)),
         sensor=sensor,
@@ -104,6 +105,17 @@ def parse_header(d: dict) -> Header:
         source=_object(d, "source") if "source" in d else {},
         version=version,
     )
+
+
+def _start_pose(value: Any) -> tuple[float, float, float]:
+    """``start.pose``: x, y within :data:`COORDINATE_M`, theta within :data:`WORLD_ANGLE_RAD`."""
+    pose = _vector3(value, "start.pose")
+    if max(abs(pose[0]), abs(pose[1])) > COORDINATE_M or abs(pose[2]) > WORLD_ANGLE_RAD:
+        raise _BadLine(
+            f"start.pose {list(pose)!r} is beyond ±{COORDINATE_M:g} m for x, y or ±{WORLD_ANGLE_RAD:g} rad for "
+            f"theta: {_WHY_COORDINATE}"
+        )
+    return pose
 
 
 def _parse_header3(d: dict, version: int) -> Header:
@@ -150,16 +162,17 @@ def parse_record(d: dict) -> Record:
     if kind in log3d.RECORDS_3D:
         return log3d.parse_record3(kind, d)
     if cls is Odometry:
-        distance, angle = _finite(d, "distance_m", optional=True), _finite(d, "angle_rad", optional=True)
+        distance = _magnitude(d, "distance_m", INCREMENT_M, "m", _WHY_INCREMENT, optional=True)
+        angle = _magnitude(d, "angle_rad", INCREMENT_RAD, "rad", _WHY_INCREMENT, optional=True)
         if (distance is None) != (angle is None):
             raise _BadLine("'distance_m' and 'angle_rad' (the Create's reading) go together: give both or neither")
         if "covariance" not in d:
             raise _BadLine("missing field 'covariance' (3×3 over dx, dy, dtheta)")
         return Odometry(
             stamp_s=_finite(d, "stamp_s"),
-            dx_m=_finite(d, "dx_m"),
-            dy_m=_finite(d, "dy_m"),
-            dtheta_rad=_finite(d, "dtheta_rad"),
+            dx_m=_magnitude(d, "dx_m", INCREMENT_M, "m", _WHY_INCREMENT),
+            dy_m=_magnitude(d, "dy_m", INCREMENT_M, "m", _WHY_INCREMENT),
+            dtheta_rad=_magnitude(d, "dtheta_rad", INCREMENT_RAD, "rad", _WHY_INCREMENT),
             covariance=_covariance(d["covariance"]),
             distance_m=distance,
             angle_rad=angle,
@@ -167,7 +180,8 @@ def parse_record(d: dict) -> Record:
     if cls is Observation:
         if "landmark_id" not in d:
             raise _BadLine("missing field 'landmark_id' (an integer, or null when unknown)")
-        height, sigma_height = _finite(d, "height_m", optional=True), _sigma_length(d, "sigma_height_m", optional=True)
+        height = _magnitude(d, "height_m", COORDINATE_M, "m", _WHY_COORDINATE, optional=True)
+        sigma_height = _sigma_length(d, "sigma_height_m", optional=True)
         _paired(height, sigma_height, "height_m", "sigma_height_m")
         yaw, sigma_yaw = _angle(d, "tag_yaw_rad", optional=True), _sigma_angle(d, "sigma_tag_yaw_rad", optional=True)
         _paired(yaw, sigma_yaw, "tag_yaw_rad", "sigma_tag_yaw_rad")
@@ -199,16 +213,16 @@ def parse_record(d: dict) -> Record:
     if cls is TruthPose:
         return TruthPose(
             stamp_s=_finite(d, "stamp_s"),
-            x_m=_finite(d, "x_m"),
-            y_m=_finite(d, "y_m"),
-            theta_rad=_finite(d, "theta_rad"),
+            x_m=_magnitude(d, "x_m", COORDINATE_M, "m", _WHY_COORDINATE),
+            y_m=_magnitude(d, "y_m", COORDINATE_M, "m", _WHY_COORDINATE),
+            theta_rad=_magnitude(d, "theta_rad", WORLD_ANGLE_RAD, "rad", _WHY_WORLD_ANGLE),
         )  # type: ignore[arg-type]
     return TruthLandmark(
         landmark_id=_integer(d, "landmark_id", id_range=True),
-        x_m=_finite(d, "x_m"),
-        y_m=_finite(d, "y_m"),
-        height_m=_finite(d, "height_m", optional=True),
-        yaw_rad=_finite(d, "yaw_rad", optional=True),
+        x_m=_magnitude(d, "x_m", COORDINATE_M, "m", _WHY_COORDINATE),
+        y_m=_magnitude(d, "y_m", COORDINATE_M, "m", _WHY_COORDINATE),
+        height_m=_magnitude(d, "height_m", COORDINATE_M, "m", _WHY_COORDINATE, optional=True),
+        yaw_rad=_magnitude(d, "yaw_rad", WORLD_ANGLE_RAD, "rad", _WHY_WORLD_ANGLE, optional=True),
     )  # type: ignore[arg-type]
 
 
