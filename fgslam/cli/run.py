@@ -129,6 +129,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         metrics["noise_model"] = str(args.noise)
     if args.calibration is not None:
         metrics["trial_calibration"] = str(args.calibration)
+    short = result.smoother_short_of_optimum()
+    if short is not None:
+        metrics["smoother_short_of_optimum"] = short
     from fgslam.provenance import provenance
 
     metrics["provenance"] = provenance(args.log, [r.name for r in result.runs], command=command_line(args, "run"))
@@ -152,10 +155,11 @@ def cmd_run(args: argparse.Namespace) -> int:
             out, metrics, result.runs, result.reference, result.stamps_s, title=f"fgslam run {Path(args.log).name}"
         )
         written.insert(1, html.name)
-    return finish_run(args, results, log, written, replaced, format_table(metrics))
+    return finish_run(args, results, log, written, replaced, format_table(metrics), notes=[short] if short else [])
 
 
-def finish_run(args: argparse.Namespace, results, log, written: list[str], replaced, table: str) -> int:
+def finish_run(args: argparse.Namespace, results, log, written: list[str], replaced, table: str,
+               notes: list[str] = ()) -> int:
     """Seal the results folder (its manifest), print the table and say what was written."""
     from fgslam.runner import TIMING
 
@@ -171,4 +175,6 @@ def finish_run(args: argparse.Namespace, results, log, written: list[str], repla
     print(f"\nwrote {', '.join(written)} to {Path(args.out)}/{note}")
     if log.truncated:
         print(f"note: {log.truncated}")
+    for text in notes:
+        print(f"note: {text}")
     return 0

@@ -909,7 +909,7 @@ class Isam2Smoother:
             raise FgslamError(
                 f"Isam2Smoother: the graph is singular even without this step's observations "
                 f"(pose {self._num_poses}); check the odometry covariance and the start sigmas. "
-                f"GTSAM said: {self.last_failure}"
+                f"GTSAM said: {' '.join(self.last_failure.split('Thrown when')[0].split())}"
             )
         self._isam = rebuilt.isam
         self._isam_updates = 0  # counted from the rebuild on (its own updates are not)

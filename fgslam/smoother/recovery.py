@@ -12,7 +12,9 @@ that has thrown is left inconsistent and must not be used again. The smoother th
 3. rebuilds a fresh ``ISAM2`` from every factor accepted so far plus the rest of the
    update, seeded from the failed object's linearisation point (a plain copy of its
    values); if that fails too — relinearisation may itself have moved a variable to a
-   degenerate place — from the initial values every variable entered with, and then
+   degenerate place — from the initial values every variable entered with, then from a
+   Levenberg–Marquardt solve of the whole graph (its damping copes with a corrupted
+   odometry record that leaves the poses after it metres from what they observe), and then
    without any of the update's observations. A rebuild costs one batch factorisation, so
    it is only for the rare failure; it is the only time a step runs more than one update
    (:func:`rebuild`);
@@ -22,7 +24,7 @@ that has thrown is left inconsistent and must not be used again. The smoother th
    ``dropped_observations``; observations still waiting at the end are in
    ``pending_observations``.
 
-If the rebuild without any of the step's observations fails from both seeds, the odometry
+If the rebuild without any of the step's observations fails from every seed, the odometry
 or the prior itself is degenerate and :class:`~slamio.errors.FgslamError` is raised.
 """
 
@@ -82,15 +84,23 @@ def rebuild(
         factors, values = update_batch(core, core_values, kept, known_landmarks)
         everything = gtsam.NonlinearFactorGraph(graph)
         everything.push_back(factors)
-        for seed in seeds:
+        for seed in seeds + [None]:
             isam = gtsam.ISAM2(params)
             try:
-                isam.update(everything, reseeded(initial, values, seed))
+                start = reseeded(initial, values, seed) if seed is not None else damped(everything, initial, values)
+                isam.update(everything, start)
             except RuntimeError as again:
                 last_failure = str(again)
                 continue
             return Rebuild(isam, factors, values, withheld, last_failure)
     return Rebuild(None, None, None, list(entries), last_failure)
+
+
+def damped(graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values, new_values: gtsam.Values) -> gtsam.Values:
+    """The last seed: Levenberg–Marquardt on the whole graph from the initial values. Its
+    damping solves systems that Gauss–Newton's cannot (a corrupted odometry record that
+    leaves the poses after it far from their observations); raises RuntimeError if it fails too."""
+    return gtsam.LevenbergMarquardtOptimizer(graph, reseeded(initial, new_values, initial)).optimize()
 
 
 def key_named_in(exc: BaseException) -> int | None:
