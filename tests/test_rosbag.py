@@ -90,6 +90,13 @@ def test_octagon_round_trip_is_identical(octagon_bag):
     assert (header2, tuple(records2)) == (log.header, log.records)
 
 
+def test_one_topic_named_for_two_roles_is_an_error(octagon_bag):
+    """Truth on the odometry topic would read every message as odometry only: refused."""
+    bag, _ = octagon_bag
+    with pytest.raises(FgslamError, match="named as both the odometry topic and the truth topic"):
+        import_rosbag(bag, odom_topic=ODOMETRY_TOPIC, truth_topic=ODOMETRY_TOPIC, standard_topics_only=True)
+
+
 def test_octagon_standard_topics_give_the_integrated_poses(octagon_bag):
     bag, _ = octagon_bag
     log = read_log(OCTAGON)

@@ -520,6 +520,15 @@ def _checked_topics(path: str, topics, odom_topic: str, detections_topic: str | 
             )
     if truth_topic is not None:
         _check_topic(path, topics, truth_topic, _TRUTH_TYPES, "ground-truth poses")
+    named = {"odometry": odom_topic, "detections": detections_topic, "truth": truth_topic}
+    given = [(role, topic) for role, topic in named.items() if topic is not None]
+    for i, (role, topic) in enumerate(given):
+        for other, same in given[i + 1:]:
+            if same == topic:
+                raise FgslamError(
+                    f"{path}: {topic} is named as both the {role} topic and the {other} topic; each topic "
+                    "is read as one thing: name a different topic for one of them"
+                )
     return tag_topics
 
 
