@@ -223,7 +223,9 @@ class NoiseModel:
 def carries_fitted_model(noise: dict) -> bool:
     """True when a log header's ``noise`` says a fitted model was applied (by an importer's
     ``--noise`` or by :func:`slamio.noise_apply.apply_noise_model`)."""
-    return "fitted_on" in noise or "lag_s" in noise.get("odometry", {})
+    observation = noise.get("observation", {})
+    return ("fitted_on" in noise or "lag_s" in noise.get("odometry", {})
+            or (isinstance(observation, dict) and "fitted_on" in observation))  # a range model (Plaza's import)
 
 
 def noise_expects_outliers(noise: Any) -> bool:

@@ -137,3 +137,25 @@ def test_a_fitted_range_model_corrects_every_range(tmp_path):
     assert header.noise["observation"]["range_scale"] == 1.07
     with pytest.raises(FgslamError, match="not both"):
         import_plaza("plaza2", range_model=model, range_bias_m=2.8)
+
+
+def test_run_noise_on_a_range_only_log_applies_the_range_model_as_the_importer_does():
+    """``fgslam run --noise`` on Plaza2: the same records as ``import plaza2 --noise`` (the
+    odometry kept, every range corrected alike), though the model's odometry part — fitted
+    against a truth heading that is the odometry's own — says the heading never errs. A log
+    with a range model already in it is refused, whichever way it got there."""
+    from slamio.log import RunLog
+    from slamio.noise_apply import apply_noise_model
+    from slamio.noise_model import NoiseModel, ObservationModel, OdometryModel, OdometryNoiseRates
+
+    degenerate = OdometryNoiseRates(heading_rad2_per_rad=3e-30, heading_rad2_per_m=3e-31)
+    model = NoiseModel(odometry=OdometryModel(noise=degenerate), fitted_on=("plaza1.jsonl",),
+                       observation=ObservationModel(range_scale=1.07, range_bias_m=0.03, range_sigma_m=0.54))
+    raw_header, raw = import_plaza("plaza2")
+    _, imported = import_plaza("plaza2", range_model=model)
+    applied, dropped = apply_noise_model(RunLog("p2", raw_header, tuple(raw)), model)
+    assert dropped == 0 and applied.records == tuple(imported)
+    assert applied.header.noise["odometry"] == raw_header.noise["odometry"]
+    for log in (applied, RunLog("p2", *import_plaza("plaza2", range_model=model))):
+        with pytest.raises(FgslamError, match="already carries a fitted noise model"):
+            apply_noise_model(log, model)
