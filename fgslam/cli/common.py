@@ -139,13 +139,18 @@ def summary(log) -> str:
     elif with_truth:
         truth = f"ground truth for {with_truth} of {len(steps)} poses"
     elif surveyed:
-        truth = f"no pose truth, {surveyed} surveyed landmarks"
+        truth = f"no pose truth, {counted(surveyed, 'surveyed landmark')}"
     else:
         truth = "no ground truth"
     return (
-        f"{len(steps)} poses over {duration:.1f} s, {len(observations)} observations of "
-        f"{len(ids)} landmarks" + (f" (+{unknown} with unknown id)" if unknown else "") + f", {truth}"
+        f"{counted(len(steps), 'pose')} over {duration:.1f} s, {counted(len(observations), 'observation')} of "
+        f"{counted(len(ids), 'landmark')}" + (f" (+{unknown} with unknown id)" if unknown else "") + f", {truth}"
     )
+
+
+def counted(n: int, noun: str) -> str:
+    """``3 poses``, ``1 pose``."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
 def read(path: str):
