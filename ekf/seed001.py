@@ -329,13 +329,20 @@ def trial_calibration(header: Header) -> tuple[np.ndarray | None, tuple | None]:
     its R and Q (§IV): R the covariance of the pooled forward and rotate trials
     (``pooled_motion_covariance`` of ``fgslam calibrate TRIALS.csv``), Q's σ_r and σ_φ the
     sensor trials' (σ_s stays each observation's own: the trials have no signature). None
-    where the header has no ``noise.calibration`` or it lacks that part."""
+    where the header has no ``noise.calibration`` or it lacks that part. A calibration that is
+    not what ``fgslam calibrate`` writes is one ``FgslamError`` line (the same check as
+    :func:`slamio.create.calibrate.load_calibration`), never a traceback."""
+    from slamio.create.calibrate import calibration_from_dict
+
     calibration = header.noise.get("calibration") if isinstance(header.noise, dict) else None
-    if not isinstance(calibration, dict):
+    if calibration is None:
         return None, None
-    pooled = calibration.get("pooled_motion_covariance")
+    checked = calibration_from_dict(
+        calibration, "the log's header (noise.calibration)",
+        "replace it: fgslam run LOG --calibration FILE (a file from fgslam calibrate TRIALS.csv --out FILE)")
+    pooled = checked.pooled_motion_covariance
     R = None if pooled is None else np.array(pooled, dtype=float).reshape(3, 3)
-    sensor = calibration.get("observation")
+    sensor = checked.observation
     q = None if not sensor else (float(sensor["sigma_range_m"]), float(sensor["sigma_bearing_rad"]), None)
     return R, q
 

@@ -63,17 +63,19 @@ import numpy as np
 from fgslam.compare import ate_rmse_m, nees_band, nees_over_truth
 from fgslam.runner import ESTIMATORS, require_usable_reference, run_estimator, truth_reference
 from fgslam.smoother import Isam2Smoother, batch_solve
-from slamio.errors import FgslamError
+from slamio.errors import FgslamError, decode_utf8
 from slamio.log import read_log
 
 __all__ = [
     "DEFAULT_TOLERANCES",
+    "TOLERANCE_RANGES",
     "MIN_TRUTH_POSES",
     "MIN_TRUTH_SHARE",
     "CheckResult",
     "check_estimator",
     "assert_estimator_close",
     "load_tolerances",
+    "tolerance_is_valid",
     "require_enough_truth",
 ]
 
@@ -108,6 +110,20 @@ def tolerance_file_for(log_path: str | os.PathLike[str]) -> Path:
     return Path(f"{log_path}.check.toml")
 
 
+#: What each tolerance may be, as said in the errors (the file's, the call's and the CLI's).
+TOLERANCE_RANGES = {
+    "max_ate_m": "a finite number >= 0 (metres)",
+    "max_nees_outside": "a finite number in [0, 1] (a share of the steps: 0.1 = 10 %)",
+}
+
+
+def tolerance_is_valid(key: str, value) -> bool:
+    """Whether ``value`` is allowed for the tolerance ``key`` (:data:`TOLERANCE_RANGES`)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        return False
+    return value >= 0 and (key != "max_nees_outside" or value <= 1)
+
+
 def load_tolerances(path: str | os.PathLike[str] | None, estimator: str) -> dict[str, float]:
     """Tolerances for ``estimator`` from a TOML file (``[defaults]`` then ``[estimator]``);
     the built-in defaults where the file says nothing or does not exist."""
@@ -115,7 +131,9 @@ def load_tolerances(path: str | os.PathLike[str] | None, estimator: str) -> dict
     if path is None or not Path(path).exists():
         return out
     try:
-        data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+        text = decode_utf8(path, Path(path).read_bytes(),
+                           "a tolerance file is UTF-8 TOML text (see `fgslam check --help` for the layout)")
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise FgslamError(f"{path}: not valid TOML ({exc}); see `fgslam check --help` for the layout") from None
     for table in ("defaults", estimator):
@@ -127,8 +145,8 @@ def load_tolerances(path: str | os.PathLike[str] | None, estimator: str) -> dict
                 raise FgslamError(
                     f"{path}: [{table}] has unknown key {key!r}; expected {', '.join(DEFAULT_TOLERANCES)}"
                 )
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
-                raise FgslamError(f"{path}: [{table}] {key} must be a number >= 0, got {value!r}")
+            if not tolerance_is_valid(key, value):
+                raise FgslamError(f"{path}: [{table}] {key} must be {TOLERANCE_RANGES[key]}, got {value!r}")
             out[key] = float(value)
     return out
 
@@ -162,6 +180,9 @@ def check_estimator(
     on a 3-D log (seed 003's stereo + IMU; :mod:`fgslam.check3d`)."""
     if against not in AGAINST:
         raise FgslamError(f"--against must be one of {', '.join(AGAINST)}, got {against!r}")
+    for key, value in (("max_ate_m", max_ate_m), ("max_nees_outside", max_nees_outside)):
+        if value is not None and not tolerance_is_valid(key, value):
+            raise FgslamError(f"{key} must be {TOLERANCE_RANGES[key]}, got {value!r}")
     log = read_log(log_path)
     if log.header.is_3d:
         from fgslam.check3d import DEFAULT_ESTIMATOR_3D, score_3d

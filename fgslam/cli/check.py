@@ -3,8 +3,26 @@
 from __future__ import annotations
 
 import argparse
+import math
 
 from fgslam.cli.estimators import ESTIMATOR_HELP, ESTIMATOR_HELP_3D
+
+
+def _tolerance(low: float, high: float | None, what: str):
+    """An argparse type: a finite number in [low, high] (no upper bound when ``high`` is None);
+    the same ranges as the tolerance file (fgslam.check.TOLERANCE_RANGES), checked at once."""
+    allowed = f"a finite number >= {low:g}" if high is None else f"a finite number in [{low:g}, {high:g}]"
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}; give {allowed} ({what})") from None
+        if not (math.isfinite(value) and value >= low and (high is None or value <= high)):
+            raise argparse.ArgumentTypeError(f"must be {allowed} ({what}), got {text}")
+        return value
+
+    return parse
 
 
 def add_parser(verbs) -> argparse.ArgumentParser:
@@ -37,8 +55,10 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     check.add_argument("--against", default="smoothed", choices=["smoothed", "truth"],
                        help="reference: the smoothed solution (default) or the log's ground truth "
                             "(the poses that have it; at least half of them and at least 10)")
-    check.add_argument("--max-ate", type=float, default=None, metavar="M", help="largest ATE allowed, metres")
-    check.add_argument("--max-nees-outside", type=float, default=None, metavar="F",
+    check.add_argument("--max-ate", type=_tolerance(0.0, None, "metres"), default=None, metavar="M",
+                       help="largest ATE allowed, metres (>= 0)")
+    check.add_argument("--max-nees-outside", type=_tolerance(0.0, 1.0, "a share of the steps: 0.1 = 10 %"),
+                       default=None, metavar="F",
                        help="largest share of steps with the NEES outside the 95 %% band (0..1)")
     check.add_argument("--tolerances", default=None, metavar="FILE",
                        help="TOML file with tolerances (default: LOG.check.toml when it exists)")

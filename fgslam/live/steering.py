@@ -12,7 +12,7 @@ import numpy as np
 
 from slamio.create.record import SAME_TIME_S, WheelRamp
 from slamio.create.odometry import WHEEL_BASE_M
-from slamio.errors import FgslamError
+from slamio.errors import FgslamError, decode_utf8
 from slamio.geometry import arc_increment, between_pose, compose_pose, wrap_angle
 from slamio.log import Odometry
 
@@ -53,18 +53,21 @@ def polygon_waypoints(sides: int, width_m: float, centre_xy: tuple[float, float]
 def read_waypoints(path: str) -> np.ndarray:
     """``x_m, y_m`` per line (comma or space separated, ``#`` comments); file:line errors."""
     rows = []
-    with open(path, encoding="utf-8") as f:
-        for number, line in enumerate(f, start=1):
-            text = line.split("#", 1)[0].replace(",", " ").split()
-            if not text:
-                continue
-            try:
-                x, y = (float(v) for v in text)
-            except ValueError:
-                raise FgslamError(f"{path}:{number}: expected 'x_m, y_m', got {line.strip()!r}") from None
-            if not (math.isfinite(x) and math.isfinite(y)):
-                raise FgslamError(f"{path}:{number}: waypoint is not finite")
-            rows.append((x, y))
+    with open(path, "rb") as f:
+        raw = f.read()
+    content = decode_utf8(path, raw, "a waypoint file is UTF-8 text with one 'x_m, y_m' per line")
+    lines = content.replace("\r\n", "\n").replace("\r", "\n").split("\n")  # as open() splits them
+    for number, line in enumerate(lines, start=1):
+        text = line.split("#", 1)[0].replace(",", " ").split()
+        if not text:
+            continue
+        try:
+            x, y = (float(v) for v in text)
+        except ValueError:
+            raise FgslamError(f"{path}:{number}: expected 'x_m, y_m', got {line.strip()!r}") from None
+        if not (math.isfinite(x) and math.isfinite(y)):
+            raise FgslamError(f"{path}:{number}: waypoint is not finite")
+        rows.append((x, y))
     if not rows:
         raise FgslamError(f"{path}: no waypoints; write one 'x_m, y_m' per line")
     return np.array(rows)

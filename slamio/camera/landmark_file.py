@@ -38,7 +38,7 @@ from typing import Any
 
 from slamio.camera.colour import ColourOptions, ColourSpec
 from slamio.camera.colour_checks import SHAPES
-from slamio.errors import FgslamError
+from slamio.errors import FgslamError, decode_utf8
 
 #: The ``checks`` keys: ColourOptions fields a user may tune, with their types.
 CHECK_KEYS = {
@@ -164,15 +164,18 @@ def load_landmarks(path: str | os.PathLike[str], base: ColourOptions = ColourOpt
 
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        raw = p.read_bytes()
     except OSError as exc:
         raise LandmarkFileError(f"{p}: cannot read the landmark file ({exc.strerror})") from None
+    text = decode_utf8(p, raw, "a landmark file is UTF-8 YAML or JSON text (see docs/camera.md; "
+                              "fgslam tune-colours --out writes one)", LandmarkFileError)
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = f":{mark.line + 1}" if mark is not None else ""
-        raise LandmarkFileError(f"{p}{line}: not valid YAML/JSON ({getattr(exc, 'problem', exc)})") from None
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]  # one line, never yaml's several
+        raise LandmarkFileError(f"{p}{line}: not valid YAML/JSON ({problem})") from None
     return options_from_dict(data, str(p), base)
 
 

@@ -46,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from slamio.errors import FgslamError
+from slamio.errors import FgslamError, decode_utf8
 
 #: Rotation taking optical-frame vectors (x right, y down, z forward) into a body frame
 #: (x forward, y left, z up): columns are the optical axes expressed in the body frame.
@@ -317,12 +317,19 @@ def load_camera(path: str | os.PathLike[str]) -> CameraModel:
 
     path = os.fspath(path)
     try:
-        with open(path, encoding="utf-8") as f:
-            d = yaml.safe_load(f)
+        with open(path, "rb") as f:
+            raw = f.read()
     except OSError as exc:
         raise CameraConfigError(f"{path}: cannot open the camera file ({exc.strerror})") from None
-    except yaml.YAMLError as exc:
-        raise CameraConfigError(f"{path}: not valid YAML ({exc}); write a ROS camera_info file") from None
+    text = decode_utf8(path, raw, "a camera file is a UTF-8 ROS camera_info YAML (write one with "
+                                 "scripts/calibrate_camera.py; see docs/camera.md)", CameraConfigError)
+    try:
+        d = yaml.safe_load(text)
+    except yaml.YAMLError as exc:  # one line: where and what (yaml's own text spans several)
+        mark = getattr(exc, "problem_mark", None)
+        line = f":{mark.line + 1}" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise CameraConfigError(f"{path}{line}: not valid YAML ({problem}); write a ROS camera_info file") from None
     return camera_from_dict(d, path)
 
 

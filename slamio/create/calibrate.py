@@ -49,7 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from slamio.create.odometry import OdometryNoise, quantisation_floor
-from slamio.errors import FgslamError
+from slamio.errors import FgslamError, decode_utf8
 from slamio.geometry import arc_increment, wrap_angle
 from slamio.log import as_matrix3
 
@@ -62,6 +62,7 @@ __all__ = [
     "Calibration",
     "calibrate",
     "load_calibration",
+    "calibration_from_dict",
     "simulated_trials",
 ]
 
@@ -109,10 +110,12 @@ def read_trials(path: str | os.PathLike[str]) -> tuple[list[MotionTrial], list[S
     """Read a trials CSV (module docstring); errors name ``file:line`` and the fix."""
     path = os.fspath(path)
     try:
-        with open(path, encoding="utf-8", newline="") as f:
-            text = f.read()
+        with open(path, "rb") as f:
+            raw = f.read()
     except OSError as exc:
         raise FgslamError(f"{path}: cannot read the trials file ({exc.strerror})") from None
+    text = decode_utf8(path, raw, "a trials file is UTF-8 CSV text (header kind,command_distance_m,...; "
+                                 "see fgslam calibrate --help)")
     numbered = [(i, line) for i, line in enumerate(text.splitlines(), start=1)
                 if line.strip() and not line.lstrip().startswith("#")]
     if not numbered:
@@ -278,21 +281,118 @@ def calibrate(motion: list[MotionTrial], sensor: list[SensorTrial], source: str 
     )
 
 
+_FIX = "write it with fgslam calibrate TRIALS.csv --out FILE"
+_MOTION_KEYS = {"forward": "covariance_per_m", "rotate": "covariance_per_rad"}
+
+
+class _Bad(Exception):
+    """What is wrong with one part of a calibration (:func:`calibration_from_dict` adds where
+    and how to fix it)."""
+
+
+def _finite(key: str, value, minimum: float | None = None) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise _Bad(f"{key} must be a finite number, got {value!r}")
+    if minimum is not None and value < minimum:
+        raise _Bad(f"{key} must be >= {minimum:g}, got {value!r}")
+    return float(value)
+
+
+def _vector(key: str, value, n: int) -> None:
+    if not isinstance(value, list) or len(value) != n:
+        raise _Bad(f"{key} must be a list of {n} numbers, got {value!r}")
+    for i, v in enumerate(value):
+        _finite(f"{key}[{i}]", v)
+
+
+def _covariance_matrix(key: str, value, n: int) -> None:
+    """A finite, symmetric n×n list of lists with no negative eigenvalue (a covariance)."""
+    if (not isinstance(value, list) or len(value) != n
+            or not all(isinstance(row, list) and len(row) == n for row in value)):
+        raise _Bad(f"{key} must be a {n}×{n} matrix (a list of {n} lists of {n} numbers), got {value!r}")
+    for i, row in enumerate(value):
+        for j, v in enumerate(row):
+            _finite(f"{key}[{i}][{j}]", v)
+    m = np.array(value, dtype=float)
+    scale = max(1.0, float(np.max(np.abs(m))))
+    if not np.allclose(m, m.T, rtol=1e-9, atol=1e-12 * scale):
+        raise _Bad(f"{key} is not symmetric, so it is not a covariance")
+    if float(np.min(np.linalg.eigvalsh(m))) < -1e-9 * scale:
+        raise _Bad(f"{key} has a negative eigenvalue, so it is not a covariance")
+
+
+def _part(d: dict, name: str, keys: tuple[str, ...]) -> dict | None:
+    part = d.get(name)
+    if part is None:
+        return None
+    if not isinstance(part, dict):
+        raise _Bad(f"{name} must be null or an object with {', '.join(keys)}, got {part!r}")
+    missing = [k for k in keys if k not in part]
+    if missing:
+        raise _Bad(f"{name} lacks {', '.join(missing)}")
+    trials = part["trials"]
+    if isinstance(trials, bool) or not isinstance(trials, int) or trials < 2:
+        raise _Bad(f"{name}.trials must be a whole number >= 2, got {trials!r}")
+    return part
+
+
+def _check_calibration(d) -> None:
+    if not isinstance(d, dict):
+        raise _Bad(f"a calibration must be a JSON object, got {type(d).__name__}")
+    for name, per in _MOTION_KEYS.items():
+        part = _part(d, name, ("trials", "mean_command", "bias", "covariance", per))
+        if part is not None:
+            if not _finite(f"{name}.mean_command", part["mean_command"]) > 0:
+                raise _Bad(f"{name}.mean_command must be > 0, got {part['mean_command']!r}")
+            _vector(f"{name}.bias", part["bias"], 3)
+            _covariance_matrix(f"{name}.covariance", part["covariance"], 3)
+            _covariance_matrix(f"{name}.{per}", part[per], 3)
+    if d.get("pooled_motion_covariance") is not None:
+        _covariance_matrix("pooled_motion_covariance", d["pooled_motion_covariance"], 3)
+    sensor = _part(d, "observation", ("trials", "bias", "covariance", "sigma_range_m", "sigma_bearing_rad"))
+    if sensor is not None:
+        _vector("observation.bias", sensor["bias"], 2)
+        _covariance_matrix("observation.covariance", sensor["covariance"], 2)
+        _finite("observation.sigma_range_m", sensor["sigma_range_m"], 0.0)
+        _finite("observation.sigma_bearing_rad", sensor["sigma_bearing_rad"], 0.0)
+    parts = ("forward", "rotate", "pooled_motion_covariance", "observation")
+    if all(d.get(name) is None for name in parts):
+        raise _Bad(f"holds no calibration ({', '.join(parts)} are all missing or null)")
+
+
+def calibration_from_dict(d, where: str, fix: str = _FIX) -> Calibration:
+    """A :class:`Calibration` from what :meth:`Calibration.to_dict` wrote, every part checked
+    (types, shapes, finite numbers, covariances, at least one part): a bad one is one
+    :class:`FgslamError` line ``"{where}: what is wrong; {fix}"`` (``where``: the file, or
+    where in a log it came from)."""
+    try:
+        _check_calibration(d)
+    except _Bad as exc:
+        raise FgslamError(f"{where}: {exc}; {fix}") from None
+    source = d.get("source")
+    return Calibration(source if isinstance(source, str) and source else where, d.get("forward"), d.get("rotate"),
+                       d.get("pooled_motion_covariance"), d.get("observation"))
+
+
 def load_calibration(path: str | os.PathLike[str]) -> Calibration:
-    """Read what ``fgslam calibrate --out`` wrote."""
+    """Read what ``fgslam calibrate --out`` wrote; a file that is not one, or one whose
+    parts are not what it writes, is one :class:`FgslamError` line naming the file."""
     path = os.fspath(path)
     try:
-        with open(path, encoding="utf-8") as f:
-            d = json.load(f)
+        with open(path, "rb") as f:
+            raw = f.read()
     except OSError as exc:
         raise FgslamError(f"{path}: cannot read the calibration ({exc.strerror})") from None
+    text = decode_utf8(path, raw, f"a calibration file is UTF-8 JSON ({_FIX})")
+    try:
+        d = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise FgslamError(f"{path}:{exc.lineno}: not JSON ({exc.msg}); write it with fgslam calibrate --out") from None
+        raise FgslamError(f"{path}:{exc.lineno}: not JSON ({exc.msg}); {_FIX}") from None
+    except RecursionError:
+        raise FgslamError(f"{path}: JSON nested too deeply; {_FIX}") from None
     if not isinstance(d, dict) or d.get("format") != CALIBRATION_FORMAT:
-        raise FgslamError(f"{path}: not a calibration file (no \"format\": \"{CALIBRATION_FORMAT}\"); "
-                          "write it with fgslam calibrate TRIALS.csv --out FILE")
-    return Calibration(d.get("source", path), d.get("forward"), d.get("rotate"),
-                       d.get("pooled_motion_covariance"), d.get("observation"))
+        raise FgslamError(f"{path}: not a calibration file (no \"format\": \"{CALIBRATION_FORMAT}\"); {_FIX}")
+    return calibration_from_dict(d, path)
 
 
 # --------------------------------------------------------------------------- example data
