@@ -51,6 +51,26 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     return bench
 
 
+def _check_counts(args: argparse.Namespace) -> None:
+    """The whole-number options, before a simulation or a worker starts: one line naming the
+    option (a process pool of 0 workers, or a run of 0 laps, would fail only in the workers)."""
+    from slamio.errors import FgslamError
+    from slamio.sim import MAX_GRID_LANDMARKS
+
+    for option, value, lowest, highest, what in (
+        ("--runs", args.runs, 1, None, "how many seeded simulations"),
+        ("--jobs", args.jobs, 1, None, "worker processes, e.g. 2 or the number of cores"),
+        ("--seed", args.seed, 0, None, "the first seed"),
+        ("--landmarks", args.landmarks, 1, MAX_GRID_LANDMARKS, "landmarks of the grid scenario"),
+        ("--laps", args.laps, 1, None, "leave it out for the scenario's own number of laps"),
+    ):
+        if value is None:  # left out: the default
+            continue
+        if value < lowest or (highest is not None and value > highest):
+            rule = f"from {lowest} to {highest}" if highest is not None else f">= {lowest}"
+            raise FgslamError(f"{option} must be {rule} ({what}); got {value}")
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -60,6 +80,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from slamio.errors import FgslamError
     from slamio.sim3d import STEREO_LOOP
 
+    _check_counts(args)
     if args.scenario == STEREO_LOOP:
         from fgslam.montecarlo3d import DEFAULT_BENCH_ESTIMATORS_3D as default
         from fgslam.runner3d import ESTIMATORS_3D as known
@@ -76,8 +97,6 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if unknown or not estimators:
         raise FgslamError(f"unknown estimator(s) {', '.join(unknown) or '(none given)'} for {args.scenario}; "
                           f"choose from {', '.join(known)} (comma-separated)")
-    if args.runs < 1:
-        raise FgslamError(f"--runs must be >= 1, got {args.runs}")
     results = None
     if args.out is not None:  # before the runs: nothing computed for nothing
         results = ResultsFolder(args.out, overwrite=args.overwrite, verb="bench", own_names=OWN_NAMES).check()

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import math
+import sys
 
 from fgslam.cli.common import add_overwrite_option, check_new_file, command_line, write_run_log
 from slamio.errors import FgslamError
@@ -13,6 +15,7 @@ DATASETS = ["victoria-park", "plaza1", "plaza2", "mrclam", "rosbag", "seed003"]
 def add_parser(verbs) -> argparse.ArgumentParser:
     imp = verbs.add_parser(
         "import",
+        usage="%(prog)s DATASET [SOURCE] OUT [options]",
         help="convert a dataset from elsewhere into a run log",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description=(
@@ -32,14 +35,18 @@ def add_parser(verbs) -> argparse.ArgumentParser:
             "                 with one velocity record per step and the stereo feature tracks;\n"
             "                 --pixel-sigma, --speed-sigma, --turn-rate-sigma set the noise.\n"
             "See docs/datasets.md for what is converted and how. An existing OUT is kept unless\n"
-            "--overwrite.\n\n"
-            "usage: fgslam import DATASET [SOURCE] OUT   (SOURCE defaults to the gtsam wheel's copy)"
+            "--overwrite. One dataset per command: SOURCE (or --source, not both) is optional for\n"
+            "victoria-park, plaza1 and plaza2 (default: the gtsam wheel's copy). An option of one\n"
+            "dataset (e.g. --robot: mrclam) is refused with another."
         ),
     )
     imp.add_argument("dataset", choices=DATASETS, metavar="DATASET",
                      help="victoria-park, plaza1, plaza2, mrclam, rosbag or seed003")
+    # nargs="+" (not two positionals): fgslam.cli.main adds the paths typed after an option here;
+    # cmd_import accepts one or two of them
     imp.add_argument("paths", nargs="+", metavar="[SOURCE] OUT",
-                     help="the dataset file or folder (optional), then the run log to write (.jsonl)")
+                     help="the dataset file or folder (optional for victoria-park and plaza), then the run log "
+                          "to write (.jsonl)")
     imp.add_argument(
         "--source",
         default=None,
@@ -47,12 +54,12 @@ def add_parser(verbs) -> argparse.ArgumentParser:
         help="the dataset file (Victoria Park) or folder (Plaza); default: the installed gtsam wheel's copy",
     )
     add_overwrite_option(imp, "an existing OUT")
-    imp.add_argument("--range-sigma", type=float, default=1.5, metavar="M",
+    imp.add_argument("--range-sigma", type=float, default=None, metavar="M",
                      help="Plaza: standard deviation given to every range (default 1.5 m)")
-    imp.add_argument("--range-bias", type=float, default=0.0, metavar="M",
+    imp.add_argument("--range-bias", type=float, default=None, metavar="M",
                      help="Plaza: subtract this from every range (default 0; GPS says the radios read 7 %% long, "
                           "not a constant: fit the model with fgslam calibrate and use --noise)")
-    imp.add_argument("--robot", type=int, default=1, metavar="N", help="MRCLAM: which robot, 1-5 (default 1)")
+    imp.add_argument("--robot", type=int, default=None, metavar="N", help="MRCLAM: which robot, 1-5 (default 1)")
     imp.add_argument("--noise", default=None, metavar="FILE",
                      help="MRCLAM: a noise model from `fgslam calibrate LOG... --out FILE` (odometry lag and "
                           "scale, range/bearing correction and sigmas); default: round, unfitted values. "
@@ -66,25 +73,95 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     imp.add_argument("--tag-pose-topic", default=None,
                      help="rosbag: prefix of one geometry_msgs/PoseStamped topic per tag, e.g. /tags/tag_")
     imp.add_argument("--truth-topic", default=None, help="rosbag: ground-truth pose topic (optional)")
-    imp.add_argument("--pixel-sigma", type=float, default=1.0, metavar="PX",
+    imp.add_argument("--pixel-sigma", type=float, default=None, metavar="PX",
                      help="seed003: σ of each stereo pixel coordinate (default 1 px)")
-    imp.add_argument("--speed-sigma", type=float, default=0.05, metavar="M/S",
+    imp.add_argument("--speed-sigma", type=float, default=None, metavar="M/S",
                      help="seed003: σ of each axis of the IMU's linear velocity (default 0.05 m/s)")
-    imp.add_argument("--turn-rate-sigma", type=float, default=0.005, metavar="RAD/S",
+    imp.add_argument("--turn-rate-sigma", type=float, default=None, metavar="RAD/S",
                      help="seed003: σ of each axis of the IMU's angular velocity (default 0.005 rad/s)")
     imp.set_defaults(func=cmd_import, takes_extra_paths=True)
     return imp
 
 
+PLAZA = ("plaza1", "plaza2")
+
+#: The options only some datasets read: (option, args attribute, those datasets, default when left out).
+#: Their parser default is None, so an option typed for another dataset is seen and refused.
+DATASET_OPTIONS = (
+    ("--range-sigma", "range_sigma", PLAZA, 1.5),
+    ("--range-bias", "range_bias", PLAZA, 0.0),
+    ("--robot", "robot", ("mrclam",), 1),
+    ("--noise", "noise", ("mrclam", *PLAZA), None),
+    ("--odom-topic", "odom_topic", ("rosbag",), None),
+    ("--detections-topic", "detections_topic", ("rosbag",), None),
+    ("--tag-pose-topic", "tag_pose_topic", ("rosbag",), None),
+    ("--truth-topic", "truth_topic", ("rosbag",), None),
+    ("--pixel-sigma", "pixel_sigma", ("seed003",), 1.0),
+    ("--speed-sigma", "speed_sigma", ("seed003",), 0.05),
+    ("--turn-rate-sigma", "turn_rate_sigma", ("seed003",), 0.005),
+)
+
+
+def _source_and_out(args: argparse.Namespace) -> tuple[str | None, str]:
+    """SOURCE (the positional one or --source, not both) and OUT."""
+    paths = args.paths
+    if len(paths) > 2:
+        raise FgslamError(f"import converts one dataset: give [SOURCE] OUT (one or two paths), got {len(paths)}: "
+                          f"{' '.join(paths)}; run fgslam import once per dataset")
+    if len(paths) == 2 and args.source is not None:
+        raise FgslamError(f"SOURCE given twice: {paths[0]} and --source {args.source}; give one of them")
+    return (paths[0] if len(paths) == 2 else args.source), paths[-1]
+
+
+def _check_dataset_options(args: argparse.Namespace) -> None:
+    """Refuse an option of another dataset (it would be ignored), check the values, then fill in
+    the defaults of those left out."""
+    for option, name, datasets, default in DATASET_OPTIONS:
+        value = getattr(args, name)
+        if value is not None and args.dataset not in datasets:
+            belongs = ", ".join(datasets[:-1]) + " and " + datasets[-1] if len(datasets) > 1 else datasets[0]
+            raise FgslamError(f"{option} is for {belongs}, not {args.dataset}; leave it out")
+        if value is None:
+            setattr(args, name, default)
+    if not (math.isfinite(args.range_sigma) and args.range_sigma > 0):
+        raise FgslamError(f"--range-sigma must be a number > 0 (metres, the σ of every range); got {args.range_sigma}")
+    if not math.isfinite(args.range_bias):
+        raise FgslamError(f"--range-bias must be a finite number (metres subtracted from every range); "
+                          f"got {args.range_bias}")
+    if args.robot < 1:
+        raise FgslamError(f"--robot must be 1 or more (MRCLAM robots are numbered from 1); got {args.robot}")
+
+
+def _check_range_bias(dataset: str, source: str | None, bias_m: float) -> None:
+    """--range-bias against the ranges in the data, read before the conversion.
+
+    The bias is a constant offset in every reading of the ranging radios (reading = distance +
+    bias), removed as reading − bias. Its size must be below the longest reading: a bias at
+    least that long leaves no positive range (every observation would be dropped, a log without
+    any), and a negative one that long would mean every reading is less than half its distance —
+    not an offset but a broken radio. So |bias| < the largest range is the physical limit."""
+    if bias_m == 0.0:
+        return
+    from slamio.datasets.plaza import _read_table, plaza_files
+
+    _, td_path, _ = plaza_files(dataset, source)
+    ranges = _read_table(td_path, ("time_s", "sender_id", "receiver_id", "range_m"), ordered=False)[:, 3]
+    largest = float(ranges.max())
+    if not abs(bias_m) < largest:
+        raise FgslamError(f"--range-bias {bias_m:g} m: its size must be below the largest range in {dataset} "
+                          f"({largest:.2f} m); a bias is a small constant offset of the radios' readings (e.g. 0.5), "
+                          "for their 7 % scale fit a model with fgslam calibrate and use --noise")
+
+
 def cmd_import(args: argparse.Namespace) -> int:
-    if len(args.paths) > 2:
-        raise FgslamError(f"import takes [SOURCE] OUT, got {len(args.paths)} paths: {' '.join(args.paths)}")
-    source = args.paths[0] if len(args.paths) == 2 else args.source
-    out = args.paths[-1]
+    source, out = _source_and_out(args)
+    _check_dataset_options(args)
     needs_source = ("mrclam", "rosbag", "seed003")
     if args.dataset in needs_source and source is None:
         raise FgslamError(f"import {args.dataset} needs SOURCE: fgslam import {args.dataset} SOURCE OUT")
     check_new_file(out, overwrite=args.overwrite, option="OUT")  # before the conversion
+    if args.dataset in PLAZA:
+        _check_range_bias(args.dataset, source, args.range_bias)
     if args.dataset == "victoria-park":
         from slamio.datasets import import_victoria_park
 
@@ -118,6 +195,10 @@ def cmd_import(args: argparse.Namespace) -> int:
         header, records = import_plaza(
             args.dataset, source, range_sigma_m=args.range_sigma, range_bias_m=args.range_bias, range_model=model
         )
+        dropped = header.source.get("ranges_not_positive_after_bias_dropped", 0)
+        if args.range_bias and dropped:
+            print(f"fgslam: warning: --range-bias {args.range_bias:g} m left {dropped} ranges at or below 0; "
+                  "they were dropped", file=sys.stderr)
     if args.hide_ids:
         header, records = hide_landmark_ids(header, records)
     return write_run_log(out, header, records, overwrite=args.overwrite, option="OUT")

@@ -12,6 +12,7 @@ import math
 import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -80,8 +81,10 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     live.add_argument("--landmarks", default=None, metavar="FILE",
                       help="colour: the landmark file (default seed 000's red/green/blue cylinders)")
     live.add_argument("--out", required=True, metavar="LOG", help="run log to write; an existing one is kept")
-    add_overwrite_option(live, "an existing LOG")
-    live.add_argument("--map-png", default=None, metavar="PNG", help="rewrite a map picture here every 2 s")
+    add_overwrite_option(live, "an existing LOG and --map-png picture")
+    live.add_argument("--map-png", default=None, metavar="PNG",
+                      help="rewrite a map picture here every 2 s (in an existing folder; an existing file is kept "
+                      "unless --overwrite)")
     live.add_argument("--baud", type=int, default=None)
     live.add_argument("--sim-time-scale", type=float, default=1.0, help="simulation: robot seconds per wall second")
     live.add_argument("--sim-seed", type=int, default=1)
@@ -99,13 +102,72 @@ def _waypoints(args) -> np.ndarray:
     return np.vstack([read_waypoints(args.path)] * max(1, args.laps))
 
 
+#: The Create's top wheel speed (slamio.create.record refuses more, but only once the robot is up).
+MAX_SPEED_M_S = 0.5
+
+
+def _check_number(option: str, value, *, above: float | None = None, at_least: float | None = None,
+                  at_most: float | None = None, what: str = "") -> None:
+    """One option's value (or each of an ``X,Y`` tuple's) is finite and inside the bounds; else
+    one line naming the option, the rule and the value."""
+    values = value if isinstance(value, tuple) else (value,)
+    ok = all(isinstance(v, (int, float)) and math.isfinite(v) for v in values) and all(
+        (above is None or v > above) and (at_least is None or v >= at_least) and (at_most is None or v <= at_most)
+        for v in values)
+    if not ok:
+        bounds = [f"{sign} {bound:g}" for sign, bound in ((">", above), (">=", at_least), ("<=", at_most))
+                  if bound is not None]
+        rule = ("a number " + " and ".join(bounds) if bounds else
+                "finite numbers" if len(values) > 1 else "a finite number")
+        shown = ",".join(f"{v:g}" for v in values)
+        raise FgslamError(f"{option} must be {rule}{f' ({what})' if what else ''}; got {shown}")
+
+
+def _check_options(args: argparse.Namespace) -> None:
+    """Every option, before the port is opened and the robot moves: a bad value is one line
+    naming the option, never a stop after pose 0 (or a robot driving something else)."""
+    if args.laps < 1:
+        raise FgslamError(f"--laps must be >= 1 (how many times the path is driven); got {args.laps}")
+    _check_number("--side", args.side, above=0, what="metres across flats of the square or octagon, e.g. 1.83")
+    _check_number("--centre", tuple(args.centre), what="the path's centre X,Y in metres, e.g. 1.524,1.524")
+    if args.start_pose is not None:
+        _check_number("--start-pose", tuple(args.start_pose), what="X,Y in metres and THETA in radians")
+    _check_number("--speed", args.speed, above=0, at_most=MAX_SPEED_M_S,
+                  what=f"m/s; the Create drives at most {MAX_SPEED_M_S:g} m/s, e.g. 0.2")
+    _check_number("--tag-size", args.tag_size, above=0, what="metres: the side of the tag's black square, e.g. 0.16")
+    _check_number("--sim-time-scale", args.sim_time_scale, above=0, what="robot seconds per wall second, e.g. 1 or 10")
+    if args.sim_seed < 0:
+        raise FgslamError(f"--sim-seed must be >= 0; got {args.sim_seed}")
+    if args.sim_unplug_after is not None:
+        _check_number("--sim-unplug-after", args.sim_unplug_after, at_least=0, what="robot seconds")
+    if args.baud is not None and args.baud < 1:
+        raise FgslamError(f"--baud must be a positive number of bits per second (e.g. 57600 or 115200); "
+                          f"got {args.baud}")
+    if args.landmarks and args.kind != "colour":
+        raise FgslamError("--landmarks describes colour landmarks: add --kind colour")
+    check_new_file(args.out, overwrite=args.overwrite)  # an existing log is kept
+    if args.map_png:
+        _check_map_png(Path(args.map_png), Path(args.out), args.overwrite)
+
+
+def _check_map_png(png: Path, out: Path, overwrite: bool) -> None:
+    """--map-png: a new (or, with --overwrite, an existing) file in an existing folder that can be
+    written, not the log. The picture is rewritten during the run, where a failure would stop it."""
+    folder = png.parent
+    if not folder.is_dir():
+        what = "is a file, not a folder" if folder.exists() else "does not exist"
+        raise FgslamError(f"--map-png {png}: the folder {folder} {what}; give a PNG in an existing folder "
+                          "(make the folder first)")
+    check_new_file(png, overwrite=overwrite, option="--map-png", example="map.png")
+    if png.resolve() == out.resolve():
+        raise FgslamError(f"--map-png {png} is the run log (--out); give the picture another name, e.g. map.png")
+
+
 def cmd_live(args: argparse.Namespace) -> int:
     from fgslam.live import LiveSettings, run_live, simulated_camera, start_pose_facing
     from slamio.create.link import CreateLink
 
-    check_new_file(args.out, overwrite=args.overwrite)  # before the robot moves: an existing log is kept
-    if args.landmarks and args.kind != "colour":
-        raise FgslamError("--landmarks describes colour landmarks: add --kind colour")
+    _check_options(args)  # before the port is opened and the robot moves
     sensor = ({"kind": "range-bearing", "landmark_kind": "coloured-cylinder", "source": "fgslam live"}
               if args.kind == "colour" else None)
     waypoints = _waypoints(args)

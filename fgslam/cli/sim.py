@@ -69,9 +69,30 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     return sim
 
 
+def _check_options(args: argparse.Namespace) -> None:
+    """Every number option, in the words of the command line (the simulator's own checks name
+    its Python arguments), before anything is simulated or written."""
+    from slamio.sim import MAX_GRID_LANDMARKS
+
+    if args.seed < 0:
+        raise FgslamError(f"--seed must be a whole number >= 0; got {args.seed}")
+    if args.laps is not None and args.laps < 1:
+        raise FgslamError(f"--laps must be a whole number >= 1; got {args.laps} "
+                          "(leave --laps out for the scenario's own number of laps)")
+    if not 1 <= args.landmarks <= MAX_GRID_LANDMARKS:
+        raise FgslamError(f"--landmarks must be from 1 to {MAX_GRID_LANDMARKS} (landmarks of the grid scenario); "
+                          f"got {args.landmarks}")
+    # planar scenarios keep some true observations (< 1); the stereo loop takes 0..1 (slamio.sim3d)
+    rule = "from 0 to 1" if args.scenario == STEREO_LOOP else ">= 0 and < 1"
+    if not (0.0 <= args.outliers < 1.0 or (args.scenario == STEREO_LOOP and args.outliers == 1.0)):
+        raise FgslamError(f"--outliers must be a fraction {rule} (the share of observations that are "
+                          f"misdetections, e.g. 0.05); got {args.outliers}")
+
+
 def cmd_sim(args: argparse.Namespace) -> int:
     from slamio.sim import simulate
 
+    _check_options(args)
     check_new_file(args.out, overwrite=args.overwrite)  # before the work: nothing computed for nothing
     if args.scenario == STEREO_LOOP:
         return _sim_stereo_loop(args)

@@ -13,6 +13,7 @@ candidate blob, measurements and rejection reasons), to check by eye before
 from __future__ import annotations
 
 import argparse
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -86,9 +87,12 @@ def cmd_tune_colours(args: argparse.Namespace) -> int:
     from slamio.camera.model import load_camera
     from slamio.camera.tune import loosened, sample_frame, tuned_options
 
-    out = check_new_file(args.out, overwrite=args.overwrite, example="landmarks.yaml")
     if not 0 <= args.hue_widen <= 60:
         raise FgslamError(f"--hue-widen must be 0..60 (OpenCV hue units), got {args.hue_widen}")
+    if not (math.isfinite(args.depth_scale) and args.depth_scale > 0):  # 0 would divide every depth by zero
+        raise FgslamError(f"--depth-scale must be a number > 0 (depth PNG units per metre: TUM 5000, millimetre "
+                          f"PNGs 1000); got {args.depth_scale}")
+    out = check_new_file(args.out, overwrite=args.overwrite, example="landmarks.yaml")
     camera = load_camera(args.camera)
     start = load_landmarks(args.landmarks) if args.landmarks else ColourOptions()
     show = Path(args.show) if args.show else None

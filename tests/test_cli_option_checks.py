@@ -1,0 +1,215 @@
+"""Every option value is checked before any work: a bad one is one line ``fgslam: error: ...``
+naming the option, exit status 1, no traceback, and nothing written (no --out file, no port
+opened, no simulated robot started).
+
+The verbs: detect, live (--port sim), import, bench, sim, tune-colours.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+
+from fgslam.cli import main
+
+DATA = Path(__file__).parent / "data"
+PHOTOS = DATA / "apriltag-photos"
+
+
+def _refused(capsys, argv: list[str], option: str, *, never_written: tuple[Path, ...] = ()) -> str:
+    """Run ``fgslam argv``; assert the one-line user error naming ``option``; return the line."""
+    code = main(argv)
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert code == 1, (argv, captured.out, captured.err)
+    assert len(lines) == 1, captured.err
+    assert lines[0].startswith("fgslam: error:"), lines[0]
+    assert option in lines[0], lines[0]
+    assert "Traceback" not in captured.err and "Traceback" not in captured.out
+    for path in never_written:
+        assert not path.exists(), f"{path} was written"
+    return lines[0]
+
+
+# --------------------------------------------------------------------------- detect
+
+
+@pytest.fixture
+def camera(tmp_path) -> Path:
+    from slamio.camera.model import T_robot_camera_from_mount, kinect_v1_default, save_camera
+
+    path = tmp_path / "cam.yaml"
+    save_camera(path, kinect_v1_default(T_robot_camera_from_mount(x_m=0.1, z_m=0.2)))
+    return path
+
+
+@pytest.mark.parametrize("option, value", [
+    ("--threads", "0"),  # was: Floating point exception (exit 136) in the AprilTag detector
+    ("--threads", "-1"),
+    ("--tag-size", "nan"),  # was: a 2 KB line dumping the header
+    ("--tag-size", "0"),
+    ("--quad-decimate", "-1"),
+    ("--quad-decimate", "nan"),
+    ("--tag-upsample", "nan"),
+    ("--max-pose-gap", "-1"),
+    ("--max-pose-gap", "nan"),
+    ("--depth-scale", "0"),  # was: a numpy divide-by-zero warning
+    ("--depth-scale", "-5"),
+    ("--depth-scale", "inf"),
+    ("--min-range", "nan"),
+    ("--max-range", "nan"),
+    ("--fps", "0"),
+    ("--max-frames", "0"),
+])
+def test_detect_refuses_bad_numbers_before_reading_a_frame(tmp_path, capsys, camera, option, value):
+    out = tmp_path / "st.jsonl"
+    argv = ["detect", str(PHOTOS), "--camera", str(camera), "--out", str(out), "--static", option, value]
+    line = _refused(capsys, argv, option, never_written=(out,))
+    assert len(line) < 200, line  # one short line, not a dump
+
+
+def test_detect_refuses_bad_numbers_before_reading_the_camera_file(tmp_path, capsys):
+    out = tmp_path / "st.jsonl"
+    _refused(capsys, ["detect", str(PHOTOS), "--camera", str(tmp_path / "none.yaml"), "--out", str(out),
+                      "--static", "--threads", "0"], "--threads", never_written=(out,))
+
+
+# --------------------------------------------------------------------------- live --port sim
+
+
+@pytest.fixture
+def no_robot(monkeypatch):
+    """The simulated Create must not start, nor a link open: the checks come first."""
+    import slamio.create.link
+    import slamio.create.sim
+
+    def started(*args, **kwargs):
+        raise AssertionError("the simulated robot started before the options were checked")
+
+    monkeypatch.setattr(slamio.create.sim, "SimulatedCreate", started)
+    monkeypatch.setattr(slamio.create.link, "CreateLink", started)
+
+
+LIVE_BAD = [
+    ("--speed", "-1"), ("--speed", "nan"), ("--speed", "0"), ("--speed", "0.6"),
+    ("--laps", "0"), ("--laps", "-2"),
+    ("--side", "-1"), ("--side", "0"), ("--side", "nan"),
+    ("--tag-size", "nan"), ("--tag-size", "-0.1"),
+    ("--centre", "nan,nan"), ("--centre", "1,inf"),
+    ("--start-pose", "1,nan,0"),
+    ("--sim-time-scale", "0"), ("--sim-time-scale", "nan"),
+    ("--sim-seed", "-1"),
+    ("--sim-unplug-after", "nan"),
+    ("--baud", "0"),
+]
+
+
+@pytest.mark.parametrize("option, value", LIVE_BAD)
+def test_live_checks_every_number_before_the_robot_starts(tmp_path, capsys, no_robot, option, value):
+    out = tmp_path / "live.jsonl"
+    start = time.monotonic()
+    _refused(capsys, ["live", "--port", "sim", "--sim-seed", "1", "--out", str(out), f"{option}={value}"], option,
+             never_written=(out,))
+    assert time.monotonic() - start < 5.0
+
+
+def test_live_checks_the_map_png_before_the_robot_starts(tmp_path, capsys, no_robot):
+    out = tmp_path / "live.jsonl"
+    folder = tmp_path / "maps"
+    folder.mkdir()
+    old = tmp_path / "old.png"
+    old.write_bytes(b"an earlier picture")
+    a_file = tmp_path / "file"
+    a_file.write_text("not a folder")
+    bad = [folder, tmp_path / "missing" / "map.png", a_file / "map.png", old, out]
+    if Path("/proc").is_dir():
+        bad.append(Path("/proc/x.png"))  # a folder nothing can be written in (even as root)
+    for png in bad:
+        start = time.monotonic()
+        _refused(capsys, ["live", "--port", "sim", "--sim-seed", "1", "--out", str(out), "--map-png", str(png)],
+                 "--map-png", never_written=(out,))
+        assert time.monotonic() - start < 5.0
+    assert old.read_bytes() == b"an earlier picture"
+    assert list(folder.iterdir()) == []
+
+
+# --------------------------------------------------------------------------- import
+
+
+@pytest.mark.parametrize("argv, option", [
+    (["plaza1", "{out}", "--range-bias", "nan"], "--range-bias"),  # was: a 2 KB line dumping the header
+    (["plaza1", "{out}", "--range-bias", "1e9"], "--range-bias"),  # was: a log with 0 observations, exit 0
+    (["plaza1", "{out}", "--range-bias=-1e9"], "--range-bias"),
+    (["plaza2", "{out}", "--range-bias", "1000"], "--range-bias"),  # above Plaza2's longest range
+    (["plaza1", "{out}", "--range-sigma", "nan"], "--range-sigma"),
+    (["plaza1", "{out}", "--range-sigma", "-1"], "--range-sigma"),
+    (["victoria-park", "{out}", "--robot", "3"], "--robot"),
+    (["victoria-park", "{out}", "--noise", "noise.json"], "--noise"),
+    (["plaza1", "{out}", "--pixel-sigma", "2"], "--pixel-sigma"),
+    (["seed003", "drive.npz", "{out}", "--odom-topic", "/odom"], "--odom-topic"),
+    (["rosbag", "bag", "{out}", "--range-bias", "1"], "--range-bias"),
+    (["mrclam", "tests/fixtures/mrclam", "{out}", "--robot", "0"], "--robot"),
+    (["victoria-park", "nope1", "{out}", "--source", "nope2"], "--source"),
+    (["victoria-park", "a", "b", "c", "{out}"], "[SOURCE] OUT"),
+])
+def test_import_refuses_bad_options_before_the_conversion(tmp_path, capsys, argv, option):
+    out = tmp_path / "out.jsonl"
+    line = _refused(capsys, ["import"] + [str(out) if a == "{out}" else a for a in argv], option,
+                    never_written=(out,))
+    assert len(line) < 300, line
+
+
+def test_import_names_the_dataset_an_option_belongs_to(tmp_path, capsys):
+    line = _refused(capsys, ["import", "victoria-park", str(tmp_path / "vp.jsonl"), "--robot", "3"], "--robot")
+    assert "mrclam" in line
+    line = _refused(capsys, ["import", "victoria-park", str(tmp_path / "vp.jsonl"), "--turn-rate-sigma", "1"],
+                    "--turn-rate-sigma")
+    assert "seed003" in line
+
+
+def test_import_usage_says_one_dataset_per_command(capsys):
+    from fgslam.cli import build_parser
+
+    parser = build_parser()
+    verbs = next(a for a in parser._actions if a.dest == "verb")
+    usage = verbs.choices["import"].format_usage()
+    assert "DATASET [SOURCE] OUT" in usage
+    assert "[[SOURCE] OUT ...]" not in usage and "..." not in usage
+
+
+# --------------------------------------------------------------------------- bench and sim
+
+
+@pytest.mark.parametrize("option, value", [("--jobs", "0"), ("--jobs", "-1"), ("--runs", "0"), ("--seed", "-1"),
+                                           ("--laps", "0"), ("--landmarks", "0")])
+def test_bench_refuses_bad_counts_before_a_run(tmp_path, capsys, option, value):
+    out = tmp_path / "bench"
+    _refused(capsys, ["bench", "arena-octagon", "--runs", "1", "--seed", "1", "--out", str(out), f"{option}={value}"],
+             option, never_written=(out,))
+
+
+@pytest.mark.parametrize("option, value", [("--laps", "0"), ("--seed", "-1"), ("--landmarks", "0"),
+                                           ("--outliers", "nan"), ("--outliers", "1"), ("--outliers", "-0.1")])
+def test_sim_refuses_bad_numbers_in_the_words_of_the_command_line(tmp_path, capsys, option, value):
+    out = tmp_path / "a.jsonl"
+    line = _refused(capsys, ["sim", "arena-octagon", "--seed", "1", "--out", str(out), f"{option}={value}"], option,
+                    never_written=(out,))
+    assert "None" not in line  # a Python detail, not the user's words
+
+
+def test_sim_laps_error_says_how_to_get_the_default(tmp_path, capsys):
+    line = _refused(capsys, ["sim", "arena-octagon", "--seed", "1", "--out", str(tmp_path / "a.jsonl"), "--laps", "0"],
+                    "--laps")
+    assert "leave --laps out" in line
+
+
+# --------------------------------------------------------------------------- tune-colours
+
+
+@pytest.mark.parametrize("value", ["0", "-5", "nan"])
+def test_tune_colours_refuses_a_bad_depth_scale(tmp_path, capsys, camera, value):
+    out = tmp_path / "landmarks.yaml"
+    _refused(capsys, ["tune-colours", str(DATA / "rgbd-real"), "--camera", str(camera), "--out", str(out),
+                      f"--depth-scale={value}"], "--depth-scale", never_written=(out,))
