@@ -397,3 +397,12 @@ def test_a_binding_laid_out_otherwise_keeps_the_default_thresholds_with_a_warnin
     image = np.full((300, 300), 255, np.uint8)
     image[70:230, 70:230] = cv2.aruco.generateImageMarker(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11), 7, 160)
     assert [d.tag_id for d in detector.detect(image)] == [7]
+
+
+@pytest.mark.parametrize("settings", [{"nthreads": 0}, {"nthreads": -1}, {"quad_decimate": 0.5}, {"quad_decimate": float("nan")}])
+def test_settings_the_c_detector_would_divide_by_are_refused(settings):
+    """0 threads or a decimation below 1 once killed the process with a floating-point exception."""
+    from slamio.camera.apriltag import AprilTagDetector, TagDetectorError
+
+    with pytest.raises(TagDetectorError, match="must be"):
+        AprilTagDetector(**settings)

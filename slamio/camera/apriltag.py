@@ -466,6 +466,11 @@ class AprilTagDetector:
             raise TagDetectorError(f"unknown AprilTag backend {backend!r}; use one of {', '.join(BACKENDS)}")
         if not (1.0 <= upsample <= 4.0):
             raise TagDetectorError(f"AprilTag upsample must be between 1 and 4, not {upsample}")
+        # the C detector divides by both: 0 threads or a decimation below 1 kill the process (SIGFPE)
+        if isinstance(nthreads, bool) or not isinstance(nthreads, int) or nthreads < 1:
+            raise TagDetectorError(f"AprilTag nthreads must be a whole number >= 1, not {nthreads!r}")
+        if not (isinstance(quad_decimate, (int, float)) and quad_decimate >= 1.0 and math.isfinite(quad_decimate)):
+            raise TagDetectorError(f"AprilTag quad_decimate must be a finite number >= 1, not {quad_decimate!r}")
         self.upsample = float(upsample)
         self.family = family
         self.backend = backend
