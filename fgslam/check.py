@@ -63,7 +63,7 @@ import numpy as np
 from fgslam.compare import ate_rmse_m, nees_band, nees_over_truth
 from fgslam.runner import ESTIMATORS, require_usable_reference, run_estimator, truth_reference
 from fgslam.smoother import Isam2Smoother, batch_solve
-from slamio.errors import FgslamError, decode_utf8
+from slamio.errors import FgslamError, read_text
 from slamio.log import read_log
 
 __all__ = [
@@ -131,8 +131,8 @@ def load_tolerances(path: str | os.PathLike[str] | None, estimator: str) -> dict
     if path is None or not Path(path).exists():
         return out
     try:
-        text = decode_utf8(path, Path(path).read_bytes(),
-                           "a tolerance file is UTF-8 TOML text (see `fgslam check --help` for the layout)")
+        text = read_text(path, "tolerance file",
+                         "a tolerance file is UTF-8 TOML text (see `fgslam check --help` for the layout)")
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise FgslamError(f"{path}: not valid TOML ({exc}); see `fgslam check --help` for the layout") from None

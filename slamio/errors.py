@@ -22,3 +22,15 @@ def decode_utf8(path, raw: bytes, expected: str, error: type[FgslamError] = Fgsl
             f"{path}:{line}: not UTF-8 text: byte 0x{raw[exc.start]:02x} at column {column} ({exc.reason}); "
             f"{expected} — was the file damaged, or is this not the right file?"
         ) from None
+
+
+def read_text(path, what: str, expected: str, error: type[FgslamError] = FgslamError) -> str:
+    """The text of the user's file at ``path`` (a ``what``: "trials file", "camera file", ...):
+    one ``error`` line when it cannot be read (and why) or is not UTF-8 (:func:`decode_utf8`
+    with ``expected``)."""
+    try:
+        with open(path, "rb") as f:
+            raw = f.read()
+    except OSError as exc:
+        raise error(f"{path}: cannot read the {what} ({exc.strerror})") from None
+    return decode_utf8(path, raw, expected, error)

@@ -88,7 +88,7 @@ def test_bad_camera_files_say_what_to_fix(change, message):
 
 
 def test_missing_or_broken_file_is_a_user_error(tmp_path):
-    with pytest.raises(CameraConfigError, match="cannot open"):
+    with pytest.raises(CameraConfigError, match="cannot read the camera file"):
         load_camera(tmp_path / "nope.yaml")
     bad = tmp_path / "bad.yaml"
     bad.write_text("image_width: [640\n")

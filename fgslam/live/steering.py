@@ -12,7 +12,7 @@ import numpy as np
 
 from slamio.create.record import SAME_TIME_S, WheelRamp
 from slamio.create.odometry import WHEEL_BASE_M
-from slamio.errors import FgslamError, decode_utf8
+from slamio.errors import FgslamError, read_text
 from slamio.geometry import arc_increment, between_pose, compose_pose, wrap_angle
 from slamio.log import Odometry
 
@@ -53,9 +53,7 @@ def polygon_waypoints(sides: int, width_m: float, centre_xy: tuple[float, float]
 def read_waypoints(path: str) -> np.ndarray:
     """``x_m, y_m`` per line (comma or space separated, ``#`` comments); file:line errors."""
     rows = []
-    with open(path, "rb") as f:
-        raw = f.read()
-    content = decode_utf8(path, raw, "a waypoint file is UTF-8 text with one 'x_m, y_m' per line")
+    content = read_text(path, "waypoint file", "a waypoint file is UTF-8 text with one 'x_m, y_m' per line")
     lines = content.replace("\r\n", "\n").replace("\r", "\n").split("\n")  # as open() splits them
     for number, line in enumerate(lines, start=1):
         text = line.split("#", 1)[0].replace(",", " ").split()

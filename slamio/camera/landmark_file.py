@@ -38,7 +38,7 @@ from typing import Any
 
 from slamio.camera.colour import ColourOptions, ColourSpec
 from slamio.camera.colour_checks import SHAPES
-from slamio.errors import FgslamError, decode_utf8
+from slamio.errors import FgslamError, read_text
 
 #: The ``checks`` keys: ColourOptions fields a user may tune, with their types.
 CHECK_KEYS = {
@@ -163,12 +163,8 @@ def load_landmarks(path: str | os.PathLike[str], base: ColourOptions = ColourOpt
     import yaml
 
     p = Path(path)
-    try:
-        raw = p.read_bytes()
-    except OSError as exc:
-        raise LandmarkFileError(f"{p}: cannot read the landmark file ({exc.strerror})") from None
-    text = decode_utf8(p, raw, "a landmark file is UTF-8 YAML or JSON text (see docs/camera.md; "
-                              "fgslam tune-colours --out writes one)", LandmarkFileError)
+    text = read_text(p, "landmark file", "a landmark file is UTF-8 YAML or JSON text (see docs/camera.md; "
+                     "fgslam tune-colours --out writes one)", LandmarkFileError)
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:

@@ -46,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from slamio.errors import FgslamError, decode_utf8
+from slamio.errors import FgslamError, read_text
 
 #: Rotation taking optical-frame vectors (x right, y down, z forward) into a body frame
 #: (x forward, y left, z up): columns are the optical axes expressed in the body frame.
@@ -316,13 +316,8 @@ def load_camera(path: str | os.PathLike[str]) -> CameraModel:
     import yaml
 
     path = os.fspath(path)
-    try:
-        with open(path, "rb") as f:
-            raw = f.read()
-    except OSError as exc:
-        raise CameraConfigError(f"{path}: cannot open the camera file ({exc.strerror})") from None
-    text = decode_utf8(path, raw, "a camera file is a UTF-8 ROS camera_info YAML (write one with "
-                                 "scripts/calibrate_camera.py; see docs/camera.md)", CameraConfigError)
+    text = read_text(path, "camera file", "a camera file is a UTF-8 ROS camera_info YAML (write one with "
+                     "scripts/calibrate_camera.py; see docs/camera.md)", CameraConfigError)
     try:
         d = yaml.safe_load(text)
     except yaml.YAMLError as exc:  # one line: where and what (yaml's own text spans several)

@@ -49,7 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from slamio.create.odometry import OdometryNoise, quantisation_floor
-from slamio.errors import FgslamError, decode_utf8
+from slamio.errors import FgslamError, read_text
 from slamio.geometry import arc_increment, wrap_angle
 from slamio.log import as_matrix3
 
@@ -109,13 +109,8 @@ def _number(text: str, where: str, column: str) -> float:
 def read_trials(path: str | os.PathLike[str]) -> tuple[list[MotionTrial], list[SensorTrial]]:
     """Read a trials CSV (module docstring); errors name ``file:line`` and the fix."""
     path = os.fspath(path)
-    try:
-        with open(path, "rb") as f:
-            raw = f.read()
-    except OSError as exc:
-        raise FgslamError(f"{path}: cannot read the trials file ({exc.strerror})") from None
-    text = decode_utf8(path, raw, "a trials file is UTF-8 CSV text (header kind,command_distance_m,...; "
-                                 "see fgslam calibrate --help)")
+    text = read_text(path, "trials file", "a trials file is UTF-8 CSV text (header "
+                     "kind,command_distance_m,...; see fgslam calibrate --help)")
     numbered = [(i, line) for i, line in enumerate(text.splitlines(), start=1)
                 if line.strip() and not line.lstrip().startswith("#")]
     if not numbered:
@@ -378,12 +373,7 @@ def load_calibration(path: str | os.PathLike[str]) -> Calibration:
     """Read what ``fgslam calibrate --out`` wrote; a file that is not one, or one whose
     parts are not what it writes, is one :class:`FgslamError` line naming the file."""
     path = os.fspath(path)
-    try:
-        with open(path, "rb") as f:
-            raw = f.read()
-    except OSError as exc:
-        raise FgslamError(f"{path}: cannot read the calibration ({exc.strerror})") from None
-    text = decode_utf8(path, raw, f"a calibration file is UTF-8 JSON ({_FIX})")
+    text = read_text(path, "calibration", f"a calibration file is UTF-8 JSON ({_FIX})")
     try:
         d = json.loads(text)
     except json.JSONDecodeError as exc:
