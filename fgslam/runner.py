@@ -397,8 +397,14 @@ def compare_log(
         runs.append(run)
         if isinstance(estimator, Isam2Smoother) and (smoother is None or name == "isam2"):
             smoother, smoother_run = estimator, run
-    if smoother is None:
-        raise FgslamError("the batch solve needs iSAM2's result: keep isam2 in the estimators")
+    if smoother is None:  # no batch solve: only the log's own truth can be the reference
+        truth = truth_reference(log)
+        if truth is None:
+            raise FgslamError(
+                f"{getattr(log, 'path', 'the log')} has no pose truth, so the reference is the batch solve, which "
+                "starts from iSAM2's result: keep isam2 in --estimators"
+            )
+        return Comparison(runs, truth, np.array([s.stamp_s for s in steps]), None, None)
     if not log.truth_landmarks() and truth_reference(log) is None:  # the smoothed solution will be the reference
         require_usable_reference(smoother, steps, getattr(log, "path", "the log"))
     if progress is not None:

@@ -119,16 +119,29 @@ def test_log_truncated_mid_line_runs_on_the_part_before_the_cut(short_log, tmp_p
     [
         (["run", "missing.jsonl", "--out", "x"], "cannot open"),
         (["run", "LOG", "--out", "x", "--estimators", "ekf,ukf"], "unknown estimator(s) ukf"),
-        (["run", "LOG", "--out", "x", "--estimators", "ekf"], "keep isam2"),
+        (["run", "NOTRUTH", "--out", "x", "--estimators", "ekf"], "keep isam2"),
     ],
 )
 def test_user_errors_are_one_line_not_tracebacks(argv, message, short_log, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    argv = [str(short_log) if a == "LOG" else a for a in argv]
+    no_truth = tmp_path / "no_truth.jsonl"  # the batch solve is the reference: it needs iSAM2
+    no_truth.write_text("".join(line for line in open(short_log) if '"truth_pose"' not in line))
+    argv = [str(short_log) if a == "LOG" else str(no_truth) if a == "NOTRUTH" else a for a in argv]
     assert main(argv) == 1
     err = capsys.readouterr().err
     assert err.startswith("fgslam: error: ") and message in err
     assert "Traceback" not in err
+
+
+def test_a_log_with_truth_runs_without_isam2(short_log, tmp_path, capsys):
+    """With the log's truth as the reference no batch solve is needed: `--estimators ekf`
+    runs, scores against the truth and writes everything but the factor graph."""
+    out = tmp_path / "ekf_only"
+    assert main(["run", str(short_log), "--out", str(out), "--estimators", "ekf", "--no-report"]) == 0
+    assert "ground truth" in capsys.readouterr().out
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["reference"] == "ground_truth" and "batch" not in metrics and metrics["ekf"]["ate_rmse_m"] < 0.1
+    assert (out / "ekf.tum").exists() and not (out / "graph.g2o").exists()
 
 
 def test_estimator_names_without_isam2_where_no_batch_solve_follows():
