@@ -274,3 +274,14 @@ def test_a_mistake_in_the_command_line_is_one_error_line_and_status_1(argv, caps
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("fgslam: error: ") and "--help)" in err
     assert not list(tmp_path.iterdir())  # nothing written
+
+
+def test_negative_values_are_values_not_options():
+    """`--centre -1.5,2` and `--range-bias -1e9` are values (argparse before 3.13 read them
+    as an unknown option: "expected one argument")."""
+    from fgslam.cli import build_parser
+
+    parser = build_parser()
+    assert parser.parse_args(["live", "--port", "sim", "--out", "x", "--centre", "-1.5,2"]).centre == (-1.5, 2.0)
+    assert parser.parse_args(["import", "plaza1", "o.jsonl", "--range-bias", "-1e9"]).range_bias == -1e9
+    assert parser.parse_args(["import", "plaza1", "o.jsonl", "--range-bias", "-.5"]).range_bias == -0.5

@@ -16,6 +16,7 @@ Verb modules import from ``common`` and ``progress`` only, never from this packa
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from typing import Sequence
 
@@ -56,6 +57,13 @@ class _Parser(argparse.ArgumentParser):
     """argparse with fgslam's one error path: a mistake in the command line is one line,
     ``fgslam: error: ...`` with the verb's ``--help`` to read, and exit status 1 (argparse's
     own is a usage block and status 2)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        # A value that starts with a minus and a digit is a value, never an option (no fgslam
+        # option looks like that): `--range-bias -1e9`, `--centre -1.5,2`. argparse (before
+        # Python 3.13) takes only plain negative numbers, and read these as an unknown option.
+        self._negative_number_matcher = re.compile(r"^-\.?\d")
 
     def error(self, message: str):  # type: ignore[override]
         self.exit(1, f"fgslam: error: {message} (see {self.prog} --help)\n")
