@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import secrets
 import shlex
@@ -199,6 +200,24 @@ def check_new_file(path: str | os.PathLike, *, overwrite: bool = False, option: 
             )
     probe_writable(out.parent, option=option, target=out)
     return out
+
+
+def check_number(option: str, value, *, above: float | None = None, at_least: float | None = None,
+                 at_most: float | None = None, what: str = "", error: type[FgslamError] = FgslamError) -> None:
+    """A number option's value (or each of an ``X,Y`` tuple's) is finite and inside the bounds,
+    checked before a verb does any work; else one ``error`` line naming the option, the rule,
+    what the number means (``what``) and the value."""
+    values = value if isinstance(value, tuple) else (value,)
+    ok = all(isinstance(v, (int, float)) and math.isfinite(v) for v in values) and all(
+        (above is None or v > above) and (at_least is None or v >= at_least) and (at_most is None or v <= at_most)
+        for v in values)
+    if not ok:
+        bounds = [f"{sign} {bound:g}" for sign, bound in ((">", above), (">=", at_least), ("<=", at_most))
+                  if bound is not None]
+        rule = ("a number " + " and ".join(bounds) if bounds else
+                "finite numbers" if len(values) > 1 else "a finite number")
+        shown = ",".join(f"{v:g}" for v in values)
+        raise error(f"{option} must be {rule}{f' ({what})' if what else ''}; got {shown}")
 
 
 def _describe_file(path: Path) -> str:

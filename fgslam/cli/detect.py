@@ -36,13 +36,13 @@ from __future__ import annotations
 
 import argparse
 import bisect
-import math
 import os
 import tempfile
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 
-from fgslam.cli.common import command_line, probe_writable
+from fgslam.cli.common import check_number, command_line, probe_writable
 from fgslam.cli.progress import Progress
 from slamio.errors import FgslamError
 from slamio.log import Header, Observation, Odometry, read_log, write_log
@@ -178,37 +178,26 @@ def clock_hint(existing, raw_stamps: list[float], offset_s: float, dropped: dict
 # --------------------------------------------------------------------------- the verb
 
 
-def _check_number(option: str, value, *, above: float | None = None, at_least: float | None = None,
-                  what: str = "") -> None:
-    """``value`` of ``option`` is a finite number ``> above`` / ``>= at_least``; else one line
-    (:class:`DetectError`) naming the option, the rule and the value."""
-    ok = isinstance(value, (int, float)) and math.isfinite(value)
-    ok = ok and (above is None or value > above) and (at_least is None or value >= at_least)
-    if not ok:
-        rule = (f"a number > {above:g}" if above is not None else
-                f"a number >= {at_least:g}" if at_least is not None else "a finite number")
-        raise DetectError(f"{option} must be {rule}{f' ({what})' if what else ''}; got {value}")
-
-
 def _check_options(args) -> None:
     """Every number option of ``detect``, before the camera file, the log or a frame is opened
     (a bad value is one line naming the option, never a crash in the detector: AprilTag with
     0 threads dies of a division by zero, a depth scale of 0 divides by zero)."""
-    _check_number("--threads", args.threads, at_least=1, what="AprilTag detector threads, e.g. 1 or 4")
-    _check_number("--tag-size", args.tag_size, above=0, what="metres: the side of the tag's black square, e.g. 0.16")
-    _check_number("--quad-decimate", args.quad_decimate, at_least=1,
-                  what="1 finds small tags, 2 is faster")
-    _check_number("--tag-upsample", args.tag_upsample, at_least=1,
-                  what="how many times AprilTag 3 enlarges the image; 1 = not enlarged")
-    _check_number("--max-pose-gap", args.max_pose_gap, above=0, what="seconds, e.g. 0.05")
-    _check_number("--min-range", args.min_range, at_least=0, what="metres")
-    _check_number("--max-range", args.max_range, above=0, what="metres")
+    check = partial(check_number, error=DetectError)  # one line, as DetectError
+    check("--threads", args.threads, at_least=1, what="AprilTag detector threads, e.g. 1 or 4")
+    check("--tag-size", args.tag_size, above=0, what="metres: the side of the tag's black square, e.g. 0.16")
+    check("--quad-decimate", args.quad_decimate, at_least=1,
+          what="1 finds small tags, 2 is faster")
+    check("--tag-upsample", args.tag_upsample, at_least=1,
+          what="how many times AprilTag 3 enlarges the image; 1 = not enlarged")
+    check("--max-pose-gap", args.max_pose_gap, above=0, what="seconds, e.g. 0.05")
+    check("--min-range", args.min_range, at_least=0, what="metres")
+    check("--max-range", args.max_range, above=0, what="metres")
     if args.max_range <= args.min_range:
         raise DetectError(f"--min-range and --max-range must satisfy 0 <= min < max (metres); "
                           f"got {args.min_range:g} and {args.max_range:g}")
-    _check_number("--fps", args.fps, above=0, what="frames per second of a plain image folder, e.g. 30")
-    _check_number("--depth-scale", args.depth_scale, above=0,
-                  what="depth PNG units per metre: TUM 5000, millimetre PNGs 1000")
+    check("--fps", args.fps, above=0, what="frames per second of a plain image folder, e.g. 30")
+    check("--depth-scale", args.depth_scale, above=0,
+          what="depth PNG units per metre: TUM 5000, millimetre PNGs 1000")
     if args.max_frames is not None and args.max_frames < 1:
         raise DetectError(f"--max-frames must be >= 1 (leave it out to run until the source ends or Ctrl-C); "
                           f"got {args.max_frames}")

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fgslam.cli.common import add_overwrite_option, check_new_file
+from fgslam.cli.common import add_overwrite_option, check_new_file, check_number
 from fgslam.cli.progress import Progress
 from slamio.errors import FgslamError
 
@@ -106,40 +106,23 @@ def _waypoints(args) -> np.ndarray:
 MAX_SPEED_M_S = 0.5
 
 
-def _check_number(option: str, value, *, above: float | None = None, at_least: float | None = None,
-                  at_most: float | None = None, what: str = "") -> None:
-    """One option's value (or each of an ``X,Y`` tuple's) is finite and inside the bounds; else
-    one line naming the option, the rule and the value."""
-    values = value if isinstance(value, tuple) else (value,)
-    ok = all(isinstance(v, (int, float)) and math.isfinite(v) for v in values) and all(
-        (above is None or v > above) and (at_least is None or v >= at_least) and (at_most is None or v <= at_most)
-        for v in values)
-    if not ok:
-        bounds = [f"{sign} {bound:g}" for sign, bound in ((">", above), (">=", at_least), ("<=", at_most))
-                  if bound is not None]
-        rule = ("a number " + " and ".join(bounds) if bounds else
-                "finite numbers" if len(values) > 1 else "a finite number")
-        shown = ",".join(f"{v:g}" for v in values)
-        raise FgslamError(f"{option} must be {rule}{f' ({what})' if what else ''}; got {shown}")
-
-
 def _check_options(args: argparse.Namespace) -> None:
     """Every option, before the port is opened and the robot moves: a bad value is one line
     naming the option, never a stop after pose 0 (or a robot driving something else)."""
     if args.laps < 1:
         raise FgslamError(f"--laps must be >= 1 (how many times the path is driven); got {args.laps}")
-    _check_number("--side", args.side, above=0, what="metres across flats of the square or octagon, e.g. 1.83")
-    _check_number("--centre", tuple(args.centre), what="the path's centre X,Y in metres, e.g. 1.524,1.524")
+    check_number("--side", args.side, above=0, what="metres across flats of the square or octagon, e.g. 1.83")
+    check_number("--centre", tuple(args.centre), what="the path's centre X,Y in metres, e.g. 1.524,1.524")
     if args.start_pose is not None:
-        _check_number("--start-pose", tuple(args.start_pose), what="X,Y in metres and THETA in radians")
-    _check_number("--speed", args.speed, above=0, at_most=MAX_SPEED_M_S,
+        check_number("--start-pose", tuple(args.start_pose), what="X,Y in metres and THETA in radians")
+    check_number("--speed", args.speed, above=0, at_most=MAX_SPEED_M_S,
                   what=f"m/s; the Create drives at most {MAX_SPEED_M_S:g} m/s, e.g. 0.2")
-    _check_number("--tag-size", args.tag_size, above=0, what="metres: the side of the tag's black square, e.g. 0.16")
-    _check_number("--sim-time-scale", args.sim_time_scale, above=0, what="robot seconds per wall second, e.g. 1 or 10")
+    check_number("--tag-size", args.tag_size, above=0, what="metres: the side of the tag's black square, e.g. 0.16")
+    check_number("--sim-time-scale", args.sim_time_scale, above=0, what="robot seconds per wall second, e.g. 1 or 10")
     if args.sim_seed < 0:
         raise FgslamError(f"--sim-seed must be >= 0; got {args.sim_seed}")
     if args.sim_unplug_after is not None:
-        _check_number("--sim-unplug-after", args.sim_unplug_after, at_least=0, what="robot seconds")
+        check_number("--sim-unplug-after", args.sim_unplug_after, at_least=0, what="robot seconds")
     if args.baud is not None and args.baud < 1:
         raise FgslamError(f"--baud must be a positive number of bits per second (e.g. 57600 or 115200); "
                           f"got {args.baud}")

@@ -13,11 +13,10 @@ candidate blob, measurements and rejection reasons), to check by eye before
 from __future__ import annotations
 
 import argparse
-import math
 from dataclasses import replace
 from pathlib import Path
 
-from fgslam.cli.common import add_overwrite_option, check_new_file, probe_writable, write_new_file
+from fgslam.cli.common import add_overwrite_option, check_new_file, check_number, probe_writable, write_new_file
 from slamio.errors import FgslamError
 
 DESCRIPTION = """\
@@ -89,9 +88,8 @@ def cmd_tune_colours(args: argparse.Namespace) -> int:
 
     if not 0 <= args.hue_widen <= 60:
         raise FgslamError(f"--hue-widen must be 0..60 (OpenCV hue units), got {args.hue_widen}")
-    if not (math.isfinite(args.depth_scale) and args.depth_scale > 0):  # 0 would divide every depth by zero
-        raise FgslamError(f"--depth-scale must be a number > 0 (depth PNG units per metre: TUM 5000, millimetre "
-                          f"PNGs 1000); got {args.depth_scale}")
+    check_number("--depth-scale", args.depth_scale, above=0,  # 0 would divide every depth by zero
+                 what="depth PNG units per metre: TUM 5000, millimetre PNGs 1000")
     out = check_new_file(args.out, overwrite=args.overwrite, example="landmarks.yaml")
     camera = load_camera(args.camera)
     start = load_landmarks(args.landmarks) if args.landmarks else ColourOptions()
