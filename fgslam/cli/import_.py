@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 
-from fgslam.cli.common import add_overwrite_option, check_new_file, command_line, write_run_log
+from fgslam.cli.common import add_overwrite_option, check_new_file, check_number, command_line, write_run_log
 from slamio.errors import FgslamError
 
 DATASETS = ["victoria-park", "plaza1", "plaza2", "mrclam", "rosbag", "seed003"]
@@ -123,34 +122,10 @@ def _check_dataset_options(args: argparse.Namespace) -> None:
             raise FgslamError(f"{option} is for {belongs}, not {args.dataset}; leave it out")
         if value is None:
             setattr(args, name, default)
-    if not (math.isfinite(args.range_sigma) and args.range_sigma > 0):
-        raise FgslamError(f"--range-sigma must be a number > 0 (metres, the σ of every range); got {args.range_sigma}")
-    if not math.isfinite(args.range_bias):
-        raise FgslamError(f"--range-bias must be a finite number (metres subtracted from every range); "
-                          f"got {args.range_bias}")
+    check_number("--range-sigma", args.range_sigma, above=0, what="metres, the σ of every range")
+    check_number("--range-bias", args.range_bias, what="metres subtracted from every range")
     if args.robot < 1:
         raise FgslamError(f"--robot must be 1 or more (MRCLAM robots are numbered from 1); got {args.robot}")
-
-
-def _check_range_bias(dataset: str, source: str | None, bias_m: float) -> None:
-    """--range-bias against the ranges in the data, read before the conversion.
-
-    The bias is a constant offset in every reading of the ranging radios (reading = distance +
-    bias), removed as reading − bias. Its size must be below the longest reading: a bias at
-    least that long leaves no positive range (every observation would be dropped, a log without
-    any), and a negative one that long would mean every reading is less than half its distance —
-    not an offset but a broken radio. So |bias| < the largest range is the physical limit."""
-    if bias_m == 0.0:
-        return
-    from slamio.datasets.plaza import _read_table, plaza_files
-
-    _, td_path, _ = plaza_files(dataset, source)
-    ranges = _read_table(td_path, ("time_s", "sender_id", "receiver_id", "range_m"), ordered=False)[:, 3]
-    largest = float(ranges.max())
-    if not abs(bias_m) < largest:
-        raise FgslamError(f"--range-bias {bias_m:g} m: its size must be below the largest range in {dataset} "
-                          f"({largest:.2f} m); a bias is a small constant offset of the radios' readings (e.g. 0.5), "
-                          "for their 7 % scale fit a model with fgslam calibrate and use --noise")
 
 
 def cmd_import(args: argparse.Namespace) -> int:
@@ -160,8 +135,6 @@ def cmd_import(args: argparse.Namespace) -> int:
     if args.dataset in needs_source and source is None:
         raise FgslamError(f"import {args.dataset} needs SOURCE: fgslam import {args.dataset} SOURCE OUT")
     check_new_file(out, overwrite=args.overwrite, option="OUT")  # before the conversion
-    if args.dataset in PLAZA:
-        _check_range_bias(args.dataset, source, args.range_bias)
     if args.dataset == "victoria-park":
         from slamio.datasets import import_victoria_park
 

@@ -182,6 +182,22 @@ def gt_heading_offset_rad(gt: np.ndarray, min_step_m: float = 0.05) -> float:
     return float(np.median(wrap_angle(travel - gt[1:, 3][moving])))
 
 
+def _check_range_bias(run: str, bias_m: float, largest_range_m: float) -> None:
+    """The range bias against the run's ranges, before anything is converted.
+
+    The bias is a constant offset in every reading of the ranging radios (reading = distance +
+    bias), removed as reading − bias. Its size must be below the longest reading: a bias at
+    least that long leaves no positive range (every observation would be dropped, a log without
+    any), and a negative one that long would mean every reading is less than half its distance —
+    not an offset but a broken radio. So |bias| < the largest range is the physical limit."""
+    if not math.isfinite(bias_m):
+        raise FgslamError(f"range bias (--range-bias) must be a finite number of metres, got {bias_m}")
+    if bias_m != 0.0 and not abs(bias_m) < largest_range_m:
+        raise FgslamError(f"--range-bias {bias_m:g} m: its size must be below the largest range in {run} "
+                          f"({largest_range_m:.2f} m); a bias is a small constant offset of the radios' readings "
+                          "(e.g. 0.5), for their 7 % scale fit a model with fgslam calibrate and use --noise")
+
+
 def _observation_noise(range_sigma_m: float, range_bias_m: float, range_model: NoiseModel | None) -> dict:
     """The header's ``noise.observation``: the fitted range model when one was applied."""
     if range_model is None:
@@ -254,6 +270,7 @@ def import_plaza(
     dr = _read_table(dr_path, ("time_s", "delta_distance_m", "delta_heading_rad"))
     # the shipped TD files have blocks out of time order (Plaza1 line 1989 goes back 64 s): sort
     td = _read_table(td_path, ("time_s", "sender_id", "receiver_id", "range_m"), ordered=False)
+    _check_range_bias(run, range_bias_m, float(td[:, 3].max()) if len(td) else 0.0)
     gt, tl = _read_mat(mat_path)
     flipped = abs(gt_heading_offset_rad(gt)) > math.pi / 2
     if flipped:  # Plaza2's GT heading points backwards (as GTSAM's example's start pose, pi - 2.021, says)
