@@ -3,23 +3,23 @@
 from __future__ import annotations
 
 import argparse
-import math
 
 from fgslam.cli.estimators import ESTIMATOR_HELP, ESTIMATOR_HELP_3D
 
 
-def _tolerance(low: float, high: float | None, what: str):
-    """An argparse type: a finite number in [low, high] (no upper bound when ``high`` is None);
-    the same ranges as the tolerance file (fgslam.check.TOLERANCE_RANGES), checked at once."""
-    allowed = f"a finite number >= {low:g}" if high is None else f"a finite number in [{low:g}, {high:g}]"
+def _tolerance(key: str):
+    """An argparse type for the tolerance ``key``: the ranges of the tolerance file
+    (:data:`fgslam.check.TOLERANCE_RANGES`), checked when the command line is read."""
 
     def parse(text: str) -> float:
+        from fgslam.check import TOLERANCE_RANGES, tolerance_is_valid  # with the option only: it loads gtsam
+
         try:
             value = float(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"not a number: {text!r}; give {allowed} ({what})") from None
-        if not (math.isfinite(value) and value >= low and (high is None or value <= high)):
-            raise argparse.ArgumentTypeError(f"must be {allowed} ({what}), got {text}")
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}; give {TOLERANCE_RANGES[key]}") from None
+        if not tolerance_is_valid(key, value):
+            raise argparse.ArgumentTypeError(f"must be {TOLERANCE_RANGES[key]}, got {text}")
         return value
 
     return parse
@@ -55,9 +55,9 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     check.add_argument("--against", default="smoothed", choices=["smoothed", "truth"],
                        help="reference: the smoothed solution (default) or the log's ground truth "
                             "(the poses that have it; at least half of them and at least 10)")
-    check.add_argument("--max-ate", type=_tolerance(0.0, None, "metres"), default=None, metavar="M",
+    check.add_argument("--max-ate", type=_tolerance("max_ate_m"), default=None, metavar="M",
                        help="largest ATE allowed, metres (>= 0)")
-    check.add_argument("--max-nees-outside", type=_tolerance(0.0, 1.0, "a share of the steps: 0.1 = 10 %"),
+    check.add_argument("--max-nees-outside", type=_tolerance("max_nees_outside"),
                        default=None, metavar="F",
                        help="largest share of steps with the NEES outside the 95 %% band (0..1)")
     check.add_argument("--tolerances", default=None, metavar="FILE",
