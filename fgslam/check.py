@@ -7,7 +7,8 @@ or with the log's ground truth, and pass or fail on two tolerances:
 * ``max_ate_m`` — the final trajectory's ATE (metres; SE(2)-aligned only when the first
   poses differ, as everywhere in fgslam);
 * ``max_nees_outside`` — the share of steps whose NEES (online pose and the covariance the
-  estimator stated for it, 3 DoF) lies outside the 95 % χ² band [0.216, 9.35]; a
+  estimator stated for it, 3 DoF) lies outside the 95 % χ² band [0.216, 9.35] (against a
+  truth without heading, the position's NEES, 2 DoF, and its band [0.0506, 7.38]); a
   consistent estimator is outside about 5 % of the time. Against the smoothed solution
   only steps *above* the band count (2.5 % expected): the smoothed poses are computed from
   the same measurements, so the estimator's error relative to them is smaller than its
@@ -213,13 +214,21 @@ def check_estimator(
 @dataclass(frozen=True)
 class Score:
     """What a check measured: the ATE over the scored poses, the NEES of those poses (None:
-    the estimator states no covariance) with its 95 % band, and how many poses were scored."""
+    the estimator states no covariance) with each value's degrees of freedom (its 95 % band
+    is :func:`fgslam.compare.nees_band` of them), and how many poses were scored."""
 
     ate_m: float
     nees: np.ndarray | None
-    band: tuple[float, float]
+    nees_dofs: np.ndarray | None
     poses_scored: int
     poses: int
+
+    def bands(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(low, high)``: each NEES value's 95 % band."""
+        edges = {int(d): nees_band(int(d)) for d in np.unique(self.nees_dofs)}
+        low = np.array([edges[int(d)][0] for d in self.nees_dofs])
+        high = np.array([edges[int(d)][1] for d in self.nees_dofs])
+        return low, high
 
 
 def _score_planar(log, log_path, estimator: str, against: str) -> Score:
@@ -238,10 +247,10 @@ def _score_planar(log, log_path, estimator: str, against: str) -> Score:
     run, _ = run_estimator(ESTIMATORS[estimator](log.header), steps)
     m = len(run.final)
     ate = ate_rmse_m(run.final, reference_poses[:m], has_pose=has_pose[:m])
-    values = None
+    values = dofs = None
     if run.online_covariances is not None:
-        values = nees_over_truth(run.online, run.online_covariances, reference_poses, has_pose)
-    return Score(ate, values, nees_band(), int(np.count_nonzero(has_pose[:m])), len(steps))
+        values, dofs = nees_over_truth(run.online, run.online_covariances, reference_poses, has_pose)
+    return Score(ate, values, dofs, int(np.count_nonzero(has_pose[:m])), len(steps))
 
 
 def _judge(score: Score, log_path, estimator: str, against: str, tol: dict[str, float]) -> CheckResult:
@@ -249,7 +258,7 @@ def _judge(score: Score, log_path, estimator: str, against: str, tol: dict[str, 
     ate = score.ate_m
     outside = None
     if score.nees is not None:
-        low, high = score.band
+        low, high = score.bands()
         finite = np.isfinite(score.nees)
         if against == "smoothed":  # only overconfidence counts (module docstring)
             outside = float(np.mean(~finite | (score.nees > high)))

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from fgslam.compare import nees_band
 from fgslam.runner import UnusableReferenceError
 from fgslam.runner3d import (
     POSE_DOF,
@@ -67,7 +66,8 @@ def score_3d(log, log_path, estimator: str, against: str):
     values = None
     if run.covariances is not None and np.any(np.isfinite(run.covariances)):
         values = pose_nees_series(run.online, run.covariances, reference_poses)[has_pose]
-    return Score(ate, values, nees_band(POSE_DOF), int(np.count_nonzero(has_pose)), drive.n_steps)
+    dofs = None if values is None else np.full(len(values), POSE_DOF)
+    return Score(ate, values, dofs, int(np.count_nonzero(has_pose)), drive.n_steps)
 
 
 def require_landmarks_seen_twice(graph, log_path) -> None:

@@ -14,7 +14,7 @@ many times from the σ its own records state (:func:`slamio.redraw.redraw_noise`
 true poses and landmarks, the same sightings), runs the estimator on each copy and takes
 the central ``probability`` interval of their mean NEES. A run whose own mean NEES lies
 outside it states noise it does not have (or its estimator is inconsistent); inside it, it
-is as consistent as one run can show. The log needs truth at every pose.
+is as consistent as one run can show. The log needs truth, with a heading, at every pose.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ import numpy as np
 from ekf.models import range_bearing
 from fgslam.compare import nees_band, nees_over_truth
 from fgslam.runner import run_estimator, truth_trajectory
+from slamio.errors import FgslamError
 from slamio.geometry import wrap_angle
 from slamio.log import Observation, Odometry, RunLog
 from slamio.redraw import redraw_noise
@@ -55,8 +56,11 @@ def mean_nees(log: RunLog, make_estimator: Callable) -> tuple[float, int]:
     how many poses it is over."""
     steps = log.steps()
     truth, has = truth_trajectory(steps)
+    if np.any(has & ~np.isfinite(truth[:, 2])):
+        raise FgslamError(f"{log.path}: its truth has no heading at some poses; the mean NEES here is over "
+                          "(x, y, θ) against the 3-DoF band, and needs the true heading")
     run, _ = run_estimator(make_estimator(log.header), steps)
-    values = nees_over_truth(run.online, run.online_covariances, truth, has)
+    values, _ = nees_over_truth(run.online, run.online_covariances, truth, has)
     values = values[np.isfinite(values)]
     return float(np.mean(values)), len(values)
 
@@ -104,6 +108,9 @@ def reading_z_scores(log: RunLog) -> tuple[np.ndarray, np.ndarray]:
         for o in step.observations:
             if o.range_only:
                 continue
+            if step.truth is None or step.truth.theta_rad is None:
+                raise FgslamError(f"{log.path}: pose {step.index} has a reading but no true pose with a heading; "
+                                  "the readings' errors need the true pose of every step with readings")
             pose = (step.truth.x_m, step.truth.y_m, step.truth.theta_rad)
             range_m, bearing_rad = range_bearing(pose, landmarks[o.landmark_id])
             z_range.append((o.range_m - range_m) / o.sigma_range_m)

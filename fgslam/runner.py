@@ -273,12 +273,14 @@ def _true_id(observation) -> int | None:
 
 def truth_trajectory(steps: Sequence[Step]) -> tuple[np.ndarray, np.ndarray]:
     """``(trajectory (n, 3), has_pose (n,))`` of the steps' ground truth: NaN rows and False
-    where a step has no ``truth_pose`` (e.g. a Vicon gap)."""
+    where a step has no ``truth_pose`` (e.g. a Vicon gap), a NaN heading where the truth has
+    no heading (GPS)."""
     trajectory = np.full((len(steps), 3), np.nan)
     has_pose = np.zeros(len(steps), dtype=bool)
     for i, step in enumerate(steps):
         if step.truth is not None:
-            trajectory[i] = (step.truth.x_m, step.truth.y_m, step.truth.theta_rad)
+            heading = step.truth.theta_rad
+            trajectory[i] = (step.truth.x_m, step.truth.y_m, np.nan if heading is None else heading)
             has_pose[i] = True
     return trajectory, has_pose
 

@@ -16,8 +16,8 @@ what the correlated part depends on, and what knowing it would be worth:
    to *its own run's* errors against Vicon (robust: refitted inside 5 robust σ) — a camera
    calibrated perfectly on the run it is scored on, which no product may do. Printed: the
    range and bearing RMS against Vicon before and after, and the ATE (anchored and
-   SE(2)-aligned) of ``ekf`` and ``isam2`` on both logs: what a per-camera model of the
-   picture's errors could buy at most.
+   SE(2)-aligned) and the NIS share inside the 95 % band of ``ekf`` and ``isam2`` on both
+   logs: what a per-camera model of the picture's errors could buy at most.
 3. ``ekf``: the product's EKF with its Gauss–Markov reading errors decaying with the
    landmark's move in the picture as well as with time, ``φ = exp(−Δt/τ − |Δb|/β)`` per
    component (β 0.6 rad for range and 0.035 rad for bearing: where the ``pairs``
@@ -215,22 +215,24 @@ def oracle_report(folder: str, raw: dict[int, RunLog]) -> dict:
                "bearing_rms_rad": [float(np.sqrt(np.mean(v[keep] ** 2))) for v in (err[:, 2], after_b)]}
         for variant, scored in (("model", log), ("oracle", corrected(log, range_coef, bearing_coef))):
             runs = score_robot(scored, list(ESTIMATORS))
-            row[variant] = {n: {"ate_m": runs[n]["ate_final_m"], "ate_aligned_m": runs[n]["ate_final_aligned_m"]}
-                            for n in ESTIMATORS}
+            row[variant] = {n: {"ate_m": runs[n]["ate_final_m"], "ate_aligned_m": runs[n]["ate_final_aligned_m"],
+                                "nis_inside": runs[n]["nis_inside"]} for n in ESTIMATORS}
         result[k] = row
         print(f"robot {k}: range RMS {row['range_rms_m'][0]:.3f} → {row['range_rms_m'][1]:.3f} m, bearing RMS "
               f"{row['bearing_rms_rad'][0]:.4f} → {row['bearing_rms_rad'][1]:.4f} rad; "
               + "; ".join(f"{n} ATE {row['model'][n]['ate_m']:.3f} → {row['oracle'][n]['ate_m']:.3f} m, aligned "
-                          f"{row['model'][n]['ate_aligned_m']:.3f} → {row['oracle'][n]['ate_aligned_m']:.3f} m"
+                          f"{row['model'][n]['ate_aligned_m']:.3f} → {row['oracle'][n]['ate_aligned_m']:.3f} m, NIS "
+                          f"{100 * row['model'][n]['nis_inside']:.1f} → {100 * row['oracle'][n]['nis_inside']:.1f} %"
                           for n in ESTIMATORS), flush=True)
     robots = list(result)
     result["median"] = {}
     for n in ESTIMATORS:
-        med = {v: {m: float(np.median([result[k][v][n][m] for k in robots])) for m in ("ate_m", "ate_aligned_m")}
+        med = {v: {m: float(np.median([result[k][v][n][m] for k in robots])) for m in ("ate_m", "ate_aligned_m", "nis_inside")}
                for v in ("model", "oracle")}
         result["median"][n] = med
         print(f"median {n}: ATE {med['model']['ate_m']:.3f} → {med['oracle']['ate_m']:.3f} m, aligned "
-              f"{med['model']['ate_aligned_m']:.3f} → {med['oracle']['ate_aligned_m']:.3f} m")
+              f"{med['model']['ate_aligned_m']:.3f} → {med['oracle']['ate_aligned_m']:.3f} m, NIS "
+              f"{100 * med['model']['nis_inside']:.1f} → {100 * med['oracle']['nis_inside']:.1f} %")
     return result
 
 

@@ -12,7 +12,9 @@ the batch optimum is solved, as ``fgslam run`` does. Printed per run and import:
   pose 0 changes no range: only the start heading fixes it, and Plaza1's GPS "heading" is
   its dead-reckoned heading. The unaligned ATE is dominated by that rotation;
 * NIS (1 degree of freedom per range) of the EKF and of iSAM2's online prediction: mean
-  and share inside the 95 % χ²(1) band.
+  and share inside the 95 % χ²(1) band;
+* NEES of the online positions against GPS (2 degrees of freedom: the truth has no
+  heading): share inside the 95 % χ²(2) band.
 
     python scripts/plaza_range_model.py            # ~1 min
 """
@@ -104,17 +106,18 @@ def main() -> int:
               f"constant-offset fit: median {report['constant_offset_fit']['median_offset_m']} m, "
               f"spread {report['constant_offset_fit']['robust_spread_m']} m")
     print()
-    print("| run | import | estimator | ATE m | ATE aligned m | rotation deg | map RMSE m | NIS mean | NIS in % |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| run | import | estimator | ATE m | ATE aligned m | rotation deg | map RMSE m | NIS mean | NIS in % | NEES in % |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for (run, kind), metrics in measured["results"].items():
         for name in (*ESTIMATORS, "batch"):
             m = metrics[name]
             print(f"| {run} | {kind} | {name} | {_f(m['ate_rmse_m'])} | {_f(m['ate_aligned_m'])} | "
                   f"{_f(m['rotation_deg'], 1)} | {_f(m.get('map_rmse_m'))} | {_f(m.get('nis_mean'))} | "
-                  f"{_f(m.get('nis_inside_95'), 1, 100.0)} |")
+                  f"{_f(m.get('nis_inside_95'), 1, 100.0)} | {_f(m.get('nees_inside_95'), 1, 100.0)} |")
     print()
     for run, turn in measured["turn_deg"].items():
-        print(f"{run}: GT headings turned by {turn:+.2f} deg to the start heading from the GPS track")
+        print(f"{run}: the start heading from the GPS track is the first GT heading (turned round in Plaza2) "
+              f"{turn:+.2f} deg")
     return 0
 
 

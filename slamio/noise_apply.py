@@ -57,6 +57,12 @@ def apply_noise_model(log: RunLog, model: NoiseModel) -> tuple[RunLog, int]:
     steps = log.steps()
     observations = [r for r in log.records if isinstance(r, Observation)]
     range_only = bool(observations) and all(o.range_only for o in observations)
+    if not range_only and not model.odometry_fitted:
+        raise FgslamError(
+            f"{log.path}: the noise model's odometry part was not fitted (it was calibrated on a truth without "
+            "heading, such as GPS), so it can correct range-only readings only; fit a model on logs whose truth "
+            "has a heading"
+        )
     stamps = np.array([s.stamp_s for s in steps])
     increments = np.array(
         [[s.odometry.dx_m, s.odometry.dy_m, s.odometry.dtheta_rad] for s in steps[1:]]  # type: ignore[union-attr]

@@ -38,6 +38,11 @@ What is fitted, and how (every step is least squares on residuals against the tr
 
 Robust statistics (median absolute deviation, 5σ gate) keep misread barcodes and motion
 capture glitches out of the fit; their share is the model's ``outlier_rate``.
+
+A truth that measures position only (GPS: ``truth_pose`` without ``theta_rad``) can fit a
+range-only model (ranging radios, :mod:`slamio.range_fit`) but not the odometry, whose turns
+need the true heading: the model then carries the default odometry part, and its
+``fit_report["odometry"]`` says it was not fitted. Bearings against such a truth are refused.
 """
 
 from __future__ import annotations
@@ -137,7 +142,7 @@ class _LogData:
     name: str
     chain: OdometryChain
     truth_stamps_s: np.ndarray  # stamps of poses with truth
-    truth_poses: np.ndarray  # (n, 3), heading unwrapped
+    truth_poses: np.ndarray  # (n, 3), heading unwrapped (NaN: the truth has no heading)
     observations: list[tuple[float, float, float, tuple[float, float]]]  # (stamp, range, bearing, landmark xy)
     ranges: list[tuple[float, float, int, tuple[float, float]]] = field(default_factory=list)  # range-only: (stamp, range, id, landmark xy)
 
@@ -151,14 +156,16 @@ def _log_data(log: RunLog) -> _LogData:
         )
     stamps = np.array([s.stamp_s for s in steps])
     increments = np.array([[s.odometry.dx_m, s.odometry.dy_m, s.odometry.dtheta_rad] for s in steps[1:]])  # type: ignore[union-attr]
-    truth = [(s.stamp_s, s.truth.x_m, s.truth.y_m, s.truth.theta_rad) for s in steps if s.truth is not None]
+    truth = [(s.stamp_s, s.truth.x_m, s.truth.y_m, math.nan if s.truth.theta_rad is None else s.truth.theta_rad)
+             for s in steps if s.truth is not None]
     if len(truth) < 10 or len(steps) < 10:
         raise CalibrationError(
             f"{log.path}: {len(truth)} poses with ground truth; the fit needs a log with truth "
             "poses (motion capture or simulation) over a run of at least 10 poses"
         )
     tr = np.array(truth)
-    tr[:, 3] = np.unwrap(tr[:, 3])
+    if np.all(np.isfinite(tr[:, 3])):  # GPS truth has no heading: NaN, and no odometry fit (fit_noise_model)
+        tr[:, 3] = np.unwrap(tr[:, 3])
     landmarks = {i: (t.x_m, t.y_m) for i, t in log.truth_landmarks().items()}
     observations = [
         (s.stamp_s, o.range_m, o.bearing_rad, landmarks[o.landmark_id])
@@ -506,7 +513,14 @@ def fit_noise_model(
     lag_grid = np.round(np.arange(-0.1, 0.6001, 0.01), 3) if lag_grid_s is None else np.asarray(lag_grid_s, float)
     latency_grid = np.round(np.arange(0.0, 0.1001, 0.01), 3) if latency_grid_s is None else np.asarray(latency_grid_s, float)
     datas = [_log_data(log) for log in logs]
-    odometry, odo_report = _fit_odometry(datas, window_s, lag_grid)
+    headless = [d.name for d in datas if not np.all(np.isfinite(d.truth_poses[:, 2]))]
+    if headless and any(d.observations for d in datas):
+        raise CalibrationError(f"{headless[0]}: its truth has no heading (GPS), which the camera's bearings and the "
+                               "odometry's turns are fitted against; calibrate on logs whose truth has a heading")
+    if headless:  # ranging radios against GPS: the range model only
+        odometry, odo_report = OdometryModel(), {"not_fitted": "the truth has no heading: the defaults, not a fit"}
+    else:
+        odometry, odo_report = _fit_odometry(datas, window_s, lag_grid)
     if any(d.observations for d in datas):
         observation, obs_report = _fit_observations(datas, odometry, latency_grid)
     elif any(d.ranges for d in datas):  # ranging radios: range-only readings (slamio.range_fit)

@@ -219,6 +219,14 @@ class NoiseModel:
             "fit_report": self.fit_report,
         }
 
+    @property
+    def odometry_fitted(self) -> bool:
+        """False when the odometry part is the defaults, not a fit: ``fgslam calibrate`` on a
+        truth without heading (GPS) fits only the range model (``fit_report["odometry"]``
+        says ``not_fitted``). Such a model can correct range-only readings, nothing else."""
+        odometry = self.fit_report.get("odometry") if isinstance(self.fit_report, dict) else None
+        return not (isinstance(odometry, dict) and "not_fitted" in odometry)
+
 
 def carries_fitted_model(noise: dict) -> bool:
     """True when a log header's ``noise`` says a fitted model was applied (by an importer's

@@ -36,13 +36,18 @@ __all__ = ["redraw_noise"]
 def redraw_noise(log: RunLog, rng: np.random.Generator) -> RunLog:
     """``log`` with every odometry increment and landmark reading redrawn (module docstring).
 
-    Raises :class:`~slamio.errors.FgslamError` when a pose has no truth or a seen landmark
-    has no surveyed position: without them there is nothing to draw about."""
+    Raises :class:`~slamio.errors.FgslamError` when a pose has no truth, or no true heading
+    (GPS truth), or a seen landmark has no surveyed position: without them there is nothing
+    to draw about."""
     steps = log.steps()
     missing = [s.index for s in steps if s.truth is None]
     if missing:
         raise FgslamError(f"{log.path}: {len(missing)} of {len(steps)} poses have no truth (first: pose "
                           f"{missing[0]}); redrawing the noise needs the true pose at every step")
+    headless = [s.index for s in steps if s.truth.theta_rad is None]
+    if headless:
+        raise FgslamError(f"{log.path}: the truth of {len(headless)} of {len(steps)} poses has no heading (first: "
+                          f"pose {headless[0]}); redrawing the noise needs the true heading at every step")
     landmarks = log.truth_landmarks()
     records: list = []
     previous = None

@@ -90,6 +90,7 @@ def test_the_script_runs_on_the_excerpt_and_writes_its_figures(script, tmp_path,
         row = result["oracle"][k]
         assert row["range_rms_m"][1] < row["range_rms_m"][0]  # a fit to its own errors removes some of them
         assert 0.0 < row["model"]["isam2"]["ate_aligned_m"] < 1.0
+        assert all(0.5 < row[v][n]["nis_inside"] <= 1.0 for v in ("model", "oracle") for n in ("ekf", "isam2"))
         product, picture = (result["ekf"][k][name] for name in ("product (decay in time)", "decay in time and picture"))
         assert 0.5 < product["nis_inside"] <= 1.0 and 0.5 < picture["nis_inside"] <= 1.0
         assert picture["ate_m"] != product["ate_m"]  # the picture decay changes the filter

@@ -105,13 +105,16 @@ def noise_model_summary(model) -> str:
     """A few lines a person reads: the fitted model in the units people think in."""
     o, z = model.odometry, model.observation
     n = o.noise
+    not_fitted = model.fit_report.get("odometry", {}).get("not_fitted")
     return "\n".join([
         f"noise model fitted on {len(model.fitted_on)} log(s): {', '.join(model.fitted_on)}",
-        f"odometry: lag {o.lag_s:.3f} s, forward scale {o.forward_scale:.4f}, turn scale {o.turn_scale:.4f}, "
-        f"turn per metre {o.turn_per_m_rad:+.4f} rad/m",
-        f"  sigma per sqrt(m): forward {n.forward_m2_per_m ** 0.5:.4f} m, sideways {n.lateral_m2_per_m ** 0.5:.4f} m, "
-        f"heading {n.heading_rad2_per_m ** 0.5:.4f} rad; per sqrt(rad) turned {n.heading_rad2_per_rad ** 0.5:.4f} rad; "
-        f"per sqrt(s): {n.forward_m2_per_s ** 0.5:.4f} m, {n.lateral_m2_per_s ** 0.5:.4f} m, {n.heading_rad2_per_s ** 0.5:.4f} rad",
+        *([f"odometry: not fitted ({not_fitted})"] if not_fitted else [
+            f"odometry: lag {o.lag_s:.3f} s, forward scale {o.forward_scale:.4f}, turn scale {o.turn_scale:.4f}, "
+            f"turn per metre {o.turn_per_m_rad:+.4f} rad/m",
+            f"  sigma per sqrt(m): forward {n.forward_m2_per_m ** 0.5:.4f} m, sideways {n.lateral_m2_per_m ** 0.5:.4f} m, "
+            f"heading {n.heading_rad2_per_m ** 0.5:.4f} rad; per sqrt(rad) turned {n.heading_rad2_per_rad ** 0.5:.4f} rad; "
+            f"per sqrt(s): {n.forward_m2_per_s ** 0.5:.4f} m, {n.lateral_m2_per_s ** 0.5:.4f} m, "
+            f"{n.heading_rad2_per_s ** 0.5:.4f} rad"]),
         *(_radio_lines(model) if "constant_offset_fit" in model.fit_report.get("observation", {}) else [
             f"camera: range is {'depth (r cos b)' if z.range_is_depth else 'Euclidean range'}, "
             f"measured = {z.range_scale:.4f} x {z.range_bias_m:+.4f} m; bearing = {z.bearing_scale:.4f} b "

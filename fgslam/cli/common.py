@@ -143,6 +143,11 @@ def summary(log) -> str:
         truth = f"no pose truth, {counted(surveyed, 'surveyed landmark')}"
     else:
         truth = "no ground truth"
+    headless = sum(getattr(s.truth, "theta_rad", 0.0) is None for s in steps if s.truth is not None)
+    if headless and headless == with_truth:
+        truth += " (positions only: no heading)"
+    elif headless:
+        truth += f" ({headless} of them a position without heading)"
     return (
         f"{counted(len(steps), 'pose')} over {duration:.1f} s, {counted(len(observations), 'observation')} of "
         f"{counted(len(ids), 'landmark')}" + (f" (+{unknown} with unknown id)" if unknown else "") + f", {truth}"

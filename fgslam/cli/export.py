@@ -14,7 +14,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
         "export",
         help="write a run log in another format (a ROS 2 bag)",
         description="Write a run log as a ROS 2 bag (sqlite3): odometry as nav_msgs/Odometry, ground truth as "
-                    "geometry_msgs/PoseStamped, detections as apriltag_ros arrays, plus the exact log on "
+                    "geometry_msgs/PoseStamped (truth with a heading; GPS positions are on /fgslam/run_log only), detections as apriltag_ros arrays, plus the exact log on "
                     "/fgslam/run_log so `fgslam import rosbag BAG OUT` gives it back unchanged. See "
                     "docs/datasets-mrclam-rosbag.md.",
     )
@@ -36,4 +36,9 @@ def cmd_export(args: argparse.Namespace) -> int:
     counts = export_rosbag(log, args.out)
     topics = ", ".join(f"{topic} {n}" for topic, n in counts.items() if topic.startswith("/"))
     print(f"wrote {args.out}: ROS 2 bag ({topics})")
+    only_in_log = {"observations_not_on_detections": "observations without bearing or id",
+                   "truth_poses_without_heading": "truth poses without heading (GPS)"}
+    kept = [f"{counts[key]} {what}" for key, what in only_in_log.items() if counts.get(key)]
+    if kept:
+        print(f"only on /fgslam/run_log (no ROS message holds them): {', '.join(kept)}")
     return 0

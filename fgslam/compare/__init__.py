@@ -30,11 +30,13 @@ Real datasets have truth for only some poses (motion capture loses the robot). A
 trajectory then has NaN rows where there is no truth, and :attr:`Reference.has_pose` says
 which rows hold a pose. Every pose figure is computed over the poses with truth only: ATE
 (final and online) is the RMS over them, the final error is that of the last pose with
-truth, an RPE pair counts when both its ends have truth, NEES is taken at the poses with
-truth, and an SE(2) alignment is fitted to them. The map error does not need pose truth:
+truth, an RPE pair counts when both its ends have truth (with a heading), NEES is taken at
+the poses with truth, and an SE(2) alignment is fitted to them. A truth that measures
+position only (GPS: a NaN heading) scores positions; its NEES is over (x, y), 2 degrees of
+freedom (:func:`nees_dofs`), and it gives no RPE pair. The map error does not need pose truth:
 it is against the log's surveyed landmarks whenever the log has them, even when the
 trajectory reference is the smoothed solution (landmark-only truth). The pure functions
-take an optional ``has_pose`` mask; without it, the finite rows of the reference count.
+take an optional ``has_pose`` mask; without it, the rows with a finite position count.
 
 Which trajectories are aligned, and why only those, is the policy in
 :mod:`fgslam.compare.alignment`.
@@ -58,8 +60,10 @@ from fgslam.compare.errors import (
     last_pose_with_truth,
     map_errors_m,
     map_rmse_m,
+    chi2_summary,
     nees,
     nees_band,
+    nees_dofs,
     nis_summary,
     position_errors_m,
     relative_pose_errors,
@@ -97,7 +101,9 @@ __all__ = [
     "rpe_delta_frames",
     "nees",
     "nees_band",
+    "nees_dofs",
     "nis_summary",
+    "chi2_summary",
     "NIS_DOF",
     "map_errors_m",
     "map_rmse_m",

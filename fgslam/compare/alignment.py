@@ -120,13 +120,16 @@ def shares_first_pose(
     Args:
         estimate, reference: ``(n, 3)`` trajectories (only row 0 is used).
         tol_m: largest distance between the first positions, metres.
-        tol_rad: largest wrapped difference between the first headings, radians.
+        tol_rad: largest wrapped difference between the first headings, radians (not
+            used when the reference's first heading is NaN: a truth without heading).
     """
     e = _as_poses(estimate, "estimate")
     r = _as_poses(reference, "reference")
     if len(e) == 0 or len(r) == 0:
         return False
     distance_m = math.hypot(e[0, 0] - r[0, 0], e[0, 1] - r[0, 1])
+    if not math.isfinite(r[0, 2]):  # a truth without heading (GPS): the positions decide
+        return distance_m <= tol_m
     heading_rad = abs(float(wrap_angle(e[0, 2] - r[0, 2])))
     return distance_m <= tol_m and heading_rad <= tol_rad
 
@@ -134,12 +137,13 @@ def shares_first_pose(
 def reference_rows(reference, has_pose=None) -> np.ndarray:
     """``(n,)`` booleans: the rows of ``reference`` that hold a pose to compare against.
 
-    ``has_pose`` when given (as :attr:`Reference.has_pose`), otherwise the rows whose three
-    numbers are finite (a NaN row is a pose without truth).
+    ``has_pose`` when given (as :attr:`Reference.has_pose`), otherwise the rows whose x and y
+    are finite (a NaN row is a pose without truth; a NaN heading alone, a truth that measures
+    position only, still counts).
     """
     r = _as_poses(reference, "reference")
     if has_pose is None:
-        return np.all(np.isfinite(r), axis=1)
+        return np.all(np.isfinite(r[:, :2]), axis=1)
     mask = np.asarray(has_pose, dtype=bool).reshape(-1)
     if mask.shape != (len(r),):
         raise ComparisonError(f"has_pose has {mask.size} entries for {len(r)} reference poses")

@@ -64,7 +64,8 @@ def ate_rmse_m(estimate, reference, *, align: bool | None = None, has_pose=None)
 
 
 def rpe_pairs(has_pose, delta_frames: int) -> np.ndarray:
-    """``(n − Δ,)`` booleans: pair (i, i + Δ) counts in the RPE when both ends have truth."""
+    """``(n − Δ,)`` booleans: pair (i, i + Δ) counts in the RPE when both ends are True in
+    ``has_pose`` (:func:`relative_pose_errors` also needs a true heading at both ends)."""
     mask = np.asarray(has_pose, dtype=bool).reshape(-1)
     d = int(delta_frames)
     if len(mask) <= d:
@@ -76,7 +77,9 @@ def relative_pose_errors(
     estimate, reference, delta_frames: int, *, has_pose=None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Relative pose errors over ``delta_frames`` (RPE, Sturm et al. 2012), for every pair
-    (i, i + Δ) whose two reference poses have truth (:func:`rpe_pairs`): the error pose
+    (i, i + Δ) whose two reference poses have truth with a heading (:func:`rpe_pairs`; the
+    relative motion is taken in the reference's frame, so a truth that measures position
+    only gives no pair): the error pose
     E = (Qᵢ⁻¹ Qᵢ₊Δ)⁻¹ (Pᵢ⁻¹ Pᵢ₊Δ) of the estimate P against the reference Q. Returns
     ``(‖translation of E‖ in metres, |rotation of E| in radians)``, one entry per such pair
     in order of i.
@@ -94,7 +97,7 @@ def relative_pose_errors(
     d = int(delta_frames)
     if len(e) <= d:
         return np.zeros(0), np.zeros(0)
-    pairs = rpe_pairs(reference_rows(r, has_pose), d)
+    pairs = rpe_pairs(reference_rows(r, has_pose) & np.isfinite(r[:, 2]), d)
 
     def relative(poses):  # Pᵢ⁻¹ Pᵢ₊Δ as (x, y, θ) in frame i
         a, b = poses[:-d], poses[d:]
@@ -114,7 +117,9 @@ def nees(estimate, covariances, reference) -> np.ndarray:
     """``(n,)`` normalised estimation error squared of each pose: eᵀ P⁻¹ e with
     e = (x − x_ref, y − y_ref, wrap(θ − θ_ref)) and P the pose's stated covariance over world
     (x, y, θ). For a consistent estimator each value is χ²-distributed with 3 degrees of
-    freedom (mean 3). A covariance that is not positive definite gives NaN.
+    freedom (mean 3). Where the reference heading is NaN (a truth that measures position
+    only, like GPS) the error is (x, y) against the covariance's position block: 2 degrees
+    of freedom (:func:`nees_dofs`). A covariance that is not positive definite gives NaN.
     """
     e = _as_poses(estimate, "estimate")
     r = _as_poses(reference, "reference")
@@ -122,15 +127,24 @@ def nees(estimate, covariances, reference) -> np.ndarray:
     if e.shape != r.shape or P.shape != (len(e), 3, 3):
         raise ComparisonError(f"nees: {len(e)} poses, {len(r)} reference poses, covariances {P.shape}")
     err = np.column_stack([e[:, 0] - r[:, 0], e[:, 1] - r[:, 1], wrap_angle(e[:, 2] - r[:, 2])])
+    dofs = nees_dofs(r)
     out = np.full(len(e), np.nan)
     for k in range(len(e)):
+        d = dofs[k]
         try:
-            L = np.linalg.cholesky(0.5 * (P[k] + P[k].T))
+            L = np.linalg.cholesky(0.5 * (P[k][:d, :d] + P[k][:d, :d].T))
         except np.linalg.LinAlgError:
             continue
-        w = np.linalg.solve(L, err[k])
+        w = np.linalg.solve(L, err[k][:d])
         out[k] = float(w @ w)
     return out
+
+
+def nees_dofs(reference) -> np.ndarray:
+    """``(n,)`` degrees of freedom of each pose's NEES (:func:`nees`): 3 where the reference
+    pose has a heading, 2 where its heading is NaN (the truth measures position only)."""
+    r = _as_poses(reference, "reference")
+    return np.where(np.isfinite(r[:, 2]), 3, 2)
 
 
 def nees_band(dof: int = 3, runs: int = 1, probability: float = 0.95) -> tuple[float, float]:
@@ -157,7 +171,15 @@ def nis_summary(values, dofs=None) -> tuple[float | None, float | None, int | No
     if values is None:
         return None, None, None
     v = np.asarray(values, dtype=float).reshape(-1)
-    d = np.full(len(v), NIS_DOF) if dofs is None else np.asarray(dofs, dtype=int).reshape(-1)
+    return chi2_summary(v, np.full(len(v), NIS_DOF) if dofs is None else dofs)
+
+
+def chi2_summary(values, dofs) -> tuple[float | None, float | None, int]:
+    """``(mean, share inside the 95 % χ² band, count)`` of χ² values (NIS, NEES) with
+    ``dofs`` degrees of freedom each, NaNs dropped; each value is tested against the band of
+    its own degrees of freedom. ``(None, None, 0)`` when no value is finite."""
+    v = np.asarray(values, dtype=float).reshape(-1)
+    d = np.asarray(dofs, dtype=int).reshape(-1)
     finite = np.isfinite(v)
     v, d = v[finite], d[finite]
     if not len(v):

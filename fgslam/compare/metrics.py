@@ -17,10 +17,11 @@ from fgslam.compare.alignment import align_se2, apply_se2, resolve_alignment
 from fgslam.compare.association import AssociationScore
 from fgslam.compare.errors import (
     _rmse,
+    chi2_summary,
     final_pose_error_m,
     map_rmse_m,
     nees,
-    nees_band,
+    nees_dofs,
     nis_summary,
     position_errors_m,
     relative_pose_errors,
@@ -50,6 +51,7 @@ METRIC_KEYS = (
     "nees_mean",
     "nees_inside_95",
     "nees_count",
+    "nees_dof",
     "nis_mean",
     "nis_inside_95",
     "nis_count",
@@ -96,15 +98,17 @@ def estimator_alignment(run: EstimatorRun, reference: Reference) -> tuple[bool, 
     return resolve_alignment(final, ref[:m], None, has_pose=reference.has_pose[:m])
 
 
-def nees_over_truth(online, covariances, reference, has_pose) -> np.ndarray:
-    """NEES (:func:`nees`) of the online poses that have truth, in pose order; values of a
-    covariance that is not positive definite are NaN (the caller decides what they mean)."""
+def nees_over_truth(online, covariances, reference, has_pose) -> tuple[np.ndarray, np.ndarray]:
+    """``(values, dofs)``: NEES (:func:`nees`) of the online poses that have truth, in pose
+    order, and each one's degrees of freedom (3; 2 where the truth has no heading:
+    :func:`nees_dofs`). Values of a covariance that is not positive definite are NaN (the
+    caller decides what they mean)."""
     e = _as_poses(online, "online")
     k = len(e)
     valid = np.asarray(has_pose, dtype=bool).reshape(-1)[:k]
     r = _as_poses(reference, "reference")[:k]
     P = np.asarray(covariances, dtype=float)[:k]
-    return nees(e[valid], P[valid], r[valid])
+    return nees(e[valid], P[valid], r[valid]), nees_dofs(r[valid])
 
 
 def aligned_ate_m(estimate, reference, has_pose) -> float | None:
@@ -152,16 +156,21 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
              "ate_online_aligned_rmse_m": float|None,  # online, the same
              "final_pose_error_m": float,    # position error of the last pose with truth
              "rpe_trans_rmse_m": float|None, # RPE over rpe_delta_frames, final trajectory
-                                             # (pairs whose both ends have truth)
+                                             # (pairs whose both ends have truth with a
+                                             # heading; None when the truth has none)
              "rpe_heading_rmse_rad": float|None,
              "nees_mean": float|None,        # mean NEES of the online poses with truth
-                                             # (3-DoF; 3 if consistent); None without
+                                             # (3-DoF; 3 if consistent; position-only, 2-DoF,
+                                             # where the truth has no heading); None without
                                              # covariances, against a smoothed reference,
                                              # or when aligned
              "nees_inside_95": float|None,   # share of them whose NEES is inside the 95 %
-                                             # χ²(3) band [0.216, 9.35]
+                                             # band of its dof: χ²(3) [0.216, 9.35],
+                                             # χ²(2) [0.0506, 7.38]
              "nees_count": int|None,         # how many online poses have a NEES (those with
                                              # truth and a positive-definite covariance)
+             "nees_dof": int|None,           # their degrees of freedom: 3, or 2 when the
+                                             # truth has no heading (None: none, or mixed)
              "nis_mean": float|None,         # mean NIS of the observations of landmarks
                                              # already mapped, against the prediction before
                                              # their step (2-DoF range-bearing; 2 if
@@ -241,16 +250,13 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
         found = len(set(run.landmarks) & set(reference.landmarks))
 
         rpe_trans, rpe_heading = relative_pose_errors(final, ref[:m], delta, has_pose=valid[:m])
-        nees_mean = nees_inside = nees_count = None
+        nees_mean = nees_inside = nees_count = nees_dof = None
         if (run.online_covariances is not None and run.online is not None and not aligned
                 and reference.kind == "ground_truth"):
-            values = nees_over_truth(run.online, run.online_covariances, ref, valid)
-            values = values[np.isfinite(values)]
-            if len(values):
-                low, high = nees_band()
-                nees_mean = float(np.mean(values))
-                nees_inside = float(np.mean((values >= low) & (values <= high)))
-            nees_count = int(len(values))
+            values, dofs = nees_over_truth(run.online, run.online_covariances, ref, valid)
+            nees_mean, nees_inside, nees_count = chi2_summary(values, dofs)
+            finite_dofs = set(dofs[np.isfinite(values)].tolist())
+            nees_dof = finite_dofs.pop() if len(finite_dofs) == 1 else None
         nis_mean, nis_inside, nis_count = nis_summary(run.nis, run.nis_dofs)
         metrics[run.name] = {
             "ate_rmse_m": _json_float(_rmse(position_errors_m(final_a, ref[:m])[valid[:m]])),
@@ -265,6 +271,7 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
             "nees_mean": _json_float(nees_mean),
             "nees_inside_95": _json_float(nees_inside),
             "nees_count": nees_count,
+            "nees_dof": nees_dof,
             "nis_mean": _json_float(nis_mean),
             "nis_inside_95": _json_float(nis_inside),
             "nis_count": nis_count,

@@ -114,7 +114,8 @@ class Reference:
         landmarks: landmark id → reference ``(x_m, y_m)``.
         landmark_heights: landmark id → reference height above the floor (m), or ``None``.
         has_pose: ``(n,)`` booleans, True where ``trajectory`` holds a reference pose. When
-            not given, the rows whose three numbers are finite.
+            not given, the rows whose x and y are finite. A reference pose whose heading is
+            NaN has a measured position only (GPS truth): :attr:`has_heading` is False there.
         landmark_reference: where ``landmarks`` come from, ``"ground_truth"`` or
             ``"smoothed"``; by default the same as ``kind``, and ``None`` when there are no
             reference landmarks (no map error can be computed).
@@ -129,8 +130,8 @@ class Reference:
 
     def __post_init__(self):
         trajectory = _as_poses(self.trajectory, "reference.trajectory").copy()
-        if self.has_pose is None:
-            has_pose = np.all(np.isfinite(trajectory), axis=1)
+        if self.has_pose is None:  # a pose whose truth has no heading (GPS) has a NaN heading only
+            has_pose = np.all(np.isfinite(trajectory[:, :2]), axis=1)
         else:
             has_pose = np.asarray(self.has_pose, dtype=bool).reshape(-1)
             if has_pose.shape != (len(trajectory),):
@@ -148,6 +149,12 @@ class Reference:
         object.__setattr__(self, "trajectory", trajectory)
         object.__setattr__(self, "has_pose", has_pose)
         object.__setattr__(self, "landmark_reference", landmark_reference if self.landmarks else None)
+
+    @property
+    def has_heading(self) -> np.ndarray:
+        """``(n,)`` booleans, True where the reference pose has a heading as well as a position
+        (False at poses without truth and where the truth measures position only)."""
+        return self.has_pose & np.isfinite(self.trajectory[:, 2])
 
     @property
     def poses_with_truth(self) -> int:

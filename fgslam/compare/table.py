@@ -79,7 +79,8 @@ COLUMN_MEANINGS = {
     "NEES in %": "share of steps whose NEES (online pose error against ground truth, weighted by "
     "the covariance the estimator stated) lies inside the 95 % chi-square(3) band; about 95 for "
     "a consistent estimator, less when it is over-confident (only with ground truth, over the "
-    "steps that have it)",
+    "steps that have it; against a truth without heading, like GPS, the position's NEES and the "
+    "chi-square(2) band)",
     "NIS in %": "share of observations of already mapped landmarks whose NIS (innovation against "
     "the estimator's prediction, weighted by its predicted covariance) lies inside the 95 % "
     "chi-square(2) band (chi-square(1) for a range-only reading); about 95 when consistent; needs no ground truth",

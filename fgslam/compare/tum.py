@@ -20,7 +20,9 @@ def format_tum(stamps_s, poses) -> str:
 
     A planar heading θ is the rotation about z: ``qx = qy = 0, qz = sin(θ/2),
     qw = cos(θ/2)``. Numbers are written with ``repr`` (shortest text that reads back as
-    the same float), so nothing is lost. The result ends with a newline (empty for no poses).
+    the same float), so nothing is lost. A NaN heading (a truth that measures position only,
+    like GPS) is written as ``nan`` for qz and qw. The result ends with a newline (empty for
+    no poses).
     """
     t = np.asarray(stamps_s, dtype=float).reshape(-1)
     p = _as_poses(poses, "poses")

@@ -202,9 +202,11 @@ def write_report(
                 plot_position_errors(out / POSITION_ERROR_PNG, runs, reference, stamps_s, **styles), ""),
         _Figure("fig-heading-error", "Heading error over time", HEADING_ERROR_PNG,
                 "heading error in degrees against time: final estimate solid, online dashed",
-                plot_heading_errors(out / HEADING_ERROR_PNG, runs, reference, stamps_s, **styles), ""),
+                plot_heading_errors(out / HEADING_ERROR_PNG, runs, reference, stamps_s, **styles),
+                "No heading error: the reference has no heading (a truth that measures position only, like GPS)."),
         _Figure("fig-nees", "Consistency: NEES", NEES_PNG,
-                "NEES of the online pose against time with the 95 % chi-square(3) band",
+                "NEES of the online pose against time with the 95 % chi-square(3) band "
+                "(chi-square(2), position only, where the truth has no heading)",
                 plot_nees(out / NEES_PNG, runs, reference, stamps_s, **styles),
                 "No NEES: it needs the ground truth and an estimator that states a covariance."),
         _Figure("fig-nis", "Consistency: NIS", NIS_PNG,

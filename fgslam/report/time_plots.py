@@ -20,6 +20,7 @@ from fgslam.compare import (
     heading_errors_rad,
     nees,
     nees_band,
+    nees_dofs,
     nis_summary,
     position_errors_m,
 )
@@ -154,13 +155,16 @@ def plot_position_errors(
 
 
 def plot_heading_errors(path, runs: list[EstimatorRun], reference: Reference, stamps_s, *, baseline: str = "fade",
-                        baselines=BASELINE_ESTIMATORS) -> Path:
-    """Heading error (degrees, wrapped) against time since the start; save a PNG.
+                        baselines=BASELINE_ESTIMATORS) -> Path | None:
+    """Heading error (degrees, wrapped) against time since the start; save a PNG (None when
+    no reference pose has a heading: a truth that measures position only, like GPS).
 
     The same alignment, line styles and baseline handling as :func:`plot_position_errors`:
     final solid, online dashed (when it differs from the final estimate); a faded baseline
     is faint and the axis is scaled to the other estimators.
     """
+    if not reference.has_heading.any():
+        return None
     ref = np.asarray(reference.trajectory, dtype=float).reshape(-1, 3)
     t = np.asarray(stamps_s, dtype=float) - float(stamps_s[0])
     fig = _new_figure()
@@ -247,7 +251,8 @@ def plot_nees(path, runs: list[EstimatorRun], reference: Reference, stamps_s, *,
 
     Only estimators that stated a covariance, and only against ground truth (returns None
     otherwise: NEES against a smoothed solution that shares the measurements means little).
-    Poses without truth have no NEES: gaps in the curves.
+    Poses without truth have no NEES: gaps in the curves. Where the truth has no heading the
+    NEES is over the position (:func:`~fgslam.compare.nees`), drawn with the χ²(2) band.
     """
     if reference.kind != "ground_truth":
         return None
@@ -268,14 +273,18 @@ def plot_nees(path, runs: list[EstimatorRun], reference: Reference, stamps_s, *,
         drawn = True
     if not drawn:
         return None
-    low, high = nees_band()
-    ax.axhline(low, color="k", ls="--", lw=0.8, label=f"95 % band [{low:.2f}, {high:.2f}]")
-    ax.axhline(high, color="k", ls="--", lw=0.8)
+    dofs = sorted(set(nees_dofs(ref[reference.has_pose]).tolist()))
+    for dof, style in zip(dofs, ("--", "-.")):
+        low, high = nees_band(dof)
+        ax.axhline(low, color="k", ls=style, lw=0.8,
+                   label=f"95 % band [{low:.2f}, {high:.2f}]" + ("" if dofs == [3] else f", {dof} DoF"))
+        ax.axhline(high, color="k", ls=style, lw=0.8)
     ax.set_yscale("log")
     _shade_truth_gaps(ax, t, reference)
     ax.set_xlabel("time since start [s]")
     n, with_truth = len(ref), reference.poses_with_truth
-    ax.set_ylabel("NEES of the online pose (3 DoF)" + ("" if with_truth == n else f"; {with_truth} of {n} poses have truth"))
+    what = {(3,): "3 DoF", (2,): "position, 2 DoF: the truth has no heading"}.get(tuple(dofs), "3 DoF; 2 without true heading")
+    ax.set_ylabel(f"NEES of the online pose ({what})" + ("" if with_truth == n else f"; {with_truth} of {n} poses have truth"))
     ax.set_title("Consistency: NEES against time (inside the band about 95 % of the time if consistent)",
                  fontsize=11)
     ax.grid(True, which="both", lw=0.5, alpha=0.5)

@@ -585,6 +585,9 @@ def import_mrclam(
         if value is not None and not (math.isfinite(value) and value > 0.0):
             raise FgslamError(f"{name} must be a positive number of seconds or None, got {value!r}")
     noise = odometry_noise if odometry_noise is not None else CommandOdometryNoise()
+    if model is not None and not model.odometry_fitted:
+        raise FgslamError("the noise model's odometry part was not fitted (it was calibrated on a truth without "
+                          "heading, such as GPS); fit the model on MRCLAM runs, whose Vicon truth has headings")
     if model is not None:
         noise = model.odometry.noise
     folder = os.fspath(folder)

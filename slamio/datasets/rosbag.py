@@ -72,7 +72,7 @@ topic                                 type                                     w
 ====================================  =======================================  ==========================
 ``/fgslam/run_log``                   ``std_msgs/String``                      the header and every record, one exact JSON line per message, in file order
 ``/fgslam/odometry``                  ``nav_msgs/Odometry``                    the integrated odometry: pose 0 and every pose, with the propagated (x, y, yaw) covariance
-``/fgslam/truth_pose``                ``geometry_msgs/PoseStamped``            the ``truth_pose`` records
+``/fgslam/truth_pose``                ``geometry_msgs/PoseStamped``            the ``truth_pose`` records that have a heading
 ``/fgslam/tag_detections``            ``apriltag_ros/AprilTagDetectionArray``  the observations, as tag poses in the camera frame of :data:`T_ROBOT_OPTICAL`
 ``/fgslam/truth_landmarks``           ``geometry_msgs/PoseArray``              the ``truth_landmark`` records (for viewing)
 ====================================  =======================================  ==========================
@@ -843,8 +843,9 @@ def export_rosbag(
     ``out_path`` must not exist (rosbags never overwrites). ``storage`` is ``"sqlite3"``
     (default; every ROS 2 release reads it) or ``"mcap"``. The topics are in the module
     docstring; :func:`import_rosbag` reads the bag back exactly. Returns the number of
-    messages per topic and ``observations_not_on_detections`` (range-only or unidentified
-    observations, which only ``/fgslam/run_log`` carries).
+    messages per topic, ``observations_not_on_detections`` (range-only or unidentified
+    observations) and ``truth_poses_without_heading`` (GPS truth: a ``PoseStamped`` needs an
+    orientation), which only ``/fgslam/run_log`` carries.
     """
     _rosbags()
     from rosbags.rosbag2 import StoragePlugin, Writer
@@ -870,6 +871,7 @@ def export_rosbag(
     P = np.diag(np.square(header.start_sigma))
     odometry_msgs = [(header.stamp_s, pose, P)]
     truth_msgs: list[TruthPose] = []
+    truth_without_heading = 0
     landmarks: list[TruthLandmark] = []
     detection_groups: dict[tuple[int, float], list[Observation]] = {}
     skipped = 0
@@ -884,7 +886,10 @@ def export_rosbag(
             step += 1
             odometry_msgs.append((r.stamp_s, pose, P))
         elif isinstance(r, TruthPose):
-            truth_msgs.append(r)
+            if r.theta_rad is None:  # a pose message needs an orientation: only /fgslam/run_log has it
+                truth_without_heading += 1
+            else:
+                truth_msgs.append(r)
         elif isinstance(r, TruthLandmark):
             landmarks.append(r)
         elif isinstance(r, Observation):
@@ -952,4 +957,5 @@ def export_rosbag(
         raise
     writer.close()
     summary["observations_not_on_detections"] = skipped
+    summary["truth_poses_without_heading"] = truth_without_heading
     return summary

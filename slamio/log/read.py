@@ -215,7 +215,7 @@ def parse_record(d: dict) -> Record:
             stamp_s=_finite(d, "stamp_s"),
             x_m=_magnitude(d, "x_m", COORDINATE_M, "m", _WHY_COORDINATE),
             y_m=_magnitude(d, "y_m", COORDINATE_M, "m", _WHY_COORDINATE),
-            theta_rad=_magnitude(d, "theta_rad", WORLD_ANGLE_RAD, "rad", _WHY_WORLD_ANGLE),
+            theta_rad=_magnitude(d, "theta_rad", WORLD_ANGLE_RAD, "rad", _WHY_WORLD_ANGLE, optional=True),
         )  # type: ignore[arg-type]
     return TruthLandmark(
         landmark_id=_integer(d, "landmark_id", id_range=True),

@@ -114,12 +114,16 @@ class Observation:
 
 @dataclass(frozen=True)
 class TruthPose:
-    """Ground truth of the current pose (simulation, motion capture)."""
+    """Ground truth of the current pose (simulation, motion capture, GPS).
+
+    ``theta_rad`` is None when the truth measures position only (GPS gives no heading): such
+    a pose is scored on its position, and its NEES is over (x, y) alone (2 degrees of freedom).
+    """
 
     stamp_s: float
     x_m: float
     y_m: float
-    theta_rad: float
+    theta_rad: float | None = None
 
 
 @dataclass(frozen=True)

@@ -210,6 +210,12 @@ QUOTES += [
           2: _oracle_median("ekf", "model", "ate_aligned_m"), 3: _oracle_median("ekf", "oracle", "ate_aligned_m"),
           4: _oracle_median("isam2", "model", "ate_m"), 5: _oracle_median("isam2", "oracle", "ate_m"),
           6: _oracle_median("ekf", "model", "ate_m"), 7: _oracle_median("ekf", "oracle", "ate_m")}),
+    *row(DATASETS, "its median share goes from 91.6 to 91.1 %\n  for the smoother and from 89.6 to 89.4 % for the EKF",
+         CAMERA, "camera oracle: NIS medians",
+         {0: lambda r: 100 * r["oracle"]["median"]["isam2"]["model"]["nis_inside"],
+          1: lambda r: 100 * r["oracle"]["median"]["isam2"]["oracle"]["nis_inside"],
+          2: lambda r: 100 * r["oracle"]["median"]["ekf"]["model"]["nis_inside"],
+          3: lambda r: 100 * r["oracle"]["median"]["ekf"]["oracle"]["nis_inside"]}),
 ]
 
 _PRODUCT, _PICTURE, _PICTURE_SLOW = ("product (decay in time)", "decay in time and picture",

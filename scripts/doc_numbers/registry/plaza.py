@@ -108,8 +108,19 @@ QUOTES += [
     *row(D, "| −0.01 / 0.01 / 0.00 | 0.01 / 0.01 / 0.01 |", S, "correlation",
          {0: correlation("plaza1", 0), 1: correlation("plaza1", 3), 2: correlation("plaza1", 6),
           3: correlation("plaza2", 0), 4: correlation("plaza2", 3), 5: correlation("plaza2", 5)}),
-    *row(D, "heading is turned by the same angle (+3.15° Plaza1, +10.05° Plaza2)", S, "start heading turn",
+    *row(D, "by +3.15° (Plaza1) and +10.05° (Plaza2)", S, "start heading turn",
          {0: lambda m: m["turn_deg"]["plaza1"], 1: lambda m: m["turn_deg"]["plaza2"]}),
+    *row(D, "band less often than 95 %, with the fitted model: EKF 91.9 % (Plaza1) and 86.6 % (Plaza2),\n"
+         "  `isam2` 80.1 % and 82.0 %", S, "position NEES",
+         {1: result("plaza1", "fitted", "ekf", "nees_inside_95", 100.0),
+          2: result("plaza2", "fitted", "ekf", "nees_inside_95", 100.0),
+          3: result("plaza1", "fitted", "isam2", "nees_inside_95", 100.0),
+          4: result("plaza2", "fitted", "isam2", "nees_inside_95", 100.0)}),
+    *row(D, "only 17–51 % are", S, "position NEES, default import",
+         {0: lambda m: min(100 * m["results"][(r, "default")][n]["nees_inside_95"]
+                           for r in ("plaza1", "plaza2") for n in ("ekf", "isam2")),
+          1: lambda m: max(100 * m["results"][(r, "default")][n]["nees_inside_95"]
+                           for r in ("plaza1", "plaza2") for n in ("ekf", "isam2"))}),
     *row(D, "Dead reckoning is 1.87 m (Plaza1) and 28.3 m (Plaza2)", S, "dead reckoning",
          {0: result("plaza1", "fitted", "dead_reckoning", "ate_rmse_m"),
           1: result("plaza2", "fitted", "dead_reckoning", "ate_rmse_m")}),

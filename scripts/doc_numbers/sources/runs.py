@@ -207,6 +207,6 @@ def live_replay(context: Context) -> dict:
     out = {}
     for name in ("ekf", "isam2"):
         run, _ = run_estimator(ESTIMATORS[name](log.header), steps)
-        nees = nees_over_truth(run.online, run.online_covariances, truth, has)
+        nees, _ = nees_over_truth(run.online, run.online_covariances, truth, has)
         out[name] = {"nees_mean": float(np.mean(nees)), "nees_max": float(np.max(nees))}
     return out
