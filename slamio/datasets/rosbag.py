@@ -62,31 +62,9 @@ Detections before the first or after the last odometry message are dropped and c
 Pose 0 is the first odometry pose (``start_from="odom"``), the ground truth at that time
 (``"truth"``, so the estimate is in the truth's frame) or ``(0, 0, 0)`` (``"zero"``).
 
-Export (:func:`export_rosbag`) and the exact round trip
--------------------------------------------------------
-:func:`export_rosbag` writes a ROS 2 bag of a run log, for ROS tools (rviz2, Foxglove,
-PlotJuggler, ``ros2 bag``) and for the importer:
-
-====================================  =======================================  ==========================
-topic                                 type                                     what
-====================================  =======================================  ==========================
-``/fgslam/run_log``                   ``std_msgs/String``                      the header and every record, one exact JSON line per message, in file order
-``/fgslam/odometry``                  ``nav_msgs/Odometry``                    the integrated odometry: pose 0 and every pose, with the propagated (x, y, yaw) covariance
-``/fgslam/truth_pose``                ``geometry_msgs/PoseStamped``            the ``truth_pose`` records that have a heading
-``/fgslam/tag_detections``            ``apriltag_ros/AprilTagDetectionArray``  the observations, as tag poses in the camera frame of :data:`T_ROBOT_OPTICAL`
-``/fgslam/truth_landmarks``           ``geometry_msgs/PoseArray``              the ``truth_landmark`` records (for viewing)
-====================================  =======================================  ==========================
-
-Frames: ``world`` (the log's world frame), ``base_link`` (the robot), ``camera_optical``.
-The importer prefers ``/fgslam/run_log`` when a bag has it, and then gives back exactly the
-exported header and records (``standard_topics_only=True`` reads the standard topics
-instead). The run-log messages get strictly increasing bag times (a record at the same
-stamp as the one before is written 1 ns later) so their order is the file's order.
-Observations without a bearing (range-only) or without a landmark id cannot be tag poses:
-they are only on ``/fgslam/run_log`` (counted in the export summary). An observation
-without tag yaw is written with its face normal pointing up, which the importer reads back
-as "no tag yaw". The bag is rosbag2 format version 8 (ROS 2 Iron and later; sqlite3
-storage by default, MCAP on request).
+Export, the exact round trip and the topics an exported bag holds: :mod:`slamio.datasets.rosbag_export`
+(:func:`export_rosbag` is importable from here too). What both share (topic names, message
+definitions, the typestore, :class:`MessageFactory`, tag geometry): :mod:`slamio.datasets.rosbag_messages`.
 """
 
 from __future__ import annotations
@@ -98,25 +76,40 @@ import re
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 import numpy as np
 
 from slamio.datasets.mrclam import CommandOdometryNoise, interpolate_pose
+from slamio.datasets.rosbag_export import export_rosbag
+from slamio.datasets.rosbag_messages import (
+    _DETECTION_ARRAY_TYPE,
+    _STRING_TYPE,
+    APRILTAG_DETECTION_ARRAY_MSG,
+    APRILTAG_DETECTION_MSG,
+    DETECTIONS_TOPIC,
+    LANDMARKS_TOPIC,
+    ODOMETRY_TOPIC,
+    RUN_LOG_TOPIC,
+    T_ROBOT_OPTICAL,
+    TRUTH_TOPIC,
+    MessageFactory,
+    _rosbags,
+    apriltag_typestore,
+    compose_jacobians,
+    tag_observation_geometry,
+)
 from slamio.datasets.victoria_park import DatasetFormatError
 from slamio.errors import FgslamError
-from slamio.geometry import between_pose, compose_pose, wrap_angle
+from slamio.geometry import between_pose, wrap_angle
 from slamio.log import (
     Header,
     LogFormatError,
     Observation,
     Odometry,
     Record,
-    RunLog,
-    TruthLandmark,
     TruthPose,
     as_matrix3,
-    format_line,
     read_log,
 )
 from slamio.se3 import quaternion_from_rotation, rotation_from_quaternion, yaw_from_quaternion
@@ -140,45 +133,17 @@ __all__ = [
     "yaw_from_quaternion",
 ]
 
-RUN_LOG_TOPIC = "/fgslam/run_log"
-ODOMETRY_TOPIC = "/fgslam/odometry"
-TRUTH_TOPIC = "/fgslam/truth_pose"
-DETECTIONS_TOPIC = "/fgslam/tag_detections"
-LANDMARKS_TOPIC = "/fgslam/truth_landmarks"
-WORLD_FRAME, ROBOT_FRAME, CAMERA_FRAME = "world", "base_link", "camera_optical"
-
-#: apriltag_ros's detection messages (ROS 1 apriltag_ros 3.x; the same fields in its ROS 2
-#: ports). Fields only: comments do not change the message hash.
-APRILTAG_DETECTION_MSG = """int32[] id
-float64[] size
-geometry_msgs/PoseWithCovarianceStamped pose
-"""
-APRILTAG_DETECTION_ARRAY_MSG = """std_msgs/Header header
-AprilTagDetection[] detections
-"""
-_DETECTION_TYPE = "apriltag_ros/msg/AprilTagDetection"
-_DETECTION_ARRAY_TYPE = "apriltag_ros/msg/AprilTagDetectionArray"
-
-#: The camera's optical frame (x right, y down, z forward) at the robot's origin, looking
-#: forward: columns are the optical axes in the robot frame (x forward, y left, z up).
-T_ROBOT_OPTICAL = np.array(
-    [[0.0, 0.0, 1.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, -1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
-)
-
 DEFAULT_SIGMA_RANGE_M = 0.05
 DEFAULT_SIGMA_BEARING_RAD = 0.02
 DEFAULT_SIGMA_TAG_YAW_RAD = 0.1
 DEFAULT_SIGMA_HEIGHT_M = 0.05
 DEFAULT_MAX_TRUTH_GAP_S = 0.5
-#: A face normal whose horizontal part is shorter than this (within 30° of vertical) has no yaw.
-MIN_NORMAL_HORIZONTAL = 0.5
 #: The default model's shortest time per increment (keeps duplicate stamps positive definite).
 MIN_INCREMENT_DT_S = 1e-3
 
 _ODOMETRY_TYPES = ("nav_msgs/msg/Odometry",)
 _POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/PoseWithCovarianceStamped")
 _TRUTH_TYPES = _POSE_TYPES + _ODOMETRY_TYPES
-_STRING_TYPE = "std_msgs/msg/String"
 
 
 class BagFormatError(DatasetFormatError):
@@ -195,47 +160,7 @@ class BagFormatError(DatasetFormatError):
         self.topic = topic
 
 
-# --------------------------------------------------------------------------- rosbags
-
-
-def _rosbags():
-    try:
-        import rosbags.highlevel  # noqa: F401  (lazy: only the bag code needs rosbags)
-        import rosbags.rosbag2  # noqa: F401
-        import rosbags.typesys  # noqa: F401
-    except ImportError as exc:  # pragma: no cover - rosbags is installed with fgslam
-        raise FgslamError(f"ROS bags need the 'rosbags' package ({exc}); pip install rosbags") from None
-    import rosbags
-
-    return rosbags
-
-
-def apriltag_typestore(ros_version: int = 2):
-    """A rosbags typestore (ROS 2 Humble or ROS 1 Noetic) with apriltag_ros's messages added."""
-    _rosbags()
-    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-
-    if ros_version not in (1, 2):
-        raise FgslamError(f"ros_version must be 1 or 2, got {ros_version!r}")
-    store = get_typestore(Stores.ROS2_HUMBLE if ros_version == 2 else Stores.ROS1_NOETIC)
-    types: dict[str, Any] = {}
-    types.update(get_types_from_msg(APRILTAG_DETECTION_MSG, _DETECTION_TYPE))
-    types.update(get_types_from_msg(APRILTAG_DETECTION_ARRAY_MSG, _DETECTION_ARRAY_TYPE))
-    store.register(types)
-    return store
-
-
 # --------------------------------------------------------------------------- pure maths
-
-
-def compose_jacobians(pose, increment) -> tuple[np.ndarray, np.ndarray]:
-    """Jacobians of ``compose_pose(pose, increment)`` with respect to pose and increment."""
-    th = pose[2]
-    dx, dy = increment[0], increment[1]
-    c, s = math.cos(th), math.sin(th)
-    J1 = np.array([[1.0, 0.0, -s * dx - c * dy], [0.0, 1.0, c * dx - s * dy], [0.0, 0.0, 1.0]])
-    J2 = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    return J1, J2
 
 
 def increment_covariance_from_poses(P_prev: np.ndarray, P_next: np.ndarray, pose_prev, increment) -> np.ndarray | None:
@@ -268,133 +193,6 @@ def interpolate_se2(pose_a, pose_b, fraction: float) -> tuple[float, float, floa
         pose_a[1] + fraction * (pose_b[1] - pose_a[1]),
         float(wrap_angle(pose_a[2] + fraction * wrap_angle(pose_b[2] - pose_a[2]))),
     )
-
-
-def tag_observation_geometry(
-    position_camera, orientation_camera, T_robot_camera: np.ndarray, normal_sign: float = 1.0
-) -> tuple[float, float, float | None, float]:
-    """(range_m, bearing_rad, tag_yaw_rad or None, height_m) of a tag pose in the camera frame."""
-    R_rc, t_rc = T_robot_camera[:3, :3], T_robot_camera[:3, 3]
-    p = R_rc @ np.asarray(position_camera, dtype=float) + t_rc
-    range_m = math.hypot(p[0], p[1])
-    bearing_rad = math.atan2(p[1], p[0])
-    yaw = None
-    R_ct = rotation_from_quaternion(*orientation_camera)
-    if R_ct is not None:
-        normal = R_rc @ (normal_sign * R_ct[:, 2])
-        if math.hypot(normal[0], normal[1]) >= MIN_NORMAL_HORIZONTAL:
-            yaw = math.atan2(normal[1], normal[0])
-    return range_m, bearing_rad, yaw, float(p[2])
-
-
-def tag_pose_in_camera(
-    range_m: float, bearing_rad: float, tag_yaw_rad: float | None, height_m: float | None, T_robot_camera: np.ndarray
-) -> tuple[np.ndarray, tuple[float, float, float, float]]:
-    """The inverse of :func:`tag_observation_geometry` for an upright tag (+z out of its face).
-
-    Without a tag yaw the face normal points up (read back as "no tag yaw").
-    """
-    p_robot = np.array([range_m * math.cos(bearing_rad), range_m * math.sin(bearing_rad), height_m or 0.0])
-    if tag_yaw_rad is None:
-        R_robot_tag = np.eye(3)
-    else:
-        z = np.array([math.cos(tag_yaw_rad), math.sin(tag_yaw_rad), 0.0])
-        y = np.array([0.0, 0.0, 1.0])
-        R_robot_tag = np.column_stack([np.cross(y, z), y, z])
-    R_rc, t_rc = T_robot_camera[:3, :3], T_robot_camera[:3, 3]
-    p_camera = R_rc.T @ (p_robot - t_rc)
-    return p_camera, quaternion_from_rotation(R_rc.T @ R_robot_tag)
-
-
-# --------------------------------------------------------------------------- messages
-
-
-class MessageFactory:
-    """Builds the messages the exporter writes, for a typestore of either ROS version.
-
-    Holds the typestore (state) and serialises with the matching wire format (CDR for
-    ROS 2, ROS 1 serialisation for ROS 1). Tests use it to write ROS 1 bags too.
-    """
-
-    def __init__(self, store, ros_version: int):
-        self.store = store
-        self.ros_version = ros_version
-        self.types = store.types
-        self._has_seq = "seq" in self.types["std_msgs/msg/Header"].__dataclass_fields__
-
-    def serialize(self, msg) -> bytes:
-        if self.ros_version == 2:
-            return bytes(self.store.serialize_cdr(msg, msg.__msgtype__))
-        return bytes(self.store.serialize_ros1(msg, msg.__msgtype__))
-
-    def header(self, stamp_ns: int, frame_id: str):
-        T = self.types
-        stamp = T["builtin_interfaces/msg/Time"](sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)
-        if self._has_seq:
-            return T["std_msgs/msg/Header"](seq=0, stamp=stamp, frame_id=frame_id)
-        return T["std_msgs/msg/Header"](stamp=stamp, frame_id=frame_id)
-
-    def pose(self, position, quaternion):
-        T = self.types
-        return T["geometry_msgs/msg/Pose"](
-            position=T["geometry_msgs/msg/Point"](x=float(position[0]), y=float(position[1]), z=float(position[2])),
-            orientation=T["geometry_msgs/msg/Quaternion"](
-                x=float(quaternion[0]), y=float(quaternion[1]), z=float(quaternion[2]), w=float(quaternion[3])
-            ),
-        )
-
-    def planar_pose(self, pose):
-        x, y, th = pose
-        return self.pose((x, y, 0.0), (0.0, 0.0, math.sin(th / 2.0), math.cos(th / 2.0)))
-
-    def string(self, text: str):
-        return self.types[_STRING_TYPE](data=text)
-
-    def odometry(self, stamp_ns: int, pose, covariance_xy_yaw=None, frame_id=WORLD_FRAME, child_frame_id=ROBOT_FRAME):
-        """nav_msgs/Odometry of a planar pose; the (x, y, yaw) block of the covariance filled."""
-        T = self.types
-        cov = np.zeros(36)
-        if covariance_xy_yaw is not None:
-            C = np.asarray(covariance_xy_yaw, dtype=float)
-            for a, i in enumerate((0, 1, 5)):
-                for b, j in enumerate((0, 1, 5)):
-                    cov[6 * i + j] = C[a, b]
-        zero3 = T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
-        return T["nav_msgs/msg/Odometry"](
-            header=self.header(stamp_ns, frame_id),
-            child_frame_id=child_frame_id,
-            pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=self.planar_pose(pose), covariance=cov),
-            twist=T["geometry_msgs/msg/TwistWithCovariance"](
-                twist=T["geometry_msgs/msg/Twist"](linear=zero3, angular=zero3), covariance=np.zeros(36)
-            ),
-        )
-
-    def pose_stamped(self, stamp_ns: int, pose, frame_id=WORLD_FRAME):
-        return self.types["geometry_msgs/msg/PoseStamped"](header=self.header(stamp_ns, frame_id), pose=self.planar_pose(pose))
-
-    def pose_stamped_3d(self, stamp_ns: int, position, quaternion, frame_id=CAMERA_FRAME):
-        return self.types["geometry_msgs/msg/PoseStamped"](header=self.header(stamp_ns, frame_id), pose=self.pose(position, quaternion))
-
-    def detection_array(self, stamp_ns: int, tags: Iterable[tuple[list[int], list[float], Any, Any]], frame_id=CAMERA_FRAME):
-        """AprilTagDetectionArray of (ids, sizes, position in camera, quaternion) tuples."""
-        T = self.types
-        detections = []
-        for ids, sizes, position, quaternion in tags:
-            detections.append(
-                T[_DETECTION_TYPE](
-                    id=np.asarray(ids, dtype=np.int32),
-                    size=np.asarray(sizes, dtype=np.float64),
-                    pose=T["geometry_msgs/msg/PoseWithCovarianceStamped"](
-                        header=self.header(stamp_ns, frame_id),
-                        pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=self.pose(position, quaternion), covariance=np.zeros(36)),
-                    ),
-                )
-            )
-        return T[_DETECTION_ARRAY_TYPE](header=self.header(stamp_ns, frame_id), detections=detections)
-
-    def pose_array(self, stamp_ns: int, poses, frame_id=WORLD_FRAME):
-        return self.types["geometry_msgs/msg/PoseArray"](header=self.header(stamp_ns, frame_id), poses=list(poses))
-
 
 # --------------------------------------------------------------------------- import
 
@@ -823,139 +621,3 @@ def import_rosbag(
         },
     )
     return header, records
-
-
-# --------------------------------------------------------------------------- export
-
-
-def _ns(stamp_s: float) -> int:
-    return int(round(stamp_s * 1e9))
-
-
-def export_rosbag(
-    log: str | os.PathLike[str] | RunLog,
-    out_path: str | os.PathLike[str],
-    *,
-    storage: str = "sqlite3",
-) -> dict[str, int]:
-    """Write a run log (a path or a :class:`~slamio.log.RunLog`) as a ROS 2 bag folder.
-
-    ``out_path`` must not exist (rosbags never overwrites). ``storage`` is ``"sqlite3"``
-    (default; every ROS 2 release reads it) or ``"mcap"``. The topics are in the module
-    docstring; :func:`import_rosbag` reads the bag back exactly. Returns the number of
-    messages per topic, ``observations_not_on_detections`` (range-only or unidentified
-    observations) and ``truth_poses_without_heading`` (GPS truth: a ``PoseStamped`` needs an
-    orientation), which only ``/fgslam/run_log`` carries.
-    """
-    _rosbags()
-    from rosbags.rosbag2 import StoragePlugin, Writer
-
-    run = log if isinstance(log, RunLog) else read_log(log)
-    header, records = run.header, run.records
-    if header.stamp_s < 0.0:
-        raise FgslamError(
-            f"the log starts at stamp {header.stamp_s!r} s; ROS bags cannot hold negative times "
-            "(shift the log's stamps to start at 0 or later)"
-        )
-    plugins = {"sqlite3": StoragePlugin.SQLITE3, "mcap": StoragePlugin.MCAP}
-    if storage not in plugins:
-        raise FgslamError(f"storage must be 'sqlite3' or 'mcap', got {storage!r}")
-    out = Path(out_path)
-    if out.exists():
-        raise FgslamError(f"{out}: already exists; rosbags does not overwrite a bag: remove it or choose another name")
-    store = apriltag_typestore(2)
-    make = MessageFactory(store, 2)
-
-    # pose of every step, integrated, and its propagated covariance
-    pose = tuple(header.start_pose)
-    P = np.diag(np.square(header.start_sigma))
-    odometry_msgs = [(header.stamp_s, pose, P)]
-    truth_msgs: list[TruthPose] = []
-    truth_without_heading = 0
-    landmarks: list[TruthLandmark] = []
-    detection_groups: dict[tuple[int, float], list[Observation]] = {}
-    skipped = 0
-    step = 0
-    for r in records:
-        if isinstance(r, Odometry):
-            delta = (r.dx_m, r.dy_m, r.dtheta_rad)
-            J1, J2 = compose_jacobians(pose, delta)
-            P = J1 @ P @ J1.T + J2 @ np.array(r.covariance) @ J2.T
-            P = 0.5 * (P + P.T)
-            pose = compose_pose(pose, delta)
-            step += 1
-            odometry_msgs.append((r.stamp_s, pose, P))
-        elif isinstance(r, TruthPose):
-            if r.theta_rad is None:  # a pose message needs an orientation: only /fgslam/run_log has it
-                truth_without_heading += 1
-            else:
-                truth_msgs.append(r)
-        elif isinstance(r, TruthLandmark):
-            landmarks.append(r)
-        elif isinstance(r, Observation):
-            if getattr(r, "bearing_rad", None) is None or r.landmark_id is None:
-                skipped += 1
-            else:
-                detection_groups.setdefault((step, r.stamp_s), []).append(r)
-
-    tag_size_m = header.sensor.get("tag_size_m", 0.0)
-    tag_size_m = float(tag_size_m) if isinstance(tag_size_m, (int, float)) and not isinstance(tag_size_m, bool) else 0.0
-    summary = {RUN_LOG_TOPIC: len(records) + 1, ODOMETRY_TOPIC: len(odometry_msgs), TRUTH_TOPIC: len(truth_msgs),
-               DETECTIONS_TOPIC: len(detection_groups), LANDMARKS_TOPIC: 1 if landmarks else 0}
-    try:
-        writer = Writer(out, version=8, storage_plugin=plugins[storage])
-        writer.set_custom_data("fgslam.run_log_topic", RUN_LOG_TOPIC)
-        writer.set_custom_data("fgslam.format", "fgslam-run-log version 1; see docs/log-format.md")
-        writer.open()
-    except Exception as exc:
-        raise FgslamError(f"{out}: cannot create the bag ({exc})") from None
-    try:
-        conn = {
-            RUN_LOG_TOPIC: writer.add_connection(RUN_LOG_TOPIC, _STRING_TYPE, typestore=store),
-            ODOMETRY_TOPIC: writer.add_connection(ODOMETRY_TOPIC, "nav_msgs/msg/Odometry", typestore=store),
-        }
-        if truth_msgs:
-            conn[TRUTH_TOPIC] = writer.add_connection(TRUTH_TOPIC, "geometry_msgs/msg/PoseStamped", typestore=store)
-        if detection_groups:
-            conn[DETECTIONS_TOPIC] = writer.add_connection(DETECTIONS_TOPIC, _DETECTION_ARRAY_TYPE, typestore=store)
-        if landmarks:
-            conn[LANDMARKS_TOPIC] = writer.add_connection(LANDMARKS_TOPIC, "geometry_msgs/msg/PoseArray", typestore=store)
-
-        # the exact log: strictly increasing bag times keep the file order
-        t_line = _ns(header.stamp_s)
-        writer.write(conn[RUN_LOG_TOPIC], t_line, make.serialize(make.string(format_line(header))))
-        for r in records:
-            stamp = getattr(r, "stamp_s", None)
-            t_line = max(_ns(stamp) if stamp is not None else t_line, t_line + 1)
-            writer.write(conn[RUN_LOG_TOPIC], t_line, make.serialize(make.string(format_line(r))))
-
-        for stamp, pose, P in odometry_msgs:
-            t = _ns(stamp)
-            writer.write(conn[ODOMETRY_TOPIC], t, make.serialize(make.odometry(t, pose, P)))
-        for r in truth_msgs:
-            t = _ns(r.stamp_s)
-            writer.write(conn[TRUTH_TOPIC], t, make.serialize(make.pose_stamped(t, (r.x_m, r.y_m, r.theta_rad))))
-        for (_, stamp), observations in detection_groups.items():
-            t = _ns(stamp)
-            tags = []
-            for o in observations:
-                position, quaternion = tag_pose_in_camera(o.range_m, o.bearing_rad, o.tag_yaw_rad, o.height_m, T_ROBOT_OPTICAL)
-                tags.append(([o.landmark_id], [tag_size_m], position, quaternion))
-            writer.write(conn[DETECTIONS_TOPIC], t, make.serialize(make.detection_array(t, tags)))
-        if landmarks:
-            t = _ns(header.stamp_s)
-            poses = [
-                make.pose(
-                    (lm.x_m, lm.y_m, lm.height_m or 0.0),
-                    (0.0, 0.0, math.sin((lm.yaw_rad or 0.0) / 2.0), math.cos((lm.yaw_rad or 0.0) / 2.0)),
-                )
-                for lm in landmarks
-            ]
-            writer.write(conn[LANDMARKS_TOPIC], t, make.serialize(make.pose_array(t, poses)))
-    except BaseException:
-        writer.close()
-        raise
-    writer.close()
-    summary["observations_not_on_detections"] = skipped
-    summary["truth_poses_without_heading"] = truth_without_heading
-    return summary
