@@ -109,7 +109,7 @@ def records_in_time_order(draw, start_stamp_s):
                 )
             )
         elif kind == "truth_pose":
-            out.append(TruthPose(stamp, draw(coordinate_m), draw(coordinate_m), draw(world_angle)))
+            out.append(TruthPose(stamp, draw(coordinate_m), draw(coordinate_m), draw(st.none() | world_angle)))
         else:
             out.append(
                 TruthLandmark(
