@@ -194,7 +194,7 @@ def main() -> None:
     stats = pstats.Stats(timed)
     stats.sort_stats("tottime").print_stats(12)
 
-    skip = smoother.relinearize_skip
+    skip = smoother.settings.relinearize_skip
     by_phase = defaultdict(float)
     for i, s in enumerate(timer.update_s):
         by_phase[i % skip] += s

@@ -55,7 +55,7 @@ def test_relinearisation_is_checked_on_every_20th_update_only():
     header, records = simulate("arena-octagon", 2)
     steps = group_steps(header, records)
     smoother = Isam2Smoother(header)
-    assert smoother.relinearize_skip == 20
+    assert smoother.settings.relinearize_skip == 20
     recording = smoother._isam = _RecordingIsam2(smoother._isam)
     _online(smoother, steps)
     assert smoother.update_failures == 0  # the recorder saw every update of one iSAM2

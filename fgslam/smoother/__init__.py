@@ -3,8 +3,10 @@
 Where things are
 ----------------
 ======================  ==================================================================
-``isam2.py``            :class:`Isam2Smoother`: settings, the step loop, the queries; it
-                        composes the modules below (start reading here)
+``isam2.py``            :class:`Isam2Smoother`: the step loop, the queries; it composes
+                        the modules below (start reading here)
+``settings.py``         :class:`Isam2Settings`: every knob of how the graph is solved,
+                        validated, each default with the measurement that chose it
 ``factors.py``          log records → factors and noise models (pure maths: odometry, tag
                         and start-prior covariances, robust kernels and their widths)
 ``policy.py``           when steps go to iSAM2 (held steps) and which poses are variables
@@ -16,6 +18,7 @@ Where things are
 ``relinearisation.py``  which variables a relinearisation check may relinearise (the cap,
                         ``relinearize_max_variables``)
 ``online.py``           the online pose, its covariance, predicted NIS, landmark marginals
+``association.py``      pairing observations without an id with the landmarks iSAM2 holds
 ``correction.py``       the online pose between updates: a pose-only EKF against the
                         landmarks iSAM2 holds (scalar maths, microseconds a step)
 ``variables.py``        keys, the landmarks iSAM2 holds, reading ``gtsam.Values`` back
@@ -60,9 +63,11 @@ from fgslam.smoother.factors import (
 )
 from fgslam.smoother.isam2 import Isam2Smoother
 from fgslam.smoother.policy import FAST_SETTINGS
+from fgslam.smoother.settings import Isam2Settings
 
 __all__ = [
     "Isam2Smoother",
+    "Isam2Settings",
     "BatchResult",
     "batch_solve",
     "odometry_noise_covariance",

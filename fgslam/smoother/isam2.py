@@ -24,7 +24,8 @@ local minimum on real data; started from iSAM2 it converges — DESIGN.md).
 
 The smoother itself holds the iSAM2 object, the graph and initial values accepted so far
 (for :meth:`Isam2Smoother.graph` and the batch solve) and the step loop; what it composes
-lives in its own module: factors and noise models (:mod:`~fgslam.smoother.factors`),
+lives in its own module: its settings and why each default (:mod:`~fgslam.smoother.settings`),
+factors and noise models (:mod:`~fgslam.smoother.factors`),
 held steps and keyframes (:mod:`~fgslam.smoother.policy`), observations waiting outside
 iSAM2 (:mod:`~fgslam.smoother.pending`), failure recovery (:mod:`~fgslam.smoother.recovery`),
 the online pose and the marginals (:mod:`~fgslam.smoother.online`) and the landmarks iSAM2
@@ -33,7 +34,6 @@ holds (:mod:`~fgslam.smoother.variables`).
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 
 import gtsam
@@ -59,6 +59,7 @@ from fgslam.smoother.pending import MAX_UNCONFIRMED, PENDING_GATE, PendingObserv
 from fgslam.smoother.policy import HeldSteps, Keyframes
 from fgslam.smoother.recovery import rebuild
 from fgslam.smoother.relinearisation import held_back
+from fgslam.smoother.settings import Isam2Settings
 from fgslam.smoother.variables import LandmarkRegistry
 from slamio.errors import FgslamError
 from slamio.log import Header, Observation, Step
@@ -76,117 +77,12 @@ class Isam2Smoother:
     ----------
     header:
         The run log's header (start pose and its prior sigmas).
-    relinearize_threshold:
-        iSAM2 relinearises a variable when its pending update exceeds this (radians or
-        metres, per component). Default 0.01 (GTSAM's own default is 0.1). A pair
-        ``(metres, radians)`` sets the translation and rotation thresholds apart (GTSAM's
-        per-variable-type threshold map; a landmark's height counts as metres).
-    relinearize_skip:
-        Check for relinearisation every this many updates. Default 20 (GTSAM's is 10).
-
-        Why these defaults, measured: with 0.01 a desk-sized robot's centimetre errors
-        still trigger relinearisation (GTSAM's 0.1 lost the online ATE on the bundled
-        octagon log: 0.01105 vs the EKF's 0.01099 m). Checking every update instead of
-        every 10th changed nothing measurable — arena-octagon seeds 1–20 gave identical
-        ATEs, grid 200 (seed 1) online ATE 0.3082 vs 0.3083 m — but cost 2.2× the time on
-        grid 200 (35 vs 15.6 s) and 2.7× on grid 500: each check can relinearise a large
-        part of the map after a loop closure. Now that an update carries 10–50 held steps,
-        every 20th instead of every 10th: the checks were most of the update time (MRCLAM
-        Dataset 6 robot 3: 1.4 of 2.3 s, each relinearising about 1 000 of 3 000 poses;
-        Plaza1 10.4 of 14 s in ``ISAM2.update``); halving them cut the CPU time by 11–29 %
-        and kept the online ATE within 3 % of an every-step iSAM2 on MRCLAM robots 1–5
-        (the importer's noise and the fitted one), arena seeds 1–20, Victoria Park and
-        Plaza1 (worst 1.023×); every 40th lost 3.5 % on MRCLAM robot 4
-        (docs/performance.md). While the smoother associates observations without an id
-        (``associate``), the check also runs on every
-        :data:`ASSOCIATION_RELINEARIZE_SKIP`-th update, as before: its pairing decisions
-        read the map, and every 20th moved MRCLAM Dataset 6 with barcodes withheld to a
-        different association (robot 1's ATE 0.589 → 2.85 m, the median ratio to the run with
-        barcodes 1.19 → 1.26; with the every-10th check 1.06: the pairings are that
-        sensitive, docs/estimators.md). Very aggressive settings are where DESIGN.md
-        saw IndeterminantLinearSystem failures on real data; those are recovered from
-        (:mod:`fgslam.smoother.recovery`).
-    relinearize_max_variables:
-        On each check, relinearise at most this many variables: those whose pending step
-        exceeds the threshold by the largest factor; the rest wait for a later check or for
-        :meth:`finish` (:mod:`fgslam.smoother.relinearisation`; GTSAM's
-        ``ISAM2UpdateParams.noRelinKeys``). Default 300; None relinearises every variable
-        past the threshold, as GTSAM does. Not applied while observations without an id are
-        associated (``associate``: the pairings are that sensitive, above).
-
-        Why, measured (docs/performance.md, ``scripts/bench_relinearisation.py``, same
-        process, one BLAS thread): an uncapped check relinearised up to 1 000 poses on MRCLAM
-        and re-eliminated up to 12 000 variables on Plaza1, 40–330 ms in one update. With 300
-        the slowest update fell 1.3–4.5× (Plaza1 326 → 73 ms, Victoria Park 121 → 28 ms,
-        MRCLAM Dataset 6 robots 10–68 ms), the CPU time of the whole run by 6–32 %, and the
-        online ATE stayed within 3 % of an every-step iSAM2 on MRCLAM robots 1–5 (the
-        importer's noise and the fitted one), Victoria Park, Plaza1 and arena seeds 1–20
-        (worst 1.024× and 1.021×, as without the cap); the final estimate is still the batch
-        optimum. 200 moved MRCLAM robot 1 to 1.026×; 100 on every 10th update lost 6.4 % on
-        robot 4, and 100 on every 20th 5.6 % on Victoria Park. The cap bounds
-        the variables relinearised, not the variables re-eliminated: a landmark seen from
-        every pose is in every pose's clique, so relinearising it re-eliminates most of the
-        tree (Plaza1's four beacons: up to 2 200 variables in one check).
-    final_updates:
-        Extra plain ``isam.update()`` calls (no new factors) at the start of
-        :meth:`finish`, letting a pending relinearisation check happen. Cheap; the full
-        Gauss–Newton steps of ``final_iterations`` that follow do the real work.
-    max_retries:
-        How many further updates a withheld observation is retried with before it is
-        dropped (see :mod:`fgslam.smoother.pending`).
-    update_every, update_on, max_held_steps, update_observations, update_observations_min_steps, update_tail, update_tail_min_steps:
-        When steps go to iSAM2: by information rather than by the clock. Steps are held
-        until they carry ``update_observations`` observation factors (default 20; None
-        turns this rule off) and ``update_observations_min_steps`` steps (default 10: where
-        landmarks are seen at several a step, no more updates than one per 10 steps), or
-        until ``update_every`` steps wait (default 50), then go to iSAM2 in one update. A step goes at once when it sees a landmark iSAM2 does not hold
-        yet, or an observation the correction rejects (χ² tail below 0.001). An
-        observation whose innovation against the online correction's prediction has a χ²
-        tail probability below ``update_tail`` (default 0.02: the map iSAM2 last gave
-        disagrees with what the robot sees; 0 turns this off) brings the update forward to
-        the first step with at least ``update_tail_min_steps`` (default 5) held. With
-        ``update_on="observations"`` only a step with observations triggers the
-        ``update_every`` rule; ``max_held_steps`` bounds the wait; ``update_every=1``
-        updates at every step. While steps are held, :meth:`current_pose` is the last
-        iSAM2 estimate composed with the odometry since, corrected by ``online_correction``.
-        A run of steps without observations gives iSAM2 nothing the odometry does not, so
-        holding it costs the online pose nothing; the correction carries the pose
-        through observations of mapped landmarks.
-    online_correction:
-        True (default): between updates, a pose-only EKF corrects the online pose with the
-        observations of landmarks iSAM2 holds, their last iSAM2 estimates taken as known
-        (:mod:`fgslam.smoother.correction`); new poses are seeded from it. False: dead
-        reckoning from the last update.
-
-        Why these triggers and the correction, measured (docs/performance.md,
-        scripts/bench_online.py, against an iSAM2 that updates and checks relinearisation at
-        every step): the final estimate is unchanged (the same Gauss–Newton ending); held
-        without the correction the online ATE lost up to 2.7 % on the arena at 10 steps and
-        5.9 % on Victoria Park at 50; with it, a fixed 50 steps still lost 4–7 % on MRCLAM
-        robot 1 (least squares), which the observation count and the innovation trigger
-        keep within 3 % on every log measured (worst 1.023× on MRCLAM robot 4) at 20–80 %
-        fewer updates than the previous default (every 10 steps; Victoria Park 817 → 397,
-        Plaza1 1 320 → 269). Range-only observations (Plaza) are corrected too.
-    final_iterations, final_tolerance:
-        In :meth:`finish`, after ``final_updates``: up to this many Gauss–Newton steps on
-        the whole graph, until the error drops by less than ``final_tolerance``
-        (relative). Each is an update with ``force_relinearize`` and ``forceFullSolve``:
-        iSAM2 then solves the exact delta and relinearises *every* variable (measured:
-        without ``forceFullSolve`` only variables whose wildfire delta exceeds the
-        threshold move, and on Victoria Park it stalled 34 % above the optimum). The final estimate is then read with
-        ``calculateBestEstimate`` (a full back-substitution; ``calculateEstimate`` skips
-        changes below the wildfire threshold).
-    partial_relinearization_check, cache_linearized_factors, factorization, wildfire_threshold:
-        Passed to GTSAM's ``ISAM2Params`` (``factorization`` is "cholesky" or "qr").
-        ``wildfire_threshold`` (default 1.0; GTSAM's 0.001) stops the back-substitution
-        where a clique's solution changed by less than this, so reading the newest pose
-        after an update (the top of the tree) no longer back-substitutes the whole tree;
-        that read was a third of the default's time on Victoria Park and 40 % of Plaza's.
-        The deltas deeper in the tree then lag, so the relinearisation check sees fewer
-        variables move; the online ATE was unchanged on every log measured
-        (docs/performance.md), and :meth:`finish` and the whole-estimate queries
-        (:meth:`trajectory`, :meth:`landmarks`, …) back-substitute fully
-        (``calculateBestEstimate``).
+    **settings:
+        How the graph is solved — when steps go to iSAM2, the relinearisation threshold,
+        schedule and cap, the online correction, the final Gauss–Newton steps, GTSAM's
+        parameters, keyframes: the fields of
+        :class:`~fgslam.smoother.settings.Isam2Settings`, each default with the measurement
+        that chose it (fgslam/smoother/settings.py). Kept as :attr:`settings`.
     robust:
         ``None`` (default): every factor is Gaussian (least squares). ``"huber"``,
         ``"cauchy"``, ``"tukey"`` or ``"dcs"``: landmark factors get that robust kernel through
@@ -267,61 +163,13 @@ class Isam2Smoother:
         self,
         header: Header,
         *,
-        relinearize_threshold: float | tuple[float, float] = 0.01,
-        relinearize_skip: int = 20,
-        relinearize_max_variables: int | None = 300,
-        update_every: int = 50,
-        update_on: str = "any",
-        max_held_steps: int = 50,
-        final_updates: int = 2,
-        final_iterations: int = 10,
-        final_tolerance: float = 1e-4,
-        partial_relinearization_check: bool = False,
-        cache_linearized_factors: bool = True,
-        factorization: str = "cholesky",
-        wildfire_threshold: float = 1.0,
-        max_retries: int = 3,
         robust: str | None = None,
         robust_k: float | None = None,
         tags: bool = False,
-        keyframes: bool = False,
-        max_keyframe_gap: int = 50,
-        online_correction: bool = True,
         associate: bool = True,
-        update_observations: int | None = 20,
-        update_tail: float = 0.02,
-        update_tail_min_steps: int = 5,
-        update_observations_min_steps: int = 10,
+        **settings,
     ):
-        threshold = _relinearize_threshold(relinearize_threshold)
-        if relinearize_skip < 1 or final_updates < 0 or max_retries < 0:
-            raise FgslamError(
-                "Isam2Smoother: need relinearize_skip >= 1, final_updates >= 0 and max_retries >= 0"
-            )
-        if update_every < 1 or max_held_steps < 1 or final_iterations < 0 or not final_tolerance >= 0:
-            raise FgslamError(
-                "Isam2Smoother: need update_every >= 1, max_held_steps >= 1, final_iterations >= 0 "
-                "and final_tolerance >= 0"
-            )
-        if update_on not in ("any", "observations"):
-            raise FgslamError(f"Isam2Smoother: update_on must be 'any' or 'observations', got {update_on!r}")
-        if factorization.lower() not in ("cholesky", "qr"):
-            raise FgslamError(f"Isam2Smoother: factorization must be 'cholesky' or 'qr', got {factorization!r}")
-        if not wildfire_threshold >= 0:
-            raise FgslamError("Isam2Smoother: wildfire_threshold must be >= 0")
-        self.update_every = int(update_every)
-        self.update_observations = None if update_observations is None else int(update_observations)
-        self.update_tail = float(update_tail)
-        self.update_tail_min_steps = int(update_tail_min_steps)
-        self.update_observations_min_steps = int(update_observations_min_steps)
-        self.update_on = update_on
-        self.max_held_steps = int(max_held_steps)
-        self.final_iterations = int(final_iterations)
-        self.final_tolerance = float(final_tolerance)
-        self.partial_relinearization_check = bool(partial_relinearization_check)
-        self.cache_linearized_factors = bool(cache_linearized_factors)
-        self.factorization = factorization.lower()
-        self.wildfire_threshold = float(wildfire_threshold)
+        self.settings = Isam2Settings(**settings)
         self.updates = 0  # iSAM2 updates run by step()/flushes (not counting finish or rebuilds)
         self.final_iterations_run = 0  # forced full relinearisations finish() ran
         if robust is None:
@@ -331,43 +179,31 @@ class Isam2Smoother:
         else:
             self._robust = robust_estimator(robust, robust_k)
         self.tags = bool(tags)
-        if max_keyframe_gap < 1:
-            raise FgslamError("Isam2Smoother: need max_keyframe_gap >= 1")
-        self.keyframes = bool(keyframes)
-        self.max_keyframe_gap = int(max_keyframe_gap)
         self.name = "-".join(["isam2"] + (["tags"] if self.tags else []) + ([robust] if robust else []))
         self.robust = robust
         self.robust_k = None if robust is None else (DEFAULT_ROBUST_K[robust] if robust_k is None else float(robust_k))
         self.header = header
-        self.relinearize_threshold = threshold
-        self.relinearize_skip = int(relinearize_skip)
-        if relinearize_max_variables is not None and relinearize_max_variables < 0:
-            raise FgslamError("Isam2Smoother: relinearize_max_variables must be None or >= 0")
-        self.relinearize_max_variables = None if relinearize_max_variables is None else int(relinearize_max_variables)
-        self.final_updates = int(final_updates)
-        self.max_retries = int(max_retries)
 
         self.skipped_unknown_observations = 0
         self.update_failures = 0
         self.last_failure: str | None = None
 
         self._factors = FactorBuilder(self._robust)
-        self._isam = gtsam.ISAM2(self._params())
+        self._isam = gtsam.ISAM2(self.settings.isam2_params())
         self._isam_updates = 0  # updates given to this ISAM2 (GTSAM counts them for relinearize_skip)
         self._unlabelled = False  # observations without an id seen: the smoother associates them
         self._graph = gtsam.NonlinearFactorGraph()  # every factor accepted into iSAM2
         self._initial = gtsam.Values()  # the initial guess of every variable in iSAM2
         self._landmarks = LandmarkRegistry()
-        self._pending = PendingObservations(self.max_retries, self.PENDING_GATE, self.MAX_UNCONFIRMED)
+        self._pending = PendingObservations(self.settings.max_retries, self.PENDING_GATE, self.MAX_UNCONFIRMED)
         self.range_rule = DelayedInitRule()
         self._ranges = RangeOnlyLandmarks(self.range_rule)
         self._held = HeldSteps()  # steps not yet given to iSAM2 (update_every / update_on)
-        self._keyframes = Keyframes(self.keyframes, self.max_keyframe_gap)
+        self._keyframes = Keyframes(self.settings.keyframes, self.settings.max_keyframe_gap)
         self._online = OnlinePose()  # the newest pose, for current_pose/current_covariance
-        self.online_correction = bool(online_correction)
         self._corrector = (
             PoseCorrector(header.start_pose, np.diag(np.square(np.asarray(header.start_sigma, dtype=float))))
-            if self.online_correction else None
+            if self.settings.online_correction else None
         )
         self._landmark_xy: dict[int, tuple[float, float]] = {}  # iSAM2's landmark estimates at its last update
         self._num_poses = 0
@@ -407,7 +243,7 @@ class Isam2Smoother:
             if self._corrector is not None:  # … corrected by the observations of mapped landmarks
                 seed, used = self._corrected(odo, step.observations)
             self._online.moved(increment, odo, used)
-            if self.keyframes:
+            if self.settings.keyframes:
                 observed = any(o.landmark_id is not None or self.associate for o in step.observations)
                 chain = self._keyframes.fold(k, increment, odometry_noise_covariance(odo), observed)
                 if chain is not None:  # a keyframe: the chain since the last one becomes one compound factor
@@ -502,7 +338,7 @@ class Isam2Smoother:
         except RuntimeError as exc:  # leave the pairings as they were
             self.update_failures += 1
             self.last_failure = str(exc)
-            self._isam = gtsam.ISAM2(self._params())
+            self._isam = gtsam.ISAM2(self.settings.isam2_params())
             self._isam_updates = 0
             self._isam_update(self._graph, before)
             return False
@@ -537,19 +373,19 @@ class Isam2Smoother:
 
     def _due(self, k: int) -> bool:
         """Whether the held steps go to iSAM2 now (see ``update_every`` / ``update_on``)."""
-        if k == 0 or self._held.steps >= self.max_held_steps or self._held.urgent:
+        if k == 0 or self._held.steps >= self.settings.max_held_steps or self._held.urgent:
             return True
-        if self._held.unlikely and self._held.steps >= self.update_tail_min_steps:
+        if self._held.unlikely and self._held.steps >= self.settings.update_tail_min_steps:
             return True
-        if (self.update_observations and self._held.uncorrected
-                and self._held.steps >= self.update_observations_min_steps):
+        if (self.settings.update_observations and self._held.uncorrected
+                and self._held.steps >= self.settings.update_observations_min_steps):
             return True
-        if (self.update_observations and self._held.observations >= self.update_observations
-                and self._held.steps >= self.update_observations_min_steps):
+        if (self.settings.update_observations and self._held.observations >= self.settings.update_observations
+                and self._held.steps >= self.settings.update_observations_min_steps):
             return True
-        if self._held.steps < self.update_every:
+        if self._held.steps < self.settings.update_every:
             return False
-        return self.update_on == "any" or self._held.observed
+        return self.settings.update_on == "any" or self._held.observed
 
     def _flush(self) -> None:
         """Give every held step to iSAM2 in one update; read back the newest pose."""
@@ -602,7 +438,7 @@ class Isam2Smoother:
                 bearing = obs.bearing_rad
             if corrector.correct(xy, obs.range_m, bearing, R):
                 used.append((lid, xy, obs.range_m, bearing, R))
-                if corrector.last_tail < self.update_tail:
+                if corrector.last_tail < self.settings.update_tail:
                     self._held.unlikely = True
             else:
                 self._held.urgent = True
@@ -640,14 +476,14 @@ class Isam2Smoother:
         self._estimate_cache = None
         self._landmark_xy.clear()
         self._online.forget_marginal()  # the final updates below change iSAM2
-        for _ in range(self.final_updates):
+        for _ in range(self.settings.final_updates):
             try:
                 self._isam_update()
             except RuntimeError as exc:  # relinearisation hit a singular system: rebuild
                 self._recover(exc, gtsam.NonlinearFactorGraph(), gtsam.Values(), [])
-        if self.final_iterations:
+        if self.settings.final_iterations:
             previous = float(self._graph.error(self._isam.calculateBestEstimate()))
-            for _ in range(self.final_iterations):
+            for _ in range(self.settings.final_iterations):
                 # One Gauss–Newton step on the whole graph: with forceFullSolve the forced
                 # relinearisation takes the exact delta and relinearises every variable.
                 update_params = gtsam.ISAM2UpdateParams()
@@ -661,7 +497,7 @@ class Isam2Smoother:
                     break
                 self.final_iterations_run += 1
                 current = float(self._graph.error(self._isam.calculateBestEstimate()))
-                if not previous - current > self.final_tolerance * current:
+                if not previous - current > self.settings.final_tolerance * current:
                     break
                 previous = current
         # The full back-substitution: calculateEstimate() skips delta changes below the
@@ -746,9 +582,7 @@ class Isam2Smoother:
         keyframes, each compound odometry factor iSAM2 holds is expanded back into its
         per-step factors, so this is the same graph as without keyframes."""
         self._flush()
-        if not self.keyframes:
-            return gtsam.NonlinearFactorGraph(self._graph)
-        if not self.keyframes:
+        if not self.settings.keyframes:
             return gtsam.NonlinearFactorGraph(self._graph)
         return self._keyframes.expanded(self._graph)
 
@@ -757,7 +591,7 @@ class Isam2Smoother:
         first; with keyframes, poses between keyframes dead-reckoned from the keyframe's)."""
         self._flush()
         values = gtsam.Values(self._initial)
-        if self.keyframes:
+        if self.settings.keyframes:
             self._keyframes.insert_between(values)
         return values
 
@@ -765,7 +599,7 @@ class Isam2Smoother:
         """A copy of iSAM2's current estimate of every variable of :meth:`graph` (one full
         back-substitution, ``calculateBestEstimate``; with keyframes, the poses between them as in :meth:`trajectory`)."""
         values = gtsam.Values(self._estimate())
-        if self.keyframes:
+        if self.settings.keyframes:
             trajectory = self.trajectory_of(values)
             keyframes = set(self._keyframes.indices)
             for i in range(self._num_poses):
@@ -775,7 +609,7 @@ class Isam2Smoother:
 
     def error(self) -> float:
         """:meth:`graph`'s error at :meth:`estimate` (χ²/2, like ``graph.error``)."""
-        if self.keyframes:
+        if self.settings.keyframes:
             return float(self.graph().error(self.estimate()))
         return float(self._graph.error(self._estimate()))
 
@@ -831,27 +665,6 @@ class Isam2Smoother:
 
     # ------------------------------------------------------------------ internals
 
-    def _params(self) -> gtsam.ISAM2Params:
-        params = gtsam.ISAM2Params()
-        if isinstance(self.relinearize_threshold, tuple):
-            metres, radians = self.relinearize_threshold
-            per_type = gtsam.ISAM2ThresholdMap()
-            per_type.insert(("x", np.array([metres, metres, radians])))  # Pose2 tangent: x, y, theta
-            per_type.insert(("l", np.array([metres, metres])))
-            per_type.insert(("t", np.array([metres, metres, radians])))
-            per_type.insert(("h", np.array([metres])))
-            params.setRelinearizeThreshold(per_type)
-        else:
-            params.setRelinearizeThreshold(self.relinearize_threshold)
-        params.relinearizeSkip = self.relinearize_skip
-        params.enablePartialRelinearizationCheck = self.partial_relinearization_check
-        params.cacheLinearizedFactors = self.cache_linearized_factors
-        params.setFactorization("QR" if self.factorization == "qr" else "CHOLESKY")
-        gauss_newton = gtsam.ISAM2GaussNewtonParams()
-        gauss_newton.setWildfireThreshold(self.wildfire_threshold)
-        params.setOptimizationParams(gauss_newton)
-        return params
-
     def _estimate(self) -> gtsam.Values:
         self._flush()
         if self._estimate_cache is None:
@@ -881,10 +694,10 @@ class Isam2Smoother:
             update_params = gtsam.ISAM2UpdateParams()
             update_params.force_relinearize = True  # forces the check, not the relinearisation
             self._isam.update(factors or gtsam.NonlinearFactorGraph(), values or gtsam.Values(), update_params)
-        elif (self.relinearize_max_variables is not None and not self._unlabelled
-              and self._isam_updates % self.relinearize_skip == 0):  # GTSAM's own check, capped
+        elif (self.settings.relinearize_max_variables is not None and not self._unlabelled
+              and self._isam_updates % self.settings.relinearize_skip == 0):  # GTSAM's own check, capped
             update_params = gtsam.ISAM2UpdateParams()
-            held = held_back(self._isam, self.relinearize_threshold, self.relinearize_max_variables)
+            held = held_back(self._isam, self.settings.relinearize_threshold, self.settings.relinearize_max_variables)
             if held.size():
                 update_params.noRelinKeys = held
             self._isam.update(factors or gtsam.NonlinearFactorGraph(), values or gtsam.Values(), update_params)
@@ -902,7 +715,7 @@ class Isam2Smoother:
         """Replace the broken iSAM2 by a fresh one holding everything but withheld observations
         (:func:`fgslam.smoother.recovery.rebuild`)."""
         self.update_failures += 1
-        rebuilt = rebuild(exc, self._isam, self._params(), self._graph, self._initial, core, core_values, entries,
+        rebuilt = rebuild(exc, self._isam, self.settings.isam2_params(), self._graph, self._initial, core, core_values, entries,
                           self._landmarks.known)
         self.last_failure = rebuilt.last_failure
         if rebuilt.isam is None:
@@ -916,15 +729,3 @@ class Isam2Smoother:
         self._accept(rebuilt.factors, rebuilt.values)
         self._pending.withhold(rebuilt.withheld)
 
-
-def _relinearize_threshold(value) -> float | tuple[float, float]:
-    """Validate ``relinearize_threshold``: one number, or a (metres, radians) pair."""
-    if isinstance(value, (tuple, list)):
-        if len(value) != 2 or not all(isinstance(v, (int, float)) and math.isfinite(v) and v >= 0 for v in value):
-            raise FgslamError(
-                f"Isam2Smoother: relinearize_threshold pair must be (metres >= 0, radians >= 0), got {value!r}"
-            )
-        return (float(value[0]), float(value[1]))
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-        raise FgslamError(f"Isam2Smoother: relinearize_threshold must be a number >= 0 or a pair, got {value!r}")
-    return float(value)
