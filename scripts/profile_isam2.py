@@ -17,6 +17,7 @@ region and one for the consistency work outside it, and each is summed into cate
 * GTSAM calls by name: ``ISAM2.update``; reading the estimate (``calculateEstimate*``,
   ``calculateBestEstimate``); marginals (``marginalCovariance``,
   ``jointMarginalCovariance``); ``graph.error`` (the convergence test of ``finish()``);
+  the final Gauss–Newton steps of ``finish()`` (``GaussNewtonOptimizer.iterate``);
 * Python by module: factor building (``fgslam/smoother/factors.py``: records → factors and
   noise models), update assembly (``update_batch``: copying the held factors and ``Values``
   into one update), odometry chains (``chain.py``), NIS/NEES propagation (the marginal
@@ -60,6 +61,7 @@ GTSAM_CALLS = {
     "marginalCovariance": "marginals",
     "jointMarginalCovariance": "marginals",
     "error": "graph.error (finish)",
+    "iterate": "finish's Gauss–Newton steps (GaussNewtonOptimizer.iterate)",
 }
 
 

@@ -44,6 +44,7 @@ from ekf.range_only import DelayedInitRule
 from ekf.observation import has_height  # the same rule as the EKF's for a usable height
 from fgslam.smoother.correction import PoseCorrector
 from fgslam.smoother.association import SmootherAssociation, world_joint_marginal
+from fgslam.smoother.batch import gauss_newton_steps
 from fgslam.smoother.chain import OdometryChain
 from fgslam.smoother.factors import (
     DEFAULT_ROBUST_K,
@@ -171,7 +172,7 @@ class Isam2Smoother:
     ):
         self.settings = Isam2Settings(**settings)
         self.updates = 0  # iSAM2 updates run by step()/flushes (not counting finish or rebuilds)
-        self.final_iterations_run = 0  # forced full relinearisations finish() ran
+        self.final_iterations_run = 0  # Gauss–Newton steps finish() took and kept
         if robust is None:
             if robust_k is not None:
                 raise FgslamError("Isam2Smoother: robust_k needs a robust kernel (robust='huber' or 'cauchy')")
@@ -208,6 +209,8 @@ class Isam2Smoother:
         self._landmark_xy: dict[int, tuple[float, float]] = {}  # iSAM2's landmark estimates at its last update
         self._num_poses = 0
         self._estimate_cache: gtsam.Values | None = None
+        self._finished = False  # finish() ran and nothing changed since: its estimate is the final one
+        self._final_marginals: gtsam.Marginals | None = None  # the whole graph's, at that estimate
         # id-less observations: associated (fgslam/smoother/association.py) or skipped
         self.associate = bool(associate)
         self.redecide = True  # re-decide the id-less pairings against the settled map at the end (_redecide)
@@ -225,6 +228,7 @@ class Isam2Smoother:
         k = step.index
         if k != self._num_poses:
             raise FgslamError(f"Isam2Smoother: expected step {self._num_poses}, got step {k}; feed steps in order")
+        self._finished, self._final_marginals = False, None  # a step after finish(): iSAM2 answers again
         self._association.begin_step(step.observations)  # for step_associations()
         if k == 0:
             if step.odometry is not None:
@@ -458,7 +462,12 @@ class Isam2Smoother:
     def finish(self) -> None:
         """Flush held steps, then refine: ``final_updates`` plain updates, then up to
         ``final_iterations`` Gauss–Newton steps on the whole graph until the error's
-        relative decrease is below ``final_tolerance``."""
+        relative decrease is below ``final_tolerance``
+        (:func:`~fgslam.smoother.batch.gauss_newton_steps`).
+
+        The final estimate is then those steps' result, not iSAM2's, and the covariances
+        asked for after it (:meth:`landmark_covariances`, :meth:`current_covariance`) are the
+        whole graph's marginals at that estimate (``gtsam.Marginals``)."""
         if self._num_poses == 0:
             return
         self._flush()
@@ -481,28 +490,18 @@ class Isam2Smoother:
                 self._isam_update()
             except RuntimeError as exc:  # relinearisation hit a singular system: rebuild
                 self._recover(exc, gtsam.NonlinearFactorGraph(), gtsam.Values(), [])
-        if self.settings.final_iterations:
-            previous = float(self._graph.error(self._isam.calculateBestEstimate()))
-            for _ in range(self.settings.final_iterations):
-                # One Gauss–Newton step on the whole graph: with forceFullSolve the forced
-                # relinearisation takes the exact delta and relinearises every variable.
-                update_params = gtsam.ISAM2UpdateParams()
-                update_params.force_relinearize = True
-                update_params.forceFullSolve = True
-                try:
-                    self._isam_updates += 1
-                    self._isam.update(gtsam.NonlinearFactorGraph(), gtsam.Values(), update_params)
-                except RuntimeError as exc:
-                    self._recover(exc, gtsam.NonlinearFactorGraph(), gtsam.Values(), [])
-                    break
-                self.final_iterations_run += 1
-                current = float(self._graph.error(self._isam.calculateBestEstimate()))
-                if not previous - current > self.settings.final_tolerance * current:
-                    break
-                previous = current
         # The full back-substitution: calculateEstimate() skips delta changes below the
         # wildfire threshold, which on Victoria Park left χ²/2 25 % above the optimum.
-        self._estimate_cache = self._isam.calculateBestEstimate()
+        estimate = self._isam.calculateBestEstimate()
+        if self.settings.final_iterations:  # Gauss–Newton steps on the whole graph (batch.py: why not iSAM2's)
+            polished = gauss_newton_steps(self._graph, estimate, self.settings.final_iterations,
+                                          self.settings.final_tolerance)
+            self.final_iterations_run += polished.iterations
+            if polished.failure is not None:
+                self.last_failure = polished.failure
+            estimate = polished.values
+        self._estimate_cache = estimate
+        self._finished = True
         self._online.pose = self._keyframes.latest_pose(self._estimate_cache.atPose2(X(self._keyframes.last)))
 
     def trajectory(self) -> np.ndarray:
@@ -550,14 +549,14 @@ class Isam2Smoother:
             raise FgslamError("Isam2Smoother: no step yet")
         if frame not in ("world", "body"):
             raise FgslamError(f"current_covariance: frame must be 'world' or 'body', got {frame!r}")
-        return self._online.covariance(self._isam, frame)
+        return self._online.covariance(self._marginals(), frame)
 
     def landmark_covariances(self) -> dict[int, np.ndarray]:
         """Landmark id → 2×2 marginal covariance of its (x, y) in the world frame
         (``isam.marginalCovariance``; for a tag, the position block of its Pose2 marginal
         rotated from the tag's frame). Flushes held steps."""
         self._flush()
-        return landmark_covariances(self._isam, self._landmarks.ids, self._landmarks.tag_ids)
+        return landmark_covariances(self._marginals(), self._estimate(), self._landmarks.ids, self._landmarks.tag_ids)
 
     def predicted_nis(self, step: Step) -> list[float | None]:
         """NIS of each observation of ``step`` against the smoother's prediction, before
@@ -664,6 +663,17 @@ class Isam2Smoother:
         return counts
 
     # ------------------------------------------------------------------ internals
+
+    def _marginals(self):
+        """Where marginal covariances come from: iSAM2's Bayes tree during the run; after
+        :meth:`finish`, the whole graph linearised at the final estimate (``gtsam.Marginals``,
+        built on the first question), since the final Gauss–Newton steps moved the estimate
+        past iSAM2's linearisation point."""
+        if not self._finished:
+            return self._isam
+        if self._final_marginals is None:
+            self._final_marginals = gtsam.Marginals(self._graph, self._estimate_cache)
+        return self._final_marginals
 
     def _estimate(self) -> gtsam.Values:
         self._flush()

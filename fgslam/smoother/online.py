@@ -65,7 +65,9 @@ class OnlinePose:
         return chain
 
     def covariance(self, isam: gtsam.ISAM2, frame: str) -> np.ndarray:
-        """3×3 covariance of :attr:`pose` (see :meth:`Isam2Smoother.current_covariance`)."""
+        """3×3 covariance of :attr:`pose` (see :meth:`Isam2Smoother.current_covariance`).
+        ``isam`` may be a ``gtsam.Marginals`` when no step since the newest iSAM2 pose was
+        corrected (after :meth:`Isam2Smoother.finish`)."""
         chain = self._caught_up_since_chain()
         if self._marginal is None:
             self._marginal = np.asarray(isam.marginalCovariance(X(chain.start)), dtype=float)
@@ -180,19 +182,21 @@ class OnlinePose:
         return out
 
 
-def landmark_covariances(isam: gtsam.ISAM2, landmark_ids, tag_ids) -> dict[int, np.ndarray]:
+def landmark_covariances(marginals, estimate: gtsam.Values, landmark_ids, tag_ids) -> dict[int, np.ndarray]:
     """Landmark id → 2×2 world-frame marginal covariance of its (x, y) (for a tag, the
-    position block of its Pose2 marginal rotated from the tag's frame)."""
+    position block of its Pose2 marginal rotated from the tag's frame, at its heading in
+    ``estimate``). ``marginals`` is an ``ISAM2`` or a ``gtsam.Marginals``: anything with
+    ``marginalCovariance(key)``."""
     out = {}
     for lid in landmark_ids:
         if lid in tag_ids:
-            cov = np.asarray(isam.marginalCovariance(T(lid)), dtype=float)[:2, :2]
-            th = isam.calculateEstimatePose2(T(lid)).theta()
+            cov = np.asarray(marginals.marginalCovariance(T(lid)), dtype=float)[:2, :2]
+            th = estimate.atPose2(T(lid)).theta()
             c, s = math.cos(th), math.sin(th)
             rot = np.array([[c, -s], [s, c]])
             out[lid] = rot @ cov @ rot.T
         else:
-            out[lid] = np.asarray(isam.marginalCovariance(L(lid)), dtype=float)
+            out[lid] = np.asarray(marginals.marginalCovariance(L(lid)), dtype=float)
     return out
 
 

@@ -119,12 +119,14 @@ class Isam2Settings:
     final_iterations, final_tolerance:
         In :meth:`.Isam2Smoother.finish`, after ``final_updates``: up to this many Gauss–Newton steps on
         the whole graph, until the error drops by less than ``final_tolerance``
-        (relative). Each is an update with ``force_relinearize`` and ``forceFullSolve``:
-        iSAM2 then solves the exact delta and relinearises *every* variable (measured:
-        without ``forceFullSolve`` only variables whose wildfire delta exceeds the
-        threshold move, and on Victoria Park it stalled 34 % above the optimum). The final estimate is then read with
-        ``calculateBestEstimate`` (a full back-substitution; ``calculateEstimate`` skips
-        changes below the wildfire threshold).
+        (relative), started from iSAM2's estimate read with ``calculateBestEstimate`` (a
+        full back-substitution; ``calculateEstimate`` skips changes below the wildfire
+        threshold). Each is a batch step (:func:`~fgslam.smoother.batch.gauss_newton_steps`):
+        every factor relinearised, the whole system solved. They were iSAM2 updates with
+        ``force_relinearize`` and ``forceFullSolve`` (the same step: measured, without
+        ``forceFullSolve`` only variables whose wildfire delta exceeds the threshold move,
+        and on Victoria Park it stalled 34 % above the optimum); the batch step costs
+        about half as much and ends at the same χ² (docs/performance.md).
     partial_relinearization_check, cache_linearized_factors, factorization, wildfire_threshold:
         Passed to GTSAM's ``ISAM2Params`` (``factorization`` is "cholesky" or "qr").
         ``wildfire_threshold`` (default 1.0; GTSAM's 0.001) stops the back-substitution
