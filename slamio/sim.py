@@ -6,6 +6,10 @@ comes from ``numpy.random.default_rng(seed)`` (split into one stream for the mot
 for the sensor, so changing the sensor never changes the trajectory; a third stream, used
 only when ``outliers`` > 0, draws the outliers).
 
+This module drives the robot and writes the log; the robot and sensor models and their
+maths are in :mod:`slamio.sim_models`, the scenarios (worlds, paths, settings) in
+:mod:`slamio.sim_worlds`. Everything is imported from here.
+
 How one run is made
 ===================
 
@@ -145,7 +149,6 @@ grid (N = 200) 11.4 vs 0.40 / 0.19.
 from __future__ import annotations
 
 import dataclasses
-
 import math
 import numbers
 from dataclasses import dataclass
@@ -153,10 +156,40 @@ from typing import Any
 
 import numpy as np
 
-from slamio.camera.tag_noise import TagNoise, view_angle_rad
+from slamio.camera.tag_noise import view_angle_rad
 from slamio.errors import FgslamError
 from slamio.geometry import arc_increment, compose_pose, wrap_angle
 from slamio.log import Header, Observation, Odometry, Record, TruthLandmark, TruthPose
+from slamio.sim_models import (  # re-exported (__all__): slamio.sim is the simulator's public face
+    MAX_WHEEL_SPEED_M_S,
+    WHEEL_BASE_M,
+    MotionModel,
+    OdometryNoise,
+    SensorModel,
+    Sightings,
+    World,
+    odometry_covariance,
+    range_sigma_m,
+    visible_landmarks,
+    wheel_reading,
+    wheel_speeds_m_s,
+)
+from slamio.sim_worlds import (  # re-exported too
+    ARENA_PATH_WIDTH_M,
+    ARENA_SIDE_M,
+    ARENA_TAG_NOISE,
+    GRID_SPACING_M,
+    SCENARIOS,
+    TAG_HEIGHT_M,
+    Scenario,
+    arena_tags,
+    cylinder_world,
+    grid_landmarks_xy,
+    grid_path,
+    polygon_path,
+    scenario as _scenario,
+)
+
 
 __all__ = [
     "SCENARIOS",
@@ -174,297 +207,17 @@ __all__ = [
     "cylinder_world",
     "grid_landmarks_xy",
     "grid_path",
+    "World",
+    "OdometryNoise",
+    "ARENA_SIDE_M",
+    "ARENA_PATH_WIDTH_M",
+    "TAG_HEIGHT_M",
 ]
 
-SCENARIOS = ("arena-square", "arena-octagon", "cylinders", "grid")
 TAG_NOISE_MODELS = ("nominal", "measured")
-
-WHEEL_BASE_M = 0.235  # iRobot Create (Open Interface spec)
-MAX_WHEEL_SPEED_M_S = 0.5  # Drive Direct accepts ±500 mm/s per wheel
 MAX_GRID_LANDMARKS = 20_000  # a guard against a typo that would simulate for hours
-
-ARENA_SIDE_M = 3.048  # 10 ft
-ARENA_PATH_WIDTH_M = 1.8288  # 6 ft
-TAG_HEIGHT_M = 0.20
-TAG_FACING_LIMIT_RAD = math.radians(70.0)
-ARENA_TAG_SIZE_M = 0.16
-#: ``tag_noise="measured"``: the arena camera (640 px across its 1.2 rad FOV) and a 0.16 m tag
-#: with the corner precision measured on real photos (slamio/camera/tag_noise.py).
-ARENA_TAG_NOISE = TagNoise(fx_px=320.0 / math.tan(0.6), tag_size_m=ARENA_TAG_SIZE_M)
-GRID_SPACING_M = 3.0
-GRID_LANE_EVERY_ROWS = 3  # one lane per three landmark rows (9 m apart)
-GRID_MARGIN_M = 2.0
 START_SIGMA = (1e-3, 1e-3, 1e-3)
 SIMULATOR_VERSION = 1
-
-
-# --------------------------------------------------------------------------- models
-
-
-@dataclass(frozen=True)
-class MotionModel:
-    """How the simulated Create drives its path (see the module docstring, step 3)."""
-
-    dt_s: float
-    speed_m_s: float
-    max_turn_rate_rad_s: float
-    turn_gain_per_s: float
-    lookahead_m: float
-
-
-@dataclass(frozen=True)
-class OdometryNoise:
-    """Generative odometry noise: relative wheel error per step and slip per step."""
-
-    k_wheel: float
-    slip_sigma_x_m: float
-    slip_sigma_y_m: float
-    slip_sigma_theta_rad: float
-
-    @property
-    def slip_covariance(self) -> np.ndarray:
-        return np.diag([self.slip_sigma_x_m**2, self.slip_sigma_y_m**2, self.slip_sigma_theta_rad**2])
-
-
-@dataclass(frozen=True)
-class SensorModel:
-    """A range-bearing landmark sensor at the robot's centre, looking along robot x.
-
-    ``sigma_range_m``, ``sigma_range_per_m`` and ``sigma_range_per_m2`` are a, b, c of
-    σ_r(r) = a + b·r + c·r². ``facing_limit_rad`` is set for AprilTags only;
-    ``sigma_height_m`` for landmarks with a height, ``sigma_tag_yaw_rad`` for tags.
-    """
-
-    landmark_kind: str
-    fov_rad: float
-    min_range_m: float
-    max_range_m: float
-    sigma_range_m: float
-    sigma_range_per_m: float
-    sigma_range_per_m2: float
-    sigma_bearing_rad: float
-    sigma_height_m: float | None = None
-    sigma_tag_yaw_rad: float | None = None
-    facing_limit_rad: float | None = None
-
-
-@dataclass(frozen=True)
-class World:
-    """Landmarks: (N, 2) positions; heights and facing yaws (N,) or None."""
-
-    landmarks_xy: np.ndarray
-    heights_m: np.ndarray | None = None
-    yaws_rad: np.ndarray | None = None
-
-
-@dataclass(frozen=True)
-class Scenario:
-    """Everything :func:`simulate` needs for one scenario."""
-
-    name: str
-    world: World
-    waypoints_xy: np.ndarray  # (n, 2) closed polygon; the robot starts on waypoint 0
-    default_laps: int
-    motion: MotionModel
-    odometry: OdometryNoise
-    sensor: SensorModel
-    extra_sensor_info: dict[str, Any]
-
-
-_ARENA_MOTION = MotionModel(dt_s=0.1, speed_m_s=0.2, max_turn_rate_rad_s=0.8, turn_gain_per_s=2.0, lookahead_m=0.25)
-_ARENA_ODOMETRY = OdometryNoise(k_wheel=0.05, slip_sigma_x_m=5e-4, slip_sigma_y_m=5e-4, slip_sigma_theta_rad=1e-3)
-_TAG_CAMERA = SensorModel(
-    landmark_kind="apriltag",
-    fov_rad=1.2,
-    min_range_m=0.15,
-    max_range_m=3.5,
-    sigma_range_m=0.01,
-    sigma_range_per_m=0.0,
-    sigma_range_per_m2=0.005,
-    sigma_bearing_rad=0.01,
-    sigma_tag_yaw_rad=0.05,
-    facing_limit_rad=TAG_FACING_LIMIT_RAD,
-)
-_KINECT = SensorModel(
-    landmark_kind="coloured-cylinder",
-    fov_rad=math.radians(57.0),
-    min_range_m=0.8,
-    max_range_m=4.0,
-    sigma_range_m=0.01,
-    sigma_range_per_m=0.0,
-    sigma_range_per_m2=1.425e-3,
-    sigma_bearing_rad=0.01,
-    sigma_height_m=0.02,
-)
-_GRID_MOTION = MotionModel(dt_s=0.2, speed_m_s=0.5, max_turn_rate_rad_s=1.0, turn_gain_per_s=2.0, lookahead_m=1.0)
-_GRID_ODOMETRY = OdometryNoise(k_wheel=0.01, slip_sigma_x_m=2e-3, slip_sigma_y_m=2e-3, slip_sigma_theta_rad=1e-3)
-_GRID_SENSOR = SensorModel(
-    landmark_kind="point",
-    fov_rad=math.radians(120.0),
-    min_range_m=0.3,
-    max_range_m=6.0,
-    sigma_range_m=0.03,
-    sigma_range_per_m=0.01,
-    sigma_range_per_m2=0.0,
-    sigma_bearing_rad=0.02,
-)
-
-CYLINDER_COLOURS = ("red", "green", "blue")
-CYLINDER_HEIGHTS_M = (0.40, 0.60, 0.80)
-
-
-# --------------------------------------------------------------------------- pure maths
-
-
-def wheel_speeds_m_s(speed_m_s: float, turn_rate_rad_s: float, wheel_base_m: float = WHEEL_BASE_M,
-                     max_wheel_speed_m_s: float = MAX_WHEEL_SPEED_M_S) -> tuple[float, float]:
-    """(left, right) wheel speeds for a unicycle command, scaled down together if needed.
-
-    ``v_left = v − ω·b/2``, ``v_right = v + ω·b/2``. If either exceeds the wheel limit both
-    are multiplied by the same factor, so the curvature ω/v (the arc) is kept.
-    """
-    left = speed_m_s - 0.5 * turn_rate_rad_s * wheel_base_m
-    right = speed_m_s + 0.5 * turn_rate_rad_s * wheel_base_m
-    fastest = max(abs(left), abs(right))
-    if fastest > max_wheel_speed_m_s:
-        scale = max_wheel_speed_m_s / fastest
-        left, right = left * scale, right * scale
-    return left, right
-
-
-def wheel_reading(left_m, right_m, wheel_base_m: float = WHEEL_BASE_M):
-    """The Create's reading from wheel distances: (distance_m, angle_rad).
-
-    ``distance_m = (dL + dR)/2`` (the centre's travel), ``angle_rad = (dR − dL)/b``
-    (counter-clockwise). Works on floats or numpy arrays.
-    """
-    return 0.5 * (left_m + right_m), (right_m - left_m) / wheel_base_m
-
-
-def _arc_jacobians(distance_m: np.ndarray, angle_rad: np.ndarray) -> np.ndarray:
-    """(n, 3, 2) Jacobians of ``arc_increment`` w.r.t. (distance, angle); vectorised.
-
-    Same formulas (and the same small-angle series) as
-    :func:`slamio.geometry.arc_increment_jacobian`.
-    """
-    a = np.asarray(angle_rad, dtype=float)
-    s = np.asarray(distance_m, dtype=float)
-    small = np.abs(a) < 1e-4
-    safe = np.where(small, 1.0, a)
-    sinc = np.where(small, 1.0 - a * a / 6.0, np.sin(safe) / safe)
-    cosc = np.where(small, a / 2.0 - a**3 / 24.0, (1.0 - np.cos(safe)) / safe)
-    d_sinc = np.where(small, -a / 3.0, (safe * np.cos(safe) - np.sin(safe)) / (safe * safe))
-    d_cosc = np.where(small, 0.5 - a * a / 8.0, (safe * np.sin(safe) - (1.0 - np.cos(safe))) / (safe * safe))
-    jac = np.zeros(a.shape + (3, 2))
-    jac[..., 0, 0] = sinc
-    jac[..., 0, 1] = s * d_sinc
-    jac[..., 1, 0] = cosc
-    jac[..., 1, 1] = s * d_cosc
-    jac[..., 2, 1] = 1.0
-    return jac
-
-
-def odometry_covariance(left_m, right_m, noise: OdometryNoise, wheel_base_m: float = WHEEL_BASE_M) -> np.ndarray:
-    """Covariance over (dx, dy, dθ) of one odometry increment, from the true wheel distances.
-
-    First-order propagation of the wheel noise ``σ = k_wheel·|d|`` per wheel through
-    wheels → (ΔS, Δθ) → arc increment, plus the slip covariance rotated by the arc's turn
-    (slip acts in the frame at the arc's end). Accepts floats (→ 3×3) or equal-length
-    arrays (→ (n, 3, 3)). The result is exactly symmetric.
-    """
-    left = np.asarray(left_m, dtype=float)
-    right = np.asarray(right_m, dtype=float)
-    distance, angle = wheel_reading(left, right, wheel_base_m)
-    wheels = np.zeros(left.shape + (2, 2))
-    wheels[..., 0, 0] = (noise.k_wheel * left) ** 2
-    wheels[..., 1, 1] = (noise.k_wheel * right) ** 2
-    A = np.array([[0.5, 0.5], [-1.0 / wheel_base_m, 1.0 / wheel_base_m]])
-    J = _arc_jacobians(distance, angle) @ A  # (…, 3, 2): wheels → increment
-    c, s = np.cos(angle), np.sin(angle)
-    R = np.zeros(angle.shape + (3, 3))
-    R[..., 0, 0], R[..., 0, 1], R[..., 1, 0], R[..., 1, 1], R[..., 2, 2] = c, -s, s, c, 1.0
-    cov = J @ wheels @ np.swapaxes(J, -1, -2) + R @ noise.slip_covariance @ np.swapaxes(R, -1, -2)
-    return 0.5 * (cov + np.swapaxes(cov, -1, -2))
-
-
-def range_sigma_m(range_m, sensor: SensorModel):
-    """σ of a range measurement at true range ``range_m``: a + b·r + c·r² (floats or arrays)."""
-    return sensor.sigma_range_m + sensor.sigma_range_per_m * range_m + sensor.sigma_range_per_m2 * range_m * range_m
-
-
-@dataclass(frozen=True)
-class Sightings:
-    """Every (pose, landmark) pair in view, sorted by pose then landmark, with exact values."""
-
-    pose_index: np.ndarray
-    landmark_id: np.ndarray
-    range_m: np.ndarray
-    bearing_rad: np.ndarray
-    tag_yaw_rad: np.ndarray | None  # tag yaw relative to the robot's x axis
-
-
-def _sightings_block(poses: np.ndarray, pose_ids: np.ndarray, lm_ids: np.ndarray, world: World,
-                     sensor: SensorModel) -> tuple[np.ndarray, ...]:
-    """Visibility and exact measurements for every pose in ``pose_ids`` × landmark in ``lm_ids``."""
-    px, py, pth = (poses[pose_ids, i][:, None] for i in range(3))
-    lx = world.landmarks_xy[lm_ids, 0][None, :]
-    ly = world.landmarks_xy[lm_ids, 1][None, :]
-    dx, dy = lx - px, ly - py
-    rng_m = np.hypot(dx, dy)
-    bearing = wrap_angle(np.arctan2(dy, dx) - pth)
-    seen = (rng_m >= sensor.min_range_m) & (rng_m <= sensor.max_range_m) & (np.abs(bearing) <= 0.5 * sensor.fov_rad)
-    tag_yaw = None
-    if sensor.facing_limit_rad is not None:
-        yaw = world.yaws_rad[lm_ids][None, :]
-        # cos of the angle between the tag's face normal and the tag→robot direction
-        cos_facing = -(np.cos(yaw) * dx + np.sin(yaw) * dy) / np.maximum(rng_m, 1e-12)
-        seen &= cos_facing >= math.cos(sensor.facing_limit_rad)
-        tag_yaw = wrap_angle(yaw - pth)
-    rows, cols = np.nonzero(seen)
-    return (
-        pose_ids[rows],
-        lm_ids[cols],
-        rng_m[rows, cols],
-        bearing[rows, cols],
-        None if tag_yaw is None else tag_yaw[rows, cols],
-    )
-
-
-def visible_landmarks(poses: np.ndarray, world: World, sensor: SensorModel) -> Sightings:
-    """Which landmarks each pose sees, with exact range, bearing (and tag yaw); vectorised.
-
-    ``poses`` is (T, 3). Landmarks are bucketed into square cells one ``max_range_m`` wide,
-    and each pose is tested only against the landmarks of its own and the 8 neighbouring
-    cells, so thousands of landmarks cost little.
-    """
-    poses = np.asarray(poses, dtype=float)
-    cell = sensor.max_range_m
-    lm_cells = np.floor(world.landmarks_xy / cell).astype(np.int64)
-    buckets: dict[tuple[int, int], list[int]] = {}
-    for i, (cx, cy) in enumerate(lm_cells.tolist()):
-        buckets.setdefault((cx, cy), []).append(i)
-    pose_cells = np.floor(poses[:, :2] / cell).astype(np.int64)
-    unique_cells, inverse = np.unique(pose_cells, axis=0, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    order = np.argsort(inverse, kind="stable")
-    bounds = np.searchsorted(inverse[order], np.arange(len(unique_cells) + 1))
-    parts = []
-    for k, (cx, cy) in enumerate(unique_cells.tolist()):
-        candidates = [i for ox in (-1, 0, 1) for oy in (-1, 0, 1) for i in buckets.get((cx + ox, cy + oy), ())]
-        if not candidates:
-            continue
-        pose_ids = order[bounds[k]:bounds[k + 1]]
-        parts.append(_sightings_block(poses, pose_ids, np.array(sorted(candidates)), world, sensor))
-    has_yaw = sensor.facing_limit_rad is not None
-    if not parts:
-        empty_i, empty_f = np.zeros(0, dtype=np.int64), np.zeros(0)
-        return Sightings(empty_i, empty_i, empty_f, empty_f, empty_f if has_yaw else None)
-    cols = [np.concatenate([p[j] for p in parts]) for j in range(4)]
-    yaw = np.concatenate([p[4] for p in parts]) if has_yaw else None
-    sort = np.lexsort((cols[1], cols[0]))
-    return Sightings(
-        cols[0][sort], cols[1][sort], cols[2][sort], cols[3][sort], None if yaw is None else yaw[sort]
-    )
 
 
 def _observation_sigmas(seen: Sightings, sensor: SensorModel, tag_noise: str):
@@ -476,114 +229,6 @@ def _observation_sigmas(seen: Sightings, sensor: SensorModel, tag_noise: str):
     count = len(seen.range_m)
     yaw = None if sensor.sigma_tag_yaw_rad is None else np.full(count, sensor.sigma_tag_yaw_rad)
     return range_sigma_m(seen.range_m, sensor), np.full(count, sensor.sigma_bearing_rad), yaw
-
-
-# --------------------------------------------------------------------------- worlds and paths
-
-
-def arena_tags(side_m: float = ARENA_SIDE_M) -> World:
-    """Eight AprilTags, two per wall at 1/3 and 2/3 along it, facing into the square arena.
-
-    Ids go counter-clockwise: 0–1 on the south wall (y = 0, facing +y), 2–3 east
-    (x = side, facing −x), 4–5 north (y = side, facing −y), 6–7 west (x = 0, facing +x).
-    """
-    third, two_thirds = side_m / 3.0, 2.0 * side_m / 3.0
-    xy = [
-        (third, 0.0), (two_thirds, 0.0),
-        (side_m, third), (side_m, two_thirds),
-        (two_thirds, side_m), (third, side_m),
-        (0.0, two_thirds), (0.0, third),
-    ]
-    yaws = [0.5 * math.pi] * 2 + [math.pi] * 2 + [-0.5 * math.pi] * 2 + [0.0] * 2
-    return World(np.array(xy), np.full(8, TAG_HEIGHT_M), wrap_angle(np.array(yaws)))
-
-
-def polygon_path(sides: int, width_across_flats_m: float, centre_xy: tuple[float, float]) -> np.ndarray:
-    """A regular polygon, counter-clockwise, with a flat side at the bottom.
-
-    Waypoint 0 is the left end of the bottom side, so the first leg heads along +x.
-    ``sides=4`` gives a square of side ``width_across_flats_m``.
-    """
-    apothem = 0.5 * width_across_flats_m
-    radius = apothem / math.cos(math.pi / sides)
-    first = -0.5 * math.pi - math.pi / sides
-    angles = first + 2.0 * math.pi * np.arange(sides) / sides
-    return np.column_stack([centre_xy[0] + radius * np.cos(angles), centre_xy[1] + radius * np.sin(angles)])
-
-
-def cylinder_world(room_side_m: float = 5.0, triangle_side_m: float = 2.25,
-                   beyond_m: float = 1.0) -> tuple[World, np.ndarray]:
-    """The three-cylinder room and its triangular path: (world, waypoints).
-
-    The path is an equilateral triangle centred in the room (first leg along +x). Cylinder
-    i stands ``beyond_m`` past the end of leg i, on the leg's line, so the robot drives
-    straight at it: red (id 0) ends leg 0, green (id 1) leg 1, blue (id 2) leg 2.
-    """
-    centre = (0.5 * room_side_m, 0.5 * room_side_m)
-    waypoints = polygon_path(3, triangle_side_m / math.sqrt(3.0), centre)
-    xy = []
-    for i in range(3):
-        start, end = waypoints[i], waypoints[(i + 1) % 3]
-        direction = (end - start) / np.linalg.norm(end - start)
-        xy.append(end + beyond_m * direction)
-    return World(np.array(xy), np.array(CYLINDER_HEIGHTS_M)), waypoints
-
-
-def _grid_shape(n_landmarks: int) -> tuple[int, int]:
-    columns = math.ceil(math.sqrt(n_landmarks))
-    return columns, math.ceil(n_landmarks / columns)
-
-
-def grid_landmarks_xy(n_landmarks: int, spacing_m: float = GRID_SPACING_M) -> np.ndarray:
-    """(N, 2) landmark positions: id i at (spacing·(i mod C), spacing·(i div C)), C = ⌈√N⌉."""
-    columns, _ = _grid_shape(n_landmarks)
-    ids = np.arange(n_landmarks)
-    return np.column_stack([spacing_m * (ids % columns), spacing_m * (ids // columns)]).astype(float)
-
-
-def grid_path(n_landmarks: int, spacing_m: float = GRID_SPACING_M) -> np.ndarray:
-    """Lawnmower waypoints for the grid: lanes between rows, then back to the start.
-
-    Lanes run along x at y = spacing·(1/2 + 3k), k = 0 … ⌈rows/3⌉ − 1 (every landmark is
-    within 1.5 spacings of a lane), alternating direction, each ``GRID_MARGIN_M`` past the
-    outer columns. From the end of the last lane the robot drives straight back to the
-    start; with a single lane it comes back on the far side of the first row instead.
-    """
-    columns, rows = _grid_shape(n_landmarks)
-    x_min = -GRID_MARGIN_M
-    x_max = spacing_m * (columns - 1) + GRID_MARGIN_M
-    lanes = math.ceil(rows / GRID_LANE_EVERY_ROWS)
-    points: list[tuple[float, float]] = []
-    for k in range(lanes):
-        y = spacing_m * (0.5 + GRID_LANE_EVERY_ROWS * k)
-        ends = [(x_min, y), (x_max, y)]
-        points.extend(ends if k % 2 == 0 else ends[::-1])
-    if lanes == 1:
-        y_back = spacing_m * 0.5 + spacing_m
-        points.extend([(x_max, y_back), (x_min, y_back)])
-    return np.array(points)
-
-
-def _scenario(name: str, n_landmarks: int, grid_spacing_m: float = GRID_SPACING_M) -> Scenario:
-    centre = (0.5 * ARENA_SIDE_M, 0.5 * ARENA_SIDE_M)
-    if name in ("arena-square", "arena-octagon"):
-        sides = 4 if name == "arena-square" else 8
-        return Scenario(
-            name, arena_tags(), polygon_path(sides, ARENA_PATH_WIDTH_M, centre), 2,
-            _ARENA_MOTION, _ARENA_ODOMETRY, _TAG_CAMERA,
-            {"arena_m": [0.0, 0.0, ARENA_SIDE_M, ARENA_SIDE_M], "tag_height_m": TAG_HEIGHT_M},
-        )
-    if name == "cylinders":
-        world, waypoints = cylinder_world()
-        return Scenario(
-            name, world, waypoints, 3, _ARENA_MOTION, _ARENA_ODOMETRY, _KINECT,
-            {"landmark_colours": list(CYLINDER_COLOURS), "room_m": [0.0, 0.0, 5.0, 5.0], "camera": "Kinect v1"},
-        )
-    return Scenario(
-        name, World(grid_landmarks_xy(n_landmarks, grid_spacing_m)), grid_path(n_landmarks, grid_spacing_m), 2,
-        _GRID_MOTION, _GRID_ODOMETRY, _GRID_SENSOR,
-        {"grid_spacing_m": grid_spacing_m},
-    )
 
 
 # --------------------------------------------------------------------------- driving

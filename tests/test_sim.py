@@ -241,7 +241,8 @@ def test_noise_free_observations_are_exact_and_complete(scenario, kwargs):
 
 def test_tags_are_seen_only_from_the_front():
     """visible_landmarks on a hand-made tag: front yes, back no, beyond 70° off its normal no."""
-    from slamio.sim import _TAG_CAMERA, World, visible_landmarks
+    from slamio.sim import World, visible_landmarks
+    from slamio.sim_worlds import _TAG_CAMERA
 
     world = World(np.array([[0.0, 0.0]]), np.array([0.2]), np.array([0.0]))  # faces +x
     cases = []
