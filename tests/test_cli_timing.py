@@ -79,3 +79,19 @@ def test_fgslam_run_says_what_was_timed(tmp_path, capsys):
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["timing"] == TIMING["what"] and metrics["blas_threads"] == 1
     assert "timing" not in printed.split("time:")[0].split("batch")[-1]  # not a row of the table
+
+
+def test_fgslam_run_says_when_the_consistency_work_slows_the_smoother(tmp_path, capsys):
+    """NIS/NEES between the steps is untimed but slows iSAM2's own steps: the table says so,
+    and not when there was none (--no-consistency) or no iSAM2 ran."""
+    from fgslam.cli import main
+
+    note = TIMING["consistency_note"]
+    assert main(["run", "data/arena_square.jsonl", "--out", str(tmp_path / "a"), "--no-report"]) == 0
+    assert note in capsys.readouterr().out
+    assert main(["run", "data/arena_square.jsonl", "--out", str(tmp_path / "b"), "--no-report",
+                 "--no-consistency"]) == 0
+    assert note not in capsys.readouterr().out
+    assert main(["run", "data/arena_square.jsonl", "--out", str(tmp_path / "c"), "--no-report",
+                 "--estimators", "ekf,dead_reckoning"]) == 0
+    assert note not in capsys.readouterr().out

@@ -1,0 +1,62 @@
+"""Benchmark: how much the NIS/NEES work between the steps slows the timed steps themselves.
+
+``fgslam run`` measures NIS before each step and the online covariance (for NEES) after it,
+outside the timed region. That work still changes what the timed steps cost (it fills the
+CPU caches with its own data, and iSAM2's marginals with their own). For each log (the
+sources of ``scripts/bench_online.py``) this runs ``ekf`` and the default ``isam2`` (as
+``fgslam run`` builds them) alone and with the NIS/NEES work, interleaved, ``--repeats``
+times each in one process with BLAS on one thread, and prints the minimum total time of
+each and the ratios.
+
+Usage::
+
+    .venv/bin/python scripts/bench_consistency_timing.py mrclam-fitted:../shared/data/mrclam/MRCLAM_Dataset6:1,2,3,4,5 victoria-park
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ["OPENBLAS_NUM_THREADS"] = "1"
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import sys  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from bench_online import logs  # noqa: E402
+from fgslam.runner import ESTIMATORS, run_estimator  # noqa: E402
+from slamio.log import group_steps  # noqa: E402
+
+NAMES = ("ekf", "isam2")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("logs", nargs="+", help="sources as in scripts/bench_online.py")
+    ap.add_argument("--repeats", type=int, default=2)
+    args = ap.parse_args(argv)
+    print("| log | ekf s: alone / with NIS, NEES | isam2 s: alone / with | isam2 × EKF: alone / with |")
+    print("|---|---|---|---|")
+    for spec in args.logs:
+        for name, header, records in logs(spec):
+            steps = group_steps(header, records)
+            best: dict[tuple[str, bool], float] = {}
+            for _ in range(args.repeats):
+                for estimator in NAMES:
+                    for consistency in (False, True):
+                        run, _ = run_estimator(ESTIMATORS[estimator](header), steps, covariances=consistency)
+                        key = (estimator, consistency)
+                        best[key] = min(best.get(key, float("inf")), run.total_time_s)
+            ekf, isam2 = (best[("ekf", False)], best[("ekf", True)]), (best[("isam2", False)], best[("isam2", True)])
+            print(f"| {name} | {ekf[0]:.3f} / {ekf[1]:.3f} (×{ekf[1] / ekf[0]:.2f}) | "
+                  f"{isam2[0]:.3f} / {isam2[1]:.3f} (×{isam2[1] / isam2[0]:.2f}) | "
+                  f"{isam2[0] / ekf[0]:.2f} / {isam2[1] / ekf[1]:.2f} |", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
