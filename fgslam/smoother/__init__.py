@@ -17,6 +17,8 @@ Where things are
 ``recovery.py``         rebuilding iSAM2 after an update failed (indeterminate system)
 ``relinearisation.py``  which variables a relinearisation check may relinearise (the cap,
                         ``relinearize_max_variables``)
+``window.py``           the sliding window (``window_poses``): marginalising the oldest
+                        poses so iSAM2's steps stay bounded however long the run
 ``online.py``           the online pose, its covariance, predicted NIS, landmark marginals
 ``association.py``      pairing observations without an id with the landmarks iSAM2 holds
 ``correction.py``       the online pose between updates: a pose-only EKF against the

@@ -62,6 +62,7 @@ from fgslam.smoother.recovery import rebuild
 from fgslam.smoother.relinearisation import held_back
 from fgslam.smoother.settings import Isam2Settings
 from fgslam.smoother.variables import LandmarkRegistry
+from fgslam.smoother.window import SlidingWindow
 from slamio.errors import FgslamError
 from slamio.log import Header, Observation, Step
 
@@ -215,6 +216,8 @@ class Isam2Smoother:
         self.associate = bool(associate)
         self.redecide = True  # re-decide the id-less pairings against the settled map at the end (_redecide)
         self._association = SmootherAssociation()
+        # poses older than the newest window_poses leave iSAM2 (fgslam/smoother/window.py)
+        self._window = None if self.settings.window_poses is None else SlidingWindow(self.settings.window_poses)
 
     # ------------------------------------------------------------------ Estimator protocol
 
@@ -295,6 +298,10 @@ class Isam2Smoother:
         self._unlabelled |= bool(unknown)
         if not unknown:
             return list(observations)
+        if self._window is not None:
+            raise FgslamError(
+                f"Isam2Smoother: step {k} has an observation without a landmark id, and window_poses is set; "
+                "pairing such observations reads every pose of the run, so run them with window_poses=None")
         since = self._online._caught_up_since_chain()
         decision = self._association.associate(
             k, seed, unknown, self._isam, lambda ids: world_joint_marginal(self._isam, since, seed, ids), points)
@@ -492,7 +499,7 @@ class Isam2Smoother:
                 self._recover(exc, gtsam.NonlinearFactorGraph(), gtsam.Values(), [])
         # The full back-substitution: calculateEstimate() skips delta changes below the
         # wildfire threshold, which on Victoria Park left χ²/2 25 % above the optimum.
-        estimate = self._isam.calculateBestEstimate()
+        estimate = self._best_estimate()
         if self.settings.final_iterations:  # Gauss–Newton steps on the whole graph (batch.py: why not iSAM2's)
             polished = gauss_newton_steps(self._graph, estimate, self.settings.final_iterations,
                                           self.settings.final_tolerance)
@@ -613,6 +620,11 @@ class Isam2Smoother:
         return float(self._graph.error(self._estimate()))
 
     @property
+    def window_slides(self) -> int:
+        """How many times the sliding window (``window_poses``) marginalised the oldest poses."""
+        return 0 if self._window is None else self._window.slides
+
+    @property
     def pending_observations(self) -> int:
         """Observations withheld after a failed update, still to be retried."""
         return len(self._pending.withheld)
@@ -680,11 +692,21 @@ class Isam2Smoother:
         if self._estimate_cache is None:
             # the full back-substitution: with the default wildfire threshold (1.0)
             # calculateEstimate() would leave the deltas deep in the tree stale
-            self._estimate_cache = self._isam.calculateBestEstimate()
+            self._estimate_cache = self._best_estimate()
         return self._estimate_cache
+
+    def _best_estimate(self) -> gtsam.Values:
+        """iSAM2's full back-substitution (``calculateBestEstimate``), with the poses that
+        left the sliding window at their estimates then."""
+        values = self._isam.calculateBestEstimate()
+        if self._window is not None:
+            values.insert(self._window.frozen)
+        return values
 
     def _update_with_recovery(self, core, core_values, entries: list[PendingObservation]) -> None:
         self._estimate_cache = None
+        if self._window is not None:
+            entries = self._entries_in_window(entries)
         factors, values = update_batch(core, core_values, entries, self._landmarks.known)
         try:
             self._isam_update(factors, values)
@@ -692,6 +714,42 @@ class Isam2Smoother:
             self._recover(exc, core, core_values, entries)
             return
         self._accept(factors, values)
+        if self._window is not None and self._window.due():
+            self._slide()
+
+    def _entries_in_window(self, entries: list[PendingObservation]) -> list[PendingObservation]:
+        """Of an update's observation entries, those whose pose iSAM2 still holds. The others
+        (first sightings confirmed late, ranges buffered before their landmark was placed)
+        go into the whole graph only — :meth:`finish` solves it — once their landmark is in
+        iSAM2; until then they wait with the withheld observations."""
+        inside = [e for e in entries if self._window.holds(e.pose_index)]
+        entering = self._landmarks.known | {e.landmark_id for e in inside}
+        for e in entries:
+            if self._window.holds(e.pose_index):
+                continue
+            if e.landmark_id in entering:
+                self._graph.add(e.factor)
+            else:
+                self._pending.withheld.append(e)
+        return inside
+
+    def _slide(self) -> None:
+        """Marginalise all but the newest ``window_poses`` poses and go on with a fresh
+        iSAM2 holding the rest (:class:`~fgslam.smoother.window.SlidingWindow`)."""
+        estimate = self._isam.calculateBestEstimate()
+        kept = self._window.slide(estimate)
+        fresh = gtsam.ISAM2(self.settings.isam2_params())
+        try:
+            fresh.update(kept.factors, kept.values)
+        except RuntimeError as exc:  # an indeterminate system: go on with every pose, as without a window
+            self.update_failures += 1
+            self.last_failure = str(exc)
+            self._window.stopped = True
+            return
+        self._window.commit(kept, estimate)
+        self._isam, self._isam_updates = fresh, 0
+        self._online.forget_marginal()
+        self._landmark_xy.clear()
 
     def _isam_update(self, factors: gtsam.NonlinearFactorGraph | None = None,
                      values: gtsam.Values | None = None) -> None:
@@ -720,12 +778,15 @@ class Isam2Smoother:
         self._graph.push_back(factors)
         self._initial.insert(values)
         self._landmarks.enter(values)
+        if self._window is not None:
+            self._window.entered(factors, values)
 
     def _recover(self, exc: RuntimeError, core, core_values, entries: list[PendingObservation]) -> None:
         """Replace the broken iSAM2 by a fresh one holding everything but withheld observations
         (:func:`fgslam.smoother.recovery.rebuild`)."""
         self.update_failures += 1
-        rebuilt = rebuild(exc, self._isam, self.settings.isam2_params(), self._graph, self._initial, core, core_values, entries,
+        held, seeds = (self._graph, self._initial) if self._window is None else (self._window.factors, self._window.values)
+        rebuilt = rebuild(exc, self._isam, self.settings.isam2_params(), held, seeds, core, core_values, entries,
                           self._landmarks.known)
         self.last_failure = rebuilt.last_failure
         if rebuilt.isam is None:

@@ -146,6 +146,24 @@ class Isam2Settings:
         (:class:`~fgslam.smoother.policy.Keyframes`). Off by default: it is the
         ``isam2-fast`` preset's, which loses online accuracy on real data
         (docs/performance.md).
+    window_poses:
+        None (default): iSAM2 holds every pose. A number N: a sliding window
+        (:mod:`fgslam.smoother.window`): once iSAM2 holds more than 2N poses, all but the
+        newest N are marginalised into a Gaussian on what they shared with the window, and a
+        fresh iSAM2 goes on with the rest, so a step costs the same however long the run.
+        :meth:`.Isam2Smoother.finish` still solves the whole graph (every factor is kept),
+        so the final estimate does not depend on it. Refused with observations without an id
+        (pairing them reads every pose). ``fgslam live`` uses 200
+        (:data:`fgslam.live.run.LIVE_WINDOW_POSES`).
+
+        Why not by default, measured (docs/performance.md, ``scripts/bench_window.py``):
+        on a long drive it bounds the steps (the live arena, 40 laps: the p99 step 3.7 →
+        27.9 ms from the first quarter to the last with every pose, 0.8–0.9 ms with 200;
+        Plaza1's 1.3 → 8.8 ms, 1.0–1.3 ms with 500). But the marginal keeps the linearisation
+        point of the landmarks it touches, and the online estimate then moves by more than
+        the 3 % the default keeps to: MRCLAM Dataset 6 robots −25 … +21 % (either way), Plaza1
+        +27 % with 500; and on Victoria Park, whose 151 landmarks the marginal couples into one
+        dense block, the whole run got slower.
     """
 
     relinearize_threshold: float | tuple[float, float] = 0.01
@@ -169,6 +187,7 @@ class Isam2Settings:
     max_retries: int = 3
     keyframes: bool = False
     max_keyframe_gap: int = 50
+    window_poses: int | None = None
 
     def __post_init__(self):
         if self.relinearize_skip < 1 or self.final_updates < 0 or self.max_retries < 0:
@@ -192,6 +211,8 @@ class Isam2Settings:
             raise FgslamError("Isam2Smoother: need max_keyframe_gap >= 1")
         if self.relinearize_max_variables is not None and self.relinearize_max_variables < 0:
             raise FgslamError("Isam2Smoother: relinearize_max_variables must be None or >= 0")
+        if self.window_poses is not None and self.window_poses < 2:
+            raise FgslamError(f"Isam2Smoother: window_poses must be None or >= 2, got {self.window_poses!r}")
         normalised = {
             "relinearize_threshold": _relinearize_threshold(self.relinearize_threshold),
             "factorization": self.factorization.lower(),
@@ -201,6 +222,7 @@ class Isam2Settings:
             "update_observations": None if self.update_observations is None else int(self.update_observations),
             "relinearize_max_variables": (None if self.relinearize_max_variables is None
                                           else int(self.relinearize_max_variables)),
+            "window_poses": None if self.window_poses is None else int(self.window_poses),
         }
         for name in ("relinearize_skip", "update_every", "max_held_steps", "update_observations_min_steps",
                      "update_tail_min_steps", "final_updates", "final_iterations", "max_retries",
