@@ -103,6 +103,7 @@ LIVE_BAD = [
     ("--sim-seed", "-1"),
     ("--sim-unplug-after", "nan"),
     ("--baud", "0"),
+    ("--window", "1"), ("--window", "-3"),
 ]
 
 
@@ -113,6 +114,16 @@ def test_live_checks_every_number_before_the_robot_starts(tmp_path, capsys, no_r
     _refused(capsys, ["live", "--port", "sim", "--sim-seed", "1", "--out", str(out), f"{option}={value}"], option,
              never_written=(out,))
     assert time.monotonic() - start < 5.0
+
+
+def test_live_refuses_a_window_for_colour_landmarks_without_ids(tmp_path, capsys, no_robot):
+    """Landmarks without an id are paired against every pose: no sliding window for them."""
+    landmarks = tmp_path / "landmarks.yaml"
+    landmarks.write_text("landmarks:\n  - {name: red, hsv: [[[0, 110, 60], [8, 255, 255]]]}\n")
+    out = tmp_path / "live.jsonl"
+    line = _refused(capsys, ["live", "--port", "sim", "--kind", "colour", "--landmarks", str(landmarks),
+                             "--window", "100", "--out", str(out)], "--window", never_written=(out,))
+    assert "red" in line and "--window 0" in line
 
 
 def test_live_checks_the_map_png_before_the_robot_starts(tmp_path, capsys, no_robot):

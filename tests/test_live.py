@@ -152,16 +152,17 @@ def octagon_run(tmp_path_factory):
     return out, result, true_pose, stopped
 
 
-def hil_octagon(out, seed, camera_for):
-    """One lockstep octagon of the simulated Create with ``camera_for(sim)``'s camera:
-    (result, true end pose, wheels stopped, truth landmarks)."""
+def hil_octagon(out, seed, camera_for, **live_options):
+    """One lockstep octagon of the simulated Create with ``camera_for(sim)``'s camera (and
+    ``live_options`` for :func:`run_live`): (result, true end pose, wheels stopped, truth landmarks)."""
     waypoints = polygon_waypoints(8, ARENA_PATH_WIDTH_M, CENTRE)
     start = start_pose_facing(waypoints)
     with SimulatedCreate("create2", seed=seed, time_scale=TIME_SCALE, start_pose=start) as sim:
         grab_for, front_end, truth_landmarks = camera_for(sim)
         result = run_live(CreateLink(sim.port, "create2"), str(out), waypoints, start_pose=start, grab_for=grab_for,
                           front_end=front_end, truth=lambda: sim.true_pose, truth_landmarks=truth_landmarks,
-                          clock=sim.clock, settings=CALM, lockstep=Lockstep(sim), odometry_noise=sim.odometry_noise)
+                          clock=sim.clock, settings=CALM, lockstep=Lockstep(sim), odometry_noise=sim.odometry_noise,
+                          **live_options)
         stopped = wheels_stopped(sim)
         true_pose = sim.true_pose
         assert sim.holds == 0  # every frame and smoother step gave the clock back
@@ -180,6 +181,17 @@ def test_hil_octagon_ends_within_10_cm_of_the_truth(octagon_run):
     assert result.frames_skipped + result.frames_dropped <= 2
     assert result.frames_used >= result.frames_requested - 2 > 100
     assert result.observations > 100
+
+
+def test_hil_octagon_with_a_small_sliding_window(tmp_path):
+    """The live smoother's sliding window (LIVE_WINDOW_POSES, here 20 so that one lap slides it
+    several times) in the loop: the lap ends as close to the truth, with every landmark."""
+    seen = []
+    result, true_pose, stopped, _ = hil_octagon(tmp_path / "window.jsonl", 1, simulated_camera, window_poses=20,
+                                                on_step=lambda index, smoother, latency, loop: seen.append(smoother))
+    assert stopped and result.completed and pose_error_m(result.final_pose, true_pose) < 0.1
+    assert set(result.landmarks) == set(range(8))
+    assert seen[-1].window_slides >= 3
 
 
 def same_records(a, b, rel=1e-9) -> bool:

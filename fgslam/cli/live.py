@@ -85,6 +85,10 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     live.add_argument("--map-png", default=None, metavar="PNG",
                       help="rewrite a map picture here every 2 s (in an existing folder; an existing file is kept "
                       "unless --overwrite)")
+    live.add_argument("--window", type=int, default=None, metavar="N",
+                      help="iSAM2 keeps the newest N to 2N poses and marginalises the older ones, so a step "
+                      "costs the same however long the run (default 200; 0 keeps every pose; colour landmarks "
+                      "without ids need 0, and get it by default). The final map solves every pose either way")
     live.add_argument("--baud", type=int, default=None)
     live.add_argument("--sim-time-scale", type=float, default=1.0, help="simulation: robot seconds per wall second")
     live.add_argument("--sim-seed", type=int, default=1)
@@ -128,6 +132,8 @@ def _check_options(args: argparse.Namespace) -> None:
                           f"got {args.baud}")
     if args.landmarks and args.kind != "colour":
         raise FgslamError("--landmarks describes colour landmarks: add --kind colour")
+    if args.window is not None and (args.window < 0 or args.window == 1):
+        raise FgslamError(f"--window must be 0 (keep every pose) or at least 2 poses, e.g. 200; got {args.window}")
     check_new_file(args.out, overwrite=args.overwrite)  # an existing log is kept
     if args.map_png:
         _check_map_png(Path(args.map_png), Path(args.out), args.overwrite)
@@ -151,6 +157,7 @@ def cmd_live(args: argparse.Namespace) -> int:
     from slamio.create.link import CreateLink
 
     _check_options(args)  # before the port is opened and the robot moves
+    window_poses = _window_poses(args)
     sensor = ({"kind": "range-bearing", "landmark_kind": "coloured-cylinder", "source": "fgslam live"}
               if args.kind == "colour" else None)
     waypoints = _waypoints(args)
@@ -212,7 +219,7 @@ def cmd_live(args: argparse.Namespace) -> int:
         link.open()  # a port that does not open is a user error (exit 1), before the log exists
         result = run_live(link, args.out, waypoints, start_pose=start_pose, grab_for=grab_for, front_end=front_end,
                           settings=settings, truth=truth, truth_landmarks=truth_landmarks, clock=clock,
-                          odometry_noise=odometry_noise, on_step=on_step, sensor=sensor)
+                          odometry_noise=odometry_noise, on_step=on_step, sensor=sensor, window_poses=window_poses)
     finally:
         status.close()
         if "link" in locals():
@@ -269,6 +276,25 @@ def _real_camera(args):
 
         return latest.grab_for, colour_front_end(camera, _colour_options(args))
     return latest.grab_for, FrontEnd(camera, FrontEndConfig(tag_size_m=args.tag_size))
+
+
+def _window_poses(args) -> int | None:
+    """--window: the sliding window of the live smoother, or None to keep every pose. Colour
+    landmarks without an id are paired by the smoother against every pose of the run, which a
+    window cannot give (:func:`fgslam.live.run.unlabelled_landmarks`): by default they turn it
+    off, and an explicit --window is refused."""
+    from fgslam.live import LIVE_WINDOW_POSES
+
+    unlabelled = []
+    if args.kind == "colour":
+        unlabelled = [c.name for c in _colour_options(args).colours if c.landmark_id is None]
+    if args.window == 0 or (args.window is None and unlabelled):
+        return None
+    if unlabelled:
+        raise FgslamError(f"--window {args.window}: the colour landmarks {', '.join(unlabelled)} have no id, and "
+                          "pairing them reads every pose of the run; give them ids in the landmark file or "
+                          "run with --window 0")
+    return LIVE_WINDOW_POSES if args.window is None else args.window
 
 
 def _colour_options(args):

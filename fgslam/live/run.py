@@ -93,15 +93,38 @@ def simulated_camera(sim, *, supersample: int = 1, pixel_noise: float = 2.0, see
     return grab_for, front_end, truth_landmarks
 
 
+#: The live smoother's sliding window (``Isam2Smoother(window_poses=...)``, fgslam/smoother/window.py):
+#: iSAM2 holds between this many and twice this many of the newest poses, so a step costs the
+#: same after an hour as after a minute. Measured on the live arena (seed 004's octagon and
+#: tags, 40 laps, 13 208 poses, one BLAS thread; docs/performance.md): with every pose kept the
+#: p99 step grew from 3.7 ms in the first quarter of the run to 27.9 ms in the last (the Create
+#: streams every 15 ms); with 200 it stayed at 0.8–0.9 ms, the slowest step (a slide) 12 ms, the
+#: whole run took 1.86 s instead of 8.79 s and the online ATE changed by +1.7 %. 200 poses at
+#: the recorder's 0.1 s are 20 s of driving or more: at least one lap of the arena.
+LIVE_WINDOW_POSES = 200
+
+
+def unlabelled_landmarks(front_end) -> list[str]:
+    """The landmarks ``front_end`` reports without an id (colour landmarks whose file gives
+    none; AprilTags always carry theirs). The smoother pairs those against every pose of the
+    run, which a sliding window cannot give it."""
+    config = getattr(front_end, "config", None)
+    if config is None or config.kind != "colour":
+        return []
+    return [c.name for c in config.colour.colours if c.landmark_id is None]
+
+
 def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front_end=None,
              settings: LiveSettings = LiveSettings(), smoother=None, truth=None, truth_landmarks=(),
              clock: Callable[[], float] = time.monotonic, sensor: dict | None = None,
              observation_noise: dict | None = None, odometry_noise=None, on_step=None,
-             lockstep: Lockstep | None = None) -> LiveResult:
+             lockstep: Lockstep | None = None, window_poses: int | None = LIVE_WINDOW_POSES) -> LiveResult:
     """Drive ``waypoints`` on the robot behind ``link`` with iSAM2 in the loop; log to
     ``out_path``. ``grab_for``/``front_end`` give the camera (None: odometry only);
-    ``smoother`` defaults to :class:`fgslam.smoother.Isam2Smoother` (its defaults: an update
-    every 10 poses, the online correction in between).
+    ``smoother`` defaults to :class:`fgslam.smoother.Isam2Smoother` with its defaults and a
+    sliding window of ``window_poses`` (:data:`LIVE_WINDOW_POSES`; None keeps every pose in
+    iSAM2, as ``fgslam run`` does, and so does a front-end with landmarks without an id,
+    :func:`unlabelled_landmarks`; the final estimate is the whole graph's either way).
     ``on_step(index, smoother, latency_s, loop)`` is called in the smoother worker after
     each pose (the CLI's status line and map; ``loop`` is the :class:`LiveLoop` with its
     frame counts). ``odometry_noise`` (an :class:`slamio.create.odometry.OdometryNoise`) is
@@ -122,9 +145,11 @@ def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front
         raise FgslamError(f"lockstep frame budget {lockstep.frame_s} s must be below frame_timeout_s "
                           f"{settings.frame_timeout_s} s")
     if smoother is None:
+        if unlabelled_landmarks(front_end):  # paired against every pose: no window
+            window_poses = None
         header = Header(stamp_s=0.0, start_pose=start_pose, start_sigma=(1e-3, 1e-3, 1e-3),  # as the recorder's
                         robot={"name": "live"}, sensor={"kind": "live"}, noise={"odometry": {}, "observation": {}})
-        smoother = Isam2Smoother(header)
+        smoother = Isam2Smoother(header, window_poses=window_poses)
     tracker = PoseTracker(start_pose)
     camera = None
     if grab_for is not None and front_end is not None:
