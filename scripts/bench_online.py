@@ -52,6 +52,12 @@ def logs(spec: str):
         for seed in range(int(first), int(last or first) + 1):
             header, records = simulate("arena-octagon", seed)
             yield f"arena-octagon seed {seed}", header, records
+    elif spec.startswith("arena-laps:"):  # one long drive: arena-laps:SEED:LAPS
+        from slamio.sim import simulate
+
+        seed, _, laps = spec.split(":", 1)[1].partition(":")
+        header, records = simulate("arena-octagon", int(seed), laps=int(laps or 40))
+        yield f"arena-octagon seed {seed}, {int(laps or 40)} laps", header, records
     elif spec == "victoria-park":
         from slamio.datasets.victoria_park import import_victoria_park
 
@@ -75,7 +81,7 @@ def logs(spec: str):
         for robot in robots.split(","):
             yield f"{Path(folder).name} robot {robot}", *import_mrclam(folder, int(robot))
     else:
-        raise SystemExit(f"unknown log {spec!r}: arena:A-B, victoria-park, plaza1, plaza2, mrclam:FOLDER:R1,R2 "
+        raise SystemExit(f"unknown log {spec!r}: arena:A-B, arena-laps:SEED:LAPS, victoria-park, plaza1, plaza2, mrclam:FOLDER:R1,R2 "
                          "or mrclam-fitted:FOLDER:R1,R2")
 
 
