@@ -13,7 +13,7 @@ from doc_numbers.sources.experiments import (MRCLAM6, RGBD_REAL, SEED003, aprilt
                                              seed004_paths)
 from doc_numbers.sources.runs import (ASSOCIATING, DEFAULT, OUTLIERS, PAPERS, ROBUST, against_truth, bundled,
                                       check_smoothed, ekf_without_gate, flaw_costs, hidden_ids, live_replay, monte_carlo_octagon,
-                                      seed_sweep, sim_then_run, trial_calibration, victoria_park)
+                                      seed_sweep, sim_then_run, trial_calibration, victoria_park, window_arena)
 
 SOURCES = [
     Source("octagon", f"fgslam run data/arena_octagon.jsonl --estimators {DEFAULT},{PAPERS},ekf-fej", "cheap",
@@ -49,6 +49,8 @@ SOURCES = [
            "ekf,ekf-fej,isam2-fast,dead_reckoning", "slow", victoria_park),
     Source("plaza", "python scripts/plaza_range_model.py (fgslam import plazaN --noise OTHER.json; fgslam run "
            "--estimators ekf,isam2,isam2-fast,dead_reckoning)", "long", plaza_range_model),
+    Source("window-arena", "python scripts/bench_window.py arena-laps:1:40 --window 200 500 (without the times)",
+           "slow", window_arena),
     Source("live-replay", "fgslam run tests/data/live-sim/octagon.jsonl --estimators ekf,isam2 (NEES)", "cheap",
            live_replay),
     Source("exact-models-nees", "python scripts/live_nees.py --simulate 30", "slow", exact_models_nees),

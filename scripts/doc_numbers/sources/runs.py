@@ -210,3 +210,30 @@ def live_replay(context: Context) -> dict:
         nees, _ = nees_over_truth(run.online, run.online_covariances, truth, has)
         out[name] = {"nees_mean": float(np.mean(nees)), "nees_max": float(np.max(nees))}
     return out
+
+
+def window_arena(context: Context) -> dict:
+    """``python scripts/bench_window.py arena-laps:1:40 --window 200 500`` without its times:
+    window → online ATE against the truth over that with every pose kept, and χ²/2 over the
+    whole graph's (the batch optimum's)."""
+    import numpy as np
+
+    from bench_online import logs, truth_of
+    from fgslam.runner import run_estimator
+    from fgslam.smoother import Isam2Smoother, batch_solve
+    from slamio.log import group_steps
+
+    (_, header, records), = logs("arena-laps:1:40")
+    steps = group_steps(header, records)
+    xy, mask = truth_of(steps)
+    out, reference, batch = {}, None, None
+    for window in (None, 200, 500):
+        smoother = Isam2Smoother(header, window_poses=window)
+        run, _ = run_estimator(smoother, steps, covariances=False)
+        batch = batch or batch_solve(smoother)
+        ate = float(np.sqrt(np.mean(np.sum((run.online[mask, :2] - xy[mask, :2]) ** 2, axis=1))))
+        reference = reference or ate
+        out[window] = {"online_ratio": ate / reference, "chi2_ratio": smoother.error() / batch.final_error,
+                       "slides": smoother.window_slides}
+    return out
+
