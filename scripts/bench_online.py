@@ -106,6 +106,15 @@ def truth_of(steps) -> tuple[np.ndarray, np.ndarray] | None:
     return xy, mask
 
 
+def online_ate_m(online: np.ndarray, truth, batch_trajectory: np.ndarray) -> float:
+    """ATE of the online poses: against the log's truth (``truth_of``) over the poses that
+    have it, else against the batch optimum's trajectory."""
+    if truth is None:
+        return ate_rmse_m(online, batch_trajectory)
+    xy, mask = truth
+    return float(np.sqrt(np.mean(np.sum((online[mask, :2] - xy[mask, :2]) ** 2, axis=1))))
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("logs", nargs="+")
@@ -139,10 +148,7 @@ def main(argv=None) -> int:
             truth = truth_of(steps)
 
             def online_ate(run):
-                if truth is None:
-                    return ate_rmse_m(run.online, batch.trajectory)
-                xy, mask = truth
-                return float(np.sqrt(np.mean(np.sum((run.online[mask, :2] - xy[mask, :2]) ** 2, axis=1))))
+                return online_ate_m(run.online, truth, batch.trajectory)
 
             ref_ate = online_ate(results[0][1])
             print(f"| {name} | ekf | {ekf.total_time_s:.2f} | 1 | {1e3 * np.percentile(ekf.step_times_s, 99):.2f} | "

@@ -33,8 +33,7 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_online import logs, truth_of  # noqa: E402
-from fgslam.compare import ate_rmse_m  # noqa: E402
+from bench_online import logs, online_ate_m, truth_of  # noqa: E402
 from fgslam.runner import expected_outlier_kernel, run_estimator  # noqa: E402
 from fgslam.smoother import Isam2Smoother, batch_solve  # noqa: E402
 from slamio.log import group_steps  # noqa: E402
@@ -65,11 +64,7 @@ def main(argv=None) -> int:
                 run, _ = run_estimator(smoother, steps, covariances=False)
                 if batch is None:
                     batch = batch_solve(smoother)
-                if truth is None:
-                    ate = ate_rmse_m(run.online, batch.trajectory)
-                else:
-                    xy, mask = truth
-                    ate = float(np.sqrt(np.mean(np.sum((run.online[mask, :2] - xy[mask, :2]) ** 2, axis=1))))
+                ate = online_ate_m(run.online, truth, batch.trajectory)
                 reference_ate = reference_ate or ate
                 slides = smoother.window_slides
                 print(f"| {name} | {window or 'every pose'} | {quarters_ms(run.step_times_s)} | "

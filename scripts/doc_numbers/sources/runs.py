@@ -216,22 +216,20 @@ def window_arena(context: Context) -> dict:
     """``python scripts/bench_window.py arena-laps:1:40 --window 200 500`` without its times:
     window → online ATE against the truth over that with every pose kept, and χ²/2 over the
     whole graph's (the batch optimum's)."""
-    import numpy as np
-
-    from bench_online import logs, truth_of
+    from bench_online import logs, online_ate_m, truth_of
     from fgslam.runner import run_estimator
     from fgslam.smoother import Isam2Smoother, batch_solve
     from slamio.log import group_steps
 
     (_, header, records), = logs("arena-laps:1:40")
     steps = group_steps(header, records)
-    xy, mask = truth_of(steps)
+    truth = truth_of(steps)
     out, reference, batch = {}, None, None
     for window in (None, 200, 500):
         smoother = Isam2Smoother(header, window_poses=window)
         run, _ = run_estimator(smoother, steps, covariances=False)
         batch = batch or batch_solve(smoother)
-        ate = float(np.sqrt(np.mean(np.sum((run.online[mask, :2] - xy[mask, :2]) ** 2, axis=1))))
+        ate = online_ate_m(run.online, truth, batch.trajectory)
         reference = reference or ate
         out[window] = {"online_ratio": ate / reference, "chi2_ratio": smoother.error() / batch.final_error,
                        "slides": smoother.window_slides}
