@@ -122,7 +122,7 @@ README_OUTLIERS = [
                 "octagon-outliers", "ekf", ACCURACY),
     *metric_row(R, "isam2              0.1462        0.2039       0.0909      0.1276          8",
                 "octagon-outliers", "isam2", ACCURACY),
-    *metric_row(R, "isam2-huber        0.0076        0.0098       0.0086      0.0137          8",
+    *metric_row(R, "isam2-huber        0.0077        0.0098       0.0086      0.0137          8",
                 "octagon-outliers", "isam2-huber", ACCURACY),
     *metric_row(R, "isam2-cauchy       0.0078        0.0107       0.0077      0.0133          8",
                 "octagon-outliers", "isam2-cauchy", ACCURACY),
