@@ -284,10 +284,9 @@ def _window_poses(args) -> int | None:
     window cannot give (:func:`fgslam.live.run.unlabelled_landmarks`): by default they turn it
     off, and an explicit --window is refused."""
     from fgslam.live import LIVE_WINDOW_POSES
+    from fgslam.live.run import unlabelled_colours
 
-    unlabelled = []
-    if args.kind == "colour":
-        unlabelled = [c.name for c in _colour_options(args).colours if c.landmark_id is None]
+    unlabelled = unlabelled_colours(_colour_options(args)) if args.kind == "colour" else []
     if args.window == 0 or (args.window is None and unlabelled):
         return None
     if unlabelled:

@@ -104,14 +104,20 @@ def simulated_camera(sim, *, supersample: int = 1, pixel_noise: float = 2.0, see
 LIVE_WINDOW_POSES = 200
 
 
+def unlabelled_colours(options) -> list[str]:
+    """The names of the colour landmarks of ``options`` (a ``ColourOptions``) that have no id.
+    The smoother pairs their observations against every pose of the run, which a sliding
+    window cannot give it."""
+    return [c.name for c in options.colours if c.landmark_id is None]
+
+
 def unlabelled_landmarks(front_end) -> list[str]:
-    """The landmarks ``front_end`` reports without an id (colour landmarks whose file gives
-    none; AprilTags always carry theirs). The smoother pairs those against every pose of the
-    run, which a sliding window cannot give it."""
+    """The landmarks ``front_end`` reports without an id (:func:`unlabelled_colours` of a
+    colour front-end; AprilTags always carry theirs)."""
     config = getattr(front_end, "config", None)
     if config is None or config.kind != "colour":
         return []
-    return [c.name for c in config.colour.colours if c.landmark_id is None]
+    return unlabelled_colours(config.colour)
 
 
 def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front_end=None,

@@ -723,10 +723,9 @@ class Isam2Smoother:
         go into the whole graph only — :meth:`finish` solves it — once their landmark is in
         iSAM2; until then they wait with the withheld observations."""
         inside = [e for e in entries if self._window.holds(e.pose_index)]
+        late = [e for e in entries if not self._window.holds(e.pose_index)]
         entering = self._landmarks.known | {e.landmark_id for e in inside}
-        for e in entries:
-            if self._window.holds(e.pose_index):
-                continue
+        for e in late:
             if e.landmark_id in entering:
                 self._graph.add(e.factor)
             else:
