@@ -36,3 +36,31 @@ def test_the_turn_calibration_jacobian_matches_finite_differences(script):
     # the turn itself: dθ·(1 + s) + c·d
     moved = script._predict(x, P, odometry, 0.0)[0]
     assert moved[2] == pytest.approx(0.7 + 0.3 * 1.02 - 0.04 * np.hypot(0.12, 0.01))
+
+
+def test_the_batch_calibrated_odometry_factor_is_a_between_factor_on_the_corrected_turn(script):
+    """With the calibration (s, c) held, the custom factor is GTSAM's BetweenFactorPose2 on
+    the increment whose turn is dθ·(1 + s) + c·d: same error, same pose Jacobians; its
+    calibration Jacobian is that of the measured turn."""
+    import gtsam
+    from gtsam.symbol_shorthand import D, X
+
+    odometry = SimpleNamespace(dx_m=0.3, dy_m=0.02, dtheta_rad=0.25)
+    unit = gtsam.noiseModel.Unit.Create(3)
+    factor = gtsam.CustomFactor(unit, [X(0), X(1), D(0)], script._calibrated_odometry_error(odometry))
+    values = gtsam.Values()
+    values.insert(X(0), gtsam.Pose2(1.0, 2.0, 0.4))
+    values.insert(X(1), gtsam.Pose2(1.25, 2.2, 0.7))
+    calibration = np.array([0.04, -0.06])
+    values.insert(D(0), calibration)
+    turn = 0.25 * 1.04 - 0.06 * np.hypot(0.3, 0.02)
+    reference = gtsam.BetweenFactorPose2(X(0), X(1), gtsam.Pose2(0.3, 0.02, turn), unit)
+    np.testing.assert_allclose(factor.unwhitenedError(values), reference.unwhitenedError(values), atol=1e-12)
+    ours, theirs = factor.linearize(values).jacobian()[0], reference.linearize(values).jacobian()[0]
+    np.testing.assert_allclose(ours[:, :6], theirs, atol=1e-7)
+    # d(error)/d(measured turn) by the same factor with the turn moved, times d(turn)/d(s, c)
+    h = 1e-6
+    moved = [gtsam.BetweenFactorPose2(X(0), X(1), gtsam.Pose2(0.3, 0.02, turn + sign * h), unit).unwhitenedError(values)
+             for sign in (1, -1)]
+    d_turn = (moved[0] - moved[1]) / (2 * h)
+    np.testing.assert_allclose(ours[:, 6:], np.outer(d_turn, [0.25, np.hypot(0.3, 0.02)]), atol=1e-6)
