@@ -45,23 +45,19 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import gtsam  # noqa: E402
 import numpy as np  # noqa: E402
 
-from bench_online import logs, online_ate_m, truth_of  # noqa: E402
+from bench_online import REFERENCE, logs, online_ate_m, truth_of  # noqa: E402
 from ekf import EkfSlam  # noqa: E402
 from fgslam.runner import run_estimator  # noqa: E402
 from fgslam.smoother import Isam2Smoother, batch_solve  # noqa: E402
 from slamio.log import group_steps  # noqa: E402
 
-REFERENCE = {"update_every": 1, "relinearize_skip": 1, "online_correction": False, "wildfire_threshold": 0.001}
-
-
 class NewsSmoother(Isam2Smoother):
     """Updates when the held readings carry ``news`` landmarks' worth of new information
     (and ``update_observations_min_steps`` steps are held), in place of the reading count."""
 
-    news = 1.0
-
-    def __init__(self, header, **kwargs):
+    def __init__(self, header, news: float = 1.0, **kwargs):
         super().__init__(header, update_observations=None, **kwargs)
+        self.news = news
         self._readings_in_isam: dict[int, int] = {}
 
     def _held_news(self) -> float:
@@ -135,9 +131,13 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument("--robust", default=None, help="robust kernel for every iSAM2 (e.g. dcs)")
     args = ap.parse_args(argv)
-    NewsSmoother.news = args.value
-    variant = NewsSmoother if args.variant == "news" else MarginalReadSmoother
     common = {"robust": args.robust} if args.robust else {}
+    if args.variant == "news":
+        def variant(h):
+            return NewsSmoother(h, news=args.value, **common)
+    else:
+        def variant(h):
+            return MarginalReadSmoother(h, **common)
     print(f"| log | estimator | total s | × EKF | updates | online ATE m | × reference | χ²/2 × batch |  ({args.variant} {args.value:g})")
     print("|---|---|---|---|---|---|---|---|")
     for spec in args.logs:
@@ -150,7 +150,7 @@ def main(argv=None) -> int:
             best: dict[str, tuple] = {}
             for _ in range(args.repeats):
                 for label, build in (("ekf", EkfSlam), ("isam2", lambda h: Isam2Smoother(h, **common)),
-                                     (args.variant, lambda h: variant(h, **common))):
+                                     (args.variant, variant)):
                     run, estimator = run_estimator(build(header), steps, covariances=False)
                     if label not in best or run.total_time_s < best[label][0].total_time_s:
                         best[label] = (run, estimator)

@@ -55,7 +55,7 @@ from scipy.optimize import nnls  # noqa: E402
 from scipy.stats import chi2  # noqa: E402
 
 from ekf.models import landmark_from_range_bearing, landmark_init_jacobians, motion_jacobians, predict_pose  # noqa: E402
-from fgslam.compare import align_se2  # noqa: E402
+from fgslam.compare import align_se2, ate_rmse_m  # noqa: E402
 from fgslam.runner import compare_log  # noqa: E402
 from fgslam.smoother.factors import odometry_noise_covariance, robust_estimator  # noqa: E402
 from slamio.datasets.mrclam import MAX_ZERO_BLIP_S, ROBOT_SUBJECTS, fill_zero_blips, import_mrclam  # noqa: E402
@@ -375,15 +375,16 @@ def _calibrated_odometry_error(o):
         p1, p2 = values.atPose2(this.keys()[0]), values.atPose2(this.keys()[1])
         cal = values.atPoint2(this.keys()[2])
         if H is not None:
-            h, basis = 1e-6, np.eye(3)
-            H[0] = np.column_stack([(residual(p1.retract(h * b), p2, cal) - residual(p1.retract(-h * b), p2, cal))
-                                    / (2 * h) for b in basis])
-            H[1] = np.column_stack([(residual(p1, p2.retract(h * b), cal) - residual(p1, p2.retract(-h * b), cal))
-                                    / (2 * h) for b in basis])
-            H[2] = np.column_stack([(residual(p1, p2, cal + h * b) - residual(p1, p2, cal - h * b)) / (2 * h)
-                                    for b in np.eye(2)])
+            H[0] = _central_difference(lambda d: residual(p1.retract(d), p2, cal), 3)
+            H[1] = _central_difference(lambda d: residual(p1, p2.retract(d), cal), 3)
+            H[2] = _central_difference(lambda d: residual(p1, p2, cal + d), 2)
         return residual(p1, p2, cal)
     return error
+
+
+def _central_difference(f, dim: int, h: float = 1e-6) -> np.ndarray:
+    """Jacobian of ``f`` at 0 of its ``dim``-vector argument (a step in local coordinates)."""
+    return np.column_stack([(f(h * b) - f(-h * b)) / (2 * h) for b in np.eye(dim)])
 
 
 def batch_variant(log: RunLog, camera_sigma=None, apparent_sigma_m=None, reading_share=0.0,
@@ -453,17 +454,12 @@ def batch_variant(log: RunLog, camera_sigma=None, apparent_sigma_m=None, reading
     params.setMaxIterations(100)
     params.setRelativeErrorTol(1e-10)
     result = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
-    track = np.array([[result.atPose2(X(k)).x(), result.atPose2(X(k)).y()] for k in range(len(steps))])
-    truth = np.array([[s.truth.x_m, s.truth.y_m] if s.truth else [np.nan, np.nan] for s in steps])
-    seen = np.isfinite(truth[:, 0])
-    rotation, shift = align_se2(track[seen], truth[seen])
-    c, s_ = math.cos(rotation), math.sin(rotation)
-    aligned = track[seen] @ np.array([[c, s_], [-s_, c]]) + shift
+    track = np.array([[result.atPose2(X(k)).x(), result.atPose2(X(k)).y(), 0.0] for k in range(len(steps))])
+    truth = np.array([[s.truth.x_m, s.truth.y_m, 0.0] if s.truth else [np.nan] * 3 for s in steps])
     if odometry_sigma is not None:
         print(f"  {log.path}: own odometry calibration s {result.atPoint2(D(0))[0]:+.4f}, "
               f"c {result.atPoint2(D(0))[1]:+.4f} rad/m")
-    return (float(np.sqrt(np.mean(np.sum((track[seen] - truth[seen]) ** 2, axis=1)))),
-            float(np.sqrt(np.mean(np.sum((aligned - truth[seen]) ** 2, axis=1)))))
+    return ate_rmse_m(track, truth, align=False), ate_rmse_m(track, truth, align=True)
 
 
 EKF_VARIANTS = {
