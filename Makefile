@@ -7,6 +7,9 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 DEMO_LOG := data/arena_octagon.jsonl
 DEMO_OUT := out/demo
+# one test process per core (pytest-xdist; worksteal evens out the minutes-long acceptance
+# runs); `make test PYTEST_JOBS=` runs them in one process
+PYTEST_JOBS ?= -n auto --dist worksteal
 
 .PHONY: demo test test-all dev install data clean
 
@@ -30,10 +33,10 @@ demo: $(VENV)/.installed
 	@echo "open $(DEMO_OUT)/report.html in a browser to see the figures"
 
 test: $(VENV)/.installed-dev
-	$(BIN)/python -m pytest -m "not slow"
+	$(BIN)/python -m pytest $(PYTEST_JOBS) -m "not slow"
 
 test-all: $(VENV)/.installed-dev
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest $(PYTEST_JOBS)
 
 # Regenerate the bundled logs (deterministic: the same bytes every time).
 data: $(VENV)/.installed

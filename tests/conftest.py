@@ -5,8 +5,10 @@
   says nothing about the code (profile ``fgslam``; ``--hypothesis-profile`` picks another).
   It is derandomised, like every other draw in the tests; ``fgslam-explore`` hunts.
 * **The ``slow`` marker** (registered in pyproject.toml) is put on the long acceptance runs
-  listed in :data:`SLOW`. ``make test`` (``pytest -m "not slow"``) leaves them out and
-  finishes in a few minutes; ``make test-all`` (plain ``pytest``) and CI run everything.
+  listed in :data:`SLOW`. ``make test`` (``pytest -n auto -m "not slow"``) leaves them out and
+  finishes in a few minutes; ``make test-all`` (``pytest -n auto``) and CI run everything,
+  one process per core (pytest-xdist): no test may rely on running alone, in order or in
+  the same process as another.
   A test can also say it is slow itself with ``@pytest.mark.slow``.
 * **``cable_back_on_retry``**: a pulled serial cable that goes back in right after the
   link's first attempt to reopen it — "back within the retry window" as an event, not as a
