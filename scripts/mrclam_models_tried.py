@@ -20,7 +20,10 @@ quotes its output. Every robot is scored with a noise model fitted on the other 
    extra states: per-run camera offsets (range m, bearing rad), a Gauss–Markov reading error
    per landmark (a share of each reading's variance, correlation time τ), and a scale on the
    odometry covariance. ``plain`` reproduces the product's ``ekf`` on these logs.
-5. ``batch``: batch Levenberg–Marquardt (DCS kernel, as ``isam2`` uses here) with white
+5. ``standstill``: the product's ``ekf`` and ``isam2`` with no drift while the robot is told
+   to stand (every odometry record whose commands were all zero keeps only a floor
+   variance, where the fitted per-second rates let a standing robot's heading wander).
+6. ``batch``: batch Levenberg–Marquardt (DCS kernel, as ``isam2`` uses here) with white
    readings, with a per-run camera offset variable (a ``gtsam.CustomFactor``), and with a
    Gauss–Markov reading error (each reading sees an *apparent* landmark position, a
    variable per reading, tied to the landmark and to the previous reading's).
@@ -31,7 +34,7 @@ sighting), not the product's :mod:`ekf.reading_error`, whose figures come from
 
 Usage::
 
-    .venv/bin/python scripts/mrclam_models_tried.py ../shared/data/mrclam/MRCLAM_Dataset6 [odometry|readings|startup|ekf|batch ...]
+    .venv/bin/python scripts/mrclam_models_tried.py ../shared/data/mrclam/MRCLAM_Dataset6 [odometry|readings|startup|ekf|standstill|batch ...]
 
 Takes a few minutes (the leave-one-out fits and imports come first).
 """
@@ -44,6 +47,7 @@ os.environ["OPENBLAS_NUM_THREADS"] = "1"
 
 import math  # noqa: E402
 import sys  # noqa: E402
+from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -56,11 +60,11 @@ from scipy.stats import chi2  # noqa: E402
 
 from ekf.models import landmark_from_range_bearing, landmark_init_jacobians, motion_jacobians, predict_pose  # noqa: E402
 from fgslam.compare import align_se2, ate_rmse_m  # noqa: E402
-from fgslam.runner import compare_log  # noqa: E402
+from fgslam.runner import ESTIMATORS, compare_log, run_estimator  # noqa: E402
 from fgslam.smoother.factors import odometry_noise_covariance, robust_estimator  # noqa: E402
 from slamio.datasets.mrclam import MAX_ZERO_BLIP_S, ROBOT_SUBJECTS, fill_zero_blips, import_mrclam  # noqa: E402
 from slamio.geometry import wrap_angle  # noqa: E402
-from slamio.log import RunLog  # noqa: E402
+from slamio.log import Odometry, RunLog  # noqa: E402
 from slamio.noise_fit import (  # noqa: E402
     _line_fit, _log_data, _mad_sigma, _odometry_increments, _residuals, _true_range_bearing, _windows, fit_noise_model,
     turn_rate_radps,
@@ -189,6 +193,64 @@ def startup_report(logs: dict[int, RunLog]) -> None:
         heading_error = wrap_angle(float(final[scored, 2] - truth[scored, 2]))
         print(f"robot {k}: first sighting after {steps[first].stamp_s - steps[0].stamp_s:.1f} s; "
               f"alignment rotation {math.degrees(rotation):+.2f}, heading error then {math.degrees(heading_error):+.2f}")
+
+
+# ----------------------------------------------------------------------------- standing still
+
+
+def standing_still(log: RunLog, floor_per_s: float = 1e-6) -> RunLog:
+    """``log`` with every odometry record whose increment is exactly zero (every command in
+    it was zero) given only ``floor_per_s``·dt of variance in each component (m², m², rad²):
+    a Create told to stand does not drift, where the fitted per-second rates (heading about
+    2·10⁻⁴ rad²/s) grow a standing robot's uncertainty as if it were driving."""
+    records, previous_s = [], None
+    for record in log.records:
+        if isinstance(record, Odometry):
+            if previous_s is not None and record.dx_m == record.dy_m == record.dtheta_rad == 0.0:
+                variance = floor_per_s * (record.stamp_s - previous_s)
+                record = replace(record, covariance=tuple(tuple(row) for row in np.diag([variance] * 3)))
+            previous_s = record.stamp_s
+        records.append(record)
+    return RunLog(f"{log.path} (standing still)", log.header, tuple(records))
+
+
+def nis_of(log: RunLog, estimator: str) -> tuple[np.ndarray, np.ndarray]:
+    """The estimator's NIS values on ``log`` and the step index of each."""
+    run, _ = run_estimator(ESTIMATORS[estimator](log.header), log.steps(), covariances=True)
+    return run.nis, run.nis_steps
+
+
+def inside_band(nis: np.ndarray) -> float:
+    """Share of NIS values inside the 95 % χ²(2) band."""
+    low, high = chi2.ppf([0.025, 0.975], 2)
+    return float(np.mean((nis >= low) & (nis <= high)))
+
+
+def below_band_standing_and_moving(log: RunLog, nis: np.ndarray, nis_steps: np.ndarray) -> tuple[float, float, int]:
+    """Share of NIS values below the band for readings after a second without motion (less
+    than 5 mm of travel plus 0.2 m per radian turned), the same for the others, and how many
+    readings came after standing."""
+    steps = log.steps()
+    stamps = np.array([s.stamp_s for s in steps])
+    motion = np.array([0.0] + [abs(s.odometry.dx_m) + 0.2 * abs(s.odometry.dtheta_rad) for s in steps[1:]])
+    travelled = np.cumsum(motion)
+    a_second_ago = np.maximum(np.searchsorted(stamps, stamps[nis_steps] - 1.0), 0)
+    standing = travelled[nis_steps] - travelled[a_second_ago] < 0.005
+    low = chi2.ppf(0.025, 2)
+    return float(np.mean(nis[standing] < low)), float(np.mean(nis[~standing] < low)), int(standing.sum())
+
+
+def standstill_report(logs: dict[int, RunLog]) -> None:
+    print("## standing still: ekf NIS below the band after standing a second / while moving (readings after standing)")
+    for k, log in logs.items():
+        standing, moving, count = below_band_standing_and_moving(log, *nis_of(log, "ekf"))
+        print(f"robot {k}: {standing:.3f} / {moving:.3f} ({count})")
+    print("## standing still: NIS inside the 95 % band, fitted model -> no drift at zero command")
+    for name in ("ekf", "isam2"):
+        pairs = [(inside_band(nis_of(log, name)[0]), inside_band(nis_of(standing_still(log), name)[0]))
+                 for log in logs.values()]
+        cells = ", ".join(f"{a:.3f} -> {b:.3f}" for a, b in pairs)
+        print(f"{name}: {cells}; median {np.median([a for a, _ in pairs]):.3f} -> {np.median([b for _, b in pairs]):.3f}")
 
 
 # ----------------------------------------------------------------------------- EKF variants
@@ -488,7 +550,7 @@ def main(argv=None) -> int:
     if not argv:
         print(__doc__)
         return 2
-    folder, parts = argv[0], argv[1:] or ["odometry", "readings", "startup", "ekf", "batch"]
+    folder, parts = argv[0], argv[1:] or ["odometry", "readings", "startup", "ekf", "standstill", "batch"]
     robots = [k for k in ROBOT_SUBJECTS if os.path.exists(os.path.join(folder, f"Robot{k}_Odometry.dat"))]
     raws = {k: RunLog(f"robot{k} (raw)", *import_mrclam(folder, k)) for k in robots}
     models = {k: fit_noise_model([raws[j] for j in robots if j != k]) for k in robots}
@@ -505,6 +567,8 @@ def main(argv=None) -> int:
             rows = np.array([ekf_variant(logs[k], **kwargs) for k in robots])
             cells = ", ".join(f"{a:.3f}/{n:.3f}/{m:.2f}" for a, n, m in rows)
             print(f"{name}: {cells}; median ATE {np.median(rows[:, 0]):.3f}, NIS inside {np.median(rows[:, 1]):.3f}")
+    if "standstill" in parts:
+        standstill_report(logs)
     if "batch" in parts:
         print("## batch LM ATE m per robot, anchored / aligned; medians")
         for name, kwargs in BATCH_VARIANTS.items():

@@ -64,3 +64,32 @@ def test_the_batch_calibrated_odometry_factor_is_a_between_factor_on_the_correct
              for sign in (1, -1)]
     d_turn = (moved[0] - moved[1]) / (2 * h)
     np.testing.assert_allclose(ours[:, 6:], np.outer(d_turn, [0.25, np.hypot(0.3, 0.02)]), atol=1e-6)
+
+
+def test_standing_still_gives_only_zero_odometry_the_floor_variance(script):
+    """On a real excerpt (robot 1, MRCLAM): a record whose increment is exactly zero gets
+    floor·dt in each component, every other record and the header are untouched."""
+    import os
+
+    from slamio.datasets.mrclam import import_mrclam
+    from slamio.log import Odometry, RunLog
+
+    folder = os.path.join(os.path.dirname(__file__), "data", "mrclam_excerpt")
+    log = RunLog("robot1", *import_mrclam(folder, 1))
+    still = script.standing_still(log, floor_per_s=1e-7)
+    assert still.header == log.header and len(still.records) == len(log.records)
+    changed = previous = 0
+    stamps = [r.stamp_s for r in log.records if isinstance(r, Odometry)]
+    for before, after in zip(log.records, still.records):
+        if not isinstance(before, Odometry):
+            assert after is before
+            continue
+        if before.stamp_s != stamps[0] and before.dx_m == before.dy_m == before.dtheta_rad == 0.0:
+            dt = before.stamp_s - previous
+            np.testing.assert_allclose(after.covariance, np.diag([1e-7 * dt] * 3), rtol=1e-12)
+            assert np.trace(np.asarray(before.covariance)) > np.trace(np.asarray(after.covariance))
+            changed += 1
+        else:
+            assert after == before
+        previous = before.stamp_s
+    assert changed > 0  # the excerpt has standing stretches
