@@ -25,6 +25,8 @@ Usage::
     .venv/bin/python scripts/bench_mrclam.py FOLDER --robots 1,2 --estimators ekf,isam2 --no-model
 
 ``--no-model`` scores the round, unfitted default noise instead (the "before" column).
+``--fit-on 1`` fits one model on robot 1 alone and scores every other robot with it (does
+a model learned on one Create carry to the others?).
 Prints one markdown table row per robot and estimator, then the medians over robots.
 """
 
@@ -50,7 +52,7 @@ from fgslam.compare import align_se2, apply_se2  # noqa: E402
 from fgslam.runner import ESTIMATORS, compare_log, parse_estimator_names, run_estimator  # noqa: E402
 from slamio.datasets.mrclam import ROBOT_SUBJECTS, import_mrclam  # noqa: E402
 from slamio.log import RunLog  # noqa: E402
-from slamio.noise_fit import fit_noise_model  # noqa: E402
+from slamio.noise_fit import CalibrationError, fit_noise_model  # noqa: E402
 
 
 def _rmse(a: np.ndarray, b: np.ndarray) -> float:
@@ -195,18 +197,36 @@ def main(argv=None) -> int:
     add_dataset_arguments(parser)
     parser.add_argument("--estimators", default="ekf,isam2,dead_reckoning", help="default ekf,isam2,dead_reckoning")
     parser.add_argument("--no-model", action="store_true", help="use the round default noise instead of a fitted model")
+    parser.add_argument("--fit-on", default=None, metavar="ROBOTS",
+                        help="fit one model on these robots (comma separated) and score the others with it "
+                             "(default: each robot with a model fitted on all the others)")
     parser.add_argument("--figure", default=None, metavar="PNG", help="write the trajectories over Vicon here")
     parser.add_argument("--json", default=None, metavar="FILE", help="write every figure (and the fitted models) here")
     args = parser.parse_args(argv)
     names = parse_estimator_names(args.estimators)
     raw = raw_logs(args.folder)
     robots = chosen_robots(args.robots, raw)
+    shared = None
+    if args.fit_on is not None and not args.no_model:
+        fit_on = chosen_robots(args.fit_on, raw)
+        robots = [k for k in robots if k not in fit_on]
+        if not fit_on or not robots:
+            parser.error(f"--fit-on {args.fit_on}: need at least one robot of {sorted(raw)} to fit on "
+                         "and one other to score")
+        try:
+            shared = fit_noise_model([raw[j] for j in fit_on])
+        except CalibrationError as exc:
+            parser.error(f"--fit-on {args.fit_on}: {exc}")
     results, models = {}, {}
     for k in robots:
         if args.no_model:
             log = raw[k]
         else:
-            header, records, model = leave_one_out(args.folder, k, raw)
+            if shared is None:
+                header, records, model = leave_one_out(args.folder, k, raw)
+            else:
+                model = shared
+                header, records = import_mrclam(args.folder, k, model=model)
             models[k] = model.to_dict()
             log = RunLog(f"{args.folder}/robot{k}", header, tuple(records))
         results[k] = score_robot(log, names, time_alone=True)

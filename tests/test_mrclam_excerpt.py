@@ -151,6 +151,22 @@ def test_the_real_robot_benchmark_script_runs_on_the_excerpt(tmp_path, capsys):
     assert np.median([r["isam2"]["ate_final_m"] for r in results.values()]) < 0.2
 
 
+def test_the_benchmark_fits_on_one_robot_and_scores_the_others(tmp_path, capsys):
+    """``--fit-on 1``: one model, fitted on robot 1 alone, scores robots 2 and 3; a robot the
+    folder lacks is one clear line (argparse's exit 2), not a traceback."""
+    bench = load_script("bench_mrclam")
+    out = tmp_path / "bench.json"
+    assert bench.main([EXCERPT, "--fit-on", "1", "--estimators", "ekf,isam2", "--json", str(out)]) == 0
+    saved = json.loads(out.read_text())
+    assert sorted(saved["results"]) == ["2", "3"]
+    assert saved["models"]["2"] == saved["models"]["3"]
+    assert [name.rsplit("/", 1)[-1] for name in saved["models"]["2"]["fitted_on"]] == ["robot1 (raw)"]
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as exit_:
+        bench.main([EXCERPT, "--fit-on", "9"])
+    assert exit_.value.code == 2 and "--fit-on 9: need at least one robot" in capsys.readouterr().err
+
+
 @pytest.mark.slow
 def test_hidden_barcodes_the_ambiguity_margin_halves_the_wrong_pairings(model):
     """MRCLAM's cylinders stand 0.18 m apart in clusters: without the barcodes, a reading
