@@ -181,15 +181,24 @@ def leave_one_out(folder: str, robot: int, raw: dict[int, RunLog]):
     return header, records, model
 
 
+def robot_numbers(text: str) -> list[int]:
+    """``"1,3"`` → ``[1, 3]`` (argparse ``type=``: anything else is a one-line usage error)."""
+    try:
+        return [int(r) for r in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: give robot numbers separated by commas, e.g. 1,3") from None
+
+
 def add_dataset_arguments(parser: argparse.ArgumentParser) -> None:
     """The dataset folder and ``--robots`` (the MRCLAM scripts share them; :func:`chosen_robots`)."""
     parser.add_argument("folder", help="an MRCLAM_DatasetK folder")
-    parser.add_argument("--robots", default=",".join(map(str, ROBOT_SUBJECTS)), help="robots to score (default all five)")
+    parser.add_argument("--robots", type=robot_numbers, default=list(ROBOT_SUBJECTS),
+                        help="robots to score, comma separated (default all five)")
 
 
-def chosen_robots(robots: str, raw: dict[int, RunLog]) -> list[int]:
-    """The robots of ``--robots`` (comma separated) that the dataset has."""
-    return [int(r) for r in robots.split(",") if int(r) in raw]
+def chosen_robots(robots: list[int], raw: dict[int, RunLog]) -> list[int]:
+    """The robots of ``robots`` (``--robots``, :func:`robot_numbers`) that the dataset has."""
+    return [r for r in robots if r in raw]
 
 
 def main(argv=None) -> int:
@@ -197,7 +206,7 @@ def main(argv=None) -> int:
     add_dataset_arguments(parser)
     parser.add_argument("--estimators", default="ekf,isam2,dead_reckoning", help="default ekf,isam2,dead_reckoning")
     parser.add_argument("--no-model", action="store_true", help="use the round default noise instead of a fitted model")
-    parser.add_argument("--fit-on", default=None, metavar="ROBOTS",
+    parser.add_argument("--fit-on", type=robot_numbers, default=None, metavar="ROBOTS",
                         help="fit one model on these robots (comma separated) and score the others with it "
                              "(default: each robot with a model fitted on all the others)")
     parser.add_argument("--figure", default=None, metavar="PNG", help="write the trajectories over Vicon here")
@@ -211,12 +220,12 @@ def main(argv=None) -> int:
         fit_on = chosen_robots(args.fit_on, raw)
         robots = [k for k in robots if k not in fit_on]
         if not fit_on or not robots:
-            parser.error(f"--fit-on {args.fit_on}: need at least one robot of {sorted(raw)} to fit on "
+            parser.error(f"--fit-on {','.join(map(str, args.fit_on))}: need at least one robot of {sorted(raw)} to fit on "
                          "and one other to score")
         try:
             shared = fit_noise_model([raw[j] for j in fit_on])
         except CalibrationError as exc:
-            parser.error(f"--fit-on {args.fit_on}: {exc}")
+            parser.error(f"--fit-on {','.join(map(str, args.fit_on))}: {exc}")
     results, models = {}, {}
     for k in robots:
         if args.no_model:
