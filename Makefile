@@ -7,9 +7,10 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 DEMO_LOG := data/arena_octagon.jsonl
 DEMO_OUT := out/demo
-# one test process per core (pytest-xdist; worksteal evens out the minutes-long acceptance
-# runs); `make test PYTEST_JOBS=` runs them in one process
-PYTEST_JOBS ?= -n auto --dist worksteal
+# one test process per core, at most four (pytest-xdist; each holds GTSAM, OpenCV and
+# matplotlib), worksteal to even out the minutes-long acceptance runs;
+# `make test PYTEST_JOBS=` runs them in one process
+PYTEST_JOBS ?= -n auto --maxprocesses 4 --dist worksteal
 
 .PHONY: demo test test-all dev install data clean
 
