@@ -58,6 +58,7 @@ from gtsam.symbol_shorthand import C, D, L, X  # noqa: E402
 from scipy.optimize import nnls  # noqa: E402
 from scipy.stats import chi2  # noqa: E402
 
+from bench_mrclam import nis_inside  # noqa: E402  (scripts/, as when run from there)
 from ekf.models import landmark_from_range_bearing, landmark_init_jacobians, motion_jacobians, predict_pose  # noqa: E402
 from fgslam.compare import align_se2, ate_rmse_m  # noqa: E402
 from fgslam.runner import ESTIMATORS, compare_log, run_estimator  # noqa: E402
@@ -220,12 +221,6 @@ def nis_of(log: RunLog, estimator: str) -> tuple[np.ndarray, np.ndarray]:
     return run.nis, run.nis_steps
 
 
-def inside_band(nis: np.ndarray) -> float:
-    """Share of NIS values inside the 95 % χ²(2) band."""
-    low, high = chi2.ppf([0.025, 0.975], 2)
-    return float(np.mean((nis >= low) & (nis <= high)))
-
-
 def below_band_standing_and_moving(log: RunLog, nis: np.ndarray, nis_steps: np.ndarray) -> tuple[float, float, int]:
     """Share of NIS values below the band for readings after a second without motion (less
     than 5 mm of travel plus 0.2 m per radian turned), the same for the others, and how many
@@ -247,7 +242,7 @@ def standstill_report(logs: dict[int, RunLog]) -> None:
         print(f"robot {k}: {standing:.3f} / {moving:.3f} ({count})")
     print("## standing still: NIS inside the 95 % band, fitted model -> no drift at zero command")
     for name in ("ekf", "isam2"):
-        pairs = [(inside_band(nis_of(log, name)[0]), inside_band(nis_of(standing_still(log), name)[0]))
+        pairs = [(nis_inside(nis_of(log, name)[0]), nis_inside(nis_of(standing_still(log), name)[0]))
                  for log in logs.values()]
         cells = ", ".join(f"{a:.3f} -> {b:.3f}" for a, b in pairs)
         print(f"{name}: {cells}; median {np.median([a for a, _ in pairs]):.3f} -> {np.median([b for _, b in pairs]):.3f}")
