@@ -216,16 +216,18 @@ def main(argv=None) -> int:
     raw = raw_logs(args.folder)
     robots = chosen_robots(args.robots, raw)
     shared = None
-    if args.fit_on is not None and not args.no_model:
+    if args.fit_on is not None:
+        option = f"--fit-on {','.join(map(str, args.fit_on))}"
+        if args.no_model:
+            parser.error(f"{option} fits a model and --no-model scores without one: give one of them")
         fit_on = chosen_robots(args.fit_on, raw)
         robots = [k for k in robots if k not in fit_on]
         if not fit_on or not robots:
-            parser.error(f"--fit-on {','.join(map(str, args.fit_on))}: need at least one robot of {sorted(raw)} to fit on "
-                         "and one other to score")
+            parser.error(f"{option}: need at least one robot of {sorted(raw)} to fit on and one other to score")
         try:
             shared = fit_noise_model([raw[j] for j in fit_on])
         except CalibrationError as exc:
-            parser.error(f"--fit-on {','.join(map(str, args.fit_on))}: {exc}")
+            parser.error(f"{option}: {exc}")
     results, models = {}, {}
     for k in robots:
         if args.no_model:

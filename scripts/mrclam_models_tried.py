@@ -236,14 +236,15 @@ def below_band_standing_and_moving(log: RunLog, nis: np.ndarray, nis_steps: np.n
 
 
 def standstill_report(logs: dict[int, RunLog]) -> None:
+    fitted = {(k, name): nis_of(log, name) for k, log in logs.items() for name in ("ekf", "isam2")}
     print("## standing still: ekf NIS below the band after standing a second / while moving (readings after standing)")
     for k, log in logs.items():
-        standing, moving, count = below_band_standing_and_moving(log, *nis_of(log, "ekf"))
+        standing, moving, count = below_band_standing_and_moving(log, *fitted[k, "ekf"])
         print(f"robot {k}: {standing:.3f} / {moving:.3f} ({count})")
     print("## standing still: NIS inside the 95 % band, fitted model -> no drift at zero command")
     for name in ("ekf", "isam2"):
-        pairs = [(nis_inside(nis_of(log, name)[0]), nis_inside(nis_of(standing_still(log), name)[0]))
-                 for log in logs.values()]
+        pairs = [(nis_inside(fitted[k, name][0]), nis_inside(nis_of(standing_still(log), name)[0]))
+                 for k, log in logs.items()]
         cells = ", ".join(f"{a:.3f} -> {b:.3f}" for a, b in pairs)
         print(f"{name}: {cells}; median {np.median([a for a, _ in pairs]):.3f} -> {np.median([b for _, b in pairs]):.3f}")
 

@@ -153,8 +153,8 @@ def test_the_real_robot_benchmark_script_runs_on_the_excerpt(tmp_path, capsys):
 
 def test_the_benchmark_fits_on_one_robot_and_scores_the_others(tmp_path, capsys):
     """``--fit-on 1``: one model, fitted on robot 1 alone, scores robots 2 and 3; a robot the
-    folder lacks, or a robot that is not a number, is one clear line (argparse's exit 2),
-    not a traceback."""
+    folder lacks, a robot that is not a number, or ``--fit-on`` with ``--no-model`` is one
+    clear line (argparse's exit 2), not a traceback."""
     bench = load_script("bench_mrclam")
     out = tmp_path / "bench.json"
     assert bench.main([EXCERPT, "--fit-on", "1", "--estimators", "ekf,isam2", "--json", str(out)]) == 0
@@ -166,6 +166,9 @@ def test_the_benchmark_fits_on_one_robot_and_scores_the_others(tmp_path, capsys)
     with pytest.raises(SystemExit) as exit_:
         bench.main([EXCERPT, "--fit-on", "9"])
     assert exit_.value.code == 2 and "--fit-on 9: need at least one robot" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_:
+        bench.main([EXCERPT, "--fit-on", "1", "--no-model"])
+    assert exit_.value.code == 2 and "--no-model scores without one" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exit_:
         bench.main([EXCERPT, "--robots", "one"])
     assert exit_.value.code == 2 and "'one': give robot numbers separated by commas" in capsys.readouterr().err
