@@ -73,7 +73,7 @@ __all__ = [
 G_HEIGHT_FOV_DEG = 47.0
 G_HEIGHT_ROWS = 480
 
-#: Default Kinect v1 intrinsics (TUM RGB-D / DESIGN.md): 640×480, fx = fy = 525.
+#: Default Kinect v1 intrinsics (the nominal ones TUM RGB-D uses): 640×480, fx = fy = 525.
 KINECT_FX = 525.0
 KINECT_FY = 525.0
 KINECT_CX = 319.5

@@ -46,7 +46,7 @@ def _ate_vs_vicon(log: RunLog, trajectory) -> float:
 
 def test_the_fit_finds_the_physics_of_the_real_robots(model):
     o, z = model.odometry, model.observation
-    assert 0.1 <= o.lag_s <= 0.35  # commands lead the motion (~0.2-0.3 s, DESIGN.md)
+    assert 0.1 <= o.lag_s <= 0.35  # commands lead the motion (~0.2-0.3 s, docs/datasets-mrclam-rosbag.md)
     assert 0.85 <= o.forward_scale <= 1.0 and 0.85 <= o.turn_scale <= 1.0
     assert z.range_is_depth  # the camera's "range" is depth along the optical axis
     assert 1.0 < z.range_scale < 1.08

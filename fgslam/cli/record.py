@@ -104,7 +104,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
                      help="damage this fraction of the robot's bytes (default 0)")
     sim.add_argument("--sim-drop", type=_fraction, default=0.0, metavar="P",
                      help="drop this fraction of the robot's bytes (default 0)")
-    cam = p.add_argument_group("camera frames (fgslam detect FOLDER --out LOG adds their landmarks afterwards)")
+    cam = p.add_argument_group("camera frames (fgslam detect FOLDER --camera CAM.yaml --out LOG adds their landmarks afterwards)")
     cam.add_argument("--save-frames", default=None, metavar="FOLDER",
                      help="save a camera frame at each odometry record, stamped on the log's clock, as a TUM RGB-D "
                      "folder (a new or empty folder)")

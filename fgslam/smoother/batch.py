@@ -2,7 +2,7 @@
 Gauss–Newton steps that end every smoother run (:meth:`.Isam2Smoother.finish`).
 
 Both start from iSAM2's answer: batch LM started from odometry gets stuck in a local
-minimum on real data; started from iSAM2 it converges (DESIGN.md).
+minimum on real data; started from iSAM2 it converges (docs/datasets.md, Victoria Park).
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ step that sees a landmark iSAM2 does not hold yet; with their new factors and ne
 *current iSAM2 estimate* of the previous pose composed with the odometry increment and
 corrected by the online correction (:mod:`fgslam.smoother.correction`, which is also the
 online pose between updates; seeding from dead reckoning makes iSAM2 diverge on real
-data, see DESIGN.md); a landmark seen for the first time is seeded from that seed pose and the
+data: χ²/2 2.3e9 on Victoria Park, docs/estimators.md); a landmark seen for the first time is seeded from that seed pose and the
 observation (in robust mode only once two observations agree, see
 :meth:`.PendingObservations.confirm_first_sightings`, fgslam/smoother/pending.py). After the
 update only the newest pose is read back (``calculateEstimatePose2``); the full estimate
@@ -20,7 +20,7 @@ first order with ``keyframes``, where the poses between keyframes are rebuilt
 Everything accepted into iSAM2 is also kept in one ``NonlinearFactorGraph`` plus the
 initial ``Values``, so :func:`~fgslam.smoother.batch.batch_solve` can run
 Levenberg–Marquardt on the same problem, started from iSAM2's answer (batch LM started from odometry gets stuck in a
-local minimum on real data; started from iSAM2 it converges — DESIGN.md).
+local minimum on real data; started from iSAM2 it converges — docs/datasets.md, Victoria Park).
 
 The smoother itself holds the iSAM2 object, the graph and initial values accepted so far
 (for :meth:`Isam2Smoother.graph` and the batch solve) and the step loop; what it composes

@@ -52,8 +52,8 @@ class Isam2Settings:
         read the map, and every 20th moved MRCLAM Dataset 6 with barcodes withheld to a
         different association (robot 1's ATE 0.589 → 2.85 m, the median ratio to the run with
         barcodes 1.19 → 1.26; with the every-10th check 1.06: the pairings are that
-        sensitive, docs/estimators.md). Very aggressive settings are where DESIGN.md
-        saw IndeterminantLinearSystem failures on real data; those are recovered from
+        sensitive, docs/estimators.md). Very aggressive settings are where GTSAM
+        raised IndeterminantLinearSystem failures on real data; those are recovered from
         (:mod:`fgslam.smoother.recovery`).
     relinearize_max_variables:
         On each check, relinearise at most this many variables: those whose pending step

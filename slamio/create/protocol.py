@@ -2,8 +2,8 @@
 
 Nothing here touches a serial port or a clock, so every function can be tested on byte
 strings. Sources: the iRobot Create Open Interface spec (Create 1) and the iRobot Create 2
-Open Interface spec (Roomba 600 series); the facts used are collected in
-``shared/DESIGN.md``.
+Open Interface spec (Roomba 600 series); the opcodes, packets and frame layout the
+driver uses are summarised below.
 
 Commands (host → robot)
 =======================
