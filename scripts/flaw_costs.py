@@ -11,6 +11,7 @@ Every setting is a keyword of the variant's class; the defaults are the paper as
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
@@ -68,7 +69,14 @@ def measure(log_path: Path) -> dict[str, dict]:
 
 
 def main(argv: list[str]) -> int:
-    logs = [Path(a) for a in argv] or DEFAULT_LOGS
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("logs", nargs="*", type=Path, metavar="LOG",
+                        help="run logs with ground truth (default: data/arena_octagon.jsonl, data/arena_square.jsonl)")
+    args = parser.parse_args(argv)
+    missing = [str(p) for p in args.logs if not p.is_file()]
+    if missing:
+        parser.error(f"no such log: {missing[0]}")
+    logs = args.logs or DEFAULT_LOGS
     results = {path.name: measure(path) for path in logs}
     names = list(results)
     print("| setting | " + " | ".join(f"ATE {n} m | map {n} m" for n in names) + " |")

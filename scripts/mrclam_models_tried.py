@@ -13,7 +13,8 @@ quotes its output. Every robot is scored with a noise model fitted on the other 
    other robots and scored on each.
 2. ``readings``: the readings' own errors against Vicon (each run's own scale and bias
    removed, which its map absorbs) over the leave-one-out model's σ: the share inside the
-   95 % band is the ceiling of an estimator's NIS share with this reading model.
+   95 % band that an estimator knowing every pose would see (an estimator's own
+   uncertainty dilutes the readings' spread, so this is not a cap on its NIS share).
 3. ``startup``: why the anchored ATE exceeds the aligned one: the batch solution's rotation
    against Vicon is the heading error the odometry made before the first landmark was seen.
 4. ``ekf``: a known-id range-bearing EKF (the product's maths, ``ekf.models``) with optional
@@ -45,6 +46,7 @@ import os
 
 os.environ["OPENBLAS_NUM_THREADS"] = "1"
 
+import argparse  # noqa: E402
 import math  # noqa: E402
 import sys  # noqa: E402
 from dataclasses import replace  # noqa: E402
@@ -153,8 +155,8 @@ def readings_report(raws: dict[int, RunLog], models: dict) -> None:
     less that run's own scale and bias (a line fitted to the run, as the calibration does:
     a run's own scale error moves its map, which the estimator adapts, not its
     innovations), over the σ of the model fitted on the other robots. The share of
-    (z_r² + z_b²) inside the 95 % χ²(2) band is the ceiling of an estimator's NIS share
-    with this reading model; the kurtosis of the readings within 5 σ says how far from
+    (z_r² + z_b²) inside the 95 % χ²(2) band is what the readings themselves give, before
+    any estimator's uncertainty is added to them; the kurtosis of the readings within 5 σ says how far from
     Gaussian their shape is.
     """
     print("## readings against the truth, own line removed, sigma fitted on the other robots: "
@@ -541,13 +543,26 @@ BATCH_VARIANTS = {
 }
 
 
+PARTS = ("odometry", "readings", "startup", "ekf", "standstill", "batch")
+
+
 def main(argv=None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
-    if not argv:
-        print(__doc__)
-        return 2
-    folder, parts = argv[0], argv[1:] or ["odometry", "readings", "startup", "ekf", "standstill", "batch"]
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0],
+                                     epilog="See the module docstring for what each part measures.")
+    parser.add_argument("folder", help="an MRCLAM dataset folder (Robot1_Odometry.dat, ...)")
+    parser.add_argument("parts", nargs="*", metavar="PART",
+                        help=f"which experiments to run, any of {', '.join(PARTS)} (default: all)")
+    args = parser.parse_args(argv)
+    unknown = [p for p in args.parts if p not in PARTS]  # (argparse's choices refuse an empty list)
+    if unknown:
+        parser.error(f"unknown part {unknown[0]!r}: choose from {', '.join(PARTS)}")
+    if not os.path.isdir(args.folder):
+        parser.error(f"{args.folder} is not a folder: give an MRCLAM dataset folder")
+    folder, parts = args.folder, args.parts or list(PARTS)
     robots = [k for k in ROBOT_SUBJECTS if os.path.exists(os.path.join(folder, f"Robot{k}_Odometry.dat"))]
+    if len(robots) < 2:
+        parser.error(f"{folder} holds {len(robots)} robot(s) (RobotN_Odometry.dat): each robot is scored with "
+                     "a model fitted on the others, so at least two are needed")
     raws = {k: RunLog(f"robot{k} (raw)", *import_mrclam(folder, k)) for k in robots}
     models = {k: fit_noise_model([raws[j] for j in robots if j != k]) for k in robots}
     logs = {k: RunLog(f"robot{k}", *import_mrclam(folder, k, model=models[k])) for k in robots}
