@@ -185,6 +185,9 @@ def check_estimator(
         if value is not None and not tolerance_is_valid(key, value):
             raise FgslamError(f"{key} must be {TOLERANCE_RANGES[key]}, got {value!r}")
     log = read_log(log_path)
+    if len(log.steps()) < 2:
+        raise FgslamError(f"{log.path} has no odometry records, only its start pose: there is nothing to check "
+                          "(fgslam validate says what the log holds)")
     if log.header.is_3d:
         from fgslam.check3d import DEFAULT_ESTIMATOR_3D, score_3d
         from fgslam.runner3d import ESTIMATORS_3D as known

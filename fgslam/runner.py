@@ -153,7 +153,8 @@ def parse_estimator_names(text: str, *, need_isam2: bool = True) -> list[str]:
         )
     if need_isam2 and not any(n in ISAM2_NAMES for n in names):
         raise FgslamError(
-            "the batch solve (the smoothed reference) starts from iSAM2's result: keep isam2 in --estimators"
+            "the batch solve (the smoothed reference) starts from iSAM2's result: keep isam2 (or one of "
+            f"{', '.join(n for n in ISAM2_NAMES if n != 'isam2')}) in --estimators"
         )
     return list(dict.fromkeys(names))
 
@@ -408,7 +409,8 @@ def compare_log(
         if truth is None:
             raise FgslamError(
                 f"{getattr(log, 'path', 'the log')} has no pose truth, so the reference is the batch solve, which "
-                "starts from iSAM2's result: keep isam2 in --estimators"
+                "starts from iSAM2's result: keep isam2 (or one of "
+                f"{', '.join(n for n in ISAM2_NAMES if n != 'isam2')}) in --estimators"
             )
         return Comparison(runs, truth, np.array([s.stamp_s for s in steps]), None, None)
     if not log.truth_landmarks() and truth_reference(log) is None:  # the smoothed solution will be the reference

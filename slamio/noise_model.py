@@ -344,10 +344,22 @@ def load_noise_model(path: str | os.PathLike[str]) -> NoiseModel:
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
+        if _is_run_log(text):
+            raise NoiseModelError(f"{path} is a run log, not a noise model; make a noise model from logs with ground "
+                                  f"truth with fgslam calibrate LOG... --out noise.json") from None
         raise NoiseModelError(f"{path}:{exc.lineno}: not valid JSON ({exc.msg} at column {exc.colno})") from None
     except RecursionError:
         raise NoiseModelError(f"{path}: JSON nested too deeply") from None
     return noise_model_from_dict(data, path)
+
+
+def _is_run_log(text: str) -> bool:
+    """Whether ``text`` starts like a run log (a first line that is the JSON header record)."""
+    try:
+        first = json.loads(text.split("\n", 1)[0])
+    except (ValueError, RecursionError):
+        return False
+    return isinstance(first, dict) and first.get("type") == "header"
 
 
 def save_noise_model(path: str | os.PathLike[str], model: NoiseModel, *, overwrite: bool = False) -> None:

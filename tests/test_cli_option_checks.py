@@ -2,7 +2,7 @@
 naming the option, exit status 1, no traceback, and nothing written (no --out file, no port
 opened, no simulated robot started).
 
-The verbs: detect, live (--port sim), import, bench, sim, tune-colours.
+The verbs: detect, live (--port sim), import, bench, sim, tune-colours, run, check.
 """
 
 from __future__ import annotations
@@ -224,3 +224,36 @@ def test_tune_colours_refuses_a_bad_depth_scale(tmp_path, capsys, camera, value)
     out = tmp_path / "landmarks.yaml"
     _refused(capsys, ["tune-colours", str(DATA / "rgbd-real"), "--camera", str(camera), "--out", str(out),
                       f"--depth-scale={value}"], "--depth-scale", never_written=(out,))
+
+
+# --------------------------------------------------------------------------- run and check
+
+BUNDLED = Path(__file__).resolve().parents[1] / "data" / "arena_octagon.jsonl"
+
+
+def test_run_refuses_an_empty_estimator_list(tmp_path, capsys):
+    _refused(capsys, ["run", str(BUNDLED), "--out", str(tmp_path / "r"), "--estimators", ""], "(none given)",
+             never_written=(tmp_path / "r",))
+
+
+def test_run_names_a_run_log_given_as_the_noise_model(tmp_path, capsys):
+    line = _refused(capsys, ["run", str(BUNDLED), "--out", str(tmp_path / "r"), "--noise", str(BUNDLED)],
+                    "is a run log, not a noise model", never_written=(tmp_path / "r",))
+    assert "fgslam calibrate" in line
+
+
+@pytest.mark.parametrize("verb", [["run", "--out", "OUT"], ["check"]])
+def test_a_log_with_only_its_start_pose_is_refused(tmp_path, capsys, verb):
+    header_only = tmp_path / "header.jsonl"
+    header_only.write_text(BUNDLED.read_text().splitlines()[0] + "\n")
+    argv = [verb[0], str(header_only), *[str(tmp_path / "r") if a == "OUT" else a for a in verb[1:]]]
+    _refused(capsys, argv, "no odometry records", never_written=(tmp_path / "r",))
+
+
+def test_without_truth_the_advice_names_every_isam2(tmp_path, capsys):
+    no_truth = tmp_path / "no_truth.jsonl"
+    no_truth.write_text("".join(line + "\n" for line in BUNDLED.read_text().splitlines()
+                                if '"type": "truth' not in line))
+    line = _refused(capsys, ["run", str(no_truth), "--out", str(tmp_path / "r"), "--estimators", "ekf",
+                             "--no-report"], "keep isam2")
+    assert "isam2-fast" in line and "isam2-dcs" in line

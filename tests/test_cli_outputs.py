@@ -181,6 +181,28 @@ def test_a_reused_results_folder_keeps_no_stale_file(log, tmp_path, capsys):
     assert set(metrics) >= {"isam2", "batch"} and "ekf" not in metrics
 
 
+def test_the_results_of_another_log_or_verb_are_kept_unless_overwrite(log, tmp_path, capsys, monkeypatch):
+    out = tmp_path / "r"
+    assert main(["run", str(log), "--out", str(out), "--no-report", "--estimators", "ekf", "--no-consistency"]) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    other = tmp_path / "copy.jsonl"
+    other.write_bytes(log.read_bytes())
+    with monkeypatch.context() as patch:
+        no_estimators(patch)
+        assert main(["run", str(other), "--out", str(out), "--no-report"]) == 1
+        one_line_error(capsys, str(out), str(log.resolve()), str(other.resolve()), "--overwrite")
+    import fgslam.montecarlo
+
+    with monkeypatch.context() as patch:
+        patch.setattr(fgslam.montecarlo, "monte_carlo", lambda *a, **k: pytest.fail("ran before the check"))
+        assert main(["bench", "arena-square", "--runs", "2", "--out", str(out)]) == 1
+        one_line_error(capsys, str(out), "`fgslam run`", "fgslam bench", "--overwrite")
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before  # nothing touched
+    assert main(["run", str(other), "--out", str(out), "--no-report", "--estimators", "ekf", "--no-consistency",
+                 "--overwrite"]) == 0
+    assert json.loads((out / "manifest.json").read_text())["source"] == str(other.resolve())
+
+
 def test_an_older_run_output_without_manifest_is_replaced_whole(log, tmp_path, capsys):
     out = tmp_path / "old"
     out.mkdir()

@@ -172,6 +172,14 @@ def read(path: str):
     return log
 
 
+def require_motion(log) -> None:
+    """Refuse a log with nothing to estimate: only its start pose (no odometry record), as a
+    recording stopped before the robot moved leaves it. Every figure would be a trivial 0."""
+    if len(log.steps()) < 2:
+        raise FgslamError(f"{log.path} has no odometry records, only its start pose: there is nothing to estimate "
+                          "or score (fgslam validate says what the log holds)")
+
+
 def write_run_log(out_path: str | os.PathLike, header, records, *, overwrite: bool = False, option: str = "--out") -> int:
     """Write a made or imported log (never over an existing file unless ``overwrite``) and
     say what is in it (from memory, not re-read)."""
@@ -304,7 +312,9 @@ class ResultsFolder:
     ``check()`` (before the run) accepts a new or empty folder, or one holding an earlier
     fgslam output (a ``manifest.json`` it wrote, or — from before manifests — a
     ``metrics.json`` with the ``.tum`` files of ``fgslam run``). Anything else is refused
-    unless ``overwrite``. ``clear()`` (after the run, just before writing) removes the files
+    unless ``overwrite``, and so is the output of another verb (``fgslam bench`` results
+    where ``fgslam run`` would write) or of another input (``source``, e.g. the run's log:
+    re-running the same log replaces its results, a different log must ask). ``clear()`` (after the run, just before writing) removes the files
     of the earlier output: those its manifest lists, or for an older output or with
     ``overwrite`` the file names fgslam writes (:attr:`own_names`, :attr:`own_suffixes`).
     Other files are left alone. ``finish()`` writes the manifest: every file written since
@@ -313,8 +323,9 @@ class ResultsFolder:
 
     def __init__(self, path: str | os.PathLike, *, overwrite: bool = False, verb: str = "run",
                  own_names: Iterable[str] | Callable[[], Iterable[str]] = (), own_suffixes: Iterable[str] = (),
-                 option: str = "--out"):
+                 option: str = "--out", source: str | None = None):
         self.path = Path(path)
+        self.source = source  # what the output is made from (an absolute log path), kept in the manifest
         self.overwrite = overwrite
         self.verb = verb
         self._own_names = own_names  # a callable is asked only when an earlier output is cleared
@@ -334,7 +345,9 @@ class ResultsFolder:
         if entries:
             manifest = self._read_manifest()
             if manifest is not None:
-                self.earlier = [n for n in manifest if _plain_name(n)]
+                if not self.overwrite:
+                    self._refuse_other_output(manifest)
+                self.earlier = [n for n in manifest["files"] if _plain_name(n)]
             elif self._looks_like_older_output(entries):
                 self.earlier = [n for n in entries if self._is_own(n)]
             elif self.overwrite:
@@ -349,14 +362,27 @@ class ResultsFolder:
         probe_writable(out, option=self.option)  # makes nothing: the folder is made by clear()
         return self
 
-    def _read_manifest(self) -> list[str] | None:
+    def _read_manifest(self) -> dict | None:
         try:
             data = json.loads((self.path / MANIFEST).read_text(encoding="utf-8"))
         except (OSError, ValueError):
             return None
         if not isinstance(data, dict) or data.get("format") != MANIFEST_FORMAT or not isinstance(data.get("files"), list):
             return None
-        return [n for n in data["files"] if isinstance(n, str)]
+        return {**data, "files": [n for n in data["files"] if isinstance(n, str)]}
+
+    def _refuse_other_output(self, manifest: dict) -> None:
+        """Raise when the folder holds another verb's output, or this verb's output of another
+        input: replacing those is what ``--overwrite`` is for."""
+        by = manifest.get("written_by")
+        fix = "give another folder, or add --overwrite to replace them"
+        if isinstance(by, str) and by != f"fgslam {self.verb}":
+            raise FgslamError(f"{self.option} {self.path} holds the results of an earlier `{by}` ({MANIFEST}), "
+                              f"not of fgslam {self.verb}; {fix}")
+        earlier = manifest.get("source")
+        if self.source is not None and isinstance(earlier, str) and earlier != self.source:
+            raise FgslamError(f"{self.option} {self.path} holds the results of fgslam {self.verb} on {earlier} "
+                              f"({MANIFEST}), not on {self.source}; {fix}")
 
     def _looks_like_older_output(self, entries: list[str]) -> bool:
         """An ``fgslam run`` folder from before manifests: its metrics.json and .tum files."""
@@ -413,7 +439,7 @@ class ResultsFolder:
         written = sorted(n for n, stat in now.items() if self._before.get(n) != stat and n != MANIFEST)
         self.finish_names = written
         manifest = {"format": MANIFEST_FORMAT, "written_by": f"fgslam {self.verb}", **provenance,
-                    "files": written + [MANIFEST]}
+                    **({"source": self.source} if self.source is not None else {}), "files": written + [MANIFEST]}
         tmp = self.path / f".{MANIFEST}.tmp"
         tmp.write_text(json.dumps(manifest, indent=1) + "\n", encoding="utf-8")
         os.replace(tmp, self.path / MANIFEST)

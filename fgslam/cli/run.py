@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from fgslam.cli.common import ResultsFolder, add_overwrite_option, command_line, read, summary
+from fgslam.cli.common import ResultsFolder, add_overwrite_option, command_line, read, require_motion, summary
 from fgslam.cli.estimators import ESTIMATOR_HELP, ESTIMATOR_HELP_3D
 from fgslam.cli.progress import Progress
 
@@ -50,9 +50,10 @@ def add_parser(verbs) -> argparse.ArgumentParser:
             "metrics.json, report.html (self-contained), PNG figures, and each estimator's\n"
             "trajectory in TUM format (<name>.tum final, <name>_online.tum online) to --out,\n"
             "and prints a table of the figures.\n\n"
-            "--out is a new or empty folder, or the folder of an earlier fgslam run: its files\n"
-            "(listed in its manifest.json) are replaced, so no stale file of the earlier run\n"
-            "remains. A folder with other files is refused unless --overwrite."
+            "--out is a new or empty folder, or the folder of an earlier fgslam run on the same\n"
+            "log: its files (listed in its manifest.json) are replaced, so no stale file of the\n"
+            "earlier run remains. A folder with other files, or with the results of another log\n"
+            "or of fgslam bench, is refused unless --overwrite."
         ),
     )
     run.add_argument("log", metavar="LOG", help="run log (.jsonl)")
@@ -94,19 +95,22 @@ def with_trial_calibration(log, path):
 def cmd_run(args: argparse.Namespace) -> int:
     # The results folder first (before the estimators are even loaded): an unusable --out is
     # one line at once, never a FileExistsError after the whole run.
-    results = ResultsFolder(args.out, overwrite=args.overwrite, verb="run", own_names=own_names).check()
+    results = ResultsFolder(args.out, overwrite=args.overwrite, verb="run", own_names=own_names,
+                            source=str(Path(args.log).resolve())).check()
 
     from fgslam.compare import compute_metrics, format_table, write_tum
     from fgslam.export import write_g2o
     from fgslam.runner import DEFAULT_ESTIMATORS, TIMING, compare_log, parse_estimator_names
 
     log = read(args.log)
+    require_motion(log)
     if log.header.is_3d:  # seed 003's stereo + IMU logs: their own estimators and table
         from fgslam.cli.run3d import cmd_run3d
 
         return cmd_run3d(args, results, log)
     # without iSAM2 there is no batch solve: fine where the log's truth is the reference (compare_log says)
-    names = parse_estimator_names(args.estimators or ",".join(DEFAULT_ESTIMATORS), need_isam2=False)
+    names = parse_estimator_names(",".join(DEFAULT_ESTIMATORS) if args.estimators is None else args.estimators,
+                                  need_isam2=False)
     if args.noise is not None:
         from slamio.noise_apply import apply_noise_model
         from slamio.noise_model import load_noise_model
