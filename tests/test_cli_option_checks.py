@@ -237,9 +237,16 @@ def test_run_refuses_an_empty_estimator_list(tmp_path, capsys):
 
 
 def test_run_names_a_run_log_given_as_the_noise_model(tmp_path, capsys):
-    line = _refused(capsys, ["run", str(BUNDLED), "--out", str(tmp_path / "r"), "--noise", str(BUNDLED)],
+    recorded = tmp_path / "recorded.jsonl"  # the bundled log, as if it had not been simulated
+    recorded.write_text(BUNDLED.read_text().replace('"generator": "slamio.sim"', '"generator": "by hand"', 1))
+    line = _refused(capsys, ["run", str(recorded), "--out", str(tmp_path / "r"), "--noise", str(BUNDLED)],
                     "is a run log, not a noise model", never_written=(tmp_path / "r",))
     assert "fgslam calibrate" in line
+
+
+def test_run_refuses_a_noise_model_for_a_simulated_log(tmp_path, capsys):
+    _refused(capsys, ["run", str(BUNDLED), "--out", str(tmp_path / "r"), "--noise", str(tmp_path / "noise.json")],
+             "was simulated", never_written=(tmp_path / "r",))
 
 
 @pytest.mark.parametrize("verb", [["run", "--out", "OUT"], ["check"]])

@@ -9,6 +9,7 @@ from pathlib import Path
 from fgslam.cli.common import ResultsFolder, add_overwrite_option, command_line, read, require_motion, summary
 from fgslam.cli.estimators import ESTIMATOR_HELP, ESTIMATOR_HELP_3D
 from fgslam.cli.progress import Progress
+from slamio.errors import FgslamError
 
 #: File names ``fgslam run`` writes besides <estimator>[_online].tum and the report's PNGs:
 #: what --overwrite (or an output from before manifests) replaces in a folder without a manifest.
@@ -115,6 +116,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         from slamio.noise_apply import apply_noise_model
         from slamio.noise_model import load_noise_model
 
+        if log.header.source.get("generator") == "slamio.sim":
+            raise FgslamError(f"{args.log} was simulated (fgslam sim): its noise is the simulator's own and its "
+                              "covariances are exact, so a fitted noise model does not apply; --noise is for a log "
+                              "recorded or imported without one")
         log, dropped = apply_noise_model(log, load_noise_model(args.noise))
         print(f"applied the noise model {args.noise}" + (f" ({dropped} readings could not be corrected and were dropped)" if dropped else ""))
     if args.calibration is not None:
