@@ -159,6 +159,7 @@ def small_logs(draw):
         source=draw(st.dictionaries(text, scalar, max_size=2)),
     )
     records = []
+    truth_ids: set[int] = set()  # a landmark's truth is given once (the reader refuses a second)
     for _ in range(draw(st.integers(0, 10))):
         stamp += draw(st.sampled_from([0.0, 0.0, 1e-9, 0.05, draw(st.floats(0.0, 5.0))]))
         kind = draw(st.sampled_from(["odometry", "observation", "observation", "truth_pose", "truth_landmark"]))
@@ -184,7 +185,9 @@ def small_logs(draw):
         elif kind == "truth_pose":
             records.append(TruthPose(stamp, draw(finite), draw(finite), draw(finite)))
         else:
-            records.append(TruthLandmark(draw(st.integers(0, 10**9)), draw(finite), draw(finite),
+            lid = draw(st.integers(0, 10**9).filter(lambda i: i not in truth_ids))
+            truth_ids.add(lid)
+            records.append(TruthLandmark(lid, draw(finite), draw(finite),
                                          draw(st.one_of(st.none(), finite)), draw(st.one_of(st.none(), finite))))
     return header, records
 

@@ -8,7 +8,7 @@ Line 1 is a header; every later line is one record with a ``"type"``. A planar l
 * ``observation``     — one landmark seen from the current pose: range, bearing, optional
                         height and tag yaw, and their standard deviations;
 * ``truth_pose``      — optional ground truth of the current pose;
-* ``truth_landmark``  — optional ground truth of one landmark;
+* ``truth_landmark``  — optional ground truth of one landmark (at most one per id);
 * ``live_step``       — written by ``fgslam live``: the smoother's wall time for one pose.
 
 A **3-D log** (version 2, start pose ``pose3``) holds ``velocity_odometry``,
@@ -21,7 +21,9 @@ and truth poses belong to the latest pose (see :meth:`RunLog.steps`).
 
 Records are frozen dataclasses. :func:`read_log` validates every line and raises
 :class:`LogFormatError` naming ``file:line``, what is wrong and how to fix it; the error
-carries everything read before the bad line. Numbers must lie within physical bounds (the
+carries everything read before the bad line. Two lines that contradict each other (a stamp
+earlier than the previous one, two different truths of one landmark) are reported at the
+earlier one, naming both. Numbers must lie within physical bounds (the
 constants in :mod:`slamio.log.fields`, explained in docs/log-format.md "Bounds"). Two things are not errors:
 
 * a last line that is not valid JSON and has no final newline (a recording that was

@@ -1,5 +1,9 @@
 """Reading a run log: every line validated, the first bad one reported as ``file:line``
 with how to fix it, everything good before it kept (:class:`LogFormatError`'s ``partial``).
+
+Two lines that contradict each other (a stamp earlier than the previous one, two different
+truths of one landmark) are reported at the earlier of the two, naming both: either may be
+the wrong one, so only the lines before it are known good.
 """
 
 from __future__ import annotations
@@ -25,8 +29,10 @@ from slamio.log.records import (
 class LogFormatError(FgslamError):
     """A run log that cannot be read past some line.
 
-    ``partial`` is the :class:`RunLog` of everything before the bad line (``None`` when
-    the header itself is bad), so a caller can still use the good part.
+    ``line`` is the first line that may be wrong: the bad line, or the earlier of two lines
+    that contradict each other (the message names both). ``partial`` is the :class:`RunLog`
+    of everything before it (``None`` when that is the header), so a caller can still use the
+    good part.
     """
 
     def __init__(self, path: str, line: int, message: str, partial: "RunLog | None" = None):
@@ -317,6 +323,49 @@ def _check_dimension(kind: Any, header: Header) -> None:
         )
 
 
+class _Conflict(_BadLine):
+    """Internal: this line contradicts an earlier one, and either may be wrong; the error is
+    reported at ``line`` (the earlier one) with the ``records``/``rejected`` counts read
+    before it."""
+
+    def __init__(self, message: str, line: int, records: int, rejected: int):
+        super().__init__(message)
+        self.line, self.records, self.rejected = line, records, rejected
+
+
+#: Record types that give the truth of one landmark: one record per ``landmark_id``.
+_TRUTH_LANDMARK_TYPES = ("truth_landmark", "truth_landmark3")
+
+
+def _landmark_conflict(kind: str, earlier: tuple[int, Record, int, int], number: int, record: Record) -> _BadLine:
+    """The error for a second ``kind`` record of one landmark id, on line ``number``.
+
+    An exact repeat is reported at the repeat (the first is good); a different truth at the
+    first definition, since either line may be the wrong one.
+    """
+    line, first, n_records, n_rejected = earlier
+    lid = record.landmark_id  # type: ignore[union-attr]
+    if record == first:
+        return _BadLine(
+            f"line {number} repeats line {line}'s {kind} of landmark_id {lid} exactly; each landmark's truth "
+            f"is given once: delete line {number}"
+        )
+    shown = [  # the position, and whatever else differs
+        f for f in record.__dataclass_fields__
+        if f in ("x_m", "y_m", "z_m") or (f != "landmark_id" and getattr(first, f) != getattr(record, f))
+    ]
+
+    def values(r: Record) -> str:
+        return ", ".join(f"{f} {_show(getattr(r, f))}" for f in shown)
+
+    return _Conflict(
+        f"landmark_id {lid} has two {kind} records: line {line} gives {values(first)}, line {number} gives "
+        f"{values(record)}; a landmark has one true place, so one of them is wrong (the map error would be "
+        "measured against the last one): fix its landmark_id (one record per landmark) or delete it",
+        line, n_records, n_rejected,
+    )
+
+
 #: How far a velocity record's ``dt_s`` may differ from the time since the previous pose (s).
 DT_TOLERANCE_S = 1e-6
 
@@ -346,6 +395,12 @@ def read_log(path: str | os.PathLike[str]) -> RunLog:
     cannot have made (range outside its limits by more than :data:`SENSOR_LIMIT_SIGMAS` σ,
     or below half its minimum) are left out of the records and listed in
     :attr:`RunLog.rejected`.
+
+    Stamps must not decrease, and each landmark has at most one ``truth_landmark`` (3-D:
+    ``truth_landmark3``). When two lines contradict each other (a stamp earlier than the
+    previous stamp; two different truths of one landmark id) the error is at the earlier
+    line and names both, and ``partial`` holds only what precedes it; an exact repeat of a
+    truth is an error at the repeat.
     """
     path = os.fspath(path)
     try:
@@ -364,6 +419,8 @@ def read_log(path: str | os.PathLike[str]) -> RunLog:
     last_stamp = -math.inf
     truncated: str | None = None
     pose_stamp = -math.inf  # stamp of the latest pose (3-D logs: velocity_odometry.dt_s must span from it)
+    stamp_at = (1, 0, 0)  # last_stamp's (line, records and rejections before it); line 1: the header's
+    truth_at: dict[int, tuple[int, Record, int, int]] = {}  # landmark id -> (line, record, records, rejections)
     for number, raw, ended in lines:
         try:
             d = _loads(_decode(raw, number))
@@ -379,11 +436,20 @@ def read_log(path: str | os.PathLike[str]) -> RunLog:
             stamp = getattr(record, "stamp_s", None)
             if stamp is not None:
                 if stamp < last_stamp:
-                    raise _BadLine(
-                        f"stamp_s {stamp!r} goes back in time (previous {last_stamp!r}); "
-                        "records must be written in time order"
+                    raise _Conflict(
+                        f"line {number}'s stamp_s {stamp!r} is earlier than "
+                        + (f"line {stamp_at[0]}'s {last_stamp!r}" if stamp_at[0] > 1
+                           else f"the header's start.stamp_s {last_stamp!r} (line 1)")
+                        + ": one of them is wrong; records must be written in time order (fix the wrong stamp "
+                        "or delete its line)",
+                        *stamp_at,
                     )
-                last_stamp = stamp
+                last_stamp, stamp_at = stamp, (number, len(records), len(rejected))
+            if d.get("type") in _TRUTH_LANDMARK_TYPES:
+                lid = record.landmark_id  # type: ignore[union-attr]
+                if lid in truth_at:
+                    raise _landmark_conflict(d["type"], truth_at[lid], number, record)
+                truth_at[lid] = (number, record, len(records), len(rejected))
             if header.is_3d:
                 pose_stamp = _check_interval(record, pose_stamp)
             if isinstance(record, Observation):
@@ -400,7 +466,13 @@ def read_log(path: str | os.PathLike[str]) -> RunLog:
                     f"using the {number - 1} complete lines before it"
                 )
                 break
-            partial = None if header is None else RunLog(path, header, tuple(records), None, tuple(rejected))
-            raise LogFormatError(path, number, str(bad), partial) from None
+            line, kept, kept_rejected = number, len(records), len(rejected)
+            if isinstance(bad, _Conflict):  # reported at the earlier line: only what precedes it is known good
+                line, kept, kept_rejected = bad.line, bad.records, bad.rejected
+            partial = (
+                None if header is None or line == 1
+                else RunLog(path, header, tuple(records[:kept]), None, tuple(rejected[:kept_rejected]))
+            )
+            raise LogFormatError(path, line, str(bad), partial) from None
     assert header is not None
     return RunLog(path, header, tuple(records), truncated, tuple(rejected))
