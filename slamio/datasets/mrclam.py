@@ -81,7 +81,11 @@ The conversion
   ``header.source["landmark_truth_std_m"]``.
 
 Every line of every file is validated: a bad one raises :class:`DatasetFormatError` naming
-``file:line``, what is wrong and the expected layout.
+``file:line``, what is wrong and the expected layout. Every value is also checked against a
+physical limit as it is read (``_LIMITS``: |forward velocity| ≤ 2 m/s, |angular velocity|
+≤ 10 rad/s, range ≤ 20 m, |bearing| ≤ π, positions within 20 m of the Vicon origin,
+|orientation| ≤ π): a value beyond one is a corrupted or hand-edited line, not a reading, and
+stops the import with the file, line, value and limit, as a malformed line does.
 """
 
 from __future__ import annotations
@@ -137,6 +141,51 @@ _LAYOUT = {
     "odometry": ("Time [s]", "Forward Velocity [m/s]", "Angular Velocity [rad/s]"),
     "measurement": ("Time [s]", "Subject #", "Range [m]", "Bearing [rad]"),
     "groundtruth": ("Time [s]", "x [m]", "y [m]", "Orientation [rad]"),
+}
+
+# Physical limits of the values, checked on every data line as it is read (_read_table):
+# kind -> {column index: (low, high, the limit in words, why it is the limit, a likely slip)}.
+# The robots are iRobot Creates in a 15 m x 8 m room. The limits are generous, so that no
+# real reading comes near them (Dataset 6, all five robots: |v| <= 0.086 m/s, |w| <= 0.57
+# rad/s, ranges 0.94-8.6 m, |bearing| <= 0.6 rad, positions within 6 m of the origin); a
+# value beyond one is a corrupted or hand-edited line (a unit slip, a swapped column), and
+# importing it would only make `fgslam run` fail later on a line of the log, or, for the
+# odometry and ground truth that the log reader cannot judge, pass silently.
+# The range has no lower limit here: a non-positive range stays dropped and counted
+# (dropped.non_positive_range, _kept_readings), as before.
+_ROOM_M = 20.0  # the room's diagonal is 17 m: no point in it is farther from the Vicon origin
+_ROOM_WHY = ("the robots and landmarks are in a 15 m x 8 m room (17 m corner to corner) around "
+             "the Vicon origin")
+_LIMITS: dict[str, dict[int, tuple[float, float, str, str, str]]] = {
+    "odometry": {
+        # the Create's top speed is 0.5 m/s; 2 m/s is four times that
+        1: (-2.0, 2.0, "|v| <= 2 m/s", "an iRobot Create's top speed is 0.5 m/s", "mm/s written as m/s?"),
+        # turning on the spot at top wheel speed: 2 x 0.5 m/s / 0.26 m wheel base = 3.8 rad/s
+        2: (-10.0, 10.0, "|w| <= 10 rad/s",
+            "an iRobot Create turning on the spot at top speed (0.5 m/s per wheel, 0.26 m apart) turns at 3.8 rad/s",
+            "degrees/s written as rad/s?"),
+    },
+    "measurement": {
+        # the camera reads barcodes out to ~9 m, and the room is 17 m corner to corner
+        2: (-math.inf, _ROOM_M, "range <= 20 m", _ROOM_WHY + ", and the camera reads barcodes out to about 9 m",
+            "mm or cm written as m?"),
+        # an angle within half a turn either way: the log refuses any other bearing
+        3: (-math.pi, math.pi, "|bearing| <= pi",
+            "a bearing is an angle within half a turn either way (the run log refuses any other)",
+            "degrees written as radians?"),
+    },
+    "groundtruth": {
+        1: (-_ROOM_M, _ROOM_M, "|x| <= 20 m", _ROOM_WHY, "mm written as m?"),
+        2: (-_ROOM_M, _ROOM_M, "|y| <= 20 m", _ROOM_WHY, "mm written as m?"),
+        # Vicon wraps the orientation into [-pi, pi]; the files round it to 4 decimals and
+        # write pi as 3.1416 (Dataset 6, Robot5), hence the 1e-3 margin
+        3: (-math.pi - 1e-3, math.pi + 1e-3, "|orientation| <= pi (+ 0.001 for rounding)",
+            "Vicon's orientation is an angle wrapped into [-pi, pi]", "degrees written as radians?"),
+    },
+    "landmarks": {
+        1: (-_ROOM_M, _ROOM_M, "|x| <= 20 m", _ROOM_WHY, "mm written as m?"),
+        2: (-_ROOM_M, _ROOM_M, "|y| <= 20 m", _ROOM_WHY, "mm written as m?"),
+    },
 }
 
 
@@ -360,13 +409,25 @@ def _read_table(path: str, kind: str, *, integer_columns: tuple[int, ...] = ()) 
                 if index in integer_columns and value != int(value):
                     raise _BadLine(f"column {index + 1} ({name}) must be an integer, got {token!r}")
                 values.append(value)
-            rows.append((number, values))
         except _BadLine as bad:
             raise DatasetFormatError(
                 path, number, f"{bad}; expected the layout {_layout(kind)} (whitespace-separated, "
                 "'#' lines are comments)"
             ) from None
+        _check_limits(path, kind, number, tokens, values)
+        rows.append((number, values))
     return rows
+
+
+def _check_limits(path: str, kind: str, number: int, tokens: list[str], values: list[float]) -> None:
+    """Raise :class:`DatasetFormatError` for a value of line ``number`` beyond its ``_LIMITS``."""
+    for index, (low, high, limit, why, slip) in _LIMITS.get(kind, {}).items():
+        if not low <= values[index] <= high:
+            raise DatasetFormatError(
+                path, number,
+                f"column {index + 1} ({_LAYOUT[kind][index]}) is {tokens[index]}, beyond the physical limit "
+                f"{limit}: {why}; correct the value ({slip}) or delete this line",
+            )
 
 
 def _check_time_order(path: str, kind: str, rows: list[tuple[int, list[float]]]) -> None:
