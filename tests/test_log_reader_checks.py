@@ -236,3 +236,19 @@ def test_a_header_only_log_is_read_and_validated_as_one_pose(tmp_path, capsys, e
     code, out, _ = validate(path, capsys)
     assert code == 0
     assert out.startswith(f"{path}: valid fgslam run log v1: 1 pose over 0.0 s, 0 observations of 0 landmarks")
+
+
+# --------------------------------------------------------------------------- a key given twice
+
+
+@pytest.mark.parametrize("number, key", [(1, "version"), (4, "x_m"), (282, "dx_m")])
+def test_a_field_given_twice_in_one_line_is_refused(tmp_path, number, key):
+    text = LINES[number - 1]
+    twice = text.replace("{", "{" + json.dumps(key) + ": 0, ", 1)  # the same key again, first
+    path = log_with(tmp_path, "twice.jsonl", {number: twice})
+    with pytest.raises(LogFormatError) as err:
+        read_log(path)
+    assert err.value.line == number
+    assert f"field '{key}' is given twice" in str(err.value)
+    if number > 1:
+        assert len(err.value.partial.records) == number - 2  # every line before it

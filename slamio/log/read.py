@@ -270,11 +270,22 @@ def _decode(raw: bytes, number: int) -> str:
     return text
 
 
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict:
+    """A JSON object as a dict, refusing a key given twice (plain ``json`` keeps the last one
+    without a word, so a record could silently say something other than what was written)."""
+    d = dict(pairs)
+    if len(d) != len(pairs):
+        seen: set[str] = set()
+        twice = next(k for k, _ in pairs if k in seen or seen.add(k))
+        raise _BadLine(f"field {twice!r} is given twice in one object; keep the one that is right and delete the other")
+    return d
+
+
 def _loads(text: str) -> dict:
     if not text.strip():
         raise _NotJson("empty line; remove it (every line must be one JSON object)")
     try:
-        d = json.loads(text, parse_constant=_reject_constant)
+        d = json.loads(text, parse_constant=_reject_constant, object_pairs_hook=_unique_keys)
     except json.JSONDecodeError as exc:
         raise _NotJson(
             f"not valid JSON ({exc.msg} at column {exc.colno}); each line must be one JSON object"
