@@ -41,3 +41,21 @@ def test_a_clean_log_gets_no_such_note(tmp_path, capsys):
     assert main(["run", str(log), "--out", str(tmp_path / "out"), "--estimators", "ekf,isam2", "--no-report"]) == 0
     assert "batch optimum" not in capsys.readouterr().out
     assert "smoother_short_of_optimum" not in json.loads((tmp_path / "out" / "metrics.json").read_text())
+
+
+def test_rounding_on_a_log_with_nothing_to_disagree_about_gets_no_note():
+    """Odometry alone: iSAM2 and the batch solve both end at χ²/2 ≈ 1e-22, apart by rounding."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from fgslam.runner import OPTIMUM_FLOOR, Comparison
+
+    smoother = SimpleNamespace(name="isam2", update_failures=0)
+
+    def note(isam2, batch):
+        return Comparison([], None, np.zeros(0), smoother, (isam2, batch)).smoother_short_of_optimum()
+
+    assert note(9.0e-23, 8.4e-23) is None
+    assert note(100.0 + 0.5 * OPTIMUM_FLOOR, 100.0) is None
+    assert "lowered χ²/2 from 100.2 to 100" in note(100.2, 100.0)  # 0.2 % above: said
