@@ -134,7 +134,7 @@ def test_live_checks_the_map_png_before_the_robot_starts(tmp_path, capsys, no_ro
     old.write_bytes(b"an earlier picture")
     a_file = tmp_path / "file"
     a_file.write_text("not a folder")
-    bad = [folder, tmp_path / "missing" / "map.png", a_file / "map.png", old, out]
+    bad = [folder, a_file / "map.png", old, out]
     if Path("/proc").is_dir():
         bad.append(Path("/proc/x.png"))  # a folder nothing can be written in (even as root)
     for png in bad:
@@ -144,6 +144,27 @@ def test_live_checks_the_map_png_before_the_robot_starts(tmp_path, capsys, no_ro
         assert time.monotonic() - start < 5.0
     assert old.read_bytes() == b"an earlier picture"
     assert list(folder.iterdir()) == []
+
+
+@pytest.mark.parametrize("option, value", [("--camera", "cam.yaml"), ("--frames", "camera:7")])
+def test_live_sim_refuses_a_real_camera_it_would_not_use(tmp_path, capsys, no_robot, option, value):
+    out = tmp_path / "live.jsonl"
+    _refused(capsys, ["live", "--port", "sim", "--out", str(out), option, value], option, never_written=(out,))
+
+
+def test_record_refuses_frames_without_a_folder_to_save_them(tmp_path, capsys, no_robot):
+    out = tmp_path / "run.jsonl"
+    line = _refused(capsys, ["record", "--port", "sim", "--model", "create2", "--out", str(out),
+                             "--frames", "camera:0"], "--frames", never_written=(out,))
+    assert "--save-frames" in line
+
+
+def test_live_makes_the_folders_of_its_outputs_before_the_robot_starts(tmp_path, no_robot):
+    """As record does: a run never fails at its first pose for a missing folder."""
+    out, png = tmp_path / "runs" / "live.jsonl", tmp_path / "maps" / "map.png"
+    with pytest.raises(AssertionError, match="robot started"):
+        main(["live", "--port", "sim", "--sim-seed", "1", "--out", str(out), "--map-png", str(png)])
+    assert out.parent.is_dir() and png.parent.is_dir() and not out.exists()
 
 
 # --------------------------------------------------------------------------- import

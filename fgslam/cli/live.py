@@ -73,7 +73,9 @@ def add_parser(verbs) -> argparse.ArgumentParser:
                       help="where the robot starts in the map frame (default: last corner, facing the first)")
     live.add_argument("--speed", type=float, default=0.2, metavar="M_S", help="cruising speed (default 0.2)")
     live.add_argument("--camera", default=None, metavar="CAM.yaml", help="camera_info YAML (real camera)")
-    live.add_argument("--frames", default="camera:0", help="frame source: camera:N or kinect:N (default camera:0)")
+    live.add_argument("--frames", default=None,
+                      help="frame source: camera:N or kinect:N (default camera:0; with --port sim the camera is "
+                           "simulated)")
     live.add_argument("--tag-size", type=float, default=0.16, metavar="M", help="AprilTag size (default 0.16 m)")
     live.add_argument("--kind", choices=("apriltag", "colour"), default="apriltag",
                       help="landmarks: AprilTags (default) or Kinect colour landmarks (with --port sim: seed 000's "
@@ -115,6 +117,10 @@ def _check_options(args: argparse.Namespace) -> None:
     naming the option, never a stop after pose 0 (or a robot driving something else)."""
     if args.laps < 1:
         raise FgslamError(f"--laps must be >= 1 (how many times the path is driven); got {args.laps}")
+    if args.port == "sim" and (args.camera is not None or args.frames is not None):
+        given = "--camera" if args.camera is not None else "--frames"
+        raise FgslamError(f"{given} is for a real robot's camera: with --port sim the frames are rendered from the "
+                          "simulated robot's true pose by a simulated camera; leave --camera and --frames out")
     check_number("--side", args.side, above=0, what="metres across flats of the square or octagon, e.g. 1.83")
     check_number("--centre", tuple(args.centre), what="the path's centre X,Y in metres, e.g. 1.524,1.524")
     if args.start_pose is not None:
@@ -140,13 +146,9 @@ def _check_options(args: argparse.Namespace) -> None:
 
 
 def _check_map_png(png: Path, out: Path, overwrite: bool) -> None:
-    """--map-png: a new (or, with --overwrite, an existing) file in an existing folder that can be
-    written, not the log. The picture is rewritten during the run, where a failure would stop it."""
-    folder = png.parent
-    if not folder.is_dir():
-        what = "is a file, not a folder" if folder.exists() else "does not exist"
-        raise FgslamError(f"--map-png {png}: the folder {folder} {what}; give a PNG in an existing folder "
-                          "(make the folder first)")
+    """--map-png: a new (or, with --overwrite, an existing) file in a folder that can be written
+    (made before the robot moves, as the log's is), not the log. The picture is rewritten during
+    the run, where a failure would stop it."""
     check_new_file(png, overwrite=overwrite, option="--map-png", example="map.png")
     if png.resolve() == out.resolve():
         raise FgslamError(f"--map-png {png} is the run log (--out); give the picture another name, e.g. map.png")
@@ -157,6 +159,9 @@ def cmd_live(args: argparse.Namespace) -> int:
     from slamio.create.link import CreateLink
 
     _check_options(args)  # before the port is opened and the robot moves
+    for path in (args.out, args.map_png):  # their folders, as record makes its own: nothing fails mid-run
+        if path:
+            Path(path).parent.mkdir(parents=True, exist_ok=True)
     window_poses = _window_poses(args)
     sensor = ({"kind": "range-bearing", "landmark_kind": "coloured-cylinder", "source": "fgslam live"}
               if args.kind == "colour" else None)
@@ -266,9 +271,10 @@ def _real_camera(args):
     from slamio.camera.sources import kinect_frames, video_frames
 
     camera = load_camera(args.camera)
-    kind, _, number = args.frames.partition(":")
+    frames_source = args.frames or "camera:0"
+    kind, _, number = frames_source.partition(":")
     if kind not in ("camera", "kinect") or not number.isdigit():
-        raise FgslamError(f"--frames must be camera:N or kinect:N, got {args.frames!r}")
+        raise FgslamError(f"--frames must be camera:N or kinect:N, got {frames_source!r}")
     frames = video_frames(int(number)) if kind == "camera" else kinect_frames(int(number))
     latest = LatestFrame(frames)
     if args.kind == "colour":

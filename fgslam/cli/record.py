@@ -167,6 +167,9 @@ def cmd_record(args: argparse.Namespace) -> int:
     out = check_new_file(args.out, overwrite=args.overwrite)
     if args.speed > 0.5:
         raise FgslamError(f"--speed {args.speed} m/s is above the Create's 0.5 m/s")
+    if args.frames is not None and args.save_frames is None:
+        raise FgslamError(f"--frames {args.frames} is the camera of --save-frames FOLDER, which is not given: add "
+                          "--save-frames FOLDER to save its frames, or leave --frames out")
     settings = RecorderSettings(speed_m_s=args.speed, turn_rate_rad_s=args.turn_rate, mode=args.mode,
                                 max_duration_s=args.max_duration)
     noise = observation = trials = None
