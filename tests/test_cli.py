@@ -232,6 +232,11 @@ def test_export_rosbag_and_import_it_back_byte_for_byte(tmp_path, capsys):
     back = tmp_path / "back.jsonl"
     assert main(["import", "rosbag", str(bag), str(back)]) == 0
     assert back.read_bytes() == open("data/arena_square.jsonl", "rb").read()
+    # topics named on the command line are read, not ignored for the stored log
+    assert main(["import", "rosbag", str(bag), str(tmp_path / "x.jsonl"), "--odom-topic", "/odom"]) == 1
+    assert "/odom: not in the bag" in capsys.readouterr().err and not (tmp_path / "x.jsonl").exists()
+    assert main(["import", "rosbag", str(bag), str(tmp_path / "topics.jsonl"), "--odom-topic", "/fgslam/odometry",
+                 "--detections-topic", "/fgslam/tag_detections"]) == 0
 
 
 def test_import_mrclam_fixture_and_run_it(tmp_path, capsys):

@@ -29,7 +29,8 @@ def add_parser(verbs) -> argparse.ArgumentParser:
             "                 with cameras reading barcoded landmarks, Vicon ground truth.\n"
             "  rosbag         a ROS 1 .bag or ROS 2 bag folder (SOURCE) through the rosbags package:\n"
             "                 --odom-topic, --detections-topic or --tag-pose-topic, --truth-topic;\n"
-            "                 a bag from `fgslam export rosbag` needs no topics.\n"
+            "                 a bag from `fgslam export rosbag` needs no topics (topics named are\n"
+            "                 read from it too, in place of the run log it stores).\n"
             "  seed003        one of seed 003's stereo + IMU drives (SOURCE: its .npz): a 3-D log\n"
             "                 with one velocity record per step and the stereo feature tracks;\n"
             "                 --pixel-sigma, --speed-sigma, --turn-rate-sigma set the noise.\n"
@@ -153,9 +154,11 @@ def cmd_import(args: argparse.Namespace) -> int:
     elif args.dataset == "rosbag":
         from slamio.datasets.rosbag import import_rosbag
 
-        header, records = import_rosbag(
+        topics = (args.odom_topic, args.detections_topic, args.tag_pose_topic, args.truth_topic)
+        header, records = import_rosbag(  # topics named: read them, also from a bag fgslam export wrote
             source, odom_topic=args.odom_topic, detections_topic=args.detections_topic,
             tag_pose_topic=args.tag_pose_topic, truth_topic=args.truth_topic,
+            standard_topics_only=any(t is not None for t in topics),
         )
     else:  # plaza1, plaza2
         from slamio.datasets.plaza import import_plaza
