@@ -19,17 +19,28 @@ frame folder (TUM RGB-D or plain images) or a video file, runs the camera front-
   observations') to put the frames on the log's clock; ``--time-offset start`` puts the first
   frame at the log's start. When frames find no pose and their stamps do not even overlap the
   log's, the summary says so and prints the offset that would line them up.
+- **Mode**: the rewritten log keeps its permission bits; a new one gets the umask's mode, as
+  every fgslam output (``write_new_file``).
 - **Once**: a log that already has observations is refused — detecting twice would add
   every observation twice. ``--replace`` removes every observation record (odometry, truth
   and all other records are kept) before the new ones go in; the header's earlier detect
   runs are kept, marked ``observations_removed``.
 - **LOG does not exist**: only with ``--static`` (a camera that did not move): a new log
   with pose 0 at the first frame's stamp and no odometry, so every observation belongs to
-  pose 0.
+  pose 0. ``--static`` with a log that exists is refused (it would not start a new log but
+  attach to that log's odometry).
 
 ``--show DIR`` writes each frame with its detections, measurements and rejection reasons
-drawn, as DIR/<frame>.png. At the end it prints how many frames became observations and
-every rejection by name (corrupt image, over-exposed, no landmark, missing depth, ...).
+drawn, as DIR/<frame>.png; DIR may not be the frame folder or inside it. At the end it prints
+how many frames became observations and every rejection by name (corrupt image, over-exposed,
+no landmark, missing depth, ...), with the first unreadable files, the sizes of frames that
+differ from the camera file's, and the tag ids ``--tag-ids`` left out.
+
+Errors after the frames were read, before anything is written (the --show frames of the run
+are removed again): no frame has the camera file's image size (both sizes are named), or tags
+were found but ``--tag-ids`` leaves out every one (the ids seen are named) — either would
+only write a log without a single observation. Those checks, and what the summary names,
+are in :mod:`fgslam.cli.detect_checks`.
 """
 
 from __future__ import annotations
@@ -37,25 +48,19 @@ from __future__ import annotations
 import argparse
 import bisect
 import os
-import tempfile
+import stat
 from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
-from fgslam.cli.common import check_number, command_line, probe_writable
+from fgslam.cli.common import check_number, command_line, probe_writable, write_new_file
+from fgslam.cli.detect_checks import DetectError, FrameProblems, check_show, parse_tag_ids, summary_with_details
 from fgslam.cli.progress import Progress
-from slamio.errors import FgslamError
 from slamio.log import Header, Observation, Odometry, read_log, write_log
 
 DEFAULT_MAX_POSE_GAP_S = 0.05
 #: Stamps closer than this are the same instant (frame files named by their stamp to the microsecond).
 STAMP_RESOLUTION_S = 1e-6
-
-
-class DetectError(FgslamError):
-    """A user error of ``fgslam detect`` (bad option, missing file)."""
-
-
 # --------------------------------------------------------------------------- merging into a log
 
 
@@ -117,17 +122,17 @@ def static_header(first_stamp_s: float, kind: str, camera_name: str, noise: dict
     )
 
 
-def _write_atomically(path: Path, header: Header, records: list) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
+def _write_log(path: Path, header: Header, records: list, *, new: bool) -> None:
+    """Write the log through a temporary file and a rename (``write_new_file``): a new log gets
+    the umask's mode, as every fgslam output; a rewritten one keeps its own permission bits."""
+    mode = None if new else stat.S_IMODE(path.stat().st_mode)
+
+    def write(tmp: str) -> None:
         write_log(tmp, header, records)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+        if mode is not None:
+            os.chmod(tmp, mode)
+
+    write_new_file(path, write, overwrite=not new)
 
 
 def _time_offset(text: str) -> float:
@@ -203,18 +208,14 @@ def _check_options(args) -> None:
                           f"got {args.max_frames}")
     if args.time_offset != "start":
         _time_offset(args.time_offset)
+    parse_tag_ids(args.tag_ids, args.tag_family)
 
 
 def _config_from_args(args):
     from slamio.camera.colour import ColourOptions
     from slamio.camera.detect import FrontEndConfig
 
-    tag_ids = None
-    if args.tag_ids:
-        try:
-            tag_ids = frozenset(int(x) for x in args.tag_ids.split(",") if x.strip())
-        except ValueError:
-            raise DetectError(f"--tag-ids must be comma-separated integers, got {args.tag_ids!r}") from None
+    tag_ids = parse_tag_ids(args.tag_ids, args.tag_family)
     colour = ColourOptions(bearing_method=args.bearing, height_method=args.height)
     if args.landmarks:
         from slamio.camera.landmark_file import load_landmarks
@@ -250,6 +251,20 @@ def _frames(args):
     return open_frames(source, fps=args.fps, depth_scale_per_m=args.depth_scale)
 
 
+def _remove(files: list[Path], folders: list[Path]) -> None:
+    """Remove the annotated frames and the folders (deepest first) a failed run made."""
+    for path in files:
+        try:
+            path.unlink(missing_ok=True)
+        except OSError:
+            pass
+    for path in folders:
+        try:
+            path.rmdir()  # only when empty: what an earlier run left stays
+        except OSError:
+            pass
+
+
 def cmd_detect(args: argparse.Namespace) -> int:
     import cv2
 
@@ -268,6 +283,12 @@ def cmd_detect(args: argparse.Namespace) -> int:
             f"{out} does not exist: detect adds observations to a recorded run log (header and odometry "
             "first); pass --static to start a new log for a camera that did not move"
         )
+    if out.exists() and args.static:
+        raise DetectError(
+            f"--static starts a new log, but {out} already exists; leave out --static to add the observations to "
+            "this recorded run (each frame joins the pose its odometry gives), or give --out a new file name "
+            "(to redo a static log, remove it first)"
+        )
     probe_writable(out.parent, target=out)  # the log is rewritten at the end: check before the frames
     existing = read_log(out) if out.exists() else None
     if existing is not None and existing.truncated:
@@ -276,36 +297,53 @@ def cmd_detect(args: argparse.Namespace) -> int:
     if existing is not None:
         existing, removed = _without_observations(existing, out, args.replace)
     show = Path(args.show) if args.show else None
+    shown: list[Path] = []  # the annotated frames and the folders --show made: removed when the run fails
+    made: list[Path] = []
     if show is not None:
         if show.exists() and not show.is_dir():
             raise DetectError(f"--show {show} is a file; give a folder for the annotated frames")
+        check_show(show, args.frames)
         probe_writable(show, option="--show")
+        folder = show
+        while not folder.exists() and folder != folder.parent:
+            made.append(folder)
+            folder = folder.parent
         show.mkdir(parents=True, exist_ok=True)
     stats = DetectionStats()
+    problems = FrameProblems(camera)
     frames: list[tuple[float, list[Observation]]] = []
     offset_s = None if args.time_offset == "start" else _time_offset(args.time_offset)
     raw_stamps: list[float] = []
     progress = Progress(unit="frames", status_at_once=False)
     try:
-        for frame in _frames(args):
-            result = front.process(frame)
-            stats.add(result)
-            progress.status(stats.frames, lambda: f"frames {stats.frames}, observations {stats.observations}")
-            if offset_s is None:  # --time-offset start: the first frame is the log's start
-                offset_s = (existing.header.stamp_s if existing is not None else 0.0) - frame.stamp_s
-            raw_stamps.append(frame.stamp_s)
-            frames.append((frame.stamp_s + offset_s,
-                           [replace(o, stamp_s=o.stamp_s + offset_s) for o in result.observations]))
-            if show is not None:
-                name = Path(frame.name.replace("/", "_").replace(":", "_").replace("#", "_")).stem
-                cv2.imwrite(str(show / f"{frame.index:06d}_{name}.png"), annotate(frame.bgr, result, camera))
-    except KeyboardInterrupt:  # a live source runs until stopped: keep what was seen
-        progress.close()
-        print(f"fgslam: interrupted after {stats.frames} frames; writing their observations")
-    finally:
-        progress.close()
-    if stats.frames == 0:
-        raise DetectError(f"{args.frames}: no frames")
+        try:
+            for frame in _frames(args):
+                result = front.process(frame)
+                stats.add(result)
+                problems.add(frame, result)
+                progress.status(stats.frames, lambda: f"frames {stats.frames}, observations {stats.observations}")
+                if offset_s is None:  # --time-offset start: the first frame is the log's start
+                    offset_s = (existing.header.stamp_s if existing is not None else 0.0) - frame.stamp_s
+                raw_stamps.append(frame.stamp_s)
+                frames.append((frame.stamp_s + offset_s,
+                               [replace(o, stamp_s=o.stamp_s + offset_s) for o in result.observations]))
+                if show is not None:
+                    name = Path(frame.name.replace("/", "_").replace(":", "_").replace("#", "_")).stem
+                    shown.append(show / f"{frame.index:06d}_{name}.png")
+                    cv2.imwrite(str(shown[-1]), annotate(frame.bgr, result, camera))
+        except KeyboardInterrupt:  # a live source runs until stopped: keep what was seen
+            progress.close()
+            print(f"fgslam: interrupted after {stats.frames} frames; writing their observations")
+        finally:
+            progress.close()
+        problem = (f"{args.frames}: no frames" if stats.frames == 0 else
+                   problems.size_error(args.frames, args.camera)
+                   or problems.tag_ids_error(args.tag_ids, config.tag_family, config.tag_ids))
+        if problem:  # before anything is written: a log without any of the frames' landmarks helps no one
+            raise DetectError(problem)
+    except BaseException:
+        _remove(shown, made)  # nothing of a failed run stays behind
+        raise
     command = command_line(args, "detect")
     if existing is None:
         header = static_header(min(s for s, _ in frames), config.kind, camera.name, front.noise.describe(), command)
@@ -335,11 +373,11 @@ def cmd_detect(args: argparse.Namespace) -> int:
         runs = [{**run, "observations_removed": True} if isinstance(run, dict) else run for run in runs]
         settings["replaced_observations"] = removed
     header = replace(header, source={**header.source, "detect": runs + [settings]})
-    _write_atomically(out, header, records)
+    _write_log(out, header, records, new=existing is None)
     kept = sum(isinstance(r, Observation) for r in records) - (
         0 if existing is None else sum(isinstance(r, Observation) for r in existing.records))
     print(f"wrote {out}: {kept} observations added" + (f" ({removed} earlier ones removed)" if removed else ""))
-    print(stats.summary())
+    print(summary_with_details(stats, problems.details(args.camera, config.tag_ids)))
     if dropped.get("no_pose_at_frame_time") or dropped.get("before_log_start"):
         print("  " + clock_hint(existing, raw_stamps, offset_s, dropped, args.max_pose_gap))
     if show is not None:
@@ -376,7 +414,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     detect.add_argument("frames", metavar="FRAMES", help="frame folder, video file, camera:N or kinect:N")
     detect.add_argument("--camera", required=True, metavar="CAM.yaml", help="camera_info YAML (intrinsics, mount)")
     detect.add_argument("--out", required=True, metavar="LOG", help="run log to add the observations to")
-    detect.add_argument("--show", default=None, metavar="DIR", help="write annotated frames (PNG) to DIR")
+    detect.add_argument("--show", default=None, metavar="DIR", help="write annotated frames (PNG) to DIR (a folder outside FRAMES)")
     detect.add_argument("--kind", choices=("apriltag", "colour"), default="apriltag",
                         help="landmarks to look for (default apriltag)")
     detect.add_argument("--static", action="store_true",
@@ -392,7 +430,8 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     detect.add_argument("--tag-family", default="tag36h11", help="AprilTag family (default tag36h11)")
     detect.add_argument("--tag-size", type=float, default=0.16, metavar="M",
                         help="side of the tag's black square, metres (default 0.16)")
-    detect.add_argument("--tag-ids", default=None, metavar="LIST", help="only these ids (comma-separated)")
+    detect.add_argument("--tag-ids", default=None, metavar="LIST",
+                        help="only these ids (comma-separated, e.g. 0,3,7; within the family: tag36h11 0..586)")
     detect.add_argument("--quad-decimate", type=float, default=1.0,
                         help="AprilTag quad_decimate (default 1.0: finds small tags; 2.0 is faster)")
     detect.add_argument("--tag-upsample", type=float, default=1.75, metavar="F",

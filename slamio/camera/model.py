@@ -283,6 +283,22 @@ def _mount(path: str, d: dict) -> np.ndarray:
     return T_robot_camera_from_mount(**values)
 
 
+def _check_principal_point(path: str, K: np.ndarray, width: int, height: int) -> None:
+    """A calibration puts the principal point (cx, cy) inside the image, near its centre; one
+    outside it (a mistyped digit, another camera's width) would give every bearing wrong."""
+    cx, cy = float(K[0, 2]), float(K[1, 2])
+    outside = [f"{name} = {value:g} px is not inside the image_{side} of {size} px (-0.5..{size - 0.5:g})"
+               for name, value, size, side in (("cx", cx, width, "width"), ("cy", cy, height, "height"))
+               if not (-0.5 <= value <= size - 0.5)]
+    if outside:
+        raise CameraConfigError(
+            f"{path}: the principal point in 'camera_matrix' lies outside the {width}×{height} image: "
+            f"{' and '.join(outside)}; a calibration puts it inside the image, near its centre "
+            f"(about {(width - 1) / 2:g}, {(height - 1) / 2:g}): check cx and cy in "
+            "[fx, 0, cx, 0, fy, cy, 0, 0, 1] (a mistyped digit?) and image_width / image_height, or calibrate again"
+        )
+
+
 def camera_from_dict(d: Any, path: str = "<camera>") -> CameraModel:
     """Build a :class:`CameraModel` from a parsed camera_info mapping (see the module doc)."""
     if not isinstance(d, dict):
@@ -294,6 +310,7 @@ def camera_from_dict(d: Any, path: str = "<camera>") -> CameraModel:
         raise CameraConfigError(
             f"{path}: 'camera_matrix' must be [fx, s, cx, 0, fy, cy, 0, 0, 1] with fx, fy > 0"
         )
+    _check_principal_point(path, K, width, height)
     model = d.get("distortion_model", "plumb_bob")
     if model not in DISTORTION_MODELS:
         raise CameraConfigError(
