@@ -251,6 +251,8 @@ def cmd_live(args: argparse.Namespace) -> int:
     shutdown = result.record.shutdown
     if shutdown is not None and not shutdown.stopped:
         print(f"fgslam live: WARNING: {shutdown.detail}", file=sys.stderr)
+    elif shutdown is not None and (reason.kind == "interrupted" or reason.is_fault):
+        print(f"fgslam live: robot: {shutdown.detail}", file=sys.stderr)  # stopped early: say the wheels are
     if reason.kind == "interrupted":
         print(f"fgslam live: {reason}", file=sys.stderr)
         return EXIT_INTERRUPTED

@@ -252,6 +252,8 @@ def cmd_record(args: argparse.Namespace) -> int:
               f"behind; {saver.missing} without an image)")
     if result.shutdown is not None and not result.shutdown.stopped:
         print(f"fgslam record: WARNING: {result.shutdown.detail}", file=sys.stderr)
+    elif result.shutdown is not None and (result.reason.kind == "interrupted" or result.reason.is_fault):
+        print(f"fgslam record: robot: {result.shutdown.detail}", file=sys.stderr)  # stopped early: say the wheels are
     if result.reason.kind == "interrupted":
         print(f"fgslam record: {result.reason}", file=sys.stderr)
         return EXIT_INTERRUPTED
