@@ -60,6 +60,15 @@ def test_sim_refuses_an_existing_log_and_keeps_it(log, tmp_path, capsys):
     assert out.stat().st_mode == plain.stat().st_mode  # the umask's mode, not a temporary file's 0600
 
 
+def test_a_replaced_recording_takes_its_status_file_with_it(tmp_path, capsys):
+    out = tmp_path / "run.jsonl"
+    assert main([*SIM, "--out", str(out)]) == 0
+    status = tmp_path / "run.status.json"  # as fgslam record leaves it: how that recording ended
+    status.write_text('{"reason": "interrupted"}\n')
+    assert main([*SIM, "--out", str(out), "--overwrite"]) == 0
+    assert not status.exists() and f"removed {status}" in capsys.readouterr().out
+
+
 def test_sim_into_a_folder_or_under_a_file_is_one_line(tmp_path, capsys):
     assert main([*SIM, "--out", str(tmp_path)]) == 1
     one_line_error(capsys, "is a folder", str(tmp_path / "run.jsonl"))

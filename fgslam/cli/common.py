@@ -189,7 +189,17 @@ def write_run_log(out_path: str | os.PathLike, header, records, *, overwrite: bo
     out = Path(out_path)
     write_new_file(out, lambda tmp: write_log(tmp, header, records), overwrite=overwrite, option=option)
     print(f"wrote {out}: {summary(RunLog(str(out), header, records))}")
+    stale = status_path(out)
+    if stale.is_file():  # how the replaced recording ended (fgslam record): not this log's
+        stale.unlink()
+        print(f"removed {stale}: it described the recording {out} replaced")
     return 0
+
+
+def status_path(log: str | os.PathLike) -> Path:
+    """``run.status.json`` beside ``run.jsonl``: how ``fgslam record`` says a recording ended."""
+    out = Path(log)
+    return out.with_name(out.stem + ".status.json") if out.suffix else out.with_name(out.name + ".status.json")
 
 
 # --------------------------------------------------------------------------- single output files

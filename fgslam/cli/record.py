@@ -13,7 +13,7 @@ import json
 import sys
 from pathlib import Path
 
-from fgslam.cli.common import add_overwrite_option, check_new_file, command_line
+from fgslam.cli.common import add_overwrite_option, check_new_file, command_line, status_path
 from slamio.errors import FgslamError
 
 EXIT_STOPPED_EARLY = 2
@@ -113,10 +113,6 @@ def add_parser(verbs) -> argparse.ArgumentParser:
                      "the simulated camera (seed 004's arena tags rendered from the true pose, camera.yaml written)")
     p.set_defaults(func=cmd_record)
     return p
-
-
-def _status_path(out: Path) -> Path:
-    return out.with_name(out.stem + ".status.json") if out.suffix else out.with_name(out.name + ".status.json")
 
 
 def _frame_saver(args, sim, settings):
@@ -227,9 +223,9 @@ def cmd_record(args: argparse.Namespace) -> int:
             saver.close()
         if sim is not None:
             sim.close()
-    write_status(result, _status_path(out))
+    write_status(result, status_path(out))
     if sim is not None:  # add the ground truth to the status file
-        status = json.loads(_status_path(out).read_text())
+        status = json.loads(status_path(out).read_text())
         status["simulator"] = {
             "true_pose": list(sim.true_pose),
             "true_path_length_m": sim.true_path_length_m,
@@ -239,7 +235,7 @@ def cmd_record(args: argparse.Namespace) -> int:
             "bytes_corrupted": sim.bytes_corrupted,
             "bytes_dropped": sim.bytes_dropped,
         }
-        _status_path(out).write_text(json.dumps(status, indent=2) + "\n")
+        status_path(out).write_text(json.dumps(status, indent=2) + "\n")
 
     stats = result.link_stats
     quality = (f"{stats.get('frames_ok', 0)} frames, {stats.get('bad_frames', 0)} rejected"
