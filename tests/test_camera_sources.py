@@ -99,6 +99,9 @@ def test_missing_sources_are_user_errors(tmp_path):
     (tmp_path / "empty").mkdir()
     with pytest.raises(FrameSourceError, match="no images"):
         list(folder_frames(tmp_path / "empty"))
+    (tmp_path / "empty" / "color").mkdir()  # an RGB-D recording laid out another way
+    with pytest.raises(FrameSourceError, match=r"holds the folders color/: give the folder of the images.*rgb\.txt"):
+        list(folder_frames(tmp_path / "empty"))
     with pytest.raises(FrameSourceError, match="cannot open video source"):
         list(video_frames(str(tmp_path / "missing.avi")))
 

@@ -202,7 +202,10 @@ def folder_frames(folder: str | os.PathLike[str], *, fps: float = 30.0, start_s:
         raise FrameSourceError(f"{root}: no such folder")
     files = _image_files(root)
     if not files:
-        raise FrameSourceError(f"{root}: no images ({', '.join(IMAGE_SUFFIXES)}) in this folder")
+        folders = sorted(p.name + "/" for p in root.iterdir() if p.is_dir())
+        hint = (f"; it holds the folders {', '.join(folders[:5])}: give the folder of the images, or lay out an "
+                "RGB-D recording as TUM RGB-D does (rgb/ and depth/ with rgb.txt and depth.txt)") if folders else ""
+        raise FrameSourceError(f"{root}: no images ({', '.join(IMAGE_SUFFIXES)}) in this folder{hint}")
     stamps = [_stamp_from_name(p) for p in files]
     if all(s is not None for s in stamps):
         order = sorted(range(len(files)), key=lambda i: stamps[i])
