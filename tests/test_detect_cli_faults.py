@@ -67,6 +67,13 @@ def _detect(capsys, *argv) -> tuple[int, str, str]:
     return status, captured.out, captured.err
 
 
+def _rejection(stdout: str, reason: str) -> tuple[str, str]:
+    """The summary's line of one rejection and the detail line under it."""
+    lines = stdout.splitlines()
+    at = next(i for i, line in enumerate(lines) if f"× {reason}" in line)
+    return lines[at], lines[at + 1]
+
+
 def _one_error(err: str) -> str:
     lines = err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("fgslam: error: "), err
@@ -168,9 +175,7 @@ def test_some_frames_of_another_size_are_named_in_the_summary(tmp_path, capsys):
     out = tmp_path / "still.jsonl"
     status, stdout, err = _detect(capsys, frames, "--camera", camera, "--tag-size", "0.065", "--out", out, "--static")
     assert status == 0, err
-    lines = stdout.splitlines()
-    at = next(i for i, line in enumerate(lines) if "× wrong_image_size" in line)
-    detail = lines[at + 1]
+    _, detail = _rejection(stdout, "wrong_image_size")
     assert "320×240" in detail and "640×480" in detail and "0.010000.png" in detail and str(camera) in detail
     assert read_log(out).header.source["detect"][0]["rejected"]["wrong_image_size"] == 1
 
@@ -326,10 +331,8 @@ def test_corrupt_and_missing_images_are_named_in_the_summary(tmp_path, capsys):
     out = tmp_path / "still.jsonl"
     status, stdout, err = _detect(capsys, frames, "--camera", camera, "--tag-size", "0.065", "--out", out, "--static")
     assert status == 0, err
-    lines = stdout.splitlines()
-    at = next(i for i, line in enumerate(lines) if "× corrupt_image" in line)
-    assert "4 × corrupt_image" in lines[at]
-    detail = lines[at + 1]
+    line, detail = _rejection(stdout, "corrupt_image")
+    assert "4 × corrupt_image" in line
     assert detail.strip().startswith("first: 1.000000.png (not a decodable image")
     assert "2.000000.png (empty file)" in detail and "3.000000.png" in detail
     assert "4.000000.png" not in detail  # the first few only
