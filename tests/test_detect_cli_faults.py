@@ -339,6 +339,19 @@ def test_corrupt_and_missing_images_are_named_in_the_summary(tmp_path, capsys):
     assert str(tmp_path) not in detail  # the frame's name, not its whole path again
 
 
+def test_not_one_readable_image_is_an_error_naming_the_files(tmp_path, capsys):
+    frames = tmp_path / "broken"
+    frames.mkdir()
+    for k in range(3):
+        (frames / f"{k:.6f}.png").write_bytes(b"garbage, not a png")
+    out = tmp_path / "still.jsonl"
+    status, _, err = _detect(capsys, frames, "--camera", _camera(tmp_path), "--out", out, "--static")
+    assert status == 1
+    line = _one_error(err)
+    assert "none of the 3 images could be read" in line and "0.000000.png (not a decodable image" in line
+    assert not out.exists()
+
+
 def test_a_missing_file_in_a_tum_list_is_named(tmp_path, capsys):
     frames = tmp_path / "tum"
     (frames / "rgb").mkdir(parents=True)

@@ -37,7 +37,8 @@ no landmark, missing depth, ...), with the first unreadable files, the sizes of 
 differ from the camera file's, and the tag ids ``--tag-ids`` left out.
 
 Errors after the frames were read, before anything is written (the --show frames of the run
-are removed again): no frame has the camera file's image size (both sizes are named), or tags
+are removed again): not one image could be read (the first files are named), no frame has the
+camera file's image size (both sizes are named), or tags
 were found but ``--tag-ids`` leaves out every one (the ids seen are named) — either would
 only write a log without a single observation. Those checks, and what the summary names,
 are in :mod:`fgslam.cli.detect_checks`.
@@ -337,7 +338,7 @@ def cmd_detect(args: argparse.Namespace) -> int:
         finally:
             progress.close()
         problem = (f"{args.frames}: no frames" if stats.frames == 0 else
-                   problems.size_error(args.frames, args.camera)
+                   problems.unreadable_error(args.frames) or problems.size_error(args.frames, args.camera)
                    or problems.tag_ids_error(args.tag_ids, config.tag_family, config.tag_ids))
         if problem:  # before anything is written: a log without any of the frames' landmarks helps no one
             raise DetectError(problem)

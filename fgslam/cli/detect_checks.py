@@ -79,9 +79,12 @@ class FrameProblems:
         self.sizes: Counter = Counter()  # ("image" or "depth", width, height) -> frames
         self.first_of_size: dict[tuple, str] = {}
         self.right_size = 0  # frames whose image has the camera file's size
+        self.frames = self.readable = 0  # frames in all, and those whose image could be read
         self.tag_ids: set[int] = set()  # every id decoded, allowed or not
 
     def add(self, frame, result) -> None:
+        self.frames += 1
+        self.readable += frame.bgr is not None
         wrong_size = False
         for r in result.rejections:
             if r.reason in self.unreadable and len(self.unreadable[r.reason]) < NAMED_FILES:
@@ -130,6 +133,17 @@ class FrameProblems:
                 + ("; colour landmarks need depth images registered to the colour images, at their size"
                    if depth else "")
                 + "; nothing was written")
+
+    def unreadable_error(self, frames: str) -> str | None:
+        """The error when frames were found but not one image could be read (None otherwise)."""
+        if not self.frames or self.readable:
+            return None
+        first = self.unreadable["corrupt_image"]
+        named = "; ".join(f"{name} ({why})" if why else name for name, why in first)
+        return (f"{frames}: none of the {_plural(self.frames, 'image')} could be read"
+                + (f" (first: {named})" if named else "")
+                + "; check that the files are whole images (PNG, JPEG, ...) and that rgb.txt names files that "
+                  "exist; nothing was written")
 
     def tag_ids_error(self, text: str | None, family: str, allowed: frozenset[int] | None) -> str | None:
         """The error when tags were found but --tag-ids leaves out every one (None otherwise)."""
