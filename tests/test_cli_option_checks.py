@@ -159,6 +159,17 @@ def test_record_refuses_frames_without_a_folder_to_save_them(tmp_path, capsys, n
     assert "--save-frames" in line
 
 
+def test_live_sim_refuses_a_path_outside_the_arena(tmp_path, capsys, no_robot):
+    path = tmp_path / "far.txt"
+    path.write_text("1.0 1.0\n100 100\n")
+    out = tmp_path / "live.jsonl"
+    line = _refused(capsys, ["live", "--port", "sim", "--path", str(path), "--start-pose", "1,1,0", "--out", str(out)],
+                    "waypoint 2", never_written=(out,))
+    assert "(100.000, 100.000)" in line and "outside the simulated arena" in line
+    _refused(capsys, ["live", "--port", "sim", "--side", "3", "--out", str(out)], "the start pose",
+             never_written=(out,))
+
+
 def test_live_makes_the_folders_of_its_outputs_before_the_robot_starts(tmp_path, no_robot):
     """As record does: a run never fails at its first pose for a missing folder."""
     out, png = tmp_path / "runs" / "live.jsonl", tmp_path / "maps" / "map.png"

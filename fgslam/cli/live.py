@@ -108,6 +108,24 @@ def _waypoints(args) -> np.ndarray:
     return np.vstack([read_waypoints(args.path)] * max(1, args.laps))
 
 
+def _check_inside_arena(waypoints: np.ndarray, start_pose, path: str, *, given_start: bool) -> None:
+    """With --port sim: the start and every waypoint inside the simulated arena with room for the
+    robot (its disc clear of the walls), else one line before it starts, not a bump stop later."""
+    from slamio.create.sim import ARENA_M, ROBOT_RADIUS_M
+
+    width, height = ARENA_M
+    margin = ROBOT_RADIUS_M
+    start = "--start-pose" if given_start else "the start pose (the path's last waypoint: --start-pose sets another)"
+    points = [(start, start_pose[:2])] + [(f"waypoint {i + 1} of --path {path}", p[:2])
+                                                   for i, p in enumerate(waypoints)]
+    for what, (x, y) in points:
+        if not (margin <= x <= width - margin and margin <= y <= height - margin):
+            raise FgslamError(
+                f"{what} ({x:.3f}, {y:.3f}) m is outside the simulated arena (x and y within {margin:.2f} .. "
+                f"{width - margin:.2f} m: the {width:.3f} m square less the robot's {margin:.2f} m radius); the robot "
+                "would drive into a wall")
+
+
 #: The Create's top wheel speed (slamio.create.record refuses more, but only once the robot is up).
 MAX_SPEED_M_S = 0.5
 
@@ -167,6 +185,8 @@ def cmd_live(args: argparse.Namespace) -> int:
               if args.kind == "colour" else None)
     waypoints = _waypoints(args)
     start_pose = tuple(args.start_pose) if args.start_pose else start_pose_facing(waypoints)
+    if args.port == "sim":
+        _check_inside_arena(waypoints, start_pose, args.path, given_start=args.start_pose is not None)
     settings = LiveSettings(speed_m_s=args.speed)
     status = Progress(unit="poses")
     last_map = [0.0]
