@@ -62,7 +62,7 @@ from pathlib import Path
 import numpy as np
 
 from fgslam.compare import ate_rmse_m, nees_band, nees_over_truth
-from fgslam.runner import ESTIMATORS, require_usable_reference, run_estimator, truth_reference
+from fgslam.runner import ESTIMATORS, require_motion, require_usable_reference, run_estimator, truth_reference
 from fgslam.smoother import Isam2Smoother, batch_solve
 from slamio.errors import FgslamError, read_text
 from slamio.log import read_log
@@ -185,9 +185,7 @@ def check_estimator(
         if value is not None and not tolerance_is_valid(key, value):
             raise FgslamError(f"{key} must be {TOLERANCE_RANGES[key]}, got {value!r}")
     log = read_log(log_path)
-    if len(log.steps()) < 2:
-        raise FgslamError(f"{log.path} has no odometry records, only its start pose: there is nothing to check "
-                          "(fgslam validate says what the log holds)")
+    require_motion(log, "check")
     if log.header.is_3d:
         from fgslam.check3d import DEFAULT_ESTIMATOR_3D, score_3d
         from fgslam.runner3d import ESTIMATORS_3D as known

@@ -356,6 +356,15 @@ def reference_landmark_observations(smoother: Isam2Smoother) -> int:
     return count
 
 
+def require_motion(log, purpose: str) -> None:
+    """Refuse a log with nothing to ``purpose`` (e.g. "estimate or score"): only its start pose,
+    no odometry, as a recording stopped before the robot moved leaves it; every figure would be
+    a trivial 0."""
+    if not log.has_motion():
+        raise FgslamError(f"{log.path} has no odometry records, only its start pose: there is nothing to {purpose} "
+                          "(fgslam validate says what the log holds)")
+
+
 def require_usable_reference(smoother: Isam2Smoother, steps: Sequence[Step], log_name: str) -> None:
     """Refuse a smoothed reference that is no better constrained than odometry.
 

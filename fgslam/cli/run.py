@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from fgslam.cli.common import ResultsFolder, add_overwrite_option, command_line, read, require_motion, summary
+from fgslam.cli.common import ResultsFolder, add_overwrite_option, command_line, read, summary
 from fgslam.cli.estimators import ESTIMATOR_HELP, ESTIMATOR_HELP_3D
 from fgslam.cli.progress import Progress
 from slamio.errors import FgslamError
@@ -101,10 +101,10 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     from fgslam.compare import compute_metrics, format_table, write_tum
     from fgslam.export import write_g2o
-    from fgslam.runner import DEFAULT_ESTIMATORS, TIMING, compare_log, parse_estimator_names
+    from fgslam.runner import DEFAULT_ESTIMATORS, TIMING, compare_log, parse_estimator_names, require_motion
 
     log = read(args.log)
-    require_motion(log)
+    require_motion(log, "estimate or score")
     if log.header.is_3d:  # seed 003's stereo + IMU logs: their own estimators and table
         from fgslam.cli.run3d import cmd_run3d
 

@@ -235,6 +235,13 @@ class RunLog:
         """Group the records into per-pose steps (see :class:`Step`)."""
         return group_steps(self.header, self.records)
 
+    def has_motion(self) -> bool:
+        """True when a record starts a pose after pose 0 (:func:`group_steps`' odometry, in a
+        3-D log ``velocity_odometry``): without one the log is its start pose alone."""
+        from slamio.log3d import VelocityOdometry
+
+        return any(isinstance(r, (Odometry, VelocityOdometry)) for r in self.records)
+
     def truth_landmarks(self) -> dict[int, TruthLandmark]:
         return {r.landmark_id: r for r in self.records if isinstance(r, TruthLandmark)}
 
