@@ -25,6 +25,7 @@ import math
 import os
 import secrets
 import shlex
+import stat
 import sys
 import tempfile
 from pathlib import Path
@@ -172,14 +173,6 @@ def read(path: str):
     return log
 
 
-def require_motion(log) -> None:
-    """Refuse a log with nothing to estimate: only its start pose (no odometry record), as a
-    recording stopped before the robot moved leaves it. Every figure would be a trivial 0."""
-    if len(log.steps()) < 2:
-        raise FgslamError(f"{log.path} has no odometry records, only its start pose: there is nothing to estimate "
-                          "or score (fgslam validate says what the log holds)")
-
-
 def write_run_log(out_path: str | os.PathLike, header, records, *, overwrite: bool = False, option: str = "--out") -> int:
     """Write a made or imported log (never over an existing file unless ``overwrite``) and
     say what is in it (from memory, not re-read)."""
@@ -282,16 +275,20 @@ def write_new_file(path: Path, write: Callable[[str], None], *, overwrite: bool 
     """``write(tmp)`` into a temporary file beside ``path``, then move it into place.
 
     Never replaces an existing file unless ``overwrite`` (checked again here: a file may have
-    appeared during the work), and never leaves a half-written file at ``path``.
+    appeared during the work), and never leaves a half-written file at ``path``. A new file
+    gets the umask's mode; a replaced one keeps its permission bits.
     """
     path = Path(path)
     check_new_file(path, overwrite=overwrite, option=option)
     path.parent.mkdir(parents=True, exist_ok=True)
+    kept_mode = stat.S_IMODE(path.stat().st_mode) if overwrite and path.is_file() else None
     # Not mkstemp: its file is 0600, and the log would keep that; this one gets the umask's mode.
     tmp = str(path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
     open(tmp, "x").close()
     try:
         write(tmp)
+        if kept_mode is not None:
+            os.chmod(tmp, kept_mode)
         if overwrite:
             os.replace(tmp, path)
         else:

@@ -48,8 +48,6 @@ from __future__ import annotations
 
 import argparse
 import bisect
-import os
-import stat
 from dataclasses import replace
 from functools import partial
 from pathlib import Path
@@ -126,14 +124,7 @@ def static_header(first_stamp_s: float, kind: str, camera_name: str, noise: dict
 def _write_log(path: Path, header: Header, records: list, *, new: bool) -> None:
     """Write the log through a temporary file and a rename (``write_new_file``): a new log gets
     the umask's mode, as every fgslam output; a rewritten one keeps its own permission bits."""
-    mode = None if new else stat.S_IMODE(path.stat().st_mode)
-
-    def write(tmp: str) -> None:
-        write_log(tmp, header, records)
-        if mode is not None:
-            os.chmod(tmp, mode)
-
-    write_new_file(path, write, overwrite=not new)
+    write_new_file(path, lambda tmp: write_log(tmp, header, records), overwrite=not new)
 
 
 def _time_offset(text: str) -> float:
