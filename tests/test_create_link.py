@@ -10,8 +10,17 @@ import serial
 from slamio.create import protocol as p
 from slamio.create.link import CreateLink, LinkError
 from slamio.create.sim import SimulatedCreate
+from slamio.create.stopping import CONFIRM_IDS
 
-STOP_BYTES = p.pause_stream() + p.drive_direct(left_mm_s=0, right_mm_s=0) + p.passive()
+STOP_BYTES = p.pause_stream() + p.drive(0, p.RADIUS_STRAIGHT) + p.drive_direct(left_mm_s=0, right_mm_s=0) + p.passive()
+READ_BACK = p.query_list(CONFIRM_IDS)  # after the stop: is the robot stopped? (loop:// cannot say)
+
+
+def stop_then_read_back(written: bytes) -> bool:
+    """The stop sequence, then only the read-back's questions."""
+    at = written.rfind(STOP_BYTES)
+    rest = written[at + len(STOP_BYTES):]
+    return at >= 0 and rest and rest == READ_BACK * (len(rest) // len(READ_BACK))
 
 
 class Spy:
@@ -65,8 +74,9 @@ def test_exit_always_stops_the_wheels_and_returns_to_passive():
     spies = []
     with CreateLink("loop://", "create2", opener=spy_opener(spies)) as link:
         link.drive_direct(200, 200)
-    assert bytes(spies[0].written).endswith(STOP_BYTES)
+    assert stop_then_read_back(bytes(spies[0].written))
     assert link.last_shutdown.stopped and not link.is_open
+    assert not link.last_shutdown.confirmed and "NOT confirmed" in link.last_shutdown.summary  # loop:// is no robot
 
 
 def test_exit_on_an_exception_stops_too_and_the_exception_goes_on():
@@ -75,14 +85,15 @@ def test_exit_on_an_exception_stops_too_and_the_exception_goes_on():
         with CreateLink("loop://", "create2", opener=spy_opener(spies)) as link:
             link.drive_direct(-100, 100)
             1 / 0
-    assert bytes(spies[0].written).endswith(STOP_BYTES)
+    assert stop_then_read_back(bytes(spies[0].written))
 
 
 def test_create2_can_also_stop_the_oi():
     spies = []
     with CreateLink("loop://", "create2", opener=spy_opener(spies), stop_oi_on_exit=True):
         pass
-    assert bytes(spies[0].written).endswith(STOP_BYTES + p.stop_oi())
+    written = bytes(spies[0].written)
+    assert written.endswith(p.stop_oi()) and stop_then_read_back(written[:-1])  # Stop after the read-back
 
 
 def test_failed_write_reconnects_and_still_stops():
@@ -92,7 +103,7 @@ def test_failed_write_reconnects_and_still_stops():
         spies[0].fail_writes = True
         with pytest.raises(LinkError, match="write failed"):
             link.drive_direct(100, 100)
-    assert len(spies) == 2 and bytes(spies[1].written) == STOP_BYTES
+    assert len(spies) == 2 and bytes(spies[1].written).startswith(STOP_BYTES)
     assert link.last_shutdown.stopped and link.last_shutdown.reconnected and link.reconnects == 1
 
 
@@ -121,7 +132,8 @@ def test_real_pty_to_the_simulated_create_and_unplug_replug():
             assert sim.commanded_mm_s == (100.0, 100.0)  # the robot keeps driving
             sim.replug()
         assert link.last_shutdown.stopped and link.last_shutdown.reconnected
-        assert wait_for(lambda: sim.commanded_mm_s == (0.0, 0.0) and sim.mode == p.OiMode.PASSIVE)
+        assert link.last_shutdown.confirmed  # the robot itself says so
+        assert sim.commanded_mm_s == (0.0, 0.0) and sim.mode == p.OiMode.PASSIVE
 
 
 def test_a_vanishing_device_during_flush_is_a_link_error():
@@ -133,3 +145,27 @@ def test_a_vanishing_device_during_flush_is_a_link_error():
     with pytest.raises(LinkError, match="Input/output error"):
         link.write(p.drive_direct(left_mm_s=100, right_mm_s=100))
     link.close()
+
+
+def test_a_stop_is_confirmed_only_when_the_robot_reads_back_stopped():
+    with SimulatedCreate("create2", seed=0, time_scale=5.0) as sim:
+        with CreateLink(sim.port, "create2") as link:
+            link.write(p.start() + p.safe() + p.stream([7, 35, 43, 44]) + p.drive_direct(left_mm_s=100, right_mm_s=100))
+            assert wait_for(lambda: sim.commanded_mm_s == (100.0, 100.0))
+        assert link.last_shutdown.confirmed and "robot stopped (confirmed)" in link.last_shutdown.summary
+        with CreateLink(sim.port, "create2") as link:
+            link.write(p.start() + p.safe() + p.drive_direct(left_mm_s=100, right_mm_s=100))
+            assert wait_for(lambda: sim.commanded_mm_s == (100.0, 100.0))
+            sim.freeze()  # the firmware hangs: the stop goes out, nothing answers
+        assert link.last_shutdown.stopped and not link.last_shutdown.confirmed
+        assert "NOT confirmed" in link.last_shutdown.summary and sim.commanded_mm_s == (100.0, 100.0)
+
+
+def test_check_stopped_reads_the_mode_and_every_requested_velocity():
+    from slamio.create.stopping import check_stopped
+
+    assert check_stopped({35: 1, 39: 0, 41: 0, 42: 0}).confirmed
+    safe = check_stopped({35: 2, 39: 0, 41: 0, 42: 0})
+    assert not safe.confirmed and "safe, not passive" in safe.detail
+    moving = check_stopped({35: 1, 39: 0, 41: 120, 42: -3})
+    assert not moving.confirmed and "right wheel velocity is 120" in moving.detail and "-3" in moving.detail

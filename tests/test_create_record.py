@@ -43,11 +43,9 @@ from slamio.create.record import (
     RecorderSettings,
     TeleopController,
     TerminalKeys,
-    interrupt_guard,
     path_moves,
     record,
 )
-from slamio.create.safety import interrupts_deferred
 from slamio.create.sim import SimulatedCreate
 from slamio.errors import FgslamError
 from slamio.log import Odometry, read_log
@@ -154,14 +152,59 @@ def test_create1_lost_answers_fall_back_on_the_prediction(tmp_path):
     assert abs(length_m - true_length_m) / true_length_m < 0.02
 
 
-def test_a_robot_that_never_answers_is_reported_and_the_log_has_its_header(tmp_path):
+@pytest.mark.parametrize("overwrite", [False, True])
+def test_a_robot_that_never_answers_is_reported_and_the_old_log_is_kept(tmp_path, overwrite):
     out = tmp_path / "silent.jsonl"
+    if overwrite:
+        out.write_bytes(b"an earlier recording\n")
     settings = RecorderSettings(startup_timeout_s=0.3)
     link = CreateLink("loop://", "create2")  # hears only its own commands
-    result = record(link, out, PathController(path_moves("square"), settings), settings=settings)
+    result = record(link, out, PathController(path_moves("square"), settings), settings=settings, overwrite=overwrite)
     assert result.reason.kind == "no-data" and "115200" in result.reason.message
-    log = read_log(out)
-    assert log.records == () and log.header.robot["model"] == "create2"
+    assert not result.log_placed and not result.shutdown.confirmed
+    assert (out.read_bytes() == b"an earlier recording\n") if overwrite else not out.exists()
+    assert [p.name for p in tmp_path.iterdir()] == (["silent.jsonl"] if overwrite else [])  # nothing left behind
+
+
+def test_a_log_is_put_in_place_once_the_robot_answers(tmp_path):
+    """--overwrite: the old log stays until the robot has answered, then the new one replaces
+    it in one step (keeping its permission bits)."""
+    out = tmp_path / "run.jsonl"
+    out.write_bytes(b"an earlier recording\n")
+    out.chmod(0o640)
+    seen = []
+
+    def placed():
+        seen.append(out.read_bytes().splitlines()[0])
+
+    with SimulatedCreate("create2", seed=2, time_scale=FAST) as sim:
+        result = drive(sim, out, moves=path_moves("square", side_m=0.2), overwrite=True, on_placed=placed)
+    assert result.log_placed and b'"type": "header"' in seen[0]
+    assert len(read_log(out).records) == result.records and (out.stat().st_mode & 0o777) == 0o640
+    assert [p.name for p in tmp_path.iterdir()] == ["run.jsonl"]
+
+
+def test_a_full_disk_stops_the_robot_and_keeps_every_complete_record(tmp_path):
+    """A write that fails (ENOSPC, here EFBIG past a file size limit) stops the robot rather
+    than drive on unrecorded; the log is cut back to its last complete line."""
+    code = f"""
+import resource, signal, sys
+signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+resource.setrlimit(resource.RLIMIT_FSIZE, (6000, 6000))
+sys.path.insert(0, {str(ROOT)!r}); sys.path.insert(0, {str(ROOT / 'tests')!r})
+from test_create_record import drive, SimulatedCreate, FAST, path_moves, stopped
+with SimulatedCreate("create2", seed=2, time_scale=FAST) as sim:
+    result = drive(sim, {str(tmp_path / 'full.jsonl')!r}, moves=path_moves("square"))
+    print(result.reason.kind, result.records, stopped(sim), result.shutdown.confirmed)
+    print(result.reason.message)
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    kind, records, was_stopped, confirmed = done.stdout.split("\n")[0].split()
+    assert kind == "log-error" and was_stopped == "True" and confirmed == "True", done.stdout + done.stderr
+    assert "full.jsonl" in done.stdout and "File too large" in done.stdout
+    data = (tmp_path / "full.jsonl").read_bytes()
+    assert data.endswith(b"\n") and len(data) <= 6000
+    assert len(read_log(tmp_path / "full.jsonl").records) == int(records) > 5
 
 
 # --------------------------------------------------------------------------- hazards
@@ -217,6 +260,29 @@ def test_keyboard_interrupt_stops_the_robot(tmp_path):
     assert len(read_log(tmp_path / "ctrl-c.jsonl").records) == result.records
 
 
+def test_a_second_signal_during_the_stop_sequence_does_not_cut_it_short(tmp_path):
+    """SIGTERM mid-run, then Ctrl-C while the robot is being stopped: the stop sequence runs
+    to its end (and is confirmed), and the result names the first signal."""
+
+    class SecondSignalWhileStopping(CreateLink):
+        def shutdown(self):
+            signal.raise_signal(signal.SIGINT)  # handled in this (main) thread, right now
+            return super().shutdown()
+
+    def first_signal(n):
+        if n == 5:
+            signal.raise_signal(signal.SIGTERM)
+
+    with SimulatedCreate("create2", seed=6, time_scale=FAST, arena_m=None) as sim:
+        link = SecondSignalWhileStopping(sim.port, "create2")
+        result = record(link, tmp_path / "twice.jsonl", PathController(path_moves("octagon"), CALM), settings=CALM,
+                        clock=sim.clock, on_record=first_signal)
+        assert stopped(sim)
+    assert result.reason.kind == "interrupted" and "SIGTERM" in result.reason.message
+    assert result.signum == signal.SIGTERM and result.shutdown.confirmed
+    assert len(read_log(tmp_path / "twice.jsonl").records) == result.records >= 5
+
+
 # --------------------------------------------------------------------------- 4: the cable
 
 
@@ -260,14 +326,18 @@ def test_cable_that_stays_out_is_reported_honestly(tmp_path):
 
 
 class ScriptedKeys:
-    """Keys as a person would press them, at robot times. Each key holds the simulated clock
-    at its time until it is read, so a host that polls late on a busy machine still reads
-    it at that robot time (a person would have waited for the robot)."""
+    """Keys as a person would press them, at robot times after the first look at the keyboard
+    (the robot is up then). Each key holds the simulated clock at its time until it is read,
+    so a host that polls late on a busy machine still reads it at that robot time (a person
+    would have waited for the robot)."""
 
     def __init__(self, sim, script):
-        self.sim, self.script = sim, [(t, key, sim.hold(at_s=t)) for t, key in script]
+        self.sim, self.plan, self.script = sim, script, None
 
     def read_key(self):
+        if self.script is None:
+            now = self.sim.clock()
+            self.script = [(now + t, key, self.sim.hold(at_s=now + t)) for t, key in self.plan]
         if self.script and self.sim.clock() >= self.script[0][0]:
             _, key, token = self.script.pop(0)
             self.sim.release(token)
@@ -367,37 +437,7 @@ def test_sigint_stops_the_robot_keeps_the_log_and_says_why(tmp_path, sigint):
         stdout, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 130, stderr
     assert "interrupted" in stderr
-    status = json.loads((tmp_path / "sigint.status.json").read_text())
+    status = json.loads((tmp_path / "sigint.jsonl.status.json").read_text())
     assert status["reason"]["kind"] == "interrupted" and status["shutdown"]["stopped"]
     assert status["simulator"]["commanded_mm_s"] == [0.0, 0.0] and status["simulator"]["oi_mode"] == 1
     assert len(read_log(out).records) == status["records"]
-
-
-def test_interrupt_guard_installs_ctrl_c_even_when_sigint_was_ignored_and_restores_it():
-    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        with interrupt_guard():
-            assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
-            with pytest.raises(KeyboardInterrupt):
-                signal.raise_signal(signal.SIGINT)
-        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN  # given back as inherited
-    finally:
-        signal.signal(signal.SIGINT, before)
-
-
-@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
-def test_an_interrupt_during_a_record_write_is_raised_after_the_record_is_counted(signum):
-    """The recorder writes and counts a record inside interrupts_deferred: a Ctrl-C that
-    lands between the write and the count used to leave a written record uncounted."""
-    written = counted = 0
-    with interrupt_guard(), pytest.raises(KeyboardInterrupt):
-        previous_term = signal.signal(signal.SIGTERM, signal.default_int_handler)
-        try:
-            with interrupts_deferred():
-                written += 1
-                signal.raise_signal(signum)  # arrives between the write and the count
-                counted += 1
-        finally:
-            signal.signal(signal.SIGTERM, previous_term)
-    assert written == counted == 1
-    assert signal.getsignal(signal.SIGTERM) is previous_term  # handlers given back

@@ -1,4 +1,5 @@
-"""slamio.create.safety: hazards from packets 7 and 35, the monitor, its watchdog, SIGTERM."""
+"""slamio.create.safety and .signals: hazards from packets 7 and 35, the monitor, its watchdog, the
+terminating signals."""
 
 from __future__ import annotations
 
@@ -17,8 +18,8 @@ from slamio.create.safety import (
     implausible_create1_reading,
     implausible_encoder_jump,
     implausible_frame,
-    signal_guard,
 )
+from slamio.create.signals import TERMINATING_SIGNALS, Interrupted, TerminationSignals
 
 
 @pytest.mark.parametrize(
@@ -120,11 +121,41 @@ def test_data_timeout_stops_the_motors():
     assert monitor.check_timeouts().kind == "no-data"
 
 
-def test_signal_guard_turns_sigterm_into_keyboard_interrupt():
-    before = signal.getsignal(signal.SIGTERM)
-    with pytest.raises(KeyboardInterrupt):
-        with signal_guard():
-            os.kill(os.getpid(), signal.SIGTERM)  # the handler runs in this (main) thread
-            for _ in range(10_000):
-                pass
-    assert signal.getsignal(signal.SIGTERM) is before
+@pytest.mark.parametrize("signum", TERMINATING_SIGNALS, ids=lambda s: signal.Signals(s).name)
+def test_each_terminating_signal_raises_interrupted_naming_it_once(signum):
+    before = signal.getsignal(signum)
+    with TerminationSignals() as signals:
+        with pytest.raises(Interrupted) as raised:
+            signal.raise_signal(signum)  # the handler runs in this (main) thread
+        signal.raise_signal(signum)  # a second one is remembered, not raised
+    assert raised.value.signum == signum and raised.value.exit_code == 128 + signum
+    assert signal.Signals(signum).name in str(raised.value)
+    assert signals.received == [signum, signum]
+    assert signal.getsignal(signum) is before  # given back
+
+
+def test_signals_inherited_as_ignored_are_caught_and_given_back_ignored():
+    before = signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    try:
+        with TerminationSignals():
+            with pytest.raises(Interrupted):
+                signal.raise_signal(signal.SIGHUP)
+        assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGHUP, before)
+
+
+def test_held_signals_cannot_cut_a_block_short_and_the_first_is_raised_after_it():
+    done = []
+    with TerminationSignals() as signals:
+        with pytest.raises(Interrupted) as raised:
+            with signals.held():
+                signal.raise_signal(signal.SIGTERM)
+                signal.raise_signal(signal.SIGINT)  # a second signal during the stop sequence
+                done.append("the whole block")
+        assert raised.value.signum == signal.SIGTERM
+        with signals.held(raise_after=False):  # the stop sequence: nothing raised, after it either
+            signal.raise_signal(signal.SIGHUP)
+            done.append("the stop")
+    assert done == ["the whole block", "the stop"]
+    assert signals.received == [signal.SIGTERM, signal.SIGINT, signal.SIGHUP]

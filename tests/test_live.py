@@ -238,15 +238,17 @@ def test_hil_log_replays_with_every_estimator_against_its_truth(octagon_run, tmp
     capsys.readouterr()
 
 
-def test_unplugged_cable_stops_early_keeps_the_log_and_exits_2(tmp_path, capsys):
+def test_unplugged_cable_stops_early_keeps_the_log_and_exits_3(tmp_path, capsys):
     """The CLI end to end (real-time pacing, no lockstep): only what does not depend on
-    this machine's speed is checked — the exit status, the messages, a complete log."""
+    this machine's speed is checked — the exit status, the messages, a complete log. The
+    cable stays out, so no stop reaches the robot: exit 3, "not confirmed"."""
     out = tmp_path / "unplugged.jsonl"
     code = main(["live", "--port", "sim", "--sim-time-scale", str(TIME_SCALE), "--sim-unplug-after", "4",
                  "--out", str(out)])
     err = capsys.readouterr().err
-    assert code == 2, err
+    assert code == 3, err
     assert "stopped early: serial-error" in err and "THE CREATE KEEPS EXECUTING" in err
+    assert "CHECK THE ROBOT" in err and "robot stopped (confirmed)" not in err
     # Readable to the end, every pose complete (odometry, truth). How many poses came before
     # the unplug depends on how fast frames render here (a pose waits for its frame, at
     # most frame_timeout_s = 0.5 s of robot time): at least 4 s / (0.5 + 0.1) s.

@@ -1,8 +1,10 @@
 """``fgslam live``: iSAM2 in the loop on the robot (or the simulated one), everything recorded.
 
-Exit status: 0 when the path was driven to its end, 2 when the robot was stopped early (bump,
-wheel drop, watchdog, no data, lost serial link; the log is kept and the reason printed),
-130 on Ctrl-C/SIGTERM, 1 on a user error.
+Exit status (:mod:`fgslam.cli.robot_end`): 0 when the path was driven to its end and the
+robot confirmed its stop, 2 when the robot was stopped early (bump, wheel drop, watchdog, no
+data, lost serial link, a full disk; the log is kept and the reason printed), 3 when the stop
+was sent but not confirmed, 128 + N on signal N (SIGHUP, SIGINT, SIGQUIT, SIGTERM), 1 on a
+user error.
 """
 
 from __future__ import annotations
@@ -18,10 +20,10 @@ import numpy as np
 
 from fgslam.cli.common import add_overwrite_option, check_new_file, check_number
 from fgslam.cli.progress import Progress
+from fgslam.cli.robot_end import EXIT_STOP_NOT_CONFIRMED, EXIT_STOPPED_EARLY, report_end, robot_session, say  # noqa: F401
 from slamio.errors import FgslamError
 
-EXIT_STOPPED_EARLY = 2
-EXIT_INTERRUPTED = 130
+EXIT_INTERRUPTED = 130  # SIGINT; any signal N exits 128 + N
 
 DESCRIPTION = """\
 Drive an iRobot Create along waypoints, closing the loop on the iSAM2 pose, while the camera
@@ -36,7 +38,10 @@ A status line on stderr (on a terminal redrawn twice a second, else a line every
 the pose with its standard deviations (iSAM2's marginal),
 the landmarks, iSAM2 latency and frames; --map-png
 rewrites a picture of the map every 2 s. Stop with Ctrl-C: the wheels stop first, then the
-log is closed. Bumps, wheel drops, a lost serial link and a hung loop stop the robot too.
+log is closed. Bumps, wheel drops, a lost serial link, a hung loop, a full disk, SIGHUP (the
+SSH session dropped), SIGQUIT and SIGTERM stop the robot too, and the stop counts as done
+only when the robot reads back stopped; a guardian process stops it if this program is
+killed outright. Without --camera on a real robot the run is odometry only.
 
 --port sim runs it all in simulation: the simulated Create on a pseudo-terminal and a
 camera rendered from its true pose (the hardware-in-the-loop test); the log then has the
@@ -92,6 +97,9 @@ def add_parser(verbs) -> argparse.ArgumentParser:
                       "costs the same however long the run (default 200; 0 keeps every pose; colour landmarks "
                       "without ids need 0, and get it by default). The final map solves every pose either way")
     live.add_argument("--baud", type=int, default=None)
+    live.add_argument("--watchdog", type=float, default=0.5, metavar="S",
+                      help="stop the robot when the control loop sends no command, or no valid sensor reading "
+                           "arrives, for S seconds of wall time (default 0.5; more for a slow computer)")
     live.add_argument("--sim-time-scale", type=float, default=1.0, help="simulation: robot seconds per wall second")
     live.add_argument("--sim-seed", type=int, default=1)
     live.add_argument("--sim-unplug-after", type=float, default=None, metavar="S",
@@ -145,6 +153,7 @@ def _check_options(args: argparse.Namespace) -> None:
         check_number("--start-pose", tuple(args.start_pose), what="X,Y in metres and THETA in radians")
     check_number("--speed", args.speed, above=0, at_most=MAX_SPEED_M_S,
                   what=f"m/s; the Create drives at most {MAX_SPEED_M_S:g} m/s, e.g. 0.2")
+    check_number("--watchdog", args.watchdog, above=0, what="seconds of wall time, e.g. 0.5")
     check_number("--tag-size", args.tag_size, above=0, what="metres: the side of the tag's black square, e.g. 0.16")
     check_number("--sim-time-scale", args.sim_time_scale, above=0, what="robot seconds per wall second, e.g. 1 or 10")
     if args.sim_seed < 0:
@@ -173,8 +182,7 @@ def _check_map_png(png: Path, out: Path, overwrite: bool) -> None:
 
 
 def cmd_live(args: argparse.Namespace) -> int:
-    from fgslam.live import LiveSettings, run_live, simulated_camera, start_pose_facing
-    from slamio.create.link import CreateLink
+    from fgslam.live import LiveSettings, start_pose_facing
 
     _check_options(args)  # before the port is opened and the robot moves
     for path in (args.out, args.map_png):  # their folders, as record makes its own: nothing fails mid-run
@@ -187,7 +195,7 @@ def cmd_live(args: argparse.Namespace) -> int:
     start_pose = tuple(args.start_pose) if args.start_pose else start_pose_facing(waypoints)
     if args.port == "sim":
         _check_inside_arena(waypoints, start_pose, args.path, given_start=args.start_pose is not None)
-    settings = LiveSettings(speed_m_s=args.speed)
+    settings = LiveSettings(speed_m_s=args.speed, command_timeout_s=args.watchdog, data_timeout_s=args.watchdog)
     status = Progress(unit="poses")
     last_map = [0.0]
 
@@ -211,7 +219,22 @@ def cmd_live(args: argparse.Namespace) -> int:
             last_map[0] = time.monotonic()
             plot_live_map(args.map_png, smoother.trajectory(), smoother.landmarks(), waypoints)
 
-    sim = None
+    with robot_session(args.out) as signals:  # one writer per log; every terminating signal stops the robot
+        check_new_file(args.out, overwrite=args.overwrite)  # again, under the lock
+        result, sim_truth = _drive(args, waypoints, start_pose, settings, status, on_step, sensor, window_poses,
+                                   signals)
+        with signals.held(raise_after=False):  # the robot is stopped: what is left is to say so
+            return _report(args, result, sim_truth)
+
+
+def _drive(args, waypoints, start_pose, settings, status, on_step, sensor, window_poses, signals):
+    """Start the simulator (--port sim) or the camera, open the link, run the live loop.
+    Returns the :class:`LiveResult` and the simulator's true end pose (None: a real robot)."""
+    from fgslam.live import run_live, simulated_camera
+    from slamio.create.link import CreateLink
+
+    sim = link = None
+    true_pose = None
     unplug_timer = None
     odometry_noise = None  # a real robot: the recorder's nominal model
     try:
@@ -244,49 +267,50 @@ def cmd_live(args: argparse.Namespace) -> int:
         link.open()  # a port that does not open is a user error (exit 1), before the log exists
         result = run_live(link, args.out, waypoints, start_pose=start_pose, grab_for=grab_for, front_end=front_end,
                           settings=settings, truth=truth, truth_landmarks=truth_landmarks, clock=clock,
-                          odometry_noise=odometry_noise, on_step=on_step, sensor=sensor, window_poses=window_poses)
+                          odometry_noise=odometry_noise, on_step=on_step, sensor=sensor, window_poses=window_poses,
+                          overwrite=args.overwrite, signals=signals)
     finally:
-        status.close()
-        if "link" in locals():
-            link.close()
-        if sim is not None:
-            true_pose = sim.true_pose
-            sim.close()
+        with signals.held(raise_after=False):
+            status.close()
+            if link is not None:
+                link.close()
+            if sim is not None:
+                true_pose = sim.true_pose
+                sim.close()
+    return result, true_pose
+
+
+def _report(args, result, true_pose) -> int:
+    """The run's summary on stdout, how it ended on stderr; the exit status."""
     lat = 1e3 * result.latencies_s
-    print(f"wrote {args.out}: {result.poses} poses, {result.observations} observations from "
-          f"{result.frames_used} of {result.frames_requested} frames ({result.frames_skipped} skipped: camera busy, "
-          f"{result.frames_dropped} dropped: too late)")
+    if result.record.log_placed:
+        say(f"wrote {args.out}: {result.poses} poses, {result.observations} observations from "
+            f"{result.frames_used} of {result.frames_requested} frames ({result.frames_skipped} skipped: camera busy, "
+            f"{result.frames_dropped} dropped: too late)", sys.stdout)
     if len(lat):
-        print(f"iSAM2 step latency: median {np.median(lat):.2f} ms, p99 {np.percentile(lat, 99):.2f} ms, "
-              f"max {lat.max():.2f} ms")
+        say(f"iSAM2 step latency: median {np.median(lat):.2f} ms, p99 {np.percentile(lat, 99):.2f} ms, "
+            f"max {lat.max():.2f} ms", sys.stdout)
     x, y, th = result.final_pose
-    print(f"final iSAM2 pose: x {x:.3f} m, y {y:.3f} m, θ {math.degrees(th):.1f}°; "
-          f"{len(result.landmarks)} landmarks")
-    if sim is not None:
+    say(f"final iSAM2 pose: x {x:.3f} m, y {y:.3f} m, θ {math.degrees(th):.1f}°; "
+        f"{len(result.landmarks)} landmarks", sys.stdout)
+    if true_pose is not None:
         from fgslam.live import pose_error_m
 
-        print(f"simulator's true pose: x {true_pose[0]:.3f} m, y {true_pose[1]:.3f} m, "
-              f"θ {math.degrees(true_pose[2]):.1f}°; position error {pose_error_m(result.final_pose, true_pose):.4f} m")
-    reason = result.record.reason
-    shutdown = result.record.shutdown
-    if shutdown is not None and not shutdown.stopped:
-        print(f"fgslam live: WARNING: {shutdown.detail}", file=sys.stderr)
-    elif shutdown is not None and (reason.kind == "interrupted" or reason.is_fault):
-        print(f"fgslam live: robot: {shutdown.detail}", file=sys.stderr)  # stopped early: say the wheels are
-    if reason.kind == "interrupted":
-        print(f"fgslam live: {reason}", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    if reason.is_fault:
-        print(f"fgslam live: stopped early: {reason}; the log is kept ({args.out})", file=sys.stderr)
-        return EXIT_STOPPED_EARLY
-    print(f"stopped: {reason}")
-    return 0
+        say(f"simulator's true pose: x {true_pose[0]:.3f} m, y {true_pose[1]:.3f} m, "
+            f"θ {math.degrees(true_pose[2]):.1f}°; position error {pose_error_m(result.final_pose, true_pose):.4f} m",
+            sys.stdout)
+    return report_end("live", result.record, args.out)
 
 
 def _real_camera(args):
     """(grab_for, front_end) for a real camera: the newest frame of a background reader."""
     if args.camera is None:
-        raise FgslamError("a real robot needs --camera CAM.yaml (scripts/calibrate_camera.py writes one)")
+        if args.frames is not None:
+            raise FgslamError(f"--frames {args.frames} needs --camera CAM.yaml, the camera's calibration "
+                              "(scripts/calibrate_camera.py writes one)")
+        say("fgslam live: no --camera: odometry only (iSAM2 smooths the odometry; no landmarks). Give --camera "
+            "CAM.yaml to map landmarks")
+        return None, None
     from fgslam.live import LatestFrame
     from slamio.camera.detect import FrontEnd, FrontEndConfig
     from slamio.camera.model import load_camera

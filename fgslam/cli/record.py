@@ -1,23 +1,25 @@
 """``fgslam record``: drive an iRobot Create (or the simulated one) and record its odometry.
 
-Exit status: 0 when the path was driven to the end (or teleop quit), 2 when the robot was
-stopped early (bump, wheel drop, watchdog, no data, serial error, time limit; the log is
-kept and the reason printed), 130 on Ctrl-C/SIGTERM, 1 on a user error (bad option, port
-that does not open, an existing --out without --overwrite).
+Exit status (:mod:`fgslam.cli.robot_end`): 0 when the path was driven to the end (or teleop
+quit) and the robot confirmed its stop; 2 when the robot was stopped early (bump, wheel
+drop, watchdog, no data, serial error, time limit, a full disk; the log is kept and the
+reason printed); 3 when the stop was sent but the robot did not confirm it; 128 + N on
+signal N (SIGHUP 129, SIGINT 130, SIGQUIT 131, SIGTERM 143); 1 on a user error (bad option,
+port that does not open, an existing --out without --overwrite, another fgslam writing it).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
+import math
 import sys
 from pathlib import Path
 
 from fgslam.cli.common import add_overwrite_option, check_new_file, command_line, status_path
+from fgslam.cli.robot_end import EXIT_STOP_NOT_CONFIRMED, EXIT_STOPPED_EARLY, report_end, robot_session, say  # noqa: F401
 from slamio.errors import FgslamError
 
-EXIT_STOPPED_EARLY = 2
-EXIT_INTERRUPTED = 130
+EXIT_INTERRUPTED = 130  # SIGINT; any signal N exits 128 + N
 
 RECORD_DESCRIPTION = """\
 Drive an iRobot Create along a scripted path (or from the keyboard) and write its odometry
@@ -26,9 +28,16 @@ every record but at most the last.
 
 The robot stops (and the log is kept) on a bump, a wheel drop, when it leaves Safe mode,
 when the host stops sending commands for 0.5 s (watchdog), when no valid sensor data comes
-for 0.5 s, on Ctrl-C, and when the serial port fails. Whatever happens, the exit sends
-Drive Direct 0 0 and puts the robot back in Passive mode. The reason is printed and written
-to LOG's .status.json file next to it.
+for 0.5 s, when the serial port fails, when the disk is full, and on SIGHUP (the SSH
+session dropped), Ctrl-C, SIGQUIT and SIGTERM. Whatever happens, the exit pauses the
+stream, sends the wheels 0 and puts the robot back in Passive mode, then reads the robot
+back: "robot stopped (confirmed)" only when it answers so, else "stop sent, NOT confirmed"
+and exit status 3. If this program is killed outright (SIGKILL, out of memory, a crash), a
+guardian process sends the stop. The reason is printed and written to LOG's status file
+next to it.
+
+The log is written beside LOG and put in place once the robot answers: a robot that never
+answers leaves an existing LOG as it was (with --overwrite too).
 
 paths (counter-clockwise, turning left in place at each corner, from where the robot stands):
   square    4 sides of --side m (default 1.0 m)
@@ -94,6 +103,9 @@ def add_parser(verbs) -> argparse.ArgumentParser:
                    help="baud rate (default 57600 for create1, 115200 for create2)")
     p.add_argument("--calibration", default=None, metavar="FILE",
                    help="noise from `fgslam calibrate --out FILE` (default: nominal, uncalibrated values)")
+    p.add_argument("--watchdog", type=_positive(float), default=0.5, metavar="S",
+                   help="stop the robot when the control loop sends no command, or no valid sensor reading "
+                        "arrives, for S seconds of wall time (default 0.5; more for a slow computer)")
     p.add_argument("--max-duration", type=_positive(float), default=None, metavar="S",
                    help="stop after this many seconds")
     sim = p.add_argument_group("simulated Create (--port sim)")
@@ -146,17 +158,7 @@ def _frame_saver(args, sim, settings):
 
 def cmd_record(args: argparse.Namespace) -> int:
     from slamio.create.calibrate import load_calibration
-    from slamio.create.link import CreateLink
-    from slamio.create.record import (
-        TELEOP_HELP,
-        PathController,
-        RecorderSettings,
-        TeleopController,
-        TerminalKeys,
-        path_moves,
-        record,
-        write_status,
-    )
+    from slamio.create.record import RecorderSettings
 
     # Before the port is opened and the recorder starts the log: an existing recording is never
     # emptied unless --overwrite, and a place that cannot be written is one line, not a traceback.
@@ -166,8 +168,11 @@ def cmd_record(args: argparse.Namespace) -> int:
     if args.frames is not None and args.save_frames is None:
         raise FgslamError(f"--frames {args.frames} is the camera of --save-frames FOLDER, which is not given: add "
                           "--save-frames FOLDER to save its frames, or leave --frames out")
+    if not math.isfinite(args.watchdog):
+        raise FgslamError(f"--watchdog must be a finite number of seconds, e.g. 0.5; got {args.watchdog}")
     settings = RecorderSettings(speed_m_s=args.speed, turn_rate_rad_s=args.turn_rate, mode=args.mode,
-                                max_duration_s=args.max_duration)
+                                max_duration_s=args.max_duration, command_timeout_s=args.watchdog,
+                                data_timeout_s=args.watchdog)
     noise = observation = trials = None
     if args.calibration:
         calibration = load_calibration(args.calibration)
@@ -183,12 +188,21 @@ def cmd_record(args: argparse.Namespace) -> int:
     }
 
     out.parent.mkdir(parents=True, exist_ok=True)
+    with robot_session(out) as signals:  # one writer per log; every terminating signal stops the robot
+        check_new_file(out, overwrite=args.overwrite)  # again, under the lock: another recorder may have made it
+        return _record_run(args, out, settings, noise, observation, trials, source, signals)
+
+
+def _record_run(args, out: Path, settings, noise, observation, trials, source, signals) -> int:
+    """Start the simulator (--port sim), open the link, record, write the status file and
+    say how it ended (:mod:`fgslam.cli.robot_end`)."""
+    from slamio.create.link import CreateLink
+    from slamio.create.record import TELEOP_HELP, PathController, TeleopController, TerminalKeys, path_moves, record
+
     sim = None
     port, clock = args.port, None
     if args.port == "sim":
-        from slamio.create.sim import SimulatedCreate
-
-        from slamio.create.sim import without_sideways
+        from slamio.create.sim import SimulatedCreate, without_sideways
 
         # The simulated encoders err as the log's header says (a calibration's model when given).
         sim = SimulatedCreate(args.model, seed=args.sim_seed, time_scale=args.sim_time_scale,
@@ -198,7 +212,13 @@ def cmd_record(args: argparse.Namespace) -> int:
         port, clock = sim.port, sim.clock
         source["simulator"] = {"seed": args.sim_seed, "time_scale": args.sim_time_scale,
                                "corrupt_fraction": args.sim_corrupt, "drop_fraction": args.sim_drop}
-    saver = None
+    saver = link = None
+    status = status_path(out)
+
+    def placed():  # the new log is in place: a status file of the log it replaced no longer fits
+        if status.is_file():
+            status.unlink()
+
     try:
         if args.save_frames:
             saver = _frame_saver(args, sim, settings)
@@ -206,7 +226,7 @@ def cmd_record(args: argparse.Namespace) -> int:
         link = CreateLink(port, args.model, baud=args.baud)
         link.open()  # a port that does not open is a user error (exit 1), before the log exists
         kwargs = dict(settings=settings, noise=noise, source=source, observation_noise=observation,
-                      calibration=trials, hooks=saver)
+                      calibration=trials, hooks=saver, overwrite=args.overwrite, signals=signals, on_placed=placed)
         if clock is not None:
             kwargs["clock"] = clock
         if args.path == "teleop":
@@ -217,45 +237,48 @@ def cmd_record(args: argparse.Namespace) -> int:
             moves = path_moves(args.path, args.side, args.laps)
             result = record(link, out, PathController(moves, settings), **kwargs)
     finally:
-        if "link" in locals():
-            link.close()
-        if saver is not None:
-            saver.close()
-        if sim is not None:
-            sim.close()
-    write_status(result, status_path(out))
-    if sim is not None:  # add the ground truth to the status file
-        status = json.loads(status_path(out).read_text())
-        status["simulator"] = {
-            "true_pose": list(sim.true_pose),
-            "true_path_length_m": sim.true_path_length_m,
-            "commanded_mm_s": list(sim.commanded_mm_s),
-            "oi_mode": int(sim.mode),
-            "frames_sent": sim.frames_sent,
-            "bytes_corrupted": sim.bytes_corrupted,
-            "bytes_dropped": sim.bytes_dropped,
-        }
-        status_path(out).write_text(json.dumps(status, indent=2) + "\n")
+        with signals.held(raise_after=False):
+            if link is not None:
+                link.close()
+            if saver is not None:
+                saver.close()
+            if sim is not None:
+                sim.close()
+    with signals.held(raise_after=False):  # the robot is stopped: what is left is to say so
+        return _report(args, out, result, sim, saver, status)
 
+
+def _report(args, out: Path, result, sim, saver, status: Path) -> int:
+    from slamio.create.record import write_status
+
+    if result.log_placed:
+        try:
+            write_status(result, status, _simulator_status(sim) if sim is not None else None)
+        except OSError as exc:  # a full disk: the log and the robot's outcome still get said
+            say(f"fgslam record: warning: cannot write {status}: {exc.strerror or exc}")
     stats = result.link_stats
     quality = (f"{stats.get('frames_ok', 0)} frames, {stats.get('bad_frames', 0)} rejected"
                if stats.get("reader") == "stream"
                else f"{stats.get('answers', 0)} answers, {stats.get('lost_answers', 0)} lost")
-    print(f"wrote {out}: {result.records} odometry records over {result.duration_s:.1f} s, "
-          f"{result.distance_m:.3f} m driven, {result.angle_rad:.2f} rad turned ({quality})")
+    if result.log_placed:
+        say(f"wrote {out}: {result.records} odometry records over {result.duration_s:.1f} s, "
+            f"{result.distance_m:.3f} m driven, {result.angle_rad:.2f} rad turned ({quality})", sys.stdout)
     if saver is not None:
-        print(f"saved {saver.saved} camera frames to {args.save_frames}/ ({saver.skipped} skipped: the writer was "
-              f"behind; {saver.missing} without an image)")
-    if result.shutdown is not None and not result.shutdown.stopped:
-        print(f"fgslam record: WARNING: {result.shutdown.detail}", file=sys.stderr)
-    elif result.shutdown is not None and (result.reason.kind == "interrupted" or result.reason.is_fault):
-        print(f"fgslam record: robot: {result.shutdown.detail}", file=sys.stderr)  # stopped early: say the wheels are
-    if result.reason.kind == "interrupted":
-        print(f"fgslam record: {result.reason}", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    if result.reason.is_fault:
-        print(f"fgslam record: stopped early: {result.reason}; the log keeps the {result.records} records "
-              f"before it", file=sys.stderr)
-        return EXIT_STOPPED_EARLY
-    print(f"stopped: {result.reason}")
-    return 0
+        say(f"saved {saver.saved} camera frames to {args.save_frames}/ ({saver.skipped} skipped: the writer was "
+            f"behind; {saver.missing} without an image)", sys.stdout)
+    return report_end("record", result, out)
+
+
+def _simulator_status(sim) -> dict:
+    """The simulator's ground truth for the status file of a --port sim recording."""
+    return {"simulator": {
+        "true_pose": list(sim.true_pose),
+        "true_path_length_m": sim.true_path_length_m,
+        "encoder_distance_m": sim.encoder_distance_m,  # what the encoders counted, noise included
+        "encoder_turn_rad": sim.encoder_turn_rad,
+        "commanded_mm_s": list(sim.commanded_mm_s),
+        "oi_mode": int(sim.mode),
+        "frames_sent": sim.frames_sent,
+        "bytes_corrupted": sim.bytes_corrupted,
+        "bytes_dropped": sim.bytes_dropped,
+    }}

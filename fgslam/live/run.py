@@ -124,7 +124,8 @@ def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front
              settings: LiveSettings = LiveSettings(), smoother=None, truth=None, truth_landmarks=(),
              clock: Callable[[], float] = time.monotonic, sensor: dict | None = None,
              observation_noise: dict | None = None, odometry_noise=None, on_step=None,
-             lockstep: Lockstep | None = None, window_poses: int | None = LIVE_WINDOW_POSES) -> LiveResult:
+             lockstep: Lockstep | None = None, window_poses: int | None = LIVE_WINDOW_POSES,
+             overwrite: bool = False, signals=None) -> LiveResult:
     """Drive ``waypoints`` on the robot behind ``link`` with iSAM2 in the loop; log to
     ``out_path``. ``grab_for``/``front_end`` give the camera (None: odometry only);
     ``smoother`` defaults to :class:`fgslam.smoother.Isam2Smoother` with its defaults and a
@@ -141,7 +142,11 @@ def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front
     ``lockstep`` (simulation only, :class:`Lockstep`) gives every frame and smoother step a
     fixed budget of robot time, so how fast this machine renders, detects and smooths
     changes the run's wall time, never what happens in robot time. On a real robot time
-    does not stop: leave it None."""
+    does not stop: leave it None.
+
+    ``overwrite`` and ``signals`` go to :func:`slamio.create.record.record`: the log replaces
+    an existing ``out_path`` only once the robot has answered, and the terminating signals
+    stop the robot (the caller installs ``signals``; None: the recording installs its own)."""
     from fgslam.smoother import Isam2Smoother
     from slamio.create.record import RecorderSettings, record
     from slamio.log import Header
@@ -178,7 +183,7 @@ def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front
     try:
         result = record(link, out_path, follower, settings=recorder, clock=clock, hooks=loop,
                         start_pose=start_pose, sensor=sensor, observation_noise=observation_noise,
-                        noise=odometry_noise,
+                        noise=odometry_noise, overwrite=overwrite, signals=signals,
                         source={"generator": "fgslam.live", "waypoints": np.asarray(waypoints).tolist()})
     finally:
         loop.close()

@@ -6,12 +6,18 @@ Create's, or a URL such as ``loop://`` (bytes written come back) or ``socket://h
 
 Use it as a context manager. Leaving the block — normally, on an exception, on Ctrl-C —
 always runs :meth:`CreateLink.shutdown`: pause the stream (150 0), stop both wheels (Drive
-Direct 0 0) and put the OI back in Passive mode (Start, 128), so a crashed program never
-leaves the robot driving. If the port has failed (an unplugged USB adapter), shutdown tries
-to reconnect (``reconnect_attempts`` × ``reconnect_delay_s``) and sends the stop again; if
-that fails too it says so in its report: **the Create has no command timeout and keeps
-driving** until it is stopped some other way (its Safe mode only stops on a cliff or a
-wheel drop).
+0 and Drive Direct 0 0) and put the OI back in Passive mode (Start, 128), then **read the
+robot back** (:mod:`slamio.create.stopping`): the report says "stopped (confirmed)" only
+when the robot answers that it is in Passive mode with every requested velocity 0. If the
+port has failed (an unplugged USB adapter), shutdown tries to reconnect
+(``reconnect_attempts`` × ``reconnect_delay_s``) and sends the stop again; if that fails too
+it says so in its report: **the Create has no command timeout and keeps driving** until it
+is stopped some other way (its Safe mode only stops on a cliff or a wheel drop).
+
+A process that dies without running any of this (SIGKILL, the OOM killer, a segfault in
+native code) is covered by the **guardian** (:mod:`slamio.create.guardian`), a small
+process the link starts when it opens a port that has a file descriptor: it writes the
+stop sequence as soon as this process is gone.
 
 Baud rates: Create 1 57600, Create 2 115200 (the defaults for ``model``).
 """
@@ -24,6 +30,7 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from slamio.create import protocol
+from slamio.create.stopping import StopCheck, confirm_stop, stop_bytes
 from slamio.errors import FgslamError
 
 __all__ = ["LinkError", "DEFAULT_BAUD", "MODELS", "CreateLink", "ShutdownReport"]
@@ -39,11 +46,22 @@ class LinkError(FgslamError):
 @dataclass(frozen=True)
 class ShutdownReport:
     """What :meth:`CreateLink.shutdown` managed: ``stopped`` is True when the stop and
-    passive commands were written (after a reconnect if ``reconnected``)."""
+    passive commands were written (after a reconnect if ``reconnected``), ``confirmed``
+    when the robot then read back stopped (:mod:`slamio.create.stopping`)."""
 
     stopped: bool
     reconnected: bool
     detail: str
+    confirmed: bool = False
+
+    @property
+    def summary(self) -> str:
+        """One line for the user: ``stopped (confirmed)`` or, loudly, what is not known."""
+        if self.confirmed:
+            return f"robot stopped (confirmed): {self.detail}"
+        if self.stopped:
+            return f"stop sent, NOT confirmed — CHECK THE ROBOT: {self.detail}"
+        return f"robot NOT stopped — {self.detail}"
 
 
 def _default_opener(url: str, **kwargs: Any):
@@ -77,7 +95,7 @@ class CreateLink:
     def __init__(self, port: str, model: str = "create2", *, baud: int | None = None,
                  timeout_s: float = 0.05, write_timeout_s: float = 2.0, reconnect_attempts: int = 3,
                  reconnect_delay_s: float = 0.2, stop_oi_on_exit: bool = False,
-                 opener: Callable[..., Any] | None = None):
+                 opener: Callable[..., Any] | None = None, guardian: bool = True):
         if model not in MODELS:
             raise LinkError(f"unknown Create model {model!r}; use one of {', '.join(MODELS)}")
         self.port = port
@@ -95,6 +113,9 @@ class CreateLink:
         self.bytes_written = 0
         self.reconnects = 0
         self.serial_errors: list[str] = []
+        self.use_guardian = guardian
+        self._guardian = None
+        self.guardian_note = "not started"
 
     # ------------------------------------------------------------------ open / close
 
@@ -116,11 +137,44 @@ class CreateLink:
                     "port name (ls /dev/serial/by-id/), that you may use it (Linux: sudo usermod -aG dialout "
                     "$USER, then log in again) and that no other program has it open"
                 ) from None
+            if self.use_guardian:
+                self._start_guardian()
         return self
 
+    def _start_guardian(self) -> None:
+        """The guardian process on this port's descriptor (:mod:`slamio.create.guardian`);
+        a port without a descriptor (``loop://``, a test's spy) has none."""
+        from slamio.create.guardian import start_guardian
+
+        try:
+            fd = self._serial.fileno()
+        except Exception:  # noqa: BLE001 - pyserial URL ports raise their own errors (or none exists)
+            self.guardian_note = "none: the port has no file descriptor"
+            return
+        if not isinstance(fd, int) or fd < 0:
+            self.guardian_note = "none: the port has no file descriptor"
+            return
+        try:
+            self._guardian = start_guardian(fd)
+        except OSError as exc:
+            ser, self._serial = self._serial, None
+            ser.close()
+            raise LinkError(f"serial port {self.port!r}: the guardian process (which stops the robot if this "
+                            f"program dies) could not start: {exc}") from None
+        self.guardian_note = f"process {self._guardian.pid}"
+
+    @property
+    def guardian_pid(self) -> int | None:
+        """The guardian's process id while it watches this link (None: no guardian)."""
+        return None if self._guardian is None else self._guardian.pid
+
     def close(self) -> None:
+        """Close the port; the guardian is released first (it exits without writing)."""
         with self._lock:
             ser, self._serial = self._serial, None
+            guardian, self._guardian = self._guardian, None
+        if guardian is not None:
+            guardian.release()
         if ser is not None:
             try:
                 ser.close()
@@ -205,31 +259,49 @@ class CreateLink:
         """Drive Direct 0 0."""
         self.drive_direct(0, 0)
 
-    def _stop_sequence(self) -> None:
+    def drain(self, limit_s: float = 0.5) -> None:
+        """Read and drop what arrives until the line is quiet for one read timeout
+        (``timeout_s``: frames of a stream just paused), for at most ``limit_s``."""
+        deadline = time.monotonic() + limit_s
+        while time.monotonic() < deadline and self.read():
+            pass
+
+    def confirm_stopped(self) -> StopCheck:
+        """Ask the robot whether it is stopped (:func:`slamio.create.stopping.confirm_stop`)."""
+        try:
+            return confirm_stop(self.write, lambda size, timeout: self.read_exactly(size, timeout), self.drain)
+        except LinkError as exc:
+            return StopCheck(False, f"the read-back failed: {exc}")
+
+    def _stop_sequence(self) -> StopCheck:
         with self._lock:
-            self.write(protocol.pause_stream() + protocol.drive_direct(left_mm_s=0, right_mm_s=0))
-            self.write(protocol.passive())
+            self.write(stop_bytes())
+            check = self.confirm_stopped()
             if self.stop_oi_on_exit:
                 self.write(protocol.stop_oi())
+        return check
 
     def shutdown(self) -> ShutdownReport:
-        """Pause the stream, stop the wheels, back to Passive; reconnect once if needed.
+        """Pause the stream, stop the wheels, back to Passive, read the robot back;
+        reconnect once if needed.
 
-        Never raises: the report says what happened.
+        Never raises: the report says what happened and whether the robot confirmed it.
         """
         first_error = None
+        done = "stream paused, wheels stopped, OI set to passive"
         if self._serial is not None:
             try:
-                self._stop_sequence()
-                return ShutdownReport(True, False, "stream paused, wheels stopped, OI in passive mode")
+                check = self._stop_sequence()
+                return ShutdownReport(True, False, f"{done}; {check.detail}", check.confirmed)
             except LinkError as exc:
                 first_error = str(exc)
         else:
             first_error = f"serial port {self.port!r} was closed"
         if self.reconnect():
             try:
-                self._stop_sequence()
-                return ShutdownReport(True, True, f"{first_error}; reconnected, wheels stopped, OI in passive mode")
+                check = self._stop_sequence()
+                return ShutdownReport(True, True, f"{first_error}; reconnected, {done}; {check.detail}",
+                                      check.confirmed)
             except LinkError as exc:
                 first_error += f"; reconnected but: {exc}"
         return ShutdownReport(

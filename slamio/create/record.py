@@ -28,17 +28,14 @@ wrong way.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import os
 import select
-import signal
 import sys
-import threading
 import time
 from dataclasses import asdict, dataclass, field
-from typing import Any, Callable, Iterator, Protocol, Sequence
+from typing import Any, Callable, Protocol, Sequence
 
 from slamio.create import protocol
 from slamio.create.link import CreateLink, LinkError, ShutdownReport
@@ -57,12 +54,12 @@ from slamio.create.safety import (
     implausible_create1_reading,
     implausible_encoder_jump,
     implausible_frame,
-    interrupts_deferred,
-    signal_guard,
 )
+from slamio.create.signals import Interrupted, TerminationSignals, describe_signal, guarded
 from slamio.errors import FgslamError
 from slamio.geometry import compose_pose
 from slamio.log import Header, LogWriter
+from slamio.log.pending import LogWriteError, PendingLogWriter
 
 __all__ = [
     "PATHS",
@@ -77,7 +74,6 @@ __all__ = [
     "make_header",
     "record",
     "RecordHooks",
-    "interrupt_guard",
     "write_status",
     "STREAM_IDS",
     "POLL_IDS",
@@ -182,14 +178,21 @@ class RecordResult:
     final_pose: tuple[float, float, float]  # dead reckoning from (0, 0, 0)
     link_stats: dict[str, Any] = field(default_factory=dict)
     shutdown: ShutdownReport | None = None
+    log_placed: bool = True  # False: the robot never answered, ``out_path`` is as it was
+    signum: int | None = None  # the signal that stopped the recording, if one did
 
     @property
     def completed(self) -> bool:
         return not self.reason.is_fault
 
+    @property
+    def robot_confirmed_stopped(self) -> bool:
+        return self.shutdown is not None and self.shutdown.confirmed
 
-def write_status(result: RecordResult, path: str | os.PathLike[str]) -> None:
-    """Write the result (the stop reason first) as JSON next to the log."""
+
+def write_status(result: RecordResult, path: str | os.PathLike[str], extra: dict[str, Any] | None = None) -> None:
+    """Write the result (the stop reason first) as JSON next to the log, through a temporary
+    file and a rename (an interrupted write never leaves half a status)."""
     d = {
         "reason": {"kind": result.reason.kind, "message": result.reason.message},
         "log": result.out_path,
@@ -199,11 +202,20 @@ def write_status(result: RecordResult, path: str | os.PathLike[str]) -> None:
         "angle_rad": result.angle_rad,
         "final_pose": list(result.final_pose),
         "link": result.link_stats,
-        "shutdown": None if result.shutdown is None else asdict(result.shutdown),
+        "shutdown": None if result.shutdown is None else {**asdict(result.shutdown),
+                                                           "summary": result.shutdown.summary},
+        **({"signal": result.signum} if result.signum is not None else {}),
+        **(extra or {}),
     }
-    with open(path, "w", encoding="utf-8") as f:
-        json.dump(d, f, indent=2)
-        f.write("\n")
+    tmp = f"{os.fspath(path)}.{os.getpid()}.tmp"
+    try:
+        with open(tmp, "w", encoding="utf-8") as f:
+            json.dump(d, f, indent=2)
+            f.write("\n")
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
 
 
 # --------------------------------------------------------------------------- controllers
@@ -525,28 +537,6 @@ def make_header(model: str, port: str, baud: int, noise: OdometryNoise, settings
     )
 
 
-@contextlib.contextmanager
-def interrupt_guard() -> Iterator[None]:
-    """SIGINT (Ctrl-C, ``kill -INT``) raises KeyboardInterrupt while the block runs, whatever
-    the process inherited.
-
-    Python installs its Ctrl-C handler at start-up only when SIGINT is not ignored; a
-    recorder started with ``&`` from a non-interactive script (or by a supervisor that
-    ignores SIGINT) inherits it ignored, and SIGINT would leave the robot driving. So the
-    default handler is installed unconditionally for the recording, and the previous
-    disposition (ignored or not) restored after. Only the main thread can install signal
-    handlers; elsewhere this does nothing.
-    """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, signal.default_int_handler if previous is None else previous)
-
-
 class RecordHooks(Protocol):
     """What :func:`record` asks of a loop that rides on it (``fgslam live``)."""
 
@@ -578,16 +568,26 @@ def record(
     start_pose: Sequence[float] = (0.0, 0.0, 0.0),
     sensor: dict[str, Any] | None = None,
     calibration: dict[str, Any] | None = None,
+    overwrite: bool = False,
+    signals: TerminationSignals | None = None,
+    on_placed: Callable[[], None] | None = None,
 ) -> RecordResult:
     """Drive ``controller``'s path on the robot behind ``link`` and log the odometry.
 
     Returns a :class:`RecordResult` whatever happens on the robot side (hazards, a failed
-    port, Ctrl-C); raises :class:`FgslamError` only when the log cannot be written.
-    ``clock`` gives the robot time used for stamps and periods (the simulator passes its
-    own). ``frame_tap`` sees every accepted reading (tests); ``on_record(n)`` is called
-    after the n-th record is flushed. ``hooks`` lets another loop ride on this one (the live
-    loop, :mod:`fgslam.live`): it decides when a record is due and writes its own records
-    after each odometry record (see :class:`RecordHooks`).
+    port, a terminating signal, a full disk); raises :class:`FgslamError` only when the log
+    cannot be started. ``clock`` gives the robot time used for stamps and periods (the
+    simulator passes its own). ``frame_tap`` sees every accepted reading (tests);
+    ``on_record(n)`` is called after the n-th record is flushed. ``hooks`` lets another loop
+    ride on this one (the live loop, :mod:`fgslam.live`): it decides when a record is due and
+    writes its own records after each odometry record (see :class:`RecordHooks`).
+
+    The log is written beside ``out_path`` and put in place once the robot has answered
+    (:class:`slamio.log.pending.PendingLogWriter`; ``overwrite`` lets it replace an existing
+    file, ``on_placed()`` is called then): a robot that never answers leaves ``out_path`` as
+    it was. ``signals`` (:class:`slamio.create.signals.TerminationSignals`, installed by the
+    caller) turns SIGHUP/SIGINT/SIGQUIT/SIGTERM into a stop; None installs one for the
+    recording. The stop sequence runs with signals held, so a second one cannot cut it short.
     """
     model = link.model
     noise = noise or default_noise(model)
@@ -610,13 +610,14 @@ def record(
     pose = tuple(float(v) for v in start_pose)  # dead-reckoned, for RecordResult.final_pose
     stamp = 0.0
     reason: StopReason | None = None
+    signum: int | None = None
 
     def now_s() -> float:
         return max(stamp, clock() - t0)
 
-    def write_record(log: LogWriter) -> None:
+    def write_record(log: PendingLogWriter, sig: TerminationSignals) -> None:
         nonlocal records, distance_m, angle_rad, pose, stamp
-        with interrupts_deferred():  # a written record is always a counted one
+        with sig.held():  # a written record is always a counted one
             stamp = now_s()
             rec = odometry.take(stamp)
             log.write(rec)
@@ -645,36 +646,55 @@ def record(
         controller.advance(d, a)
 
     started = False
-    with LogWriter(out_path, header) as log, signal_guard(), interrupt_guard():
+    with guarded(signals) as sig, PendingLogWriter(out_path, header, overwrite=overwrite) as log:
         if hooks is not None and hasattr(hooks, "started"):
             hooks.started(log)
         try:
-            with link:
+            try:
+                link.open()
                 link.write(protocol.start())
                 link.write(protocol.safe() if target_mode == OiMode.SAFE else protocol.full())
                 reader.setup()
                 reason = _first_reading(reader, odometry, target_mode, settings, now_s, frame_tap,
                                         getattr(hooks, "passed", None))
                 if reason is None:
+                    with sig.held():
+                        log.place()  # the robot answers: the new log replaces the old one now
+                        if on_placed is not None:
+                            on_placed()
                     started = True
                     monitor.expected_mode = target_mode
                     reason = _drive(link, reader, odometry, controller, monitor, settings, now_s,
-                                    frame_tap, use, lambda: write_record(log), hooks)
+                                    frame_tap, use, lambda: write_record(log, sig), hooks)
                 if reason.is_fault:
                     monitor.trip(reason)  # keeps an earlier reason if there is one
-                monitor.close()
+            finally:
+                _stop_the_robot(link, monitor, sig)
         except LinkError as exc:
             monitor.trip(StopReason("serial-error", str(exc)))
+        except LogWriteError as exc:
+            monitor.trip(StopReason("log-error", str(exc)))
+        except Interrupted as exc:
+            signum = exc.signum
+            monitor.trip(StopReason("interrupted", f"{describe_signal(exc.signum)}: stopped by a signal"))
         except KeyboardInterrupt:
-            monitor.trip(StopReason("interrupted", "Ctrl-C or SIGTERM: stopped by the user"))
-        finally:
-            monitor.close()
+            monitor.trip(StopReason("interrupted", "KeyboardInterrupt: stopped"))
         reason = monitor.reason or reason  # the first fault wins, whichever thread saw it
         assert reason is not None
+        if signum is None and sig.first is not None:  # a signal held during the stop sequence
+            signum = sig.first
+            if not reason.is_fault:
+                reason = StopReason("interrupted", f"{describe_signal(signum)}: came while the robot was stopping")
         if started:
-            write_record(log)  # whatever moved since the last record
+            with sig.held(raise_after=False):
+                try:
+                    write_record(log, sig)  # whatever moved since the last record
+                except LogWriteError as exc:
+                    if not reason.is_fault:
+                        reason = StopReason("log-error", str(exc))
     stats = {**reader.stats(), "bytes_read": link.bytes_read, "bytes_written": link.bytes_written,
-             "reconnects": link.reconnects, "serial_errors": list(link.serial_errors)}
+             "reconnects": link.reconnects, "serial_errors": list(link.serial_errors),
+             "guardian": link.guardian_note}
     return RecordResult(
         reason=reason,
         out_path=os.fspath(out_path),
@@ -685,7 +705,24 @@ def record(
         final_pose=pose,  # type: ignore[arg-type]
         link_stats=stats,
         shutdown=getattr(link, "last_shutdown", None),
+        log_placed=log.placed,
+        signum=signum,
     )
+
+
+def _stop_the_robot(link: CreateLink, monitor: SafetyMonitor, sig: TerminationSignals) -> None:
+    """The stop sequence with signals held: a second signal cannot cut it short. A first
+    signal that lands before the hold is in place is kept (``sig.received``) and the stop
+    runs again from the start."""
+    while True:
+        try:
+            with sig.held(raise_after=False):
+                monitor.close()
+                link.last_shutdown = link.shutdown()
+                link.close()
+            return
+        except Interrupted:
+            continue
 
 
 def _first_reading(reader, odometry, target_mode, settings, now_s, tap, passed=None) -> StopReason | None:

@@ -14,8 +14,11 @@ So the host watches:
   a stuck write, a paused debugger) — a background thread stops the motors by itself;
 * **no-data**: no valid sensor reading for ``data_timeout_s`` (cable pulled, robot off,
   wrong baud rate, too much corruption);
-* **interrupted**: Ctrl-C or SIGTERM (:func:`signal_guard`);
-* **serial-error**: the port failed (USB adapter unplugged).
+* **interrupted**: SIGHUP, SIGINT (Ctrl-C), SIGQUIT or SIGTERM
+  (:class:`slamio.create.signals.TerminationSignals`);
+* **serial-error**: the port failed (USB adapter unplugged);
+* **log-error**: the log could not be written (a full disk): the robot stops rather than
+  drive on unrecorded.
 
 :class:`SafetyMonitor` keeps the first reason (:class:`StopReason`) and sends the stop at
 once (``stop_motors``, normally Drive Direct 0 0). The recorder returns that reason, prints
@@ -24,33 +27,29 @@ it and writes it next to the log.
 
 from __future__ import annotations
 
-import contextlib
 import math
-import signal
 import threading
 import time
 from dataclasses import dataclass
-from typing import Callable, Iterator, Mapping
+from typing import Callable, Mapping
 
 from slamio.create.protocol import OiMode, decode_bumps_and_drops
 
 __all__ = [
     "StopReason",
     "STOP_KINDS",
-    "interrupts_deferred",
     "hazard_from_bumps",
     "hazard_from_mode",
     "implausible_frame",
     "implausible_encoder_jump",
     "implausible_create1_reading",
     "SafetyMonitor",
-    "signal_guard",
 ]
 
 #: Every kind of stop; ``completed`` and ``quit`` are the normal ends of a run.
 STOP_KINDS = (
     "completed", "quit", "bump", "wheel-drop", "mode", "watchdog", "no-data",
-    "interrupted", "serial-error", "time-limit",
+    "interrupted", "serial-error", "time-limit", "log-error",
 )
 
 
@@ -265,51 +264,3 @@ class SafetyMonitor:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-@contextlib.contextmanager
-def signal_guard() -> Iterator[None]:
-    """Turn SIGTERM into KeyboardInterrupt (like Ctrl-C) while the block runs.
-
-    The recorder catches KeyboardInterrupt, stops the robot and keeps the log. Only the
-    main thread can install signal handlers; elsewhere this does nothing.
-    """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def _raise(signum, frame):  # noqa: ARG001
-        raise KeyboardInterrupt(f"signal {signum}")
-
-    previous = signal.signal(signal.SIGTERM, _raise)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
-@contextlib.contextmanager
-def interrupts_deferred() -> Iterator[None]:
-    """Hold SIGINT and SIGTERM back while the block runs; raise KeyboardInterrupt after it
-    if one came.
-
-    The recorder writes a record and counts it in one such block, so an interrupt cannot
-    land between the two (a written record left out of the count the recorder reports).
-    Only the main thread can install signal handlers; elsewhere this does nothing.
-    """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    pending: list[int] = []
-
-    def _hold(signum, frame):  # noqa: ARG001
-        pending.append(signum)
-
-    previous = {signum: signal.signal(signum, _hold) for signum in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, signal.default_int_handler if handler is None else handler)
-    if pending:
-        raise KeyboardInterrupt(f"signal {pending[0]}")

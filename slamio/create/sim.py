@@ -45,7 +45,9 @@ What is simulated
   non-zero mask) with probability ``corrupt_fraction``. :meth:`unplug` pulls the cable:
   the pseudo-terminal closes (the host's port fails), the robot goes on with its last
   command; :meth:`replug` gives a fresh pseudo-terminal behind the same :attr:`port` path
-  (a symbolic link, like ``/dev/serial/by-id/...``).
+  (a symbolic link, like ``/dev/serial/by-id/...``). :meth:`freeze` hangs the robot's
+  firmware: no byte is read or sent, the wheels keep their last command (a stop then goes
+  unconfirmed).
 
 Time runs in 15 ms steps of simulated time (:meth:`clock`), paced at ``time_scale`` ×
 real time by a background thread (``time_scale`` 10 runs a 30 s drive in 3 s). A host that
@@ -229,6 +231,7 @@ class SimulatedCreate:
         self._distance_mm = 0.0  # packet 19 accumulator
         self._angle_deg = 0.0  # packet 20 accumulator
         self._lifted = False
+        self._frozen = False
         self._bumps = 0
         self._stream_ids: list[int] | None = None
         self._stream_paused = False
@@ -329,6 +332,16 @@ class SimulatedCreate:
     @property
     def plugged(self) -> bool:
         return self._master is not None
+
+    def freeze(self, frozen: bool = True) -> None:
+        """The robot's firmware hangs (or thaws): it reads no byte and sends none, and the
+        wheels keep their last command — a robot that takes a stop without a word."""
+        with self._lock:
+            self._frozen = frozen
+
+    @property
+    def frozen(self) -> bool:
+        return self._frozen
 
     def lift(self, lifted: bool = True) -> None:
         """Pick the robot up (both wheel drops) or put it back down."""
@@ -516,7 +529,7 @@ class SimulatedCreate:
     # ------------------------------------------------------------------ bytes
 
     def _receive(self) -> None:
-        if self._master is None:
+        if self._master is None or self._frozen:
             return
         while True:
             try:
@@ -539,7 +552,7 @@ class SimulatedCreate:
             self._obey()
 
     def _send(self, data: bytes) -> None:
-        if self._master is None:
+        if self._master is None or self._frozen:
             return
         if self.drop_fraction or self.corrupt_fraction:
             u = self._fault_rng.random((len(data), 2))
