@@ -38,10 +38,11 @@ from __future__ import annotations
 
 import math
 import os
-from pathlib import Path
 
 import gtsam
 import numpy as np
+
+from fgslam.atomic import write_text_whole
 
 __all__ = ["format_g2o", "write_g2o", "landmark_vertex_id"]
 
@@ -150,5 +151,5 @@ def format_g2o(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, num_pose
 
 def write_g2o(path: str | os.PathLike[str], graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,
               num_poses: int) -> None:
-    """Write :func:`format_g2o` to ``path`` (overwriting it)."""
-    Path(path).write_text(format_g2o(graph, values, num_poses), encoding="utf-8")
+    """Write :func:`format_g2o` to ``path`` (replacing it), whole or not at all (:mod:`fgslam.atomic`)."""
+    write_text_whole(path, format_g2o(graph, values, num_poses))

@@ -400,6 +400,7 @@ def _nearest_rigid(T: np.ndarray) -> np.ndarray:
 
 
 def write_tum3(path, stamps_s, poses) -> None:
-    from pathlib import Path
+    """Write :func:`format_tum3` to ``path``, whole or not at all (:mod:`fgslam.atomic`)."""
+    from fgslam.atomic import write_text_whole
 
-    Path(path).write_text(format_tum3(stamps_s, poses), encoding="utf-8")
+    write_text_whole(path, format_tum3(stamps_s, poses))

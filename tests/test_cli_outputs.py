@@ -63,10 +63,30 @@ def test_sim_refuses_an_existing_log_and_keeps_it(log, tmp_path, capsys):
 def test_a_replaced_recording_takes_its_status_file_with_it(tmp_path, capsys):
     out = tmp_path / "run.jsonl"
     assert main([*SIM, "--out", str(out)]) == 0
-    status = tmp_path / "run.status.json"  # as fgslam record leaves it: how that recording ended
+    status = tmp_path / "run.jsonl.status.json"  # as fgslam record leaves it: how that recording ended
     status.write_text('{"reason": "interrupted"}\n')
     assert main([*SIM, "--out", str(out), "--overwrite"]) == 0
     assert not status.exists() and f"removed {status}" in capsys.readouterr().out
+
+
+def test_each_log_has_its_own_status_file(tmp_path, capsys):
+    """run.jsonl and run.json once shared run.status.json; an older recording's status file
+    under that name goes with its log only when it says it describes that log."""
+    from fgslam.cli.common import status_path
+
+    assert status_path(tmp_path / "run.jsonl") != status_path(tmp_path / "run.json")
+    assert status_path(tmp_path / "run.jsonl").name == "run.jsonl.status.json"
+    assert status_path(tmp_path / "run").name == "run.status.json"
+    out = tmp_path / "run.jsonl"
+    assert main([*SIM, "--out", str(out)]) == 0
+    older = tmp_path / "run.status.json"  # an older fgslam's name for the status of run.jsonl
+    older.write_text(json.dumps({"reason": {"kind": "completed"}, "log": str(tmp_path / "run.json")}) + "\n")
+    assert main([*SIM, "--out", str(out), "--overwrite"]) == 0
+    assert older.exists()  # it describes run.json, not this log: kept
+    older.write_text(json.dumps({"reason": {"kind": "completed"}, "log": str(out)}) + "\n")
+    capsys.readouterr()
+    assert main([*SIM, "--out", str(out), "--overwrite"]) == 0
+    assert not older.exists() and f"removed {older}" in capsys.readouterr().out
 
 
 def test_sim_into_a_folder_or_under_a_file_is_one_line(tmp_path, capsys):
@@ -264,7 +284,7 @@ def test_every_verb_goes_through_the_one_error_path(tmp_path, capsys):
         ["import", "mrclam", str(tmp_path / "nothing"), str(tmp_path / "x.jsonl")],
     ]
     for argv in cases:
-        assert main(argv) == 1, argv
+        assert main(argv) == 2, argv  # an input file that cannot be used: status 2
         err = capsys.readouterr().err
         assert err.startswith("fgslam: error: ") and "Traceback" not in err, (argv, err)
     assert not (tmp_path / "r").exists()  # a failed run leaves no empty results folder behind

@@ -33,7 +33,7 @@ def test_record_then_detect_on_the_simulator_rejects_no_frame_for_timing(tmp_pat
     assert rejected.get("no_pose_at_frame_time", 0) == 0 and rejected.get("before_log_start", 0) == 0
     observations = [r for r in run.records if isinstance(r, Observation)]
     assert len(observations) >= 20  # the arena's tags, seen along the square
-    assert json.loads((tmp_path / "run.status.json").read_text())["reason"]["kind"] == "completed"
+    assert json.loads((tmp_path / "run.jsonl.status.json").read_text())["reason"]["kind"] == "completed"
 
 
 def test_frame_saver_writes_a_tum_folder_and_skips_when_behind(tmp_path):

@@ -7,8 +7,10 @@ import contextlib
 import json
 from pathlib import Path
 
-from fgslam.cli.common import ResultsFolder, add_overwrite_option, command_line
+from fgslam.atomic import write_text_whole
+from fgslam.cli.common import add_overwrite_option, command_line, holds_outputs
 from fgslam.cli.progress import Progress
+from fgslam.cli.results import ResultsFolder
 
 OWN_NAMES = ("montecarlo.json", "nees.png", "ate.png")
 
@@ -43,7 +45,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     bench.add_argument("--laps", type=int, default=None, help="laps (default: the scenario's; not for stereo-loop)")
     bench.add_argument("--out", default=None, metavar="DIR",
                        help="write montecarlo.json, nees.png, ate.png here (a new or empty folder, or an "
-                            "earlier bench's: its files are replaced)")
+                            "earlier bench's: its files are replaced; one fgslam at a time writes a folder)")
     add_overwrite_option(bench, "fgslam's files in a --out folder that holds other files too")
     bench.add_argument("--dask", default=None, metavar="ADDRESS",
                        help="run on the Dask cluster at ADDRESS (needs the optional dask extra)")
@@ -71,6 +73,7 @@ def _check_counts(args: argparse.Namespace) -> None:
             raise FgslamError(f"{option} must be {rule} ({what}); got {value}")
 
 
+@holds_outputs(out="--out")
 def cmd_bench(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -141,8 +144,9 @@ def cmd_bench(args: argparse.Namespace) -> int:
         summary["blas_threads"] = TIMING["blas_threads"]
         out = Path(args.out)
         results.clear()
-        (out / "montecarlo.json").write_text(json.dumps(summary, indent=1) + "\n")
-        written = ["montecarlo.json"] + write_monte_carlo_figures(out, result)
-        results.finish(command=command_line(args, "bench"))
+        with results.filling(command=command_line(args, "bench")):
+            write_text_whole(out / "montecarlo.json", json.dumps(summary, indent=1) + "\n")
+            written = ["montecarlo.json"] + write_monte_carlo_figures(out, result)
+            results.finish(command=command_line(args, "bench"))
         print(f"\nwrote {', '.join(written + ['manifest.json'])} to {out}/")
     return 0

@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from fgslam.cli.common import add_overwrite_option, check_new_file, read, write_new_file
+from fgslam.cli.common import add_overwrite_option, check_new_file, holds_outputs, read, write_new_file
 from slamio.errors import FgslamError
 
 CALIBRATE_DESCRIPTION = """\
@@ -58,6 +58,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
 # --------------------------------------------------------------------------- handlers
 
 
+@holds_outputs(out="--out")
 def cmd_calibrate(args: argparse.Namespace) -> int:
     logs = [p for p in args.trials if p.endswith(".jsonl")]
     if logs:

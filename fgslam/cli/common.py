@@ -12,25 +12,31 @@ Outputs
   :func:`write_new_file` writes it through a temporary file in the same folder and a rename,
   so an interrupted write never leaves half a file where the old one was.
 - A results folder (``fgslam run --out DIR``, ``fgslam bench --out DIR``):
-  :class:`ResultsFolder`. It is checked before the run and filled after it; the files a run
-  wrote are listed in ``DIR/manifest.json``, and the next run into the same folder removes
-  exactly those first, so nothing stale from an older run remains.
+  :class:`fgslam.cli.results.ResultsFolder`. It is checked before the run and filled after
+  it; the files a run wrote are listed in ``DIR/manifest.json``, and the next run into the
+  same folder removes exactly those first (regular files only: never a folder, never a
+  symbolic link), so nothing stale from an older run remains.
+- One writer per output: a verb that writes holds :class:`slamio.filelock.OutputLock` on
+  each output from before its checks to its last byte (:func:`holds_outputs`); a second
+  ``fgslam`` writing the same output is refused, one line naming the holder's process id.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import functools
 import json
 import math
 import os
-import secrets
 import shlex
 import stat
 import sys
 import tempfile
 from pathlib import Path
-from typing import Callable, Iterable
+from typing import Callable, Iterator
 
+from fgslam.atomic import naming, temp_path
 from slamio.errors import FgslamError
 
 PROG = "fgslam"
@@ -64,6 +70,9 @@ def _explain_os_error(error: OSError) -> str:
         "EPERM": "choose a place you can write to, or change its permissions",
         "EROFS": "the file system is read-only: choose another place",
         "ENOSPC": "free some space or choose another disk",
+        "EFBIG": "the file is larger than this file system or the file-size limit (ulimit -f) allows: "
+                 "free some space, raise the limit or choose another disk",
+        "EDQUOT": "your disk quota is used up: free some space or choose another disk",
         "EISDIR": "give a file name, not a folder",
         "ENOTDIR": "a part of the path is a file, not a folder",
         "ENOENT": "check the path",
@@ -100,9 +109,12 @@ def run_verb(func: Callable[[argparse.Namespace], int], args: argparse.Namespace
         return func(args)
     except (FgslamError, OSError) as error:
         return fail(error)
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as interrupt:  # a robot verb's Interrupted knows its signal (SIGHUP: 129)
+        try:
+            print(f"{PROG}: interrupted{f' by {interrupt}' if str(interrupt) else ''}", file=sys.stderr)
+        except OSError:  # the terminal is gone
+            pass
+        return getattr(interrupt, "exit_code", 130)
 
 
 def command_line(args: argparse.Namespace, default: str = "") -> str:
@@ -182,17 +194,39 @@ def write_run_log(out_path: str | os.PathLike, header, records, *, overwrite: bo
     out = Path(out_path)
     write_new_file(out, lambda tmp: write_log(tmp, header, records), overwrite=overwrite, option=option)
     print(f"wrote {out}: {summary(RunLog(str(out), header, records))}")
-    stale = status_path(out)
-    if stale.is_file():  # how the replaced recording ended (fgslam record): not this log's
+    for stale in stale_status_files(out):  # how the replaced recording ended (fgslam record): not this log's
         stale.unlink()
         print(f"removed {stale}: it described the recording {out} replaced")
     return 0
 
 
 def status_path(log: str | os.PathLike) -> Path:
-    """``run.status.json`` beside ``run.jsonl``: how ``fgslam record`` says a recording ended."""
+    """``run.jsonl.status.json`` beside ``run.jsonl``: how ``fgslam record`` says a recording
+    ended. The whole name plus ``.status.json``, so each log has its own (``run.jsonl`` and
+    ``run.json`` once shared ``run.status.json``)."""
     out = Path(log)
-    return out.with_name(out.stem + ".status.json") if out.suffix else out.with_name(out.name + ".status.json")
+    return out.with_name(out.name + ".status.json")
+
+
+def stale_status_files(log: str | os.PathLike) -> list[Path]:
+    """The status files of ``log`` that a new log there makes stale: its own
+    (:func:`status_path`), and one under the older name (``run.status.json`` for
+    ``run.jsonl``) only when it says it describes this log (its ``"log"``), as another
+    log's status file may have that name."""
+    out = Path(log)
+    found = [path for path in [status_path(out)] if path.is_file() and not path.is_symlink()]
+    older = out.with_name(out.stem + ".status.json")
+    if out.suffix and older.is_file() and not older.is_symlink() and _status_names(older, out):
+        found.append(older)
+    return found
+
+
+def _status_names(status: Path, log: Path) -> bool:
+    try:
+        described = json.loads(status.read_text(encoding="utf-8")).get("log")
+    except (OSError, ValueError, AttributeError):
+        return False
+    return isinstance(described, str) and Path(described).name == log.name
 
 
 # --------------------------------------------------------------------------- single output files
@@ -283,10 +317,13 @@ def write_new_file(path: Path, write: Callable[[str], None], *, overwrite: bool 
     path.parent.mkdir(parents=True, exist_ok=True)
     kept_mode = stat.S_IMODE(path.stat().st_mode) if overwrite and path.is_file() else None
     # Not mkstemp: its file is 0600, and the log would keep that; this one gets the umask's mode.
-    tmp = str(path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
+    tmp = str(temp_path(path))
     open(tmp, "x").close()
     try:
-        write(tmp)
+        try:
+            write(tmp)
+        except OSError as error:  # a full disk: the message names the file asked for, not the temporary one
+            raise naming(error, path, tmp) from None
         if kept_mode is not None:
             os.chmod(tmp, kept_mode)
         if overwrite:
@@ -307,152 +344,59 @@ def write_new_file(path: Path, write: Callable[[str], None], *, overwrite: bool 
             os.unlink(tmp)
 
 
-# --------------------------------------------------------------------------- results folders
-
-MANIFEST = "manifest.json"
-MANIFEST_FORMAT = "fgslam-results"
+# --------------------------------------------------------------------------- one writer per output
 
 
-class ResultsFolder:
-    """A folder of results that never keeps a stale file and never deletes one it did not write.
+@contextlib.contextmanager
+def hold_outputs(*outputs: tuple[str | os.PathLike | None, str]) -> Iterator[None]:
+    """Hold the :class:`~slamio.filelock.OutputLock` of each ``(path, option)`` (``None``
+    paths skipped) while the block runs; a second writer is refused with
+    :class:`~slamio.filelock.OutputBusy`, one line naming the holder's process id.
 
-    ``check()`` (before the run) accepts a new or empty folder, or one holding an earlier
-    fgslam output (a ``manifest.json`` it wrote, or — from before manifests — a
-    ``metrics.json`` with the ``.tum`` files of ``fgslam run``). Anything else is refused
-    unless ``overwrite``, and so is the output of another verb (``fgslam bench`` results
-    where ``fgslam run`` would write) or of another input (``source``, e.g. the run's log:
-    re-running the same log replaces its results, a different log must ask). ``clear()`` (after the run, just before writing) removes the files
-    of the earlier output: those its manifest lists, or for an older output or with
-    ``overwrite`` the file names fgslam writes (:attr:`own_names`, :attr:`own_suffixes`).
-    Other files are left alone. ``finish()`` writes the manifest: every file written since
-    ``clear()``.
+    The lock file lives beside the output, so its folder must exist: a place that cannot be
+    written is refused first as :func:`probe_writable` says, and folders made only for the
+    lock are removed again at the end if nothing was put in them.
     """
+    from slamio.filelock import OutputLock
 
-    def __init__(self, path: str | os.PathLike, *, overwrite: bool = False, verb: str = "run",
-                 own_names: Iterable[str] | Callable[[], Iterable[str]] = (), own_suffixes: Iterable[str] = (),
-                 option: str = "--out", source: str | None = None):
-        self.path = Path(path)
-        self.source = source  # what the output is made from (an absolute log path), kept in the manifest
-        self.overwrite = overwrite
-        self.verb = verb
-        self._own_names = own_names  # a callable is asked only when an earlier output is cleared
-        self.own_suffixes = tuple(own_suffixes)
-        self.option = option
-        self.earlier: list[str] | None = None  # files of the earlier output to remove
-        self._before: dict[str, tuple] = {}
-        self.finish_names: list[str] = []
-
-    # -- before the run
-    def check(self) -> "ResultsFolder":
-        out = self.path
-        if out.exists() and not out.is_dir():
-            raise FgslamError(f"{self.option} {out} is a file, and the results are a folder of files; "
-                              f"give a folder name (e.g. {out.with_suffix('')}_results)")
-        entries = sorted(p.name for p in out.iterdir()) if out.is_dir() else []
-        if entries:
-            manifest = self._read_manifest()
-            if manifest is not None:
-                if not self.overwrite:
-                    self._refuse_other_output(manifest)
-                self.earlier = [n for n in manifest["files"] if _plain_name(n)]
-            elif self._looks_like_older_output(entries):
-                self.earlier = [n for n in entries if self._is_own(n)]
-            elif self.overwrite:
-                self.earlier = [n for n in entries if self._is_own(n)]
-            else:
-                shown = ", ".join(entries[:3]) + (f", ... ({len(entries)} in all)" if len(entries) > 3 else "")
-                raise FgslamError(
-                    f"{self.option} {out} is a folder with other files in it ({shown}) and no {MANIFEST} of an "
-                    f"earlier fgslam {self.verb}; give a new or empty folder, or add --overwrite to write into "
-                    "it (fgslam's own file names there are replaced, other files are left alone)"
-                )
-        probe_writable(out, option=self.option)  # makes nothing: the folder is made by clear()
-        return self
-
-    def _read_manifest(self) -> dict | None:
-        try:
-            data = json.loads((self.path / MANIFEST).read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            return None
-        if not isinstance(data, dict) or data.get("format") != MANIFEST_FORMAT or not isinstance(data.get("files"), list):
-            return None
-        return {**data, "files": [n for n in data["files"] if isinstance(n, str)]}
-
-    def _refuse_other_output(self, manifest: dict) -> None:
-        """Raise when the folder holds another verb's output, or this verb's output of another
-        input: replacing those is what ``--overwrite`` is for."""
-        by = manifest.get("written_by")
-        fix = "give another folder, or add --overwrite to replace them"
-        if isinstance(by, str) and by != f"fgslam {self.verb}":
-            raise FgslamError(f"{self.option} {self.path} holds the results of an earlier `{by}` ({MANIFEST}), "
-                              f"not of fgslam {self.verb}; {fix}")
-        earlier = manifest.get("source")
-        if self.source is not None and isinstance(earlier, str) and earlier != self.source:
-            raise FgslamError(f"{self.option} {self.path} holds the results of fgslam {self.verb} on {earlier} "
-                              f"({MANIFEST}), not on {self.source}; {fix}")
-
-    def _looks_like_older_output(self, entries: list[str]) -> bool:
-        """An ``fgslam run`` folder from before manifests: its metrics.json and .tum files."""
-        if "metrics.json" not in entries or not any(n.endswith(".tum") for n in entries):
-            return False
-        try:
-            metrics = json.loads((self.path / "metrics.json").read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            return False
-        return isinstance(metrics, dict) and "reference" in metrics
-
-    @property
-    def own_names(self) -> set[str]:
-        if callable(self._own_names):
-            self._own_names = tuple(self._own_names())
-        return set(self._own_names) | {MANIFEST}
-
-    def _is_own(self, name: str) -> bool:
-        return name in self.own_names or (bool(self.own_suffixes) and name.endswith(self.own_suffixes))
-
-    # -- after the run
-    def clear(self) -> list[str]:
-        """Remove the earlier output's files; return their names."""
-        removed = []
-        for name in self.earlier or ():
-            target = self.path / name
-            try:
-                if target.is_dir() and not target.is_symlink():
-                    import shutil
-
-                    shutil.rmtree(target)
-                else:
-                    target.unlink()
-                removed.append(name)
-            except FileNotFoundError:
-                pass
-        self.path.mkdir(parents=True, exist_ok=True)
-        self._before = self._snapshot()
-        return removed
-
-    def _snapshot(self) -> dict[str, tuple]:
-        result = {}
-        for entry in os.scandir(self.path):
-            try:
-                st = entry.stat(follow_symlinks=False)
-            except OSError:
+    with contextlib.ExitStack() as stack:
+        for path, option in outputs:
+            if not path:  # not given
                 continue
-            result[entry.name] = (st.st_ino, st.st_size, st.st_mtime_ns)
-        return result
-
-    def finish(self, **provenance) -> list[str]:
-        """Write the manifest (every file written since :meth:`clear`); return the names."""
-        now = self._snapshot()
-        written = sorted(n for n, stat in now.items() if self._before.get(n) != stat and n != MANIFEST)
-        self.finish_names = written
-        manifest = {"format": MANIFEST_FORMAT, "written_by": f"fgslam {self.verb}", **provenance,
-                    **({"source": self.source} if self.source is not None else {}), "files": written + [MANIFEST]}
-        tmp = self.path / f".{MANIFEST}.tmp"
-        tmp.write_text(json.dumps(manifest, indent=1) + "\n", encoding="utf-8")
-        os.replace(tmp, self.path / MANIFEST)
-        return written
+            out = Path(path)
+            probe_writable(out.parent, option=option, target=out)
+            stack.callback(_remove_if_empty, _missing_folders(out.parent))  # after the release
+            stack.enter_context(OutputLock(out, option=option))
+        yield
 
 
-def _plain_name(name: str) -> bool:
-    """A manifest entry that names a file directly in the folder (nothing outside it)."""
-    return bool(name) and name not in (".", "..") and "/" not in name and "\\" not in name
+def holds_outputs(**options: str):
+    """Decorate a verb's handler: hold the lock of ``args.NAME`` (refusals naming
+    ``options[NAME]``, e.g. ``out="--out"``) for each NAME while the handler runs."""
+
+    def decorate(handler: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
+        @functools.wraps(handler)
+        def verb(args: argparse.Namespace) -> int:
+            with hold_outputs(*((getattr(args, name, None), option) for name, option in options.items())):
+                return handler(args)
+
+        return verb
+
+    return decorate
+
+
+def _missing_folders(folder: Path) -> list[Path]:
+    """``folder`` and its parents that do not exist yet, deepest first."""
+    missing = []
+    while not folder.exists() and folder != folder.parent:
+        missing.append(folder)
+        folder = folder.parent
+    return missing
+
+
+def _remove_if_empty(folders: list[Path]) -> None:
+    for folder in folders:  # deepest first; stops at the first that holds something
+        try:
+            folder.rmdir()
+        except OSError:
+            return

@@ -52,7 +52,7 @@ from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
-from fgslam.cli.common import check_number, command_line, probe_writable, write_new_file
+from fgslam.cli.common import check_number, command_line, holds_outputs, probe_writable, write_new_file
 from fgslam.cli.detect_checks import DetectError, FrameProblems, check_show, parse_tag_ids, summary_with_details
 from fgslam.cli.progress import Progress
 from slamio.log import Header, Observation, Odometry, read_log, write_log
@@ -257,6 +257,7 @@ def _remove(files: list[Path], folders: list[Path]) -> None:
             pass
 
 
+@holds_outputs(out="--out", show="--show")
 def cmd_detect(args: argparse.Namespace) -> int:
     import cv2
 

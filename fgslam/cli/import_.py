@@ -5,7 +5,14 @@ from __future__ import annotations
 import argparse
 import sys
 
-from fgslam.cli.common import add_overwrite_option, check_new_file, check_number, command_line, write_run_log
+from fgslam.cli.common import (
+    add_overwrite_option,
+    check_new_file,
+    check_number,
+    command_line,
+    hold_outputs,
+    write_run_log,
+)
 from slamio.errors import FgslamError
 
 DATASETS = ["victoria-park", "plaza1", "plaza2", "mrclam", "rosbag", "seed003"]
@@ -131,6 +138,11 @@ def _check_dataset_options(args: argparse.Namespace) -> None:
 
 def cmd_import(args: argparse.Namespace) -> int:
     source, out = _source_and_out(args)
+    with hold_outputs((out, "OUT")):  # one writer per output, from the checks to the last byte
+        return _import(args, source, out)
+
+
+def _import(args: argparse.Namespace, source: str | None, out: str) -> int:
     _check_dataset_options(args)
     needs_source = ("mrclam", "rosbag", "seed003")
     if args.dataset in needs_source and source is None:

@@ -6,9 +6,11 @@ import argparse
 import json
 from pathlib import Path
 
-from fgslam.cli.common import ResultsFolder, add_overwrite_option, command_line, read, summary
+from fgslam.atomic import write_text_whole
+from fgslam.cli.common import add_overwrite_option, command_line, holds_outputs, read, summary
 from fgslam.cli.estimators import ESTIMATOR_HELP, ESTIMATOR_HELP_3D
 from fgslam.cli.progress import Progress
+from fgslam.cli.results import ResultsFolder
 from slamio.errors import FgslamError
 
 #: File names ``fgslam run`` writes besides <estimator>[_online].tum and the report's PNGs:
@@ -54,7 +56,11 @@ def add_parser(verbs) -> argparse.ArgumentParser:
             "--out is a new or empty folder, or the folder of an earlier fgslam run on the same\n"
             "log: its files (listed in its manifest.json) are replaced, so no stale file of the\n"
             "earlier run remains. A folder with other files, or with the results of another log\n"
-            "or of fgslam bench, is refused unless --overwrite."
+            "or of fgslam bench, is refused unless --overwrite; folders and symbolic links in it\n"
+            "are never removed. One fgslam at a time writes a --out: a second is refused.\n"
+            "Every file is written whole: if the disk fills up, the error names the file, the\n"
+            "files written whole are kept (manifest.json says \"complete\": false), and the same\n"
+            "command run again replaces them."
         ),
     )
     run.add_argument("log", metavar="LOG", help="run log (.jsonl)")
@@ -93,14 +99,14 @@ def with_trial_calibration(log, path):
     return dataclasses.replace(log, header=dataclasses.replace(log.header, noise=noise))
 
 
+@holds_outputs(out="--out")
 def cmd_run(args: argparse.Namespace) -> int:
     # The results folder first (before the estimators are even loaded): an unusable --out is
     # one line at once, never a FileExistsError after the whole run.
     results = ResultsFolder(args.out, overwrite=args.overwrite, verb="run", own_names=own_names,
                             source=str(Path(args.log).resolve())).check()
 
-    from fgslam.compare import compute_metrics, format_table, write_tum
-    from fgslam.export import write_g2o
+    from fgslam.compare import compute_metrics, format_table
     from fgslam.runner import DEFAULT_ESTIMATORS, TIMING, compare_log, parse_estimator_names, require_motion
 
     log = read(args.log)
@@ -146,9 +152,23 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     metrics["provenance"] = provenance(args.log, [r.name for r in result.runs], command=command_line(args, "run"))
 
-    out = Path(args.out)
     replaced = results.clear()
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    with results.filling(**run_provenance(args)):
+        written = _write_results(args, metrics, result)
+        results.finish(**run_provenance(args))
+    slowed = not args.no_consistency and any(name.startswith("isam2") for name in names)
+    return finish_run(args, results, log, written, replaced, format_table(metrics), notes=[short] if short else [],
+                      timing_note=TIMING["consistency_note"] if slowed else None)
+
+
+def _write_results(args: argparse.Namespace, metrics: dict, result) -> list[str]:
+    """metrics.json, the TUM files, graph.g2o and the report of a planar run into --out; each
+    file whole or not at all. Returns what to say was written."""
+    from fgslam.compare import write_tum
+    from fgslam.export import write_g2o
+
+    out = Path(args.out)
+    write_text_whole(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
     has_pose = result.reference.has_pose  # TUM files are stamped: leave the poses without truth out
     write_tum(out / "reference.tum", result.stamps_s[has_pose], result.reference.trajectory[has_pose])
     for run in result.runs:
@@ -167,17 +187,19 @@ def cmd_run(args: argparse.Namespace) -> int:
             out, metrics, result.runs, result.reference, result.stamps_s, title=f"fgslam run {Path(args.log).name}"
         )
         written.insert(1, html.name)
-    slowed = not args.no_consistency and any(name.startswith("isam2") for name in names)
-    return finish_run(args, results, log, written, replaced, format_table(metrics), notes=[short] if short else [],
-                      timing_note=TIMING["consistency_note"] if slowed else None)
+    return written
+
+
+def run_provenance(args: argparse.Namespace) -> dict:
+    """What the manifest of ``fgslam run`` records about the command."""
+    return {"command": command_line(args, "run"), "log": str(args.log)}
 
 
 def finish_run(args: argparse.Namespace, results, log, written: list[str], replaced, table: str,
                notes: list[str] = (), timing_note: str | None = None) -> int:
-    """Seal the results folder (its manifest), print the table and say what was written."""
+    """Print the table and say what was written (the folder is sealed: its manifest is written)."""
     from fgslam.runner import TIMING
 
-    results.finish(command=command_line(args, "run"), log=str(args.log))
     written.append("manifest.json")
     print()
     print(table)

@@ -6,6 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
+from fgslam.atomic import write_text_whole
 from fgslam.cli.common import command_line, summary
 from fgslam.cli.progress import Progress
 from slamio.errors import FgslamError
@@ -13,16 +14,14 @@ from slamio.errors import FgslamError
 
 def cmd_run3d(args: argparse.Namespace, results, log) -> int:
     """Run the 3-D estimators on ``log`` and write into the checked ``results`` folder."""
+    from fgslam.cli.run import finish_run, run_provenance
     from fgslam.provenance import provenance
     from fgslam.runner import TIMING
     from fgslam.runner3d import (
         compute_metrics_3d,
         format_table_3d,
         parse_estimator_names_3d,
-        reference_line_3d,
         run_log3d,
-        table_rows_3d,
-        write_tum3,
     )
 
     for flag, value in (("--noise", args.noise), ("--calibration", args.calibration)):
@@ -38,9 +37,20 @@ def cmd_run3d(args: argparse.Namespace, results, log) -> int:
         metrics["log_truncated"] = log.truncated
     metrics["provenance"] = provenance(args.log, [r.name for r in result.runs], command=command_line(args, "run"))
 
-    out = Path(args.out)
     replaced = results.clear()
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    with results.filling(**run_provenance(args)):
+        written = _write_results_3d(args, metrics, result)
+        results.finish(**run_provenance(args))
+    return finish_run(args, results, log, written, replaced, format_table_3d(metrics))
+
+
+def _write_results_3d(args: argparse.Namespace, metrics: dict, result) -> list[str]:
+    """metrics.json, the TUM files and the report of a 3-D run into --out; each file whole or
+    not at all. Returns what to say was written."""
+    from fgslam.runner3d import reference_line_3d, table_rows_3d, write_tum3
+
+    out = Path(args.out)
+    write_text_whole(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
     has_pose = result.reference.mask  # TUM files are stamped: leave the poses without truth out
     write_tum3(out / "reference.tum", result.stamps_s[has_pose], result.reference.trajectory[has_pose])
     for run in result.runs:
@@ -55,6 +65,4 @@ def cmd_run3d(args: argparse.Namespace, results, log) -> int:
         html = write_report_3d(out, metrics, result.runs, result.reference, title=f"fgslam run {Path(args.log).name}",
                                table_header=header, table_rows=rows, reference_text=reference_line_3d(metrics))
         written.insert(1, html.name)
-    from fgslam.cli.run import finish_run
-
-    return finish_run(args, results, log, written, replaced, format_table_3d(metrics))
+    return written

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from fgslam.cli.common import add_overwrite_option, check_new_file, command_line, write_run_log
+from fgslam.cli.common import add_overwrite_option, check_new_file, command_line, holds_outputs, write_run_log
 from slamio.errors import FgslamError
 from slamio.sim3d import STEREO_LOOP  # the 3-D scenario: a stereo + IMU car, written as a 3-D log
 
@@ -89,6 +89,7 @@ def _check_options(args: argparse.Namespace) -> None:
                           f"misdetections, e.g. 0.05); got {args.outliers}")
 
 
+@holds_outputs(out="--out")
 def cmd_sim(args: argparse.Namespace) -> int:
     from slamio.sim import simulate
 

@@ -16,7 +16,14 @@ import argparse
 from dataclasses import replace
 from pathlib import Path
 
-from fgslam.cli.common import add_overwrite_option, check_new_file, check_number, probe_writable, write_new_file
+from fgslam.cli.common import (
+    add_overwrite_option,
+    check_new_file,
+    check_number,
+    holds_outputs,
+    probe_writable,
+    write_new_file,
+)
 from slamio.errors import FgslamError
 
 DESCRIPTION = """\
@@ -77,6 +84,7 @@ def _mask_picture(bgr, options):
     return out
 
 
+@holds_outputs(out="--out", show="--show")
 def cmd_tune_colours(args: argparse.Namespace) -> int:
     import cv2
 

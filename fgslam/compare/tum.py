@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import math
 import os
-from pathlib import Path
 
 import numpy as np
 
+from fgslam.atomic import write_text_whole
 from fgslam.compare.runs import ComparisonError, _as_poses
 
 
@@ -37,8 +37,8 @@ def format_tum(stamps_s, poses) -> str:
 
 
 def write_tum(path: str | os.PathLike[str], stamps_s, poses) -> None:
-    """Write :func:`format_tum` output to ``path`` (overwriting it)."""
-    Path(path).write_text(format_tum(stamps_s, poses), encoding="utf-8")
+    """Write :func:`format_tum` output to ``path`` (replacing it), whole or not at all (:mod:`fgslam.atomic`)."""
+    write_text_whole(path, format_tum(stamps_s, poses))
 
 
 def read_tum(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray]:

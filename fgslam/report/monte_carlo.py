@@ -8,6 +8,8 @@ from pathlib import Path
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from fgslam.atomic import save_figure
+
 
 def write_monte_carlo_figures(out_dir: str | os.PathLike[str], result) -> list[str]:
     """``nees.png`` (average NEES per step with its χ² band, per estimator) and ``ate.png``
@@ -31,7 +33,7 @@ def write_monte_carlo_figures(out_dir: str | os.PathLike[str], result) -> list[s
     ax.set_title(f"{result.scenario}: NEES of the online pose ({result.dof} DoF)")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(out / "nees.png", dpi=110)
+    save_figure(fig, out / "nees.png", dpi=110)
 
     fig = Figure(figsize=(8, 4))
     FigureCanvasAgg(fig)
@@ -46,5 +48,5 @@ def write_monte_carlo_figures(out_dir: str | os.PathLike[str], result) -> list[s
     ax.set_ylabel("ATE (m)")
     ax.set_title(f"{result.scenario}: ATE over {len(result.runs)} runs")
     fig.tight_layout()
-    fig.savefig(out / "ate.png", dpi=110)
+    save_figure(fig, out / "ate.png", dpi=110)
     return ["nees.png", "ate.png"]

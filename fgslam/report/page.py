@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fgslam.atomic import write_text_whole
 from fgslam.compare import COLUMN_MEANINGS, EstimatorRun, Reference, reference_description, table_rows
 from fgslam.provenance import provenance
 from fgslam.report.style import BASELINE_ESTIMATORS, BASELINE_MODES
@@ -282,6 +283,4 @@ written as a PNG next to it.</p>
 </body>
 </html>
 """
-    html_path = out / REPORT_HTML
-    html_path.write_text(page, encoding="utf-8")
-    return html_path
+    return write_text_whole(out / REPORT_HTML, page)

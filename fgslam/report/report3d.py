@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fgslam.atomic import write_text_whole
 from fgslam.report.page import _CSS, REPORT_HTML, _data_uri, _provenance_html
 from fgslam.report.style import _landmark_array, _legend_and_save, _new_figure, _style
 
@@ -100,6 +101,4 @@ with BLAS on one thread; - means not applicable.</p>
 </body>
 </html>
 """
-    html_path = out / REPORT_HTML
-    html_path.write_text(page, encoding="utf-8")
-    return html_path
+    return write_text_whole(out / REPORT_HTML, page)

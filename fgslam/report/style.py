@@ -11,6 +11,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from fgslam.atomic import save_figure
 from fgslam.compare import EstimatorRun, Reference, apply_se2, estimator_alignment
 
 
@@ -41,9 +42,7 @@ def _legend_and_save(fig: Figure, ax, path, with_legend: bool = True, **legend) 
     """Legend outside the axes on the right, then the PNG (no software tag, optimised)."""
     if with_legend:
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False, **legend)
-    out = Path(path)
-    fig.savefig(out, dpi=_DPI, metadata={"Software": None}, pil_kwargs={"optimize": True})
-    return out
+    return save_figure(fig, path, dpi=_DPI, metadata={"Software": None}, pil_kwargs={"optimize": True})
 
 
 def _aligned_final(run: EstimatorRun, reference: Reference) -> tuple[np.ndarray, bool, float, np.ndarray]:

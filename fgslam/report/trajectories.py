@@ -15,6 +15,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
+from fgslam.atomic import save_figure
 from fgslam.compare import EstimatorRun, Reference, apply_se2, position_errors_m
 from fgslam.report.style import (
     _DPI,
@@ -303,6 +304,4 @@ def plot_trajectories(
     """
     fig = trajectory_figure(runs, reference, truth_landmarks=truth_landmarks, title=title, baseline=baseline,
                             baselines=baselines)
-    out = Path(path)
-    fig.savefig(out, dpi=_DPI, metadata={"Software": None}, pil_kwargs={"optimize": True})
-    return out
+    return save_figure(fig, path, dpi=_DPI, metadata={"Software": None}, pil_kwargs={"optimize": True})
