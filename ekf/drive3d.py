@@ -24,8 +24,8 @@ __all__ = ["position_errors_m", "run_drive", "steps_of"]
 def steps_of(drive):
     """Yield ``(dt_s, twist, ids, pixels)`` for every step of ``drive``."""
     for t in range(drive.n_steps):
-        ids = drive.seen(t)
-        pixels = drive.features_px[t, ids]
+        columns = drive.seen(t)
+        ids, pixels = drive.ids(columns), drive.features_px[t, columns]
         if t == 0:
             yield None, None, ids, pixels
         else:

@@ -55,7 +55,6 @@ from __future__ import annotations
 
 import math
 import os
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -64,8 +63,9 @@ import numpy as np
 from fgslam.compare import ate_rmse_m, nees_band, nees_over_truth
 from fgslam.runner import ESTIMATORS, require_motion, require_usable_reference, run_estimator, truth_reference
 from fgslam.smoother import Isam2Smoother, batch_solve
-from slamio.errors import FgslamError, read_text
+from slamio.errors import FgslamError, InputFileError, read_text
 from slamio.log import read_log
+from slamio.safe_input import parse_toml
 
 __all__ = [
     "DEFAULT_TOLERANCES",
@@ -129,25 +129,24 @@ def load_tolerances(path: str | os.PathLike[str] | None, estimator: str) -> dict
     """Tolerances for ``estimator`` from a TOML file (``[defaults]`` then ``[estimator]``);
     the built-in defaults where the file says nothing or does not exist."""
     out = dict(DEFAULT_TOLERANCES)
-    if path is None or not Path(path).exists():
+    if path is None or not os.path.lexists(path):
         return out
-    try:
-        text = read_text(path, "tolerance file",
-                         "a tolerance file is UTF-8 TOML text (see `fgslam check --help` for the layout)")
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise FgslamError(f"{path}: not valid TOML ({exc}); see `fgslam check --help` for the layout") from None
+    text = read_text(path, "tolerance file",
+                     "a tolerance file is UTF-8 TOML text (see `fgslam check --help` for the layout)")
+    # file:line errors; no FIFO, device, deep nesting, inf, nan or 5000-digit number
+    doc = parse_toml(path, text, fix="see `fgslam check --help` for the layout")
     for table in ("defaults", estimator):
-        section = data.get(table, {})
+        section = doc.data.get(table, {})
         if not isinstance(section, dict):
-            raise FgslamError(f"{path}: [{table}] must be a table of tolerances")
+            raise InputFileError(f"{doc.where(table)}: [{table}] must be a table of tolerances")
         for key, value in section.items():
             if key not in DEFAULT_TOLERANCES:
-                raise FgslamError(
-                    f"{path}: [{table}] has unknown key {key!r}; expected {', '.join(DEFAULT_TOLERANCES)}"
+                raise InputFileError(
+                    f"{doc.where(table, key)}: [{table}] has unknown key {key!r}; expected {', '.join(DEFAULT_TOLERANCES)}"
                 )
             if not tolerance_is_valid(key, value):
-                raise FgslamError(f"{path}: [{table}] {key} must be {TOLERANCE_RANGES[key]}, got {value!r}")
+                raise InputFileError(
+                    f"{doc.where(table, key)}: [{table}] {key} must be {TOLERANCE_RANGES[key]}, got {value!r}")
             out[key] = float(value)
     return out
 
@@ -197,8 +196,8 @@ def check_estimator(
         kind = "a 3-D log" if log.header.is_3d else "a planar log"
         raise FgslamError(f"unknown estimator {estimator!r} for {kind}; choose from {', '.join(known)}")
     file = tolerance_file_for(log_path) if tolerances_file is None else Path(tolerances_file)
-    if tolerances_file is not None and not file.exists():
-        raise FgslamError(f"{file}: no such tolerance file")
+    if tolerances_file is not None and not os.path.lexists(file):
+        raise InputFileError(f"{file}: no such tolerance file")
     tol = load_tolerances(file, estimator)
     if max_ate_m is not None:
         tol["max_ate_m"] = float(max_ate_m)

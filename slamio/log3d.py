@@ -56,6 +56,8 @@ MAX_PIXEL_PX = 1e6
 #: σ of a pixel coordinate: 1e-6 px to 1e4 px (finer than any sub-pixel detector, coarser
 #: than any image).
 SIGMA_PIXEL_PX = (1e-6, 1e4)
+#: The stereo baseline and the IMU's offset from the camera: within ±1 km (a vehicle is smaller).
+MAX_MOUNT_M = 1e3
 #: A velocity record's interval: 0 < dt_s ≤ 1e3 s.
 MAX_DT_S = 1e3
 #: Largest speed component (m/s) and turn rate component (rad/s): far beyond any vehicle.
@@ -215,6 +217,7 @@ def check_quaternion(q: tuple[float, ...], what: str) -> None:
 
 def parse_pose3(value: Any, what: str) -> Pose3:
     pose = _vector(value, 7, what + " [x_m, y_m, z_m, qx, qy, qz, qw]")
+    _bounded(pose[:3], _fields.COORDINATE_M, what + "'s position", "m")
     check_quaternion(pose[3:], what)
     return pose  # type: ignore[return-value]
 
@@ -276,7 +279,7 @@ def parse_record3(kind: str, d: dict):
             if key not in d:
                 raise _Bad(f"missing field '{key}' (a list of 3 numbers, IMU frame)")
         return VelocityOdometry(
-            stamp_s=_fields._finite(d, "stamp_s"),  # type: ignore[arg-type]
+            stamp_s=_fields._stamp(d),  # type: ignore[arg-type]
             dt_s=dt,  # type: ignore[arg-type]
             v_mps=_bounded(_vector(d["v_mps"], 3, "'v_mps'"), MAX_SPEED_MPS, "'v_mps'", "m/s"),  # type: ignore[arg-type]
             w_radps=_bounded(_vector(d["w_radps"], 3, "'w_radps'"), MAX_TURN_RATE_RADPS, "'w_radps'", "rad/s"),  # type: ignore[arg-type]
@@ -284,7 +287,7 @@ def parse_record3(kind: str, d: dict):
         )
     if kind == "stereo_observation":
         return StereoObservation(
-            stamp_s=_fields._finite(d, "stamp_s"),  # type: ignore[arg-type]
+            stamp_s=_fields._stamp(d),  # type: ignore[arg-type]
             track_id=_fields._integer(d, "track_id", id_range=True),  # type: ignore[arg-type]
             u_left_px=_pixel(d, "u_left_px"),
             v_left_px=_pixel(d, "v_left_px"),
@@ -296,15 +299,21 @@ def parse_record3(kind: str, d: dict):
             ),  # type: ignore[arg-type]
         )
     if kind == "truth_pose3":
-        values = {k: _fields._finite(d, k) for k in ("stamp_s", "x_m", "y_m", "z_m", "qx", "qy", "qz", "qw")}
+        values = {k: _fields._finite(d, k) for k in ("qx", "qy", "qz", "qw")}
+        values.update(stamp_s=_fields._stamp(d), **{k: _coordinate(d, k) for k in ("x_m", "y_m", "z_m")})
         check_quaternion(tuple(values[k] for k in ("qx", "qy", "qz", "qw")), "truth_pose3's quaternion")  # type: ignore[misc]
         return TruthPose3(**values)  # type: ignore[arg-type]
     return TruthLandmark3(
         landmark_id=_fields._integer(d, "landmark_id", id_range=True),  # type: ignore[arg-type]
-        x_m=_fields._finite(d, "x_m"),  # type: ignore[arg-type]
-        y_m=_fields._finite(d, "y_m"),  # type: ignore[arg-type]
-        z_m=_fields._finite(d, "z_m"),  # type: ignore[arg-type]
+        x_m=_coordinate(d, "x_m"),
+        y_m=_coordinate(d, "y_m"),
+        z_m=_coordinate(d, "z_m"),
     )
+
+
+def _coordinate(d: dict, key: str) -> float:
+    """A world coordinate (m) within ±:data:`~slamio.log.fields.COORDINATE_M`."""
+    return _fields._magnitude(d, key, _fields.COORDINATE_M, "m", _fields._WHY_COORDINATE)  # type: ignore[return-value]
 
 
 _STEREO_KEYS = ("fx_px", "fy_px", "cx_px", "cy_px", "baseline_m", "cam_T_imu")
@@ -324,7 +333,11 @@ def parse_stereo_sensor(sensor: dict) -> StereoCalibration:
     for k in ("fx_px", "fy_px", "baseline_m"):
         if not values[k] > 0.0:  # type: ignore[operator]
             raise _Bad(f"header field 'sensor.{k}' must be > 0, got {values[k]!r}")
+    for k, limit, unit in (("fx_px", MAX_PIXEL_PX, "px"), ("fy_px", MAX_PIXEL_PX, "px"), ("cx_px", MAX_PIXEL_PX, "px"),
+                           ("cy_px", MAX_PIXEL_PX, "px"), ("baseline_m", MAX_MOUNT_M, "m")):
+        _bounded((values[k],), limit, f"header field 'sensor.{k}'", unit)  # type: ignore[arg-type]
     T = _matrix(sensor["cam_T_imu"], 4, "header field 'sensor.cam_T_imu'")
+    _bounded(tuple(T[:3, 3]), MAX_MOUNT_M, "header field 'sensor.cam_T_imu''s translation", "m")
     R = T[:3, :3]
     if not (np.allclose(T[3], [0, 0, 0, 1], atol=1e-9) and np.allclose(R @ R.T, np.eye(3), atol=1e-6)
             and np.linalg.det(R) > 0.0):

@@ -51,7 +51,9 @@ from typing import Any
 
 import numpy as np
 
-from slamio.errors import FgslamError
+from slamio.errors import FgslamError, InputFileError, read_text
+from slamio.log.fields import SIGMA_ANGLE_RAD, SIGMA_LENGTH_M
+from slamio.safe_input import Document, parse_json
 
 __all__ = [
     "NOISE_MODEL_FORMAT",
@@ -73,16 +75,41 @@ NOISE_MODEL_VERSION = 1
 
 
 class NoiseModelError(FgslamError):
-    """A noise-model file that cannot be used (names the file and the field)."""
+    """A noise model that cannot be used (names the field: ``field`` holds its keys, e.g.
+    ``("odometry", "lag_s")``, when one field is to blame)."""
+
+    def __init__(self, message: str, field: tuple = ()):
+        super().__init__(message)
+        self.field = field
 
 
-def _check_finite(owner: str, name: str, value: Any, *, positive: bool = False, non_negative: bool = False) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise NoiseModelError(f"{owner}.{name} must be a finite number, got {value!r}")
+class NoiseModelFileError(NoiseModelError, InputFileError):
+    """A noise-model file that cannot be used: ``file:line: ...`` naming the field (exit status 2)."""
+
+
+#: The largest magnitude of any number in a noise model: a robot's model needs none larger,
+#: and every square and product the estimators take of them stays far from overflow.
+MAX_MODEL_VALUE = 1e6
+#: Scales (``forward_scale``, ``range_scale``, ...): a model divides by them.
+SCALE_BOUNDS = (1e-3, 1e3)
+
+
+def _check_finite(owner: str, name: str, value: Any, *, positive: bool = False, non_negative: bool = False,
+                  bounds: tuple[float, float] | None = None) -> None:
+    keys = tuple(owner.split(".")) + (name,)
+
+    def bad(rule: str) -> NoiseModelError:
+        shown = f"an integer of {len(str(abs(value)))} digits" if isinstance(value, int) and abs(value) > 1e18 else repr(value)
+        return NoiseModelError(f"{owner}.{name} must be {rule}, got {shown}", keys)
+
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not abs(value) <= MAX_MODEL_VALUE:
+        raise bad(f"a finite number within ±{MAX_MODEL_VALUE:g}")
     if positive and not value > 0.0:
-        raise NoiseModelError(f"{owner}.{name} must be > 0, got {value!r}")
+        raise bad("> 0")
     if non_negative and not value >= 0.0:
-        raise NoiseModelError(f"{owner}.{name} must be >= 0, got {value!r}")
+        raise bad(">= 0")
+    if bounds is not None and not bounds[0] <= value <= bounds[1]:
+        raise bad(f"within {bounds[0]:g}..{bounds[1]:g}")
 
 
 @dataclass(frozen=True)
@@ -113,7 +140,7 @@ class OdometryNoiseRates:
             if not getattr(self, name) > 0.0:
                 raise NoiseModelError(
                     f"odometry.noise.{name} must be > 0: it keeps the covariance positive definite "
-                    "when the robot stands still"
+                    "when the robot stands still", ("odometry", "noise", name)
                 )
 
     def stretch_covariance(self, distance_m: float, angle_rad: float, dt_s: float) -> np.ndarray:
@@ -141,9 +168,9 @@ class OdometryModel:
     def __post_init__(self) -> None:
         _check_finite("odometry", "lag_s", self.lag_s)
         if abs(self.lag_s) > 5.0:
-            raise NoiseModelError(f"odometry.lag_s must be within ±5 s, got {self.lag_s!r}")
+            raise NoiseModelError(f"odometry.lag_s must be within ±5 s, got {self.lag_s!r}", ("odometry", "lag_s"))
         for name in ("forward_scale", "turn_scale"):
-            _check_finite("odometry", name, getattr(self, name), positive=True)
+            _check_finite("odometry", name, getattr(self, name), positive=True, bounds=SCALE_BOUNDS)
         _check_finite("odometry", "turn_per_m_rad", self.turn_per_m_rad)
 
 
@@ -167,28 +194,32 @@ class ObservationModel:
 
     def __post_init__(self) -> None:
         if not isinstance(self.range_is_depth, bool):
-            raise NoiseModelError(f"observation.range_is_depth must be true or false, got {self.range_is_depth!r}")
-        for name in ("range_scale", "bearing_scale", "range_sigma_m", "bearing_sigma_rad"):
-            _check_finite("observation", name, getattr(self, name), positive=True)
+            raise NoiseModelError(f"observation.range_is_depth must be true or false, got {self.range_is_depth!r}",
+                                  ("observation", "range_is_depth"))
+        for name, bounds in (("range_scale", SCALE_BOUNDS), ("bearing_scale", SCALE_BOUNDS),
+                             ("range_sigma_m", SIGMA_LENGTH_M), ("bearing_sigma_rad", SIGMA_ANGLE_RAD)):
+            _check_finite("observation", name, getattr(self, name), positive=True, bounds=bounds)
         for name in ("range_sigma_per_m", "bearing_sigma_s", "outlier_rate"):
             _check_finite("observation", name, getattr(self, name), non_negative=True)
         for name in ("range_bias_m", "bearing_bias_rad", "camera_latency_s"):
             _check_finite("observation", name, getattr(self, name))
         if self.outlier_rate >= 1.0:
-            raise NoiseModelError(f"observation.outlier_rate must be below 1, got {self.outlier_rate!r}")
+            raise NoiseModelError(f"observation.outlier_rate must be below 1, got {self.outlier_rate!r}",
+                                  ("observation", "outlier_rate"))
         if abs(self.camera_latency_s) > 5.0:
-            raise NoiseModelError(f"observation.camera_latency_s must be within ±5 s, got {self.camera_latency_s!r}")
+            raise NoiseModelError(f"observation.camera_latency_s must be within ±5 s, got {self.camera_latency_s!r}",
+                                  ("observation", "camera_latency_s"))
         for name in ("correlated_share", "correlation_time_s"):
             _check_finite("observation", name, getattr(self, name), non_negative=True)
         if self.correlated_share >= 1.0:
             raise NoiseModelError(
                 f"observation.correlated_share must be below 1 (some of each reading's error is white), "
-                f"got {self.correlated_share!r}"
+                f"got {self.correlated_share!r}", ("observation", "correlated_share")
             )
         if self.correlated_share > 0.0 and not self.correlation_time_s > 0.0:
             raise NoiseModelError(
                 "observation.correlation_time_s must be > 0 when correlated_share is above 0, "
-                f"got {self.correlation_time_s!r}"
+                f"got {self.correlation_time_s!r}", ("observation", "correlation_time_s")
             )
 
     def sigma_range_m(self, range_m: float) -> float:
@@ -287,70 +318,80 @@ def correct_range(model: ObservationModel, range_m: float) -> tuple[float, float
 # --------------------------------------------------------------------------- the file
 
 
-def _build(cls, data: Any, where: str, path: str, nested: dict[str, Any] | None = None):
+def _build(cls, data: Any, where: str, fail, nested: dict[str, Any] | None = None):
+    keys = tuple(where.split("."))
     if not isinstance(data, dict):
-        raise NoiseModelError(f"{path}: {where} must be a JSON object, got {type(data).__name__}")
+        raise fail(f"{where} must be a JSON object, got {type(data).__name__}", keys)
     names = {f.name for f in fields(cls)}
     unknown = sorted(set(data) - names)
     if unknown:
-        raise NoiseModelError(f"{path}: {where} has unknown field(s) {', '.join(unknown)}; known: {', '.join(sorted(names))}")
+        raise fail(f"{where} has unknown field(s) {', '.join(unknown)}; known: {', '.join(sorted(names))}",
+                   keys + (unknown[0],))
     kwargs = dict(data)
     for key, sub in (nested or {}).items():
         if key in kwargs:
-            kwargs[key] = _build(sub, kwargs[key], f"{where}.{key}", path)
+            kwargs[key] = _build(sub, kwargs[key], f"{where}.{key}", fail)
     try:
         return cls(**kwargs)
     except NoiseModelError as exc:
-        raise NoiseModelError(f"{path}: {exc}") from None
+        raise fail(str(exc), exc.field) from None
 
 
-def noise_model_from_dict(data: Any, path: str = "<noise model>") -> NoiseModel:
-    """Parse the JSON object written by :func:`save_noise_model`; errors name the field."""
+def noise_model_from_dict(data: Any, path: str = "<noise model>", doc: Document | None = None) -> NoiseModel:
+    """Parse the JSON object written by :func:`save_noise_model`; errors name the field
+    (``path: ...``, or with ``doc``, the file it was read from, ``file:line: ...`` as a
+    :class:`NoiseModelFileError`)."""
+
+    def fail(message: str, keys: tuple = ()) -> NoiseModelError:
+        if doc is None:
+            return NoiseModelError(f"{path}: {message}", keys)
+        return NoiseModelFileError(f"{doc.where(*keys)}: {message}", keys)
+
     if not isinstance(data, dict) or data.get("format") != NOISE_MODEL_FORMAT:
-        raise NoiseModelError(
-            f"{path}: not an fgslam noise model (expected a JSON object with \"format\": "
+        raise fail(
+            f"not an fgslam noise model (expected a JSON object with \"format\": "
             f"\"{NOISE_MODEL_FORMAT}\"; make one with fgslam calibrate LOG... --out FILE)"
         )
     unknown = sorted(set(data) - {"format", "version", "odometry", "observation", "fitted_on", "fit_report"})
     if unknown:
-        raise NoiseModelError(
-            f"{path}: unknown field(s) {', '.join(unknown)}; known: format, version, odometry, observation, "
-            "fitted_on, fit_report"
+        raise fail(
+            f"unknown field(s) {', '.join(unknown)}; known: format, version, odometry, observation, "
+            "fitted_on, fit_report", (unknown[0],)
         )
     version = data.get("version")
     if isinstance(version, bool) or not isinstance(version, int) or version != NOISE_MODEL_VERSION:
-        raise NoiseModelError(f"{path}: noise-model version {version!r}; this fgslam reads version {NOISE_MODEL_VERSION}")
-    odometry = _build(OdometryModel, data.get("odometry", {}), "odometry", path, {"noise": OdometryNoiseRates})
-    observation = _build(ObservationModel, data.get("observation", {}), "observation", path)
+        raise fail(f"noise-model version {version!r}; this fgslam reads version {NOISE_MODEL_VERSION}", ("version",))
+    odometry = _build(OdometryModel, data.get("odometry", {}), "odometry", fail, {"noise": OdometryNoiseRates})
+    observation = _build(ObservationModel, data.get("observation", {}), "observation", fail)
     fitted_on = data.get("fitted_on", [])
     if not isinstance(fitted_on, list) or not all(isinstance(s, str) for s in fitted_on):
-        raise NoiseModelError(f"{path}: fitted_on must be a list of strings")
+        raise fail("fitted_on must be a list of strings", ("fitted_on",))
     report = data.get("fit_report", {})
     if not isinstance(report, dict):
-        raise NoiseModelError(f"{path}: fit_report must be a JSON object")
+        raise fail("fit_report must be a JSON object", ("fit_report",))
     return NoiseModel(odometry, observation, tuple(fitted_on), report)
 
 
+_MAKE_ONE = "make a noise model with fgslam calibrate LOG... --out noise.json"
+
+
 def load_noise_model(path: str | os.PathLike[str]) -> NoiseModel:
-    """Read a noise-model file; every problem is one :class:`NoiseModelError` line."""
+    """Read a noise-model file; every problem is one :class:`NoiseModelFileError` line
+    (``file:line: ...`` naming the field; :mod:`slamio.safe_input` refuses a FIFO, a device,
+    a huge file, deep nesting and numbers no model holds). A run log given instead is a
+    plain :class:`NoiseModelError`: a mistake in the command, not a bad file."""
     path = os.fspath(path)
+    if not os.path.lexists(path):
+        raise NoiseModelFileError(f"{path}: no such noise-model file (make one with fgslam calibrate LOG... --out {path})")
+    text = read_text(path, "noise-model file", f"a noise model is UTF-8 JSON ({_MAKE_ONE})", NoiseModelFileError)
     try:
-        with open(path, encoding="utf-8") as f:
-            text = f.read()
-    except FileNotFoundError:
-        raise NoiseModelError(f"{path}: no such noise-model file (make one with fgslam calibrate LOG... --out {path})") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise NoiseModelError(f"{path}: cannot read ({exc})") from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
+        doc = parse_json(path, text, error=NoiseModelFileError, fix=_MAKE_ONE)
+    except NoiseModelFileError:
         if _is_run_log(text):
             raise NoiseModelError(f"{path} is a run log, not a noise model; make a noise model from logs with ground "
                                   f"truth with fgslam calibrate LOG... --out noise.json") from None
-        raise NoiseModelError(f"{path}:{exc.lineno}: not valid JSON ({exc.msg} at column {exc.colno})") from None
-    except RecursionError:
-        raise NoiseModelError(f"{path}: JSON nested too deeply") from None
-    return noise_model_from_dict(data, path)
+        raise
+    return noise_model_from_dict(doc.data, path, doc)
 
 
 def _is_run_log(text: str) -> bool:

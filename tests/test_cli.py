@@ -92,7 +92,7 @@ def test_corrupted_middle_line_exits_nonzero_with_file_and_line(short_log, tmp_p
     bad.write_text("".join(lines))
     code = main(["run", str(bad), "--out", str(tmp_path / "r")])
     err = capsys.readouterr().err
-    assert code == 1
+    assert code == 2  # an input file that cannot be used
     assert f"fgslam: error: {bad}:{middle}: not valid JSON" in err
     assert f"head -n {middle - 1}" in err
     assert not (tmp_path / "r" / "metrics.json").exists()
@@ -115,19 +115,19 @@ def test_log_truncated_mid_line_runs_on_the_part_before_the_cut(short_log, tmp_p
 
 
 @pytest.mark.parametrize(
-    "argv, message",
+    "argv, message, status",
     [
-        (["run", "missing.jsonl", "--out", "x"], "cannot open"),
-        (["run", "LOG", "--out", "x", "--estimators", "ekf,ukf"], "unknown estimator(s) ukf"),
-        (["run", "NOTRUTH", "--out", "x", "--estimators", "ekf"], "keep isam2"),
+        (["run", "missing.jsonl", "--out", "x"], "cannot open", 2),  # an input file: status 2
+        (["run", "LOG", "--out", "x", "--estimators", "ekf,ukf"], "unknown estimator(s) ukf", 1),
+        (["run", "NOTRUTH", "--out", "x", "--estimators", "ekf"], "keep isam2", 1),
     ],
 )
-def test_user_errors_are_one_line_not_tracebacks(argv, message, short_log, tmp_path, capsys, monkeypatch):
+def test_user_errors_are_one_line_not_tracebacks(argv, message, status, short_log, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     no_truth = tmp_path / "no_truth.jsonl"  # the batch solve is the reference: it needs iSAM2
     no_truth.write_text("".join(line for line in open(short_log) if '"truth_pose"' not in line))
     argv = [str(short_log) if a == "LOG" else str(no_truth) if a == "NOTRUTH" else a for a in argv]
-    assert main(argv) == 1
+    assert main(argv) == status
     err = capsys.readouterr().err
     assert err.startswith("fgslam: error: ") and message in err
     assert "Traceback" not in err
@@ -233,7 +233,7 @@ def test_export_rosbag_and_import_it_back_byte_for_byte(tmp_path, capsys):
     assert main(["import", "rosbag", str(bag), str(back)]) == 0
     assert back.read_bytes() == open("data/arena_square.jsonl", "rb").read()
     # topics named on the command line are read, not ignored for the stored log
-    assert main(["import", "rosbag", str(bag), str(tmp_path / "x.jsonl"), "--odom-topic", "/odom"]) == 1
+    assert main(["import", "rosbag", str(bag), str(tmp_path / "x.jsonl"), "--odom-topic", "/odom"]) == 2
     assert "/odom: not in the bag" in capsys.readouterr().err and not (tmp_path / "x.jsonl").exists()
     assert main(["import", "rosbag", str(bag), str(tmp_path / "topics.jsonl"), "--odom-topic", "/fgslam/odometry",
                  "--detections-topic", "/fgslam/tag_detections"]) == 0

@@ -267,7 +267,7 @@ def test_a_principal_point_outside_the_image_is_refused(tmp_path, capsys, cx, cy
     frames = _frames(tmp_path)
     out = tmp_path / "still.jsonl"
     status, _, err = _detect(capsys, frames, "--camera", camera, "--out", out, "--static")
-    assert status == 1
+    assert status == 2  # an input file that cannot be used
     line = _one_error(err)
     assert str(camera) in line and named in line and "principal point" in line
     assert not out.exists()

@@ -80,7 +80,7 @@ def test_two_truths_of_one_landmark_are_an_error_naming_both_lines(tmp_path, cap
     assert err.partial is not None and err.partial.records == ()  # nothing but the header precedes line 2
 
     code, out, stderr = validate(path, capsys)
-    assert code == 1 and out == ""
+    assert code == 2 and out == ""
     assert stderr.startswith(f"fgslam: error: {path}:2: landmark_id 0 has two truth_landmark records")
     assert "head -n" not in stderr  # only the header would be left
 
@@ -99,7 +99,7 @@ def test_a_later_conflicting_truth_keeps_only_the_lines_before_the_first(tmp_pat
     assert len(err.partial.records) == 5  # the truths of landmarks 0-4
 
     code, _, stderr = validate(path, capsys)
-    assert code == 1
+    assert code == 2
     assert f"{path}:7: landmark_id 5 has two truth_landmark records: line 7 gives" in stderr
     assert f"(the 6 lines before it are valid; fix or delete line 7, or keep only the good part: " \
            f"head -n 6 {path} > good.jsonl)" in stderr
@@ -118,7 +118,7 @@ def test_an_exact_repeat_is_an_error_at_the_repeat(tmp_path, capsys):
     assert len(err.partial.records) == 11  # lines 2-12
 
     code, _, stderr = validate(path, capsys)
-    assert code == 1 and f"head -n 12 {path} > good.jsonl" in stderr
+    assert code == 2 and f"head -n 12 {path} > good.jsonl" in stderr
 
 
 def test_two_truths_of_one_landmark_in_a_3d_log(tmp_path):
@@ -159,7 +159,7 @@ def test_a_forward_jump_names_both_lines_and_keeps_only_lines_known_good(tmp_pat
     assert err.partial.records[-1] == read_log(OCTAGON).records[278]
 
     code, out, stderr = validate(path, capsys)
-    assert code == 1 and out == ""
+    assert code == 2 and out == ""
     assert stderr == (
         f"fgslam: error: {err}\n"
         f"  (the 280 lines before it are valid; fix or delete line 281, or keep only the good part: "
@@ -213,7 +213,7 @@ def test_a_stamp_before_the_header_start_is_reported_at_the_header(tmp_path, cap
         "is wrong; records must be written in time order (fix the wrong stamp or delete its line)"
     )
     code, _, stderr = validate(path, capsys)
-    assert code == 1 and "head -n" not in stderr
+    assert code == 2 and "head -n" not in stderr
 
 
 def test_equal_stamps_are_in_order(tmp_path):

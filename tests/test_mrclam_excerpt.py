@@ -128,7 +128,7 @@ def test_calibrate_then_import_then_run_from_the_command_line(tmp_path, capsys):
 
 
 def test_a_missing_noise_file_is_one_clear_line(tmp_path, capsys):
-    assert main(["import", "mrclam", EXCERPT, str(tmp_path / "x.jsonl"), "--noise", str(tmp_path / "nope.json")]) == 1
+    assert main(["import", "mrclam", EXCERPT, str(tmp_path / "x.jsonl"), "--noise", str(tmp_path / "nope.json")]) == 2
     err = capsys.readouterr().err
     assert "nope.json: no such noise-model file" in err and "Traceback" not in err
     assert not (tmp_path / "x.jsonl").exists()

@@ -130,7 +130,7 @@ def test_the_command_line_stops_with_the_dat_file_and_line_and_writes_no_log(fol
     path = folder / "Robot1_Measurement.dat"
     _replace(path, FIRST, f"{T}\t72\t2.000\t25.0")
     out = tmp_path / "out.jsonl"
-    assert main(["import", "mrclam", str(folder), str(out), "--robot", "1"]) == 1
+    assert main(["import", "mrclam", str(folder), str(out), "--robot", "1"]) == 2  # a bad input file: status 2
     err = capsys.readouterr().err
     assert f"{path}:{FIRST}:" in err and "25.0" in err and "|bearing| <= pi" in err
     assert not out.exists()

@@ -1,6 +1,7 @@
 """Side input files (calibration, tolerances, trials, camera, landmarks, waypoints) that are
 not what they should be, and `fgslam check`'s tolerances out of range: each is one line
-`fgslam: error: ...` naming the file (or the option) and exit status 1, never a traceback."""
+`fgslam: error: ...` naming the file (or the option), never a traceback; exit status 2 for a
+file (an input file that cannot be used), 1 for an option."""
 
 from __future__ import annotations
 
@@ -91,65 +92,65 @@ def not_utf8(capsys, path: Path, kind: str) -> None:
 def test_calibration_not_utf8_on_run(capsys, log, garbage, tmp_path):
     code = main(["run", str(log), "--out", str(tmp_path / "r"), "--estimators", "ekf,isam2",
                  "--calibration", str(garbage), "--no-report"])
-    assert code == 1
+    assert code == 2
     not_utf8(capsys, garbage, "calibration file")
 
 
 def test_calibration_not_utf8_on_record(capsys, garbage, tmp_path):
     code = main(["record", "--port", "sim", "--model", "create2", "--out", str(tmp_path / "r.jsonl"),
                  "--calibration", str(garbage)])
-    assert code == 1
+    assert code == 2
     not_utf8(capsys, garbage, "calibration file")
 
 
 def test_tolerances_not_utf8(capsys, log, garbage):
-    assert main(["check", str(log), "--tolerances", str(garbage)]) == 1
+    assert main(["check", str(log), "--tolerances", str(garbage)]) == 2
     not_utf8(capsys, garbage, "tolerance file")
 
 
 def test_trials_not_utf8(capsys, tmp_path):
     trials = tmp_path / "garbage.csv"
     trials.write_bytes(GARBAGE)
-    assert main(["calibrate", str(trials)]) == 1
+    assert main(["calibrate", str(trials)]) == 2
     not_utf8(capsys, trials, "trials file")
 
 
 def test_not_utf8_names_the_line_and_column_of_the_first_bad_byte(capsys, tmp_path):
     trials = tmp_path / "latin1.csv"
     trials.write_bytes(b"kind,command_distance_m\nforward,0.5 # caf\xe9\n")
-    assert main(["calibrate", str(trials)]) == 1
+    assert main(["calibrate", str(trials)]) == 2
     one_error_line(capsys, f"{trials}:2: not UTF-8 text: byte 0xe9 at column 18")
 
 
 def test_camera_not_utf8(capsys, garbage, photos, tmp_path):
     code = main(["detect", str(photos), "--camera", str(garbage), "--out", str(tmp_path / "zz.jsonl"), "--static"])
-    assert code == 1
+    assert code == 2
     not_utf8(capsys, garbage, "camera file")
 
 
 def test_landmarks_not_utf8_on_detect(capsys, garbage, camera, photos, tmp_path):
     code = main(["detect", str(photos), "--camera", str(camera), "--kind", "colour", "--landmarks", str(garbage),
                  "--out", str(tmp_path / "zz.jsonl"), "--static"])
-    assert code == 1
+    assert code == 2
     not_utf8(capsys, garbage, "landmark file")
 
 
 def test_landmarks_not_utf8_on_tune_colours(capsys, garbage, camera, photos, tmp_path):
     code = main(["tune-colours", str(photos), "--camera", str(camera), "--out", str(tmp_path / "t.yaml"),
                  "--landmarks", str(garbage)])
-    assert code == 1
+    assert code == 2
     not_utf8(capsys, garbage, "landmark file")
 
 
 def test_landmarks_not_utf8_on_live(capsys, garbage, tmp_path):
     code = main(["live", "--port", "sim", "--kind", "colour", "--landmarks", str(garbage),
                  "--out", str(tmp_path / "lv.jsonl")])
-    assert code == 1
+    assert code == 2
     not_utf8(capsys, garbage, "landmark file")
 
 
 def test_waypoints_not_utf8_on_live(capsys, garbage, tmp_path):
-    assert main(["live", "--port", "sim", "--out", str(tmp_path / "lv.jsonl"), "--path", str(garbage)]) == 1
+    assert main(["live", "--port", "sim", "--out", str(tmp_path / "lv.jsonl"), "--path", str(garbage)]) == 2
     not_utf8(capsys, garbage, "waypoint file")
 
 
@@ -159,10 +160,10 @@ def test_yaml_errors_are_one_line(capsys, camera, photos, tmp_path):
     bad.write_text("a: [1, 2\nb: {\n")
     control = tmp_path / "control.yaml"
     control.write_text("a: \x01\n")
-    assert main(["detect", str(photos), "--camera", str(bad), "--out", str(tmp_path / "o.jsonl"), "--static"]) == 1
+    assert main(["detect", str(photos), "--camera", str(bad), "--out", str(tmp_path / "o.jsonl"), "--static"]) == 2
     one_error_line(capsys, f"{bad}:2: not valid YAML")
     assert main(["tune-colours", str(photos), "--camera", str(camera), "--out", str(tmp_path / "t.yaml"),
-                 "--landmarks", str(control)]) == 1
+                 "--landmarks", str(control)]) == 2
     one_error_line(capsys, str(control), "not valid YAML/JSON")
 
 
@@ -178,11 +179,11 @@ def test_bad_calibration_on_run_is_one_line(capsys, small_log, tmp_path):
     cal = write_json(tmp_path / "badcal.json", BAD_CALIBRATION)
     code = main(["run", str(small_log), "--out", str(tmp_path / "rc1"), "--calibration", str(cal),
                  "--estimators", "ekf-s001,isam2", "--no-report"])
-    assert code == 1
+    assert code == 2
     run_line = one_error_line(capsys, str(cal), "forward", "fgslam calibrate")
     code = main(["record", "--port", "sim", "--model", "create2", "--out", str(tmp_path / "r.jsonl"),
                  "--calibration", str(cal)])
-    assert code == 1
+    assert code == 2
     assert one_error_line(capsys, str(cal)) == run_line  # the same check on both paths
     assert not (tmp_path / "rc1" / "metrics.json").exists()
 
@@ -200,7 +201,8 @@ def _good(good_calibration) -> dict:
     (lambda d: d["rotate"].pop("covariance_per_rad"), "rotate lacks covariance_per_rad"),
     (lambda d: d["rotate"].update(trials=1), "rotate.trials must be a whole number >= 2"),
     (lambda d: d["forward"].update(bias=[0, 0]), "forward.bias must be a list of 3 numbers"),
-    (lambda d: d["observation"].update(sigma_range_m=float("nan")), "observation.sigma_range_m must be a finite"),
+    (lambda d: d["observation"].update(sigma_range_m=float("nan")), "field 'observation.sigma_range_m' is not a number"),
+    (lambda d: d["observation"].update(sigma_range_m=1e308), "observation.sigma_range_m must be a finite number within"),
     (lambda d: d["observation"].update(sigma_bearing_rad=-0.1), "observation.sigma_bearing_rad must be >= 0"),
     (lambda d: d.update(observation=5), "observation must be null or an object"),
     (lambda d: d.update(forward=None, rotate=None, pooled_motion_covariance=None, observation=None),
@@ -215,10 +217,10 @@ def test_bad_calibration_contents(capsys, good_calibration, tmp_path, change, sa
     with pytest.raises(FgslamError, match=None) as caught:
         load_calibration(cal)
     message = str(caught.value)
-    assert message.startswith(f"{cal}: ") and says in message and "\n" not in message, message
+    assert message.startswith(f"{cal}:") and says in message and "\n" not in message, message
     # record goes through load_calibration before the port is opened
     assert main(["record", "--port", "sim", "--model", "create2", "--out", str(tmp_path / "r.jsonl"),
-                 "--calibration", str(cal)]) == 1
+                 "--calibration", str(cal)]) == 2
     one_error_line(capsys, str(cal), says)
 
 
@@ -291,8 +293,8 @@ def test_check_accepts_tolerance_options_at_the_ends_of_their_range():
 def test_check_rejects_tolerance_file_out_of_range(capsys, log, tmp_path, text, says):
     tolerances = tmp_path / "tol.toml"
     tolerances.write_text(text)
-    assert main(["check", str(log), "--tolerances", str(tolerances)]) == 1
-    one_error_line(capsys, str(tolerances), says)
+    assert main(["check", str(log), "--tolerances", str(tolerances)]) == 2
+    one_error_line(capsys, f"{tolerances}:2: ", says)
 
 
 def test_check_estimator_checks_its_tolerances_before_reading_the_log(tmp_path):

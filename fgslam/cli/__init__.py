@@ -5,8 +5,9 @@
   verb and its ``--help``; ``cmd_<verb>(args)`` does it and returns the exit status.
 - :mod:`fgslam.cli.common`: the one error path (:func:`~fgslam.cli.common.run_verb`: every
   :class:`~slamio.errors.FgslamError` or :class:`OSError` becomes ``fgslam: error: <what,
-  where, how to fix it>`` and exit status 1), reading logs, and outputs that never replace
-  what the user has unless asked (``--overwrite``).
+  where, how to fix it>`` and exit status 1 — status 2 when an input file cannot be used,
+  :class:`~slamio.errors.InputFileError`, see :func:`main`), reading logs, and outputs that
+  never replace what the user has unless asked (``--overwrite``).
 - :mod:`fgslam.cli.progress`: the one progress display (tqdm).
 
 Verb modules import from ``common`` and ``progress`` only, never from this package's
@@ -16,6 +17,7 @@ Verb modules import from ``common`` and ``progress`` only, never from this packa
 from __future__ import annotations
 
 import argparse
+import functools
 import re
 import sys
 from typing import Sequence
@@ -34,8 +36,9 @@ from fgslam.cli import (
     tune_colours,
     validate,
 )
-from fgslam.cli.common import run_verb
+from fgslam.cli.common import fail, run_verb
 from fgslam.cli.estimators import ESTIMATOR_HELP
+from slamio.errors import InputFileError
 
 __all__ = ["main", "build_parser", "ESTIMATOR_HELP", "VERBS"]
 
@@ -99,7 +102,31 @@ def main(argv: Sequence[str] | None = None) -> int:
         else:
             parser.error(f"unrecognized arguments: {' '.join(extra)}")
     args.argv = argv
-    return run_verb(args.func, args)
+    return run_verb(_input_file_status(args.func), args)
+
+
+def _input_file_status(func):
+    """``func`` (a verb), exiting with :attr:`InputFileError.exit_status` (2) when an input
+    file cannot be used — missing, not a regular file, too large, or holding what its reader
+    refuses — after the same one line as every user error; a mistake in the command (an
+    option, an output) stays status 1."""
+
+    @functools.wraps(func)
+    def verb(args: argparse.Namespace) -> int:
+        try:
+            return func(args)
+        except InputFileError as error:
+            fail(error)
+            return error.exit_status
+        except RuntimeError as error:  # Python < 3.13: Path.resolve() says ELOOP as RuntimeError
+            if not str(error).startswith("Symlink loop from "):
+                raise
+            looped = str(error)[len("Symlink loop from "):].strip("'\"")
+            fail(InputFileError(f"{looped}: a loop of symbolic links (a link that leads, through others, back "
+                                "to itself); point the link at the real file"))
+            return InputFileError.exit_status
+
+    return verb
 
 
 if __name__ == "__main__":

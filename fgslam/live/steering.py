@@ -12,7 +12,7 @@ import numpy as np
 
 from slamio.create.record import SAME_TIME_S, WheelRamp
 from slamio.create.odometry import WHEEL_BASE_M
-from slamio.errors import FgslamError, read_text
+from slamio.errors import FgslamError, InputFileError, read_text
 from slamio.geometry import arc_increment, between_pose, compose_pose, wrap_angle
 from slamio.log import Odometry
 
@@ -50,6 +50,10 @@ def polygon_waypoints(sides: int, width_m: float, centre_xy: tuple[float, float]
     return np.vstack([loop] * max(1, int(laps)))
 
 
+#: Waypoints farther than this from the map's origin are a typo (a Create drives 0.5 m/s).
+MAX_WAYPOINT_M = 1.0e4
+
+
 def read_waypoints(path: str) -> np.ndarray:
     """``x_m, y_m`` per line (comma or space separated, ``#`` comments); file:line errors."""
     rows = []
@@ -62,12 +66,14 @@ def read_waypoints(path: str) -> np.ndarray:
         try:
             x, y = (float(v) for v in text)
         except ValueError:
-            raise FgslamError(f"{path}:{number}: expected 'x_m, y_m', got {line.strip()!r}") from None
-        if not (math.isfinite(x) and math.isfinite(y)):
-            raise FgslamError(f"{path}:{number}: waypoint is not finite")
+            shown = line.strip() if len(line.strip()) <= 80 else line.strip()[:77] + "..."
+            raise InputFileError(f"{path}:{number}: expected 'x_m, y_m', got {shown!r}") from None
+        if not (abs(x) <= MAX_WAYPOINT_M and abs(y) <= MAX_WAYPOINT_M):  # NaN fails too
+            raise InputFileError(f"{path}:{number}: a waypoint must be finite and within {MAX_WAYPOINT_M:g} m of "
+                                 f"the origin (metres in the map frame); got {text[0][:20]}, {text[1][:20]}")
         rows.append((x, y))
     if not rows:
-        raise FgslamError(f"{path}: no waypoints; write one 'x_m, y_m' per line")
+        raise InputFileError(f"{path}: no waypoints; write one 'x_m, y_m' per line")
     return np.array(rows)
 
 

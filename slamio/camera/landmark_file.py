@@ -38,7 +38,9 @@ from typing import Any
 
 from slamio.camera.colour import ColourOptions, ColourSpec
 from slamio.camera.colour_checks import SHAPES
-from slamio.errors import FgslamError, read_text
+from slamio.errors import InputFileError, read_text
+from slamio.log.fields import MAX_ID
+from slamio.safe_input import Document, parse_json, parse_yaml
 
 #: The ``checks`` keys: ColourOptions fields a user may tune, with their types.
 CHECK_KEYS = {
@@ -54,15 +56,25 @@ CHECK_KEYS = {
 LANDMARK_KEYS = ("name", "id", "shape", "width_m", "height_m", "hsv", "min_area_px")
 
 
-class LandmarkFileError(FgslamError):
-    """A colour-landmark file that cannot be used; the message names the file and the key."""
+class LandmarkFileError(InputFileError):
+    """A colour-landmark file that cannot be used; the message names the file (and line) and
+    the key (``fgslam`` exits with status 2)."""
+
+
+#: The largest value of a landmark file's numbers: a landmark id is a signed 32-bit integer
+#: (as the run log's), sizes are metres (a landmark is not 100 m wide), areas pixels, and
+#: the checks' tolerances far below 1e6.
+MAX_VALUE = {"id": MAX_ID, "width_m": 100.0, "height_m": 100.0, "min_area_px": 10**9, "erode_px": 1000}
+MAX_CHECK_VALUE = 1e6
 
 
 def _number(path: str, where: str, value: Any, kind: type, minimum: float, inclusive: bool = False):
     if isinstance(value, bool) or not isinstance(value, (int, float)) or (kind is int and not isinstance(value, int)):
         raise LandmarkFileError(f"{path}: {where} must be {'an integer' if kind is int else 'a number'}, got {value!r}")
-    if value < minimum or (value == minimum and not inclusive):
-        raise LandmarkFileError(f"{path}: {where} must be {'>=' if inclusive else '>'} {minimum}, got {value!r}")
+    maximum = MAX_VALUE.get(where.rsplit(".", 1)[-1], MAX_CHECK_VALUE)
+    if value < minimum or (value == minimum and not inclusive) or not value <= maximum:
+        raise LandmarkFileError(f"{path}: {where} must be {'>=' if inclusive else '>'} {minimum} and at most "
+                                f"{maximum}, got {value!r}")
     return kind(value)
 
 
@@ -123,15 +135,21 @@ def _landmark(path: str, k: int, entry: Any) -> ColourSpec:
                       min_area)
 
 
-def options_from_dict(data: Any, path: str = "<landmarks>", base: ColourOptions = ColourOptions()) -> ColourOptions:
-    """ColourOptions from a parsed landmark file (``base`` supplies what the file does not say)."""
+def options_from_dict(data: Any, path: str = "<landmarks>", base: ColourOptions = ColourOptions(),
+                      doc: Document | None = None) -> ColourOptions:
+    """ColourOptions from a parsed landmark file (``base`` supplies what the file does not
+    say); with ``doc`` (the file it was read from) errors name the line too."""
+
+    def at(*keys) -> str:
+        return doc.where(*keys) if doc is not None else path
+
     if not isinstance(data, dict) or "landmarks" not in data:
         raise LandmarkFileError(f"{path}: expected a mapping with a 'landmarks' list (see docs/camera.md)")
     _refuse_unknown_keys(path, "top level", data, ("landmarks", "checks"))
     entries = data["landmarks"]
     if not isinstance(entries, list) or not entries:
-        raise LandmarkFileError(f"{path}: 'landmarks' must be a non-empty list")
-    colours = tuple(_landmark(path, k, e) for k, e in enumerate(entries))
+        raise LandmarkFileError(f"{at('landmarks')}: 'landmarks' must be a non-empty list")
+    colours = tuple(_landmark(at("landmarks", k), k, e) for k, e in enumerate(entries))
     for attribute, label in (("name", "name"), ("landmark_id", "id")):
         values = [getattr(c, attribute) for c in colours if getattr(c, attribute) is not None]
         duplicates = sorted({v for v in values if values.count(v) > 1}, key=str)
@@ -139,9 +157,9 @@ def options_from_dict(data: Any, path: str = "<landmarks>", base: ColourOptions 
             raise LandmarkFileError(f"{path}: two landmarks have the same {label}: {duplicates[0]!r}")
     checks = data.get("checks") or {}
     if not isinstance(checks, dict):
-        raise LandmarkFileError(f"{path}: 'checks' must be a mapping of {', '.join(CHECK_KEYS)}")
-    _refuse_unknown_keys(path, "checks", checks, tuple(CHECK_KEYS))
-    values = {key: _number(path, f"checks.{key}", checks[key], kind, 0.0, inclusive=True)
+        raise LandmarkFileError(f"{at('checks')}: 'checks' must be a mapping of {', '.join(CHECK_KEYS)}")
+    _refuse_unknown_keys(at("checks"), "checks", checks, tuple(CHECK_KEYS))
+    values = {key: _number(at("checks", key), f"checks.{key}", checks[key], kind, 0.0, inclusive=True)
               for key, kind in CHECK_KEYS.items() if key in checks}
     return replace(base, colours=colours, **values)
 
@@ -160,19 +178,14 @@ def options_to_dict(options: ColourOptions) -> dict:
 
 def load_landmarks(path: str | os.PathLike[str], base: ColourOptions = ColourOptions()) -> ColourOptions:
     """Read a landmark file (YAML or JSON)."""
-    import yaml
-
     p = Path(path)
     text = read_text(p, "landmark file", "a landmark file is UTF-8 YAML or JSON text (see docs/camera.md; "
                      "fgslam tune-colours --out writes one)", LandmarkFileError)
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = f":{mark.line + 1}" if mark is not None else ""
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]  # one line, never yaml's several
-        raise LandmarkFileError(f"{p}{line}: not valid YAML/JSON ({problem})") from None
-    return options_from_dict(data, str(p), base)
+    if p.suffix.lower() == ".json":  # as JSON: YAML 1.1 would read 1e308 as a string
+        doc = parse_json(p, text, error=LandmarkFileError)
+    else:  # YAML (or JSON in a .yaml file: JSON is YAML); NaN, .inf, aliases, deep nesting refused
+        doc = parse_yaml(p, text, error=LandmarkFileError, what="YAML/JSON")
+    return options_from_dict(doc.data, str(p), base, doc)
 
 
 def save_landmarks(path: str | os.PathLike[str], options: ColourOptions, comment: str = "",

@@ -46,7 +46,8 @@ from typing import Any
 
 import numpy as np
 
-from slamio.errors import FgslamError, read_text
+from slamio.errors import InputFileError, read_text
+from slamio.safe_input import Document, parse_yaml
 
 #: Rotation taking optical-frame vectors (x right, y down, z forward) into a body frame
 #: (x forward, y left, z up): columns are the optical axes expressed in the body frame.
@@ -55,8 +56,19 @@ R_BODY_OPTICAL = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 DISTORTION_MODELS = ("plumb_bob", "rational_polynomial", "equidistant")
 
 
-class CameraConfigError(FgslamError):
-    """A camera file that cannot be used: says which file, which key, and how to fix it."""
+class CameraConfigError(InputFileError):
+    """A camera file that cannot be used: says which file (and line), which key, and how to
+    fix it (``fgslam`` exits with status 2)."""
+
+
+#: Bounds on a camera file's numbers, each far beyond any real camera, so that no product
+#: the projection takes overflows: the image's side (px), focal lengths, principal point
+#: and |distortion coefficients|, and the mount's offsets (m) and angles (rad).
+MAX_IMAGE_SIDE_PX = 100_000
+MAX_FOCAL_PX = 1e6
+MAX_DISTORTION = 1e6
+MAX_MOUNT_M = 1e3
+MAX_MOUNT_RAD = 1e3
 
 
 # --------------------------------------------------------------------------- pure maths
@@ -242,10 +254,19 @@ def _matrix(path: str, d: dict, key: str, rows: int | None, cols: int | None) ->
     return m
 
 
+def _bounded(path: str, key: str, values, limit: float, unit: str) -> None:
+    """Every value within ±``limit``, else one line naming the key."""
+    worst = float(np.max(np.abs(values))) if np.size(values) else 0.0
+    if worst > limit:
+        raise CameraConfigError(f"{path}: '{key}' holds {worst:g}, beyond ±{limit:g} {unit}; no camera has such a "
+                                "value: check the file (units are pixels, metres and radians)")
+
+
 def _positive_int(path: str, d: dict, key: str) -> int:
     value = d.get(key)
-    if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
-        raise CameraConfigError(f"{path}: '{key}' must be a positive integer (pixels), got {value!r}")
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 < value <= MAX_IMAGE_SIDE_PX:
+        raise CameraConfigError(f"{path}: '{key}' must be a positive integer of pixels up to {MAX_IMAGE_SIDE_PX}, "
+                                f"got {value!r}")
     return value
 
 
@@ -254,6 +275,7 @@ def _mount(path: str, d: dict) -> np.ndarray:
         raise CameraConfigError(f"{path}: give either 'robot_mount' or 'T_robot_camera', not both")
     if "T_robot_camera" in d:
         T = _matrix(path, d, "T_robot_camera", 4, 4)
+        _bounded(path, "T_robot_camera", T[:3, 3], MAX_MOUNT_M, "m")
         R = T[:3, :3]
         if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or not np.allclose(T[3], (0, 0, 0, 1)) \
                 or np.linalg.det(R) < 0:
@@ -277,8 +299,10 @@ def _mount(path: str, d: dict) -> np.ndarray:
     values = {}
     for k in allowed:
         v = mount.get(k, 0.0)
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise CameraConfigError(f"{path}: 'robot_mount.{k}' must be a finite number")
+        limit = MAX_MOUNT_M if k.endswith("_m") else MAX_MOUNT_RAD
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not abs(v) <= limit:
+            raise CameraConfigError(f"{path}: 'robot_mount.{k}' must be a finite number within ±{limit:g} "
+                                    f"({'metres' if k.endswith('_m') else 'radians'})")
         values[k] = float(v)
     return T_robot_camera_from_mount(**values)
 
@@ -299,50 +323,52 @@ def _check_principal_point(path: str, K: np.ndarray, width: int, height: int) ->
         )
 
 
-def camera_from_dict(d: Any, path: str = "<camera>") -> CameraModel:
-    """Build a :class:`CameraModel` from a parsed camera_info mapping (see the module doc)."""
+def camera_from_dict(d: Any, path: str = "<camera>", doc: Document | None = None) -> CameraModel:
+    """Build a :class:`CameraModel` from a parsed camera_info mapping (see the module doc);
+    with ``doc`` (the file it was read from) each error names the line of its key."""
+
+    def at(key: str) -> str:
+        return doc.where(key) if doc is not None else path
+
     if not isinstance(d, dict):
         raise CameraConfigError(f"{path}: not a camera_info YAML mapping (image_width, camera_matrix, ...)")
-    width = _positive_int(path, d, "image_width")
-    height = _positive_int(path, d, "image_height")
-    K = _matrix(path, d, "camera_matrix", 3, 3)
+    width = _positive_int(at("image_width"), d, "image_width")
+    height = _positive_int(at("image_height"), d, "image_height")
+    K = _matrix(at("camera_matrix"), d, "camera_matrix", 3, 3)
     if not (K[0, 0] > 0 and K[1, 1] > 0) or not np.allclose(K[2], (0, 0, 1)) or K[1, 0] != 0:
         raise CameraConfigError(
-            f"{path}: 'camera_matrix' must be [fx, s, cx, 0, fy, cy, 0, 0, 1] with fx, fy > 0"
+            f"{at('camera_matrix')}: 'camera_matrix' must be [fx, s, cx, 0, fy, cy, 0, 0, 1] with fx, fy > 0"
         )
-    _check_principal_point(path, K, width, height)
+    _bounded(at("camera_matrix"), "camera_matrix", K, MAX_FOCAL_PX, "px")
+    _check_principal_point(at("camera_matrix"), K, width, height)
     model = d.get("distortion_model", "plumb_bob")
     if model not in DISTORTION_MODELS:
         raise CameraConfigError(
-            f"{path}: distortion_model {model!r} is not supported; use one of {', '.join(DISTORTION_MODELS)}"
+            f"{at('distortion_model')}: distortion_model {str(model)[:40]!r} is not supported; use one of "
+            f"{', '.join(DISTORTION_MODELS)}"
         )
     if "distortion_coefficients" in d:
-        D = _matrix(path, d, "distortion_coefficients", None, None).ravel()
+        D = _matrix(at("distortion_coefficients"), d, "distortion_coefficients", None, None).ravel()
+        _bounded(at("distortion_coefficients"), "distortion_coefficients", D, MAX_DISTORTION, "")
     else:
         D = np.zeros(4 if model == "equidistant" else 5)
     expected = {"plumb_bob": (4, 5), "rational_polynomial": (8,), "equidistant": (4,)}[model]
     if len(D) not in expected:
         raise CameraConfigError(
-            f"{path}: distortion_model {model} takes {' or '.join(map(str, expected))} coefficients, got {len(D)}"
+            f"{at('distortion_coefficients')}: distortion_model {model} takes {' or '.join(map(str, expected))} "
+            f"coefficients, got {len(D)}"
         )
-    return CameraModel(width, height, K, D, model, _mount(path, d), str(d.get("camera_name", "camera")))
+    mount = at("T_robot_camera") if "T_robot_camera" in d else at("robot_mount")
+    return CameraModel(width, height, K, D, model, _mount(mount, d), str(d.get("camera_name", "camera")))
 
 
 def load_camera(path: str | os.PathLike[str]) -> CameraModel:
     """Read a ROS camera_info YAML (plus the optional mount) into a :class:`CameraModel`."""
-    import yaml
-
     path = os.fspath(path)
     text = read_text(path, "camera file", "a camera file is a UTF-8 ROS camera_info YAML (write one with "
                      "scripts/calibrate_camera.py; see docs/camera.md)", CameraConfigError)
-    try:
-        d = yaml.safe_load(text)
-    except yaml.YAMLError as exc:  # one line: where and what (yaml's own text spans several)
-        mark = getattr(exc, "problem_mark", None)
-        line = f":{mark.line + 1}" if mark is not None else ""
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise CameraConfigError(f"{path}{line}: not valid YAML ({problem}); write a ROS camera_info file") from None
-    return camera_from_dict(d, path)
+    doc = parse_yaml(path, text, error=CameraConfigError, fix="write a ROS camera_info file")
+    return camera_from_dict(doc.data, path, doc)
 
 
 def camera_to_dict(camera: CameraModel) -> dict[str, Any]:

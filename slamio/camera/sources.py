@@ -25,7 +25,6 @@ itself (a missing folder, a malformed ``rgb.txt`` line, a camera that cannot be 
 
 from __future__ import annotations
 
-import math
 import os
 import time
 from dataclasses import dataclass
@@ -36,6 +35,8 @@ import numpy as np
 
 from slamio.camera.colour import depth_from_mm, depth_from_scaled
 from slamio.errors import FgslamError
+from slamio.log.fields import STAMP_S
+from slamio.safe_input import check_regular
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".pgm", ".ppm", ".tif", ".tiff")
 TUM_DEPTH_SCALE_PER_M = 5000.0
@@ -105,7 +106,7 @@ def _stamp_from_name(path: Path) -> float | None:
         value = float(path.stem)
     except ValueError:
         return None
-    return value if math.isfinite(value) else None
+    return value if abs(value) <= STAMP_S else None  # a run log's stamps are within ±1e10 s
 
 
 def _image_files(folder: Path) -> list[Path]:
@@ -123,7 +124,7 @@ def read_stamp_list(path: Path) -> list[tuple[float, str]]:
             parts = text.split()
             try:
                 stamp = float(parts[0])
-                if len(parts) < 2 or not math.isfinite(stamp):
+                if len(parts) < 2 or not abs(stamp) <= STAMP_S:  # finite, and a run log's stamp
                     raise ValueError
             except ValueError:
                 raise FrameSourceError(
@@ -227,6 +228,8 @@ def open_frames(path: str | os.PathLike[str], *, fps: float = 30.0,
         return tum_frames(p, depth_scale_per_m=depth_scale_per_m) if is_tum_folder(p) else folder_frames(p, fps=fps)
     if p.is_file():
         return video_frames(str(p))
+    if os.path.lexists(p):  # a FIFO, a device or a loop of links: said, never opened
+        check_regular(p, "frame source (a folder of images or a video file)")
     raise FrameSourceError(f"{p}: no such folder or video file")
 
 

@@ -49,9 +49,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from slamio.create.odometry import OdometryNoise, quantisation_floor
-from slamio.errors import FgslamError, read_text
+from slamio.errors import FgslamError, InputFileError, read_text
 from slamio.geometry import arc_increment, wrap_angle
 from slamio.log import as_matrix3
+from slamio.safe_input import Document, parse_json, shown
 
 __all__ = [
     "COLUMNS",
@@ -96,14 +97,30 @@ class SensorTrial:
     line: int
 
 
+#: The largest magnitude of a trial's value (m or rad): a tape-measured trial is a few
+#: metres and radians; 1e308 is a corrupted cell (and overflows the covariance).
+MAX_TRIAL_VALUE = 1e3
+
+
 def _number(text: str, where: str, column: str) -> float:
     try:
         value = float(text)
     except ValueError:
-        raise FgslamError(f"{where}: column {column} must be a number, got {text!r}") from None
+        raise InputFileError(f"{where}: column {column} must be a number, got {shown(text)}") from None
     if not math.isfinite(value):
-        raise FgslamError(f"{where}: column {column} must be finite, got {text!r}")
+        raise InputFileError(f"{where}: column {column} must be finite, got {shown(text)}")
+    if abs(value) > MAX_TRIAL_VALUE:
+        raise InputFileError(f"{where}: column {column} is {value!r}, beyond ±{MAX_TRIAL_VALUE:g} (metres or "
+                             "radians): write the trial in metres and radians")
     return value
+
+
+def _cells(text: str, where: str) -> list[str]:
+    """The cells of one CSV line; a quoting error or a cell larger than csv's limit is one line."""
+    try:
+        return [c.strip() for c in next(csv.reader([text]))]
+    except csv.Error as exc:
+        raise InputFileError(f"{where}: not a CSV line ({exc}); a trials line is short numbers separated by commas") from None
 
 
 def read_trials(path: str | os.PathLike[str]) -> tuple[list[MotionTrial], list[SensorTrial]]:
@@ -114,13 +131,13 @@ def read_trials(path: str | os.PathLike[str]) -> tuple[list[MotionTrial], list[S
     numbered = [(i, line) for i, line in enumerate(text.splitlines(), start=1)
                 if line.strip() and not line.lstrip().startswith("#")]
     if not numbered:
-        raise FgslamError(f"{path}: no trials; the first line must be the header {','.join(COLUMNS)}")
+        raise InputFileError(f"{path}: no trials; the first line must be the header {','.join(COLUMNS)}")
     header_line, header_text = numbered[0]
-    header = [h.strip() for h in next(csv.reader([header_text]))]
+    header = _cells(header_text, f"{path}:{header_line}")
     missing = [c for c in ("kind",) if c not in header]
-    unknown = [h for h in header if h not in COLUMNS]
+    unknown = [h if len(h) <= 40 else h[:30] + "..." for h in header if h not in COLUMNS]
     if missing or unknown:
-        raise FgslamError(
+        raise InputFileError(
             f"{path}:{header_line}: the header must name columns from {','.join(COLUMNS)} "
             f"(missing: {', '.join(missing) or 'none'}; unknown: {', '.join(unknown) or 'none'})"
         )
@@ -128,27 +145,27 @@ def read_trials(path: str | os.PathLike[str]) -> tuple[list[MotionTrial], list[S
     sensor: list[SensorTrial] = []
     for number, line in numbered[1:]:
         where = f"{path}:{number}"
-        cells = [c.strip() for c in next(csv.reader([line]))]
+        cells = _cells(line, where)
         if len(cells) > len(header):
-            raise FgslamError(f"{where}: {len(cells)} cells but the header has {len(header)} columns")
+            raise InputFileError(f"{where}: {len(cells)} cells but the header has {len(header)} columns")
         row = dict(zip(header, cells + [""] * (len(header) - len(cells))))
         kind = row["kind"]
         if kind not in _NEEDS:
-            raise FgslamError(f"{where}: kind {kind!r} is not one of forward, rotate, sensor")
+            raise InputFileError(f"{where}: kind {shown(kind)} is not one of forward, rotate, sensor")
         values = {}
         for column in _NEEDS[kind]:
             if not row.get(column):
-                raise FgslamError(f"{where}: a {kind} trial needs column {column}; fill it in")
+                raise InputFileError(f"{where}: a {kind} trial needs column {column}; fill it in")
             values[column] = _number(row[column], where, column)
         if kind == "sensor":
             if values["true_range_m"] <= 0 or values["range_m"] <= 0:
-                raise FgslamError(f"{where}: ranges must be > 0 m")
+                raise InputFileError(f"{where}: ranges must be > 0 m")
             sensor.append(SensorTrial(line=number, **values))
         else:
             if kind == "forward" and values["command_distance_m"] == 0:
-                raise FgslamError(f"{where}: a forward trial needs command_distance_m ≠ 0")
+                raise InputFileError(f"{where}: a forward trial needs command_distance_m ≠ 0")
             if kind == "rotate" and values["command_angle_rad"] == 0:
-                raise FgslamError(f"{where}: a rotate trial needs command_angle_rad ≠ 0")
+                raise InputFileError(f"{where}: a rotate trial needs command_angle_rad ≠ 0")
             motion.append(MotionTrial(kind=kind, line=number, **values))
     return motion, sensor
 
@@ -282,20 +299,37 @@ _MOTION_KEYS = {"forward": "covariance_per_m", "rotate": "covariance_per_rad"}
 
 class _Bad(Exception):
     """What is wrong with one part of a calibration (:func:`calibration_from_dict` adds where
-    and how to fix it)."""
+    and how to fix it); ``key`` names the field, ``forward.covariance[0][1]``."""
+
+    def __init__(self, message: str, key: str = ""):
+        super().__init__(message)
+        self.key = key
+
+
+#: The largest magnitude of a number in a calibration (covariances in m², rad², biases):
+#: far beyond any robot's, and far from overflow when squared.
+MAX_CALIBRATION_VALUE = 1e6
 
 
 def _finite(key: str, value, minimum: float | None = None) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise _Bad(f"{key} must be a finite number, got {value!r}")
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not abs(value) <= MAX_CALIBRATION_VALUE:
+        shown = f"an integer of {len(str(abs(value)))} digits" if isinstance(value, int) and abs(value) > 1e18 else repr(value)
+        raise _Bad(f"{key} must be a finite number within ±{MAX_CALIBRATION_VALUE:g}, got {shown}", key)
     if minimum is not None and value < minimum:
-        raise _Bad(f"{key} must be >= {minimum:g}, got {value!r}")
+        raise _Bad(f"{key} must be >= {minimum:g}, got {value!r}", key)
     return float(value)
+
+
+def _keys(key: str) -> tuple:
+    """``"forward.covariance[0][1]"`` → ``("forward", "covariance", 0, 1)``."""
+    import re
+
+    return tuple(int(k[1:-1]) if k.startswith("[") else k for k in re.findall(r"\[\d+\]|[^.\[\]]+", key))
 
 
 def _vector(key: str, value, n: int) -> None:
     if not isinstance(value, list) or len(value) != n:
-        raise _Bad(f"{key} must be a list of {n} numbers, got {value!r}")
+        raise _Bad(f"{key} must be a list of {n} numbers, got {_short(value)}", key)
     for i, v in enumerate(value):
         _finite(f"{key}[{i}]", v)
 
@@ -304,16 +338,16 @@ def _covariance_matrix(key: str, value, n: int) -> None:
     """A finite, symmetric n×n list of lists with no negative eigenvalue (a covariance)."""
     if (not isinstance(value, list) or len(value) != n
             or not all(isinstance(row, list) and len(row) == n for row in value)):
-        raise _Bad(f"{key} must be a {n}×{n} matrix (a list of {n} lists of {n} numbers), got {value!r}")
+        raise _Bad(f"{key} must be a {n}×{n} matrix (a list of {n} lists of {n} numbers), got {_short(value)}", key)
     for i, row in enumerate(value):
         for j, v in enumerate(row):
             _finite(f"{key}[{i}][{j}]", v)
     m = np.array(value, dtype=float)
     scale = max(1.0, float(np.max(np.abs(m))))
     if not np.allclose(m, m.T, rtol=1e-9, atol=1e-12 * scale):
-        raise _Bad(f"{key} is not symmetric, so it is not a covariance")
+        raise _Bad(f"{key} is not symmetric, so it is not a covariance", key)
     if float(np.min(np.linalg.eigvalsh(m))) < -1e-9 * scale:
-        raise _Bad(f"{key} has a negative eigenvalue, so it is not a covariance")
+        raise _Bad(f"{key} has a negative eigenvalue, so it is not a covariance", key)
 
 
 def _part(d: dict, name: str, keys: tuple[str, ...]) -> dict | None:
@@ -321,13 +355,13 @@ def _part(d: dict, name: str, keys: tuple[str, ...]) -> dict | None:
     if part is None:
         return None
     if not isinstance(part, dict):
-        raise _Bad(f"{name} must be null or an object with {', '.join(keys)}, got {part!r}")
+        raise _Bad(f"{name} must be null or an object with {', '.join(keys)}, got {_short(part)}", name)
     missing = [k for k in keys if k not in part]
     if missing:
-        raise _Bad(f"{name} lacks {', '.join(missing)}")
+        raise _Bad(f"{name} lacks {', '.join(missing)}", name)
     trials = part["trials"]
     if isinstance(trials, bool) or not isinstance(trials, int) or trials < 2:
-        raise _Bad(f"{name}.trials must be a whole number >= 2, got {trials!r}")
+        raise _Bad(f"{name}.trials must be a whole number >= 2, got {_short(trials)}", f"{name}.trials")
     return part
 
 
@@ -338,7 +372,7 @@ def _check_calibration(d) -> None:
         part = _part(d, name, ("trials", "mean_command", "bias", "covariance", per))
         if part is not None:
             if not _finite(f"{name}.mean_command", part["mean_command"]) > 0:
-                raise _Bad(f"{name}.mean_command must be > 0, got {part['mean_command']!r}")
+                raise _Bad(f"{name}.mean_command must be > 0, got {part['mean_command']!r}", f"{name}.mean_command")
             _vector(f"{name}.bias", part["bias"], 3)
             _covariance_matrix(f"{name}.covariance", part["covariance"], 3)
             _covariance_matrix(f"{name}.{per}", part[per], 3)
@@ -355,14 +389,26 @@ def _check_calibration(d) -> None:
         raise _Bad(f"holds no calibration ({', '.join(parts)} are all missing or null)")
 
 
-def calibration_from_dict(d, where: str, fix: str = _FIX) -> Calibration:
+def _short(value) -> str:
+    """A JSON value for a message, at most 60 characters."""
+    try:
+        text = json.dumps(value)
+    except (TypeError, ValueError, RecursionError):
+        text = repr(type(value).__name__)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def calibration_from_dict(d, where: str, fix: str = _FIX, doc: Document | None = None) -> Calibration:
     """A :class:`Calibration` from what :meth:`Calibration.to_dict` wrote, every part checked
-    (types, shapes, finite numbers, covariances, at least one part): a bad one is one
-    :class:`FgslamError` line ``"{where}: what is wrong; {fix}"`` (``where``: the file, or
-    where in a log it came from)."""
+    (types, shapes, finite numbers within ±:data:`MAX_CALIBRATION_VALUE`, covariances, at
+    least one part): a bad one is one :class:`FgslamError` line ``"{where}: what is wrong;
+    {fix}"`` (``where``: the file, or where in a log it came from); with ``doc`` (the file
+    it was read from), an :class:`InputFileError` ``"file:line: field 'k' ..."``."""
     try:
         _check_calibration(d)
     except _Bad as exc:
+        if doc is not None:
+            raise InputFileError(f"{doc.where(*_keys(exc.key))}: {exc}; {fix}") from None
         raise FgslamError(f"{where}: {exc}; {fix}") from None
     source = d.get("source")
     return Calibration(source if isinstance(source, str) and source else where, d.get("forward"), d.get("rotate"),
@@ -374,15 +420,11 @@ def load_calibration(path: str | os.PathLike[str]) -> Calibration:
     parts are not what it writes, is one :class:`FgslamError` line naming the file."""
     path = os.fspath(path)
     text = read_text(path, "calibration", f"a calibration file is UTF-8 JSON ({_FIX})")
-    try:
-        d = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise FgslamError(f"{path}:{exc.lineno}: not JSON ({exc.msg}); {_FIX}") from None
-    except RecursionError:
-        raise FgslamError(f"{path}: JSON nested too deeply; {_FIX}") from None
+    doc = parse_json(path, text, fix=_FIX)  # file:line errors; no FIFO, deep nesting, NaN or 1e400
+    d = doc.data
     if not isinstance(d, dict) or d.get("format") != CALIBRATION_FORMAT:
-        raise FgslamError(f"{path}: not a calibration file (no \"format\": \"{CALIBRATION_FORMAT}\"); {_FIX}")
-    return calibration_from_dict(d, path)
+        raise InputFileError(f"{path}: not a calibration file (no \"format\": \"{CALIBRATION_FORMAT}\"); {_FIX}")
+    return calibration_from_dict(d, path, doc=doc)
 
 
 # --------------------------------------------------------------------------- example data

@@ -99,10 +99,13 @@ from dataclasses import asdict
 import numpy as np
 
 from slamio.datasets.victoria_park import DatasetFormatError
-from slamio.errors import FgslamError
+from slamio.errors import FgslamError, InputFileError
 from slamio.geometry import wrap_angle
 from slamio.noise_model import NoiseModel, NoiseModelError, OdometryNoiseRates, correct_observation
 from slamio.log import Header, Observation, Odometry, Record, TruthLandmark, TruthPose, as_matrix3
+from slamio.log.fields import MAX_ID, STAMP_S
+from slamio.log.read import MAX_LOG_BYTES
+from slamio.safe_input import read_bytes, shown
 
 __all__ = [
     "CommandOdometryNoise",
@@ -187,6 +190,14 @@ _LIMITS: dict[str, dict[int, tuple[float, float, str, str, str]]] = {
         2: (-_ROOM_M, _ROOM_M, "|y| <= 20 m", _ROOM_WHY, "mm written as m?"),
     },
 }
+# Every time column within the run log's stamps (±1e10 s), every subject and barcode a
+# run log's landmark id (0 ... 2^31 - 1).
+_TIME = (-STAMP_S, STAMP_S, "|time| <= 1e10 s", "times are Unix seconds (1.2e9 s in MRCLAM)", "ms or ns written as s?")
+_NUMBER = (0, MAX_ID, "0 <= number <= 2^31 - 1", "subjects and barcodes are small whole numbers", "is the line corrupted?")
+for _kind in ("odometry", "measurement", "groundtruth"):
+    _LIMITS[_kind][0] = _TIME
+_LIMITS["measurement"][1] = _LIMITS["landmarks"][0] = _NUMBER
+_LIMITS["barcodes"] = {0: _NUMBER, 1: _NUMBER}
 
 
 #: The odometry noise model of integrated commands (module docstring); one class with
@@ -374,17 +385,14 @@ def _layout(kind: str) -> str:
 def _read_table(path: str, kind: str, *, integer_columns: tuple[int, ...] = ()) -> list[tuple[int, list[float]]]:
     """Data lines of one MRCLAM file as (line number, values); ``#`` lines are comments."""
     columns = _LAYOUT[kind]
-    try:
-        with open(path, "rb") as f:
-            raw_lines = f.read().split(b"\n")
-    except FileNotFoundError:
-        raise FgslamError(
+    if not os.path.lexists(path):
+        raise InputFileError(
             f"{path}: no such file; an MRCLAM dataset folder holds Barcodes.dat, "
             "Landmark_Groundtruth.dat and RobotN_Odometry.dat, RobotN_Measurement.dat, "
             f"RobotN_Groundtruth.dat for N = 1..5 (download: {MRCLAM_URL})"
-        ) from None
-    except OSError as exc:
-        raise FgslamError(f"{path}: cannot open ({exc.strerror})") from None
+        )
+    # a regular file of at most a run log's size: never a FIFO, /dev/zero or a link loop
+    raw_lines = read_bytes(path, "MRCLAM file", limit=MAX_LOG_BYTES).split(b"\n")
     rows: list[tuple[int, list[float]]] = []
     for number, raw in enumerate(raw_lines, start=1):
         try:
@@ -403,11 +411,11 @@ def _read_table(path: str, kind: str, *, integer_columns: tuple[int, ...] = ()) 
                 try:
                     value = float(token)
                 except ValueError:
-                    raise _BadLine(f"column {index + 1} ({name}) is not a number: {token!r}") from None
+                    raise _BadLine(f"column {index + 1} ({name}) is not a number: {shown(token)}") from None
                 if not math.isfinite(value):
-                    raise _BadLine(f"column {index + 1} ({name}) must be finite, got {token!r}")
+                    raise _BadLine(f"column {index + 1} ({name}) must be finite, got {shown(token)}")
                 if index in integer_columns and value != int(value):
-                    raise _BadLine(f"column {index + 1} ({name}) must be an integer, got {token!r}")
+                    raise _BadLine(f"column {index + 1} ({name}) must be an integer, got {shown(token)}")
                 values.append(value)
         except _BadLine as bad:
             raise DatasetFormatError(
@@ -443,8 +451,7 @@ def _check_time_order(path: str, kind: str, rows: list[tuple[int, list[float]]])
 
 
 def _sha256(path: str) -> str:
-    with open(path, "rb") as f:
-        return hashlib.sha256(f.read()).hexdigest()
+    return hashlib.sha256(read_bytes(path, "MRCLAM file", limit=MAX_LOG_BYTES)).hexdigest()
 
 
 # --------------------------------------------------------------------------- import
@@ -653,7 +660,7 @@ def import_mrclam(
         noise = model.odometry.noise
     folder = os.fspath(folder)
     if not os.path.isdir(folder):
-        raise FgslamError(f"{folder}: not a folder; give an MRCLAM_DatasetK folder (download: {MRCLAM_URL})")
+        raise InputFileError(f"{folder}: not a folder; give an MRCLAM_DatasetK folder (download: {MRCLAM_URL})")
     paths = {
         "barcodes": os.path.join(folder, "Barcodes.dat"),
         "landmarks": os.path.join(folder, "Landmark_Groundtruth.dat"),

@@ -66,10 +66,12 @@ import numpy as np
 
 from slamio.datasets.mrclam import interpolate_pose
 from slamio.datasets.victoria_park import DatasetFormatError
-from slamio.errors import FgslamError
+from slamio.errors import FgslamError, InputFileError
 from slamio.geometry import arc_increment, arc_increment_jacobian, wrap_angle
 from slamio.log import Header, Observation, Odometry, Record, TruthLandmark, TruthPose
+from slamio.log.read import MAX_LOG_BYTES, check_records
 from slamio.noise_model import NoiseModel, NoiseModelError, correct_range
+from slamio.safe_input import check_regular, shown
 
 __all__ = ["import_plaza", "plaza_files", "PLAZA_RUNS", "odometry_covariance", "OdometryNoise", "gps_start_heading_rad"]
 
@@ -109,8 +111,11 @@ def plaza_files(run: str, folder: str | os.PathLike[str] | None = None) -> tuple
     folder = Path(folder)
     files = (folder / f"{stem}_DR.txt", folder / f"{stem}_TD.txt", folder / f"{stem}_.mat")
     for f in files:
-        if not f.is_file():
-            raise FgslamError(f"{f}: not found; a Plaza folder holds {stem}_DR.txt, {stem}_TD.txt and {stem}_.mat")
+        if not os.path.lexists(f):
+            raise InputFileError(f"{f}: not found; a Plaza folder holds {stem}_DR.txt, {stem}_TD.txt and {stem}_.mat")
+        check_regular(f, "Plaza file")  # never a FIFO, a device or a link loop
+        if os.path.getsize(f) > MAX_LOG_BYTES:
+            raise InputFileError(f"{f}: {os.path.getsize(f)} bytes, larger than any Plaza file; is it the right file?")
     return files
 
 
@@ -133,7 +138,7 @@ def _read_table(path: Path, columns: tuple[str, ...], *, ordered: bool = True) -
                 values = [float(t) for t in tokens]
             except ValueError:
                 raise DatasetFormatError(
-                    str(path), number, f"not a number in {line.strip()!r}; expected {' '.join(columns)}"
+                    str(path), number, f"not a number in {shown(line.strip(), 80)}; expected {' '.join(columns)}"
                 ) from None
             if not all(math.isfinite(v) for v in values):
                 raise DatasetFormatError(str(path), number, "a value is not finite")
@@ -151,8 +156,9 @@ def _read_mat(path: Path) -> tuple[np.ndarray, np.ndarray]:
 
     try:
         mat = loadmat(str(path))
-    except (ValueError, OSError, TypeError) as exc:
-        raise DatasetFormatError(str(path), 1, f"not a MATLAB file scipy can read ({exc})") from None
+    except Exception as exc:  # scipy raises several kinds (and MemoryError) for a damaged or foreign file
+        raise DatasetFormatError(str(path), 1, f"not a MATLAB file scipy can read ({type(exc).__name__}: "
+                                               f"{str(exc)[:200]})") from None
     for name, cols in (("GT", 4), ("TL", 3)):
         if name not in mat or np.ndim(mat[name]) != 2 or np.shape(mat[name])[1] != cols:
             raise DatasetFormatError(
@@ -354,4 +360,4 @@ def import_plaza(
                 "ranges_after_last_odometry_dropped": dropped_late,
                 "ranges_not_positive_after_bias_dropped": skipped_short},
     )
-    return header, records
+    return header, list(check_records(f"{dr_path} + {td_path}", header, records))  # no unreadable log

@@ -100,7 +100,7 @@ from slamio.datasets.rosbag_messages import (
     tag_observation_geometry,
 )
 from slamio.datasets.victoria_park import DatasetFormatError
-from slamio.errors import FgslamError
+from slamio.errors import FgslamError, InputFileError
 from slamio.geometry import between_pose, wrap_angle
 from slamio.log import (
     Header,
@@ -112,6 +112,8 @@ from slamio.log import (
     as_matrix3,
     read_log,
 )
+from slamio.log.read import check_records
+from slamio.safe_input import MAX_TEXT_BYTES, check_regular
 from slamio.se3 import quaternion_from_rotation, rotation_from_quaternion, yaw_from_quaternion
 
 __all__ = [
@@ -199,17 +201,32 @@ def interpolate_se2(pose_a, pose_b, fraction: float) -> tuple[float, float, floa
 
 def _bag_paths(path: str) -> tuple[Path, int]:
     p = Path(path)
-    if not p.exists():
-        raise FgslamError(f"{path}: no such file or folder; give a ROS 1 .bag file or a ROS 2 bag folder")
+    if not os.path.lexists(p):
+        raise InputFileError(f"{path}: no such file or folder; give a ROS 1 .bag file or a ROS 2 bag folder")
     if p.is_dir():
+        _check_bag_folder(p)
         return p, 2
+    check_regular(p, "bag file")  # a FIFO would make the reader wait forever
     if p.suffix == ".bag":
         return p, 1
     if p.suffix in (".db3", ".mcap") or p.name == "metadata.yaml":
+        _check_bag_folder(p.parent)
         return p.parent, 2
-    raise FgslamError(
+    raise InputFileError(
         f"{path}: not a ROS bag; give a ROS 1 .bag file or a ROS 2 bag folder (with metadata.yaml)"
     )
+
+
+def _check_bag_folder(folder: Path) -> None:
+    """Every entry of a ROS 2 bag folder that the reader opens is a regular file (a FIFO or
+    /dev/zero linked in would make it wait or read forever), metadata.yaml of a sane size."""
+    for entry in sorted(folder.iterdir()):
+        if entry.name == "metadata.yaml" or entry.suffix in (".db3", ".mcap", ".zstd"):
+            check_regular(entry, "bag file")
+    metadata = folder / "metadata.yaml"
+    if metadata.is_file() and metadata.stat().st_size > MAX_TEXT_BYTES:
+        raise InputFileError(f"{metadata}: {metadata.stat().st_size} bytes, larger than any bag's metadata; "
+                             "is it the right folder?")
 
 
 def _stamp_ns(msg, bag_time_ns: int, use_header_stamps: bool) -> int:
@@ -449,7 +466,7 @@ def import_rosbag(
     except FgslamError:
         raise
     except Exception as exc:  # rosbags raises several kinds for a damaged or foreign file
-        raise FgslamError(f"{path}: cannot read as a ROS {ros_version} bag ({type(exc).__name__}: {exc})") from None
+        raise InputFileError(f"{path}: cannot read as a ROS {ros_version} bag ({type(exc).__name__}: {exc})") from None
     try:
         topics = reader.topics
         if not standard_topics_only and RUN_LOG_TOPIC in topics:
@@ -620,4 +637,4 @@ def import_rosbag(
             "dropped": dropped,
         },
     )
-    return header, records
+    return header, list(check_records(path, header, records))  # never a log the reader refuses

@@ -30,7 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
-from slamio.errors import FgslamError
+from slamio.errors import InputFileError
+from slamio.log.fields import COORDINATE_M, STAMP_S
+from slamio.log3d import MAX_MOUNT_M, MAX_PIXEL_PX, MAX_SPEED_MPS, MAX_TURN_RATE_RADPS
+from slamio.safe_input import check_regular
 
 __all__ = ["DriveFormatError", "StereoImuDrive", "StereoImuNoise", "load_drive", "save_drive"]
 
@@ -38,7 +41,7 @@ UNSEEN = -1.0
 _REQUIRED = ("time_stamps", "features", "linear_velocity", "rotational_velocity", "K", "b", "cam_T_imu")
 
 
-class DriveFormatError(FgslamError):
+class DriveFormatError(InputFileError):
     """A seed-003 npz that cannot be read: ``path: key 'k': what is wrong; how to fix it``."""
 
     def __init__(self, path, key: str | None, message: str):
@@ -80,6 +83,9 @@ class StereoImuDrive:
     truth_world_T_imu: np.ndarray | None = None  # (T, 4, 4)
     truth_landmarks_m: np.ndarray | None = None  # (M, 3)
     source: str = ""
+    #: (M,) the landmark id of each column (a log's ids may be sparse or large: the columns
+    #: are dense, never one per possible id); None: the column index is the id.
+    landmark_ids: np.ndarray | None = None
 
     @property
     def n_steps(self) -> int:
@@ -90,8 +96,13 @@ class StereoImuDrive:
         return int(self.features_px.shape[1])
 
     def seen(self, step: int) -> np.ndarray:
-        """Ids of the landmarks seen at ``step`` (ascending)."""
+        """Columns of the landmarks seen at ``step`` (ascending); :meth:`ids` gives their ids."""
         return np.flatnonzero(~np.isnan(self.features_px[step, :, 0]))
+
+    def ids(self, columns: np.ndarray) -> np.ndarray:
+        """The landmark ids of ``columns`` (the columns themselves without ``landmark_ids``)."""
+        columns = np.asarray(columns, dtype=np.int64)
+        return columns if self.landmark_ids is None else np.asarray(self.landmark_ids, dtype=np.int64)[columns]
 
     def twist(self, step: int) -> np.ndarray:
         """The IMU input ``u = (v, ω)`` at ``step`` (6-vector, translation first)."""
@@ -102,10 +113,16 @@ class StereoImuDrive:
         return float(self.stamps_s[step + 1] - self.stamps_s[step])
 
 
-def _finite(path, key, a):
+def _finite(path, key, a, limit: float | None = None, unit: str = ""):
+    """Every entry finite (and within ±``limit`` when given: the run log's bounds, so the
+    log ``fgslam import seed003`` writes is one the reader accepts)."""
     if not np.all(np.isfinite(a)):
         bad = np.argwhere(~np.isfinite(a))[0]
         raise DriveFormatError(path, key, f"non-finite value at index {tuple(int(i) for i in bad)}; every entry must be a number")
+    if limit is not None and a.size and float(np.max(np.abs(a))) > limit:
+        bad = np.argwhere(np.abs(a) > limit)[0]
+        raise DriveFormatError(path, key, f"value {float(a[tuple(bad)]):g} at index {tuple(int(i) for i in bad)} is beyond "
+                                          f"±{limit:g} {unit}; no drive holds one (is the file corrupted?)")
 
 
 def _shape(path, key, a, shape, meaning):
@@ -124,13 +141,15 @@ def _check_rigid(path, key, T):
 def load_drive(path) -> StereoImuDrive:
     """Read a seed-003 npz (and its truth, if a simulated drive); errors are :class:`DriveFormatError`."""
     path = Path(path)
-    if not path.is_file():
+    if not os.path.lexists(path):
         raise DriveFormatError(path, None, "no such file; give the path of a seed-003 .npz drive")
+    check_regular(path, "seed-003 drive")  # never a FIFO, a device or a link loop
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {k: np.asarray(data[k]) for k in data.files}
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
-        raise DriveFormatError(path, None, f"not a readable numpy .npz archive ({exc})") from None
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError, MemoryError) as exc:
+        raise DriveFormatError(path, None, f"not a readable numpy .npz archive ({type(exc).__name__}: "
+                                           f"{str(exc)[:200]})") from None
     missing = [k for k in _REQUIRED if k not in arrays]
     if missing:
         raise DriveFormatError(path, missing[0], f"missing (the file has {sorted(arrays)}); a seed-003 drive needs {list(_REQUIRED)}")
@@ -145,7 +164,7 @@ def load_drive(path) -> StereoImuDrive:
     T = stamps.size
     if T < 2:
         raise DriveFormatError(path, "time_stamps", f"{T} stamp(s); a drive needs at least 2 steps")
-    _finite(path, "time_stamps", stamps)
+    _finite(path, "time_stamps", stamps, STAMP_S, "s")
     steps = np.diff(stamps)
     if np.any(steps <= 0.0):
         k = int(np.argmax(steps <= 0.0))
@@ -154,7 +173,7 @@ def load_drive(path) -> StereoImuDrive:
     features = arrays["features"].astype(float)
     if features.ndim != 3 or features.shape[0] != 4 or features.shape[2] != T:
         raise DriveFormatError(path, "features", f"shape {features.shape}, expected (4, M, {T}): (u_L, v_L, u_R, v_R) × landmarks × steps")
-    _finite(path, "features", features)
+    _finite(path, "features", features, MAX_PIXEL_PX, "px")
     unseen = features == UNSEEN
     partial = unseen.any(axis=0) & ~unseen.all(axis=0)
     if partial.any():
@@ -168,34 +187,34 @@ def load_drive(path) -> StereoImuDrive:
     for key in ("linear_velocity", "rotational_velocity"):
         v = arrays[key].astype(float)
         _shape(path, key, v, (3, T), "3 axes × steps")
-        _finite(path, key, v)
+        _finite(path, key, v, MAX_SPEED_MPS if key == "linear_velocity" else MAX_TURN_RATE_RADPS, "per s")
         velocities[key] = v.T.copy()
 
     K = arrays["K"].astype(float)
     _shape(path, "K", K, (3, 3), "camera intrinsics")
-    _finite(path, "K", K)
+    _finite(path, "K", K, MAX_PIXEL_PX, "px")
     if not (K[0, 0] > 0.0 and K[1, 1] > 0.0) or not np.allclose(K[2], [0.0, 0.0, 1.0]):
         raise DriveFormatError(path, "K", "not an intrinsics matrix (needs fx, fy > 0 and last row [0, 0, 1])")
     b = arrays["b"].astype(float)
     if b.size != 1:
         raise DriveFormatError(path, "b", f"shape {b.shape}, expected a scalar baseline in metres")
     baseline = float(b.reshape(-1)[0])
-    if not (np.isfinite(baseline) and baseline > 0.0):
+    if not (np.isfinite(baseline) and 0.0 < baseline <= MAX_MOUNT_M):
         raise DriveFormatError(path, "b", f"baseline {baseline!r} must be a positive number of metres")
     cam_T_imu = arrays["cam_T_imu"].astype(float)
     _shape(path, "cam_T_imu", cam_T_imu, (4, 4), "IMU pose in the left optical frame")
-    _finite(path, "cam_T_imu", cam_T_imu)
+    _finite(path, "cam_T_imu", cam_T_imu, MAX_MOUNT_M, "m")
     _check_rigid(path, "cam_T_imu", cam_T_imu)
 
     truth_poses = truth_landmarks = None
     if "truth_world_T_imu" in arrays:
         truth_poses = arrays["truth_world_T_imu"].astype(float)
         _shape(path, "truth_world_T_imu", truth_poses, (T, 4, 4), "one IMU pose per step")
-        _finite(path, "truth_world_T_imu", truth_poses)
+        _finite(path, "truth_world_T_imu", truth_poses, COORDINATE_M, "m")
     if "truth_landmarks" in arrays:
         truth_landmarks = arrays["truth_landmarks"].astype(float)
         _shape(path, "truth_landmarks", truth_landmarks, (features.shape[1], 3), "one world point per landmark")
-        _finite(path, "truth_landmarks", truth_landmarks)
+        _finite(path, "truth_landmarks", truth_landmarks, COORDINATE_M, "m")
 
     return StereoImuDrive(
         stamps_s=stamps,

@@ -57,7 +57,8 @@ def drive_to_log(drive: StereoImuDrive, noise: StereoImuNoise = StereoImuNoise()
     covariance = tuple(tuple(float(v) for v in row) for row in noise.velocity_cov())
     records: list = []
     if drive.truth_landmarks_m is not None:
-        records += [TruthLandmark3(j, *(float(v) for v in p)) for j, p in enumerate(drive.truth_landmarks_m)]
+        ids = drive.ids(np.arange(drive.n_landmarks))
+        records += [TruthLandmark3(int(j), *(float(v) for v in p)) for j, p in zip(ids, drive.truth_landmarks_m)]
     for t in range(drive.n_steps):
         stamp = float(drive.stamps_s[t])
         if t > 0:
@@ -68,9 +69,10 @@ def drive_to_log(drive: StereoImuDrive, noise: StereoImuNoise = StereoImuNoise()
                 w_radps=tuple(float(v) for v in drive.angular_velocity_radps[t - 1]),  # type: ignore[arg-type]
                 covariance=covariance,
             ))
-        for j in drive.seen(t):
+        columns = drive.seen(t)
+        for j, landmark_id in zip(columns, drive.ids(columns)):
             u_l, v_l, u_r, v_r = (float(v) for v in drive.features_px[t, j])
-            records.append(StereoObservation(stamp, int(j), u_l, v_l, u_r, v_r, noise.sigma_px))
+            records.append(StereoObservation(stamp, int(landmark_id), u_l, v_l, u_r, v_r, noise.sigma_px))
         if drive.truth_world_T_imu is not None:
             records.append(TruthPose3(stamp, *pose3_from_matrix(drive.truth_world_T_imu[t])))
     return header, records
@@ -83,25 +85,27 @@ def log_to_drive(log: RunLog) -> StereoImuDrive:
         raise FgslamError(f"{log.path}: a planar log; the 3-D estimators need a 3-D log (start.pose3, stereo observations)")
     calibration = stereo_calibration(header)
     steps = group_steps(header, log.records)
-    ids = sorted({o.track_id for s in steps for o in s.observations})
     truth_landmarks = {r.landmark_id: r for r in log.records if isinstance(r, TruthLandmark3)}
-    n_landmarks = (max(ids + list(truth_landmarks)) + 1) if (ids or truth_landmarks) else 0
+    # one column per landmark the log names, in id order: never one per possible id (an id
+    # may be up to 2^31 - 1)
+    ids = sorted({o.track_id for s in steps for o in s.observations} | set(truth_landmarks))
+    column = {landmark_id: j for j, landmark_id in enumerate(ids)}
     T = len(steps)
-    features = np.full((T, n_landmarks, 4), np.nan)
+    features = np.full((T, len(ids), 4), np.nan)
     linear, angular = np.zeros((T, 3)), np.zeros((T, 3))
     stamps = np.array([s.stamp_s for s in steps])
     for t, step in enumerate(steps):
         for o in step.observations:
-            features[t, o.track_id] = o.pixels()
+            features[t, column[o.track_id]] = o.pixels()
         if t > 0:
             linear[t - 1], angular[t - 1] = step.odometry.v_mps, step.odometry.w_radps
     truth_poses = None
     if all(s.truth is not None for s in steps):
         truth_poses = np.array([s.truth.matrix() for s in steps])
     truth_points = None
-    if truth_landmarks and all(j in truth_landmarks for j in range(n_landmarks)):
+    if truth_landmarks and all(j in truth_landmarks for j in ids):
         truth_points = np.array([[truth_landmarks[j].x_m, truth_landmarks[j].y_m, truth_landmarks[j].z_m]
-                                 for j in range(n_landmarks)])
+                                 for j in ids])
     if truth_poses is None and not np.allclose(pose3_matrix(header.start_pose3), np.eye(4), atol=1e-9):
         raise FgslamError(
             f"{log.path}: start.pose3 is not the identity; the 3-D estimators put the world frame at the IMU's "
@@ -118,4 +122,5 @@ def log_to_drive(log: RunLog) -> StereoImuDrive:
         truth_world_T_imu=truth_poses,
         truth_landmarks_m=truth_points,
         source=log.path,
+        landmark_ids=np.array(ids, dtype=np.int64),
     )

@@ -68,8 +68,10 @@ from typing import Any
 
 import numpy as np
 
-from slamio.errors import FgslamError
+from slamio.errors import FgslamError, InputFileError
 from slamio.log import Header, Matrix3, Observation, Odometry, Record
+from slamio.log.read import MAX_LOG_BYTES, check_records
+from slamio.safe_input import read_bytes, shown
 
 __all__ = [
     "DatasetFormatError",
@@ -92,8 +94,9 @@ _ODOMETRY_FIELDS = "ODOMETRY i j dx dy dtheta v0 v1 v2 v3 v4 v5"
 _LANDMARK_FIELDS = "LANDMARK i l x y vxx vxy vyy"
 
 
-class DatasetFormatError(FgslamError):
-    """A dataset file that cannot be converted: ``path:line: what is wrong; how to fix it``."""
+class DatasetFormatError(InputFileError):
+    """A dataset file that cannot be converted: ``path:line: what is wrong; how to fix it``
+    (``fgslam`` exits with status 2)."""
 
     def __init__(self, path: str, line: int, message: str):
         super().__init__(f"{path}:{line}: {message}")
@@ -177,7 +180,7 @@ def _ints(tokens: list[str], names: tuple[str, ...]) -> list[int]:
     out = []
     for token, name in zip(tokens, names):
         if not _INT.match(token):
-            raise _BadLine(f"{name} must be a non-negative integer id, got {token!r}")
+            raise _BadLine(f"{name} must be a non-negative integer id, got {shown(token)}")
         out.append(int(token))
     return out
 
@@ -186,10 +189,10 @@ def _floats(tokens: list[str], names: tuple[str, ...]) -> list[float]:
     out = []
     for token, name in zip(tokens, names):
         if not _FLOAT.match(token):
-            raise _BadLine(f"{name} must be a finite decimal number, got {token!r}")
+            raise _BadLine(f"{name} must be a finite decimal number, got {shown(token)}")
         value = float(token)
         if not math.isfinite(value):
-            raise _BadLine(f"{name} overflows to infinity ({token!r}); write a finite number")
+            raise _BadLine(f"{name} overflows to infinity ({shown(token)}); write a finite number")
         out.append(value)
     return out
 
@@ -219,11 +222,8 @@ def import_victoria_park(
     if not (math.isfinite(nominal_period_s) and nominal_period_s > 0.0):
         raise FgslamError(f"nominal_period_s must be a positive number of seconds, got {nominal_period_s!r}")
     path = os.fspath(source_path) if source_path is not None else default_victoria_park_path()
-    try:
-        with open(path, "rb") as f:
-            raw_lines = f.read().split(b"\n")
-    except OSError as exc:
-        raise FgslamError(f"{path}: cannot open the Victoria Park file ({exc.strerror})") from None
+    # a regular file of at most a run log's size: never a FIFO, /dev/zero or a link loop
+    raw_lines = read_bytes(path, "Victoria Park file", limit=MAX_LOG_BYTES).split(b"\n")
     if raw_lines and raw_lines[-1] == b"":
         raw_lines.pop()  # the text after the final newline
 
@@ -309,7 +309,7 @@ def import_victoria_park(
                 landmark_ids.add(lid)
             else:
                 raise _BadLine(
-                    f"unknown line type {tag!r}; a Victoria Park file holds only ODOMETRY and "
+                    f"unknown line type {shown(tag)}; a Victoria Park file holds only ODOMETRY and "
                     "LANDMARK lines"
                 )
         except _BadLine as bad:
@@ -331,7 +331,7 @@ def import_victoria_park(
         landmark_covariances=landmark_covariances,
         first_pose_id=first_pose_id,
     )
-    return header, records
+    return header, list(check_records(path, header, records))  # never a log the reader refuses
 
 
 def _header(

@@ -47,12 +47,14 @@ from slamio.log.fields import (
     MAX_HEADING_VARIANCE_RAD2,
     MAX_ID,
     MAX_NESTING,
+    MAX_POSE_INDEX,
     MAX_POSITION_VARIANCE_M2,
     MIN_COVARIANCE_EIGENVALUE,
     RANGE_M,
     SENSOR_LIMIT_SIGMAS,
     SIGMA_ANGLE_RAD,
     SIGMA_LENGTH_M,
+    STAMP_S,
     WORLD_ANGLE_RAD,
 )
 from slamio.log.read import DT_TOLERANCE_S, LogFormatError, parse_header, parse_record, read_log, sensor_range_limits
@@ -80,7 +82,7 @@ from slamio.log.write import LogWriter, format_line, header_to_dict, record_to_d
 
 __all__ = [
     "COORDINATE_M", "INCREMENT_M", "INCREMENT_RAD", "WORLD_ANGLE_RAD",
-    "DT_TOLERANCE_S", "FORMAT_NAME", "FORMAT_VERSION", "MAX_HEADING_VARIANCE_RAD2", "MAX_ID", "MAX_NESTING",
+    "DT_TOLERANCE_S", "FORMAT_NAME", "FORMAT_VERSION", "MAX_HEADING_VARIANCE_RAD2", "MAX_ID", "MAX_NESTING", "MAX_POSE_INDEX", "STAMP_S",
     "MAX_POSITION_VARIANCE_M2", "MIN_COVARIANCE_EIGENVALUE", "PLANAR_VERSION", "RANGE_M", "SENSOR_LIMIT_SIGMAS",
     "SIGMA_ANGLE_RAD", "SIGMA_LENGTH_M", "UNITS", "VERSIONS",
     "Header", "LiveStep", "LogFormatError", "LogWriter", "Matrix3", "Observation", "Odometry", "Record", "Rejected",

@@ -18,9 +18,17 @@ from slamio.log.records import Matrix3
 # a wide margin, and keeps every square and inverse the estimators compute far from float
 # overflow, underflow and singular matrices.
 
-#: Landmark ids (and pose indices) are 0 ≤ id ≤ MAX_ID: a GTSAM key is an 8-bit letter
-#: and a 56-bit index (``L(id)``, ``X(k)``).
-MAX_ID = 2**56 - 1
+#: Landmark ids (and 3-D track ids) are 0 ≤ id ≤ MAX_ID: a signed 32-bit integer, what
+#: ROS's AprilTag messages (``int32[] id``) and every detector hand out. The estimators map
+#: ids to their own dense indices, never allocating by the largest id.
+MAX_ID = 2**31 - 1
+#: Pose indices (``live_step.pose_index``) are 0 ≤ k ≤ MAX_POSE_INDEX: a GTSAM key is an
+#: 8-bit letter and a 56-bit index (``X(k)``).
+MAX_POSE_INDEX = 2**56 - 1
+#: Stamps (s): within ±1e10 s. A stamp is Unix time (1.7e9 s in 2024; 1e10 s is the year
+#: 2286) or time since a start; milliseconds or nanoseconds written as seconds go beyond it,
+#: and 1e308 s overflows the first duration computed from it.
+STAMP_S = 1e10
 #: Standard deviations of lengths (m): none finer than 1 µm (no odometer, range sensor or
 #: camera resolves it), none coarser than 1 km (it says nothing at a ground robot's scale).
 SIGMA_LENGTH_M = (1e-6, 1e3)
@@ -163,10 +171,19 @@ def _integer(d: dict, key: str, *, optional: bool = False, id_range: bool = Fals
         raise _BadLine(f"field '{key}' must be an integer, got {_show(value)}")
     if id_range and not 0 <= value <= MAX_ID:
         raise _BadLine(
-            f"field '{key}' is {_show(value)}, outside 0..2^56-1: ids are integers 0 ≤ id < 2^56 "
-            "(a GTSAM key holds a 56-bit index); renumber the landmarks"
+            f"field '{key}' is {_show(value)}, outside 0..2^31-1: ids are integers 0 ≤ id < 2^31 "
+            "(a signed 32-bit integer, as ROS's AprilTag ids); renumber the landmarks"
         )
     return value
+
+
+_WHY_STAMP = ("a stamp is seconds of Unix time (1.7e9 s today) or since the start of the run; "
+              "milliseconds or nanoseconds written as seconds? (is the line corrupted?)")
+
+
+def _stamp(d: dict, key: str = "stamp_s") -> float:
+    """A stamp in seconds, finite and within ±:data:`STAMP_S`."""
+    return _magnitude(d, key, STAMP_S, "s", _WHY_STAMP)  # type: ignore[return-value]
 
 
 def _show(value: Any) -> str:

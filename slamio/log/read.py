@@ -14,19 +14,26 @@ import os
 import sys
 from typing import Any
 
-from slamio.errors import FgslamError
+from slamio.errors import FgslamError, InputFileError
 from slamio.log.fields import (
     _WHY_COORDINATE, _WHY_INCREMENT, _WHY_WORLD_ANGLE, COORDINATE_M, INCREMENT_M, INCREMENT_RAD, WORLD_ANGLE_RAD,
-    _magnitude, _WHY_RANGE, MAX_ID, RANGE_M, SENSOR_LIMIT_SIGMAS, SIGMA_ANGLE_RAD, SIGMA_LENGTH_M, _angle, _BadLine,
-    _check_fields, _covariance, _finite, _integer, _NotJson, _number, _object, _paired, _reject_constant, _show,
-    _sigma_angle, _sigma_length, _vector3, _within,
+    _magnitude, _WHY_RANGE, MAX_POSE_INDEX, RANGE_M, STAMP_S, SENSOR_LIMIT_SIGMAS, SIGMA_ANGLE_RAD, SIGMA_LENGTH_M,
+    _angle, _BadLine,
+    _check_fields, _covariance, _integer, _NotJson, _number, _object, _paired, _reject_constant, _show,
+    _sigma_angle, _sigma_length, _stamp, _vector3, _within,
 )
 from slamio.log.records import (
     _CLASS_OF, _PLANAR_TYPES, _TYPES_3D, FORMAT_NAME, UNITS, VERSIONS, Header, LiveStep, Observation, Odometry,
     Record, Rejected, RunLog, TruthLandmark, TruthPose,
 )
+from slamio.safe_input import read_bytes
 
-class LogFormatError(FgslamError):
+#: The largest run log read (it is read whole): 1 GiB, about five million records — more
+#: than a day of a robot's odometry at 50 Hz. Split a longer recording.
+MAX_LOG_BYTES = 2**30
+
+
+class LogFormatError(InputFileError):
     """A run log that cannot be read past some line.
 
     ``line`` is the first line that may be wrong: the bad line, or the earlier of two lines
@@ -102,7 +109,7 @@ def parse_header(d: dict) -> Header:
     if low is not None and high is not None and not low < high:
         raise _BadLine(f"header field 'sensor.min_range_m' ({low!r}) must be below 'sensor.max_range_m' ({high!r})")
     return Header(
-        stamp_s=_finite(start, "stamp_s"),  # type: ignore[arg-type]
+        stamp_s=_stamp(start),  # type: ignore[arg-type]
         start_pose=_start_pose(start["pose"]),
         start_sigma=sigma,
         robot=_object(d, "robot", ("name",)),
@@ -137,7 +144,7 @@ def _parse_header3(d: dict, version: int) -> Header:
     sensor = _object(d, "sensor", ("kind",))
     log3d.parse_stereo_sensor(sensor)
     return Header(
-        stamp_s=_finite(start, "stamp_s"),  # type: ignore[arg-type]
+        stamp_s=_stamp(start),  # type: ignore[arg-type]
         start_pose=log3d.top_view(pose3),
         start_sigma=(sigma3[0], sigma3[1], sigma3[5]),
         robot=_object(d, "robot", ("name",)),
@@ -175,7 +182,7 @@ def parse_record(d: dict) -> Record:
         if "covariance" not in d:
             raise _BadLine("missing field 'covariance' (3×3 over dx, dy, dtheta)")
         return Odometry(
-            stamp_s=_finite(d, "stamp_s"),
+            stamp_s=_stamp(d),
             dx_m=_magnitude(d, "dx_m", INCREMENT_M, "m", _WHY_INCREMENT),
             dy_m=_magnitude(d, "dy_m", INCREMENT_M, "m", _WHY_INCREMENT),
             dtheta_rad=_magnitude(d, "dtheta_rad", INCREMENT_RAD, "rad", _WHY_INCREMENT),
@@ -196,7 +203,7 @@ def parse_record(d: dict) -> Record:
         if bearing is None and yaw is not None:
             raise _BadLine("a range-only observation (no 'bearing_rad') cannot have a tag yaw")
         return Observation(
-            stamp_s=_finite(d, "stamp_s"),
+            stamp_s=_stamp(d),
             landmark_id=_integer(d, "landmark_id", optional=True, id_range=True),
             range_m=_within("range_m", _number(d, "range_m"), RANGE_M, "m", _WHY_RANGE),
             bearing_rad=bearing,
@@ -210,15 +217,15 @@ def parse_record(d: dict) -> Record:
         )  # type: ignore[arg-type]
     if cls is LiveStep:
         index = _integer(d, "pose_index")
-        latency = _finite(d, "latency_s")
+        latency = _magnitude(d, "latency_s", STAMP_S, "s", "a latency is the seconds one step took")
         if index < 0 or latency < 0:  # type: ignore[operator]
             raise _BadLine("'pose_index' and 'latency_s' must be >= 0")
-        if index > MAX_ID:  # type: ignore[operator]
+        if index > MAX_POSE_INDEX:  # type: ignore[operator]
             raise _BadLine(f"'pose_index' is {_show(index)}, above 2^56-1 (a GTSAM key holds a 56-bit index)")
-        return LiveStep(stamp_s=_finite(d, "stamp_s"), pose_index=index, latency_s=latency)  # type: ignore[arg-type]
+        return LiveStep(stamp_s=_stamp(d), pose_index=index, latency_s=latency)  # type: ignore[arg-type]
     if cls is TruthPose:
         return TruthPose(
-            stamp_s=_finite(d, "stamp_s"),
+            stamp_s=_stamp(d),
             x_m=_magnitude(d, "x_m", COORDINATE_M, "m", _WHY_COORDINATE),
             y_m=_magnitude(d, "y_m", COORDINATE_M, "m", _WHY_COORDINATE),
             theta_rad=_magnitude(d, "theta_rad", WORLD_ANGLE_RAD, "rad", _WHY_WORLD_ANGLE, optional=True),
@@ -396,8 +403,31 @@ def _check_interval(record: Record, pose_stamp: float) -> float:
     return record.stamp_s
 
 
+def check_records(source: str, header: Header, records) -> tuple[Record, ...]:
+    """``records`` (made by an importer from the file ``source``), each checked by the rules
+    :func:`read_log` applies to its line, so an import never writes a log the reader would
+    refuse (a value beyond a bound, a 1e308 stamp). One :class:`InputFileError` naming the
+    source, the record and the field at the first that fails."""
+    from slamio.log.write import format_line
+
+    records = tuple(records)
+    for number, item in enumerate((header, *records)):
+        d = json.loads(format_line(item))
+        try:
+            parse_header(d) if number == 0 else parse_record(d)
+        except _BadLine as bad:
+            what = "the header it makes" if number == 0 else f"record {number} it makes ({d.get('type')})"
+            raise InputFileError(f"{source}: {what} is not valid: {bad}; the dataset holds a value no run log may "
+                                 "(is the file corrupted?)") from None
+    return records
+
+
 def read_log(path: str | os.PathLike[str]) -> RunLog:
     """Read and validate a run log.
+
+    The path must be a regular file of at most :data:`MAX_LOG_BYTES` (a FIFO, a device such
+    as ``/dev/zero`` or a loop of symbolic links is one :class:`InputFileError` line, never
+    a wait or a read without end: :mod:`slamio.safe_input`).
 
     Raises :class:`LogFormatError` at the first bad line, carrying the records before it
     in ``partial``. A last line without a newline that is not valid JSON (a recording cut
@@ -414,11 +444,7 @@ def read_log(path: str | os.PathLike[str]) -> RunLog:
     truth is an error at the repeat.
     """
     path = os.fspath(path)
-    try:
-        with open(path, "rb") as f:
-            data = f.read()
-    except OSError as exc:
-        raise FgslamError(f"{path}: cannot open the log ({exc.strerror})") from None
+    data = read_bytes(path, "run log", limit=MAX_LOG_BYTES)  # a regular file (never a FIFO or /dev/zero)
     lines = _lines(data)
     del data
     if not lines:
