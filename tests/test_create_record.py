@@ -191,14 +191,14 @@ def test_a_full_disk_stops_the_robot_and_keeps_every_complete_record(tmp_path):
 import resource, signal, sys
 signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
 resource.setrlimit(resource.RLIMIT_FSIZE, (6000, 6000))
-sys.path.insert(0, {str(ROOT)!r}); sys.path.insert(0, {str(ROOT / 'tests')!r})
 from test_create_record import drive, SimulatedCreate, FAST, path_moves, stopped
 with SimulatedCreate("create2", seed=2, time_scale=FAST) as sim:
     result = drive(sim, {str(tmp_path / 'full.jsonl')!r}, moves=path_moves("square"))
     print(result.reason.kind, result.records, stopped(sim), result.shutdown.confirmed)
     print(result.reason.message)
 """
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(ROOT / "tests")])}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env)
     kind, records, was_stopped, confirmed = done.stdout.split("\n")[0].split()
     assert kind == "log-error" and was_stopped == "True" and confirmed == "True", done.stdout + done.stderr
     assert "full.jsonl" in done.stdout and "File too large" in done.stdout
