@@ -367,75 +367,100 @@ def jcbb(
         if D2 <= joint_gate[total_dof]:
             return JcbbResult(tuple(pairing_all), n, D2, total_dof, 1, False)
 
-    PHt = {(i, j): P @ H[i, j].T for i in range(n) for j in candidates[i]}
-    # Largest dof the observations after level i can still add (for the "final" bound).
-    most = [max((int(dof[i, j]) for j in candidates[i]), default=0) for i in range(n)]
-    rest = np.concatenate([np.cumsum(most[::-1])[::-1], [0]]).astype(int).tolist()
-    best = {"pairs": 0, "d2": np.inf, "pairing": [None] * n, "dof": 0}
-    nodes = 0
-    pairing: list[int | None] = [None] * n
-    used = np.zeros(M, dtype=bool)
+    return _JcbbSearch(nu, H, P, dof, S_ind, candidates, joint_gate, final, max_nodes).run()
 
-    def search(i, k, d2, dof_sum, Hs, nus, Sinv, Sinv_nu):
-        nonlocal nodes
-        nodes += 1
-        if nodes > max_nodes:
+
+class _JcbbSearch:
+    """The branch and bound of :func:`jcbb` over its candidate pairs: one search's state (the
+    hypothesis being grown, the best one so far, the nodes visited)."""
+
+    def __init__(self, nu, H, P, dof, S_ind, candidates, joint_gate, final: bool, max_nodes: int):
+        n, M, m = nu.shape
+        self.nu, self.H, self.dof, self.S_ind, self.candidates = nu, H, dof, S_ind, candidates
+        self.joint_gate, self.final, self.max_nodes = joint_gate, final, max_nodes
+        self.n, self.m = n, m
+        self.PHt = {(i, j): P @ H[i, j].T for i in range(n) for j in candidates[i]}
+        # Largest dof the observations after level i can still add (for the "final" bound).
+        most = [max((int(dof[i, j]) for j in candidates[i]), default=0) for i in range(n)]
+        self.rest = np.concatenate([np.cumsum(most[::-1])[::-1], [0]]).astype(int).tolist()
+        self.best = {"pairs": 0, "d2": np.inf, "pairing": [None] * n, "dof": 0}
+        self.nodes = 0
+        self.pairing: list[int | None] = [None] * n
+        self.used = np.zeros(M, dtype=bool)
+
+    def run(self) -> JcbbResult:
+        """Search from the empty hypothesis; the best one found (so far, when the node cap stops it)."""
+        truncated = False
+        try:
+            self.search(0, 0, 0.0, 0, None, None, None, None)
+        except _Budget:
+            truncated = True
+            self.nodes = self.max_nodes
+        best, nodes = self.best, self.nodes
+        if best["pairs"] == 0:
+            return JcbbResult((None,) * self.n, 0, 0.0, 0, nodes, truncated)
+        return JcbbResult(tuple(best["pairing"]), int(best["pairs"]), float(best["d2"]), int(best["dof"]), nodes,
+                          truncated)
+
+    def search(self, i, k, d2, dof_sum, Hs, nus, Sinv, Sinv_nu) -> None:
+        """Decide observation ``i`` given a hypothesis of ``k`` pairs (joint ``d2`` over
+        ``dof_sum``; stacked ``Hs``, ``nus``, the inverse ``Sinv`` of its innovation
+        covariance and ``Sinv @ nus``): each free candidate in turn, then unpaired."""
+        self.nodes += 1
+        if self.nodes > self.max_nodes:
             raise _Budget
-        reach = k + (n - i)
+        best = self.best
+        reach = k + (self.n - i)
         if reach < best["pairs"] or (reach == best["pairs"] and d2 >= best["d2"]):
             return
-        if i == n:
-            if not final or d2 <= joint_gate[dof_sum]:
-                best.update(pairs=k, d2=d2, pairing=list(pairing), dof=dof_sum)
+        if i == self.n:
+            if not self.final or d2 <= self.joint_gate[dof_sum]:
+                best.update(pairs=k, d2=d2, pairing=list(self.pairing), dof=dof_sum)
             return
-        for j in candidates[i]:
-            if used[j]:
+        for j in self.candidates[i]:
+            if self.used[j]:
                 continue
-            dof_new = dof_sum + int(dof[i, j])
-            D = S_ind[i, j]
-            if k == 0:
-                Sigma, y, C, SinvC = D, nu[i, j], None, None
-            else:
-                C = Hs @ PHt[(i, j)]  # (mk)×m: covariance of the stacked innovation with the new one
-                SinvC = Sinv @ C
-                Sigma = D - C.T @ SinvC
-                Sigma = 0.5 * (Sigma + Sigma.T)
-                y = nu[i, j] - C.T @ Sinv_nu
-            try:
-                Sigma_inv = np.linalg.inv(Sigma)
-            except np.linalg.LinAlgError:
+            extended = self._extend(i, j, k, d2, dof_sum, Hs, nus, Sinv, Sinv_nu)
+            if extended is None:
                 continue
-            w = Sigma_inv @ y
-            d2_new = d2 + float(y @ w)
-            if d2_new > joint_gate[dof_new + rest[i + 1] if final else dof_new]:
-                continue
-            if k == 0:
-                Sinv_new, Sinv_nu_new = Sigma_inv, w
-                Hs_new, nus_new = H[i, j], nu[i, j]
-            else:
-                # Block inverse of [[S_H, C], [Cᵀ, S_pp]] from S_H⁻¹ and the Schur complement Σ.
-                km = Sinv.shape[0]
-                B = SinvC @ Sigma_inv
-                Sinv_new = np.empty((km + m, km + m))
-                Sinv_new[:km, :km] = Sinv + B @ SinvC.T
-                Sinv_new[:km, km:] = -B
-                Sinv_new[km:, :km] = -B.T
-                Sinv_new[km:, km:] = Sigma_inv
-                Sinv_nu_new = np.concatenate([Sinv_nu - SinvC @ w, w])
-                Hs_new, nus_new = np.vstack([Hs, H[i, j]]), np.concatenate([nus, nu[i, j]])
-            used[j] = True
-            pairing[i] = j
-            search(i + 1, k + 1, d2_new, dof_new, Hs_new, nus_new, Sinv_new, Sinv_nu_new)
-            pairing[i] = None
-            used[j] = False
-        search(i + 1, k, d2, dof_sum, Hs, nus, Sinv, Sinv_nu)  # observation i unpaired
+            self.used[j] = True
+            self.pairing[i] = j
+            self.search(i + 1, k + 1, *extended)
+            self.pairing[i] = None
+            self.used[j] = False
+        self.search(i + 1, k, d2, dof_sum, Hs, nus, Sinv, Sinv_nu)  # observation i unpaired
 
-    truncated = False
-    try:
-        search(0, 0, 0.0, 0, None, None, None, None)
-    except _Budget:
-        truncated = True
-        nodes = max_nodes
-    if best["pairs"] == 0:
-        return JcbbResult((None,) * n, 0, 0.0, 0, nodes, truncated)
-    return JcbbResult(tuple(best["pairing"]), int(best["pairs"]), float(best["d2"]), int(best["dof"]), nodes, truncated)
+    def _extend(self, i, j, k, d2, dof_sum, Hs, nus, Sinv, Sinv_nu):
+        """The hypothesis with pair (i, j) added: its ``(d2, dof_sum, Hs, nus, Sinv, Sinv_nu)``,
+        or None when the pair makes the system singular or the joint gate prunes it."""
+        nu, H = self.nu, self.H
+        dof_new = dof_sum + int(self.dof[i, j])
+        D = self.S_ind[i, j]
+        if k == 0:
+            Sigma, y, SinvC = D, nu[i, j], None
+        else:
+            C = Hs @ self.PHt[(i, j)]  # (mk)×m: covariance of the stacked innovation with the new one
+            SinvC = Sinv @ C
+            Sigma = D - C.T @ SinvC
+            Sigma = 0.5 * (Sigma + Sigma.T)
+            y = nu[i, j] - C.T @ Sinv_nu
+        try:
+            Sigma_inv = np.linalg.inv(Sigma)
+        except np.linalg.LinAlgError:
+            return None
+        w = Sigma_inv @ y
+        d2_new = d2 + float(y @ w)
+        if d2_new > self.joint_gate[dof_new + self.rest[i + 1] if self.final else dof_new]:
+            return None
+        if k == 0:
+            return d2_new, dof_new, H[i, j], nu[i, j], Sigma_inv, w
+        # Block inverse of [[S_H, C], [Cᵀ, S_pp]] from S_H⁻¹ and the Schur complement Σ.
+        km, m = Sinv.shape[0], self.m
+        B = SinvC @ Sigma_inv
+        Sinv_new = np.empty((km + m, km + m))
+        Sinv_new[:km, :km] = Sinv + B @ SinvC.T
+        Sinv_new[:km, km:] = -B
+        Sinv_new[km:, :km] = -B.T
+        Sinv_new[km:, km:] = Sigma_inv
+        Sinv_nu_new = np.concatenate([Sinv_nu - SinvC @ w, w])
+        return d2_new, dof_new, np.vstack([Hs, H[i, j]]), np.concatenate([nus, nu[i, j]]), Sinv_new, Sinv_nu_new

@@ -1,6 +1,6 @@
 """How a 3-D stereo + IMU estimator consumes a drive, one step at a time.
 
-Every estimator of seed 003's drives (``ekf.seed003.EkfS003``, ``ekf.vio.VioEkf``,
+Every estimator of seed 003's drives (``ekf.stereo_imu_ekf.EkfS003``, ``ekf.vio.VioEkf``,
 ``fgslam.smoother3d``) implements::
 
     step(dt_s, twist, ids, pixels)   # predict with the previous step's twist over dt_s

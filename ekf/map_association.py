@@ -5,7 +5,8 @@ of a step against every landmark of the map, linearised at the current estimate.
 vectorised pass, O(n·M); :func:`reduced_problem` cuts the state down to the pose and the
 landmarks some observation could be paired with, which is what JCBB
 (:func:`ekf.association.jcbb`) needs. The decisions themselves (gates, nearest neighbour,
-JCBB) are in :mod:`ekf.association`; :class:`ekf.slam.EkfSlam` applies them.
+JCBB) are in :mod:`ekf.association`; :class:`MapAssociation`, a mixin of
+:class:`ekf.slam.EkfSlam`, poses the problem for a step, solves it and applies the result.
 """
 
 from __future__ import annotations
@@ -14,13 +15,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ekf.association import mahalanobis_squared
+from ekf.association import chi2_gate, gated_nearest_neighbour, jcbb, mahalanobis_squared, settle_pairing
 from ekf.models import ROBOT_DIM
 from ekf.observation import has_height
 from slamio.geometry import wrap_angle
 from slamio.log import Observation
 
-__all__ = ["Linearised", "linearise_map", "reduced_problem"]
+__all__ = ["Linearised", "MapAssociation", "linearise_map", "reduced_problem"]
 
 
 @dataclass(frozen=True)
@@ -147,3 +148,78 @@ def reduced_problem(lin: Linearised, compatible: np.ndarray, P: np.ndarray, x_in
         if m == 3 and lin.lm_h[j]:
             H[:, c, 2, o + 2] = lin.obs_h[obs].astype(float)
     return obs, cand, H, P_red
+
+
+class MapAssociation:
+    """The filter's side of association (a mixin of :class:`ekf.slam.EkfSlam`, on the state
+    its ``__init__`` sets up): one problem for a step's id-less observations against the
+    map, solved by gated nearest neighbour or JCBB, then the updates and new landmarks it
+    implies."""
+
+    def association_distances(self, observations) -> tuple[list[int], np.ndarray, np.ndarray]:
+        """``(keys, d2, dof)`` of observations against every landmark of the current map.
+
+        ``d2[i, j]`` is the squared Mahalanobis distance of observation i to landmark
+        ``keys[j]`` (innovation covariance ``H P Hᵀ + R`` at the current estimate, bearing
+        residual wrapped; with the height row when both carry a height) and ``dof[i, j]`` its
+        number of measured components. Nothing is changed.
+        """
+        problem = linearise_map(self._mean, self._cov, self._x_index, self._h_index, list(observations))
+        return list(self._keys), problem.d2, problem.dof
+
+    def _associate_and_apply(self, observations: list[Observation]) -> list[int | None]:
+        """One association problem for the id-less observations of a step, then the updates
+        and new landmarks it implies. Returns the key used by each observation (or None)."""
+        n = len(observations)
+        pairing: list[int | None] = [None] * n
+        near = np.zeros(n, dtype=bool)
+        if self._keys:
+            lin = linearise_map(self._mean, self._cov, self._x_index, self._h_index, observations)
+            candidate = lin.d2 <= chi2_gate(lin.dof, self.new_landmark_probability)  # the new-landmark gate
+            near = candidate.any(axis=1)
+            if self.association == "nn":
+                pairing = gated_nearest_neighbour(lin.d2, chi2_gate(lin.dof, self.gate_probability))
+            elif near.any():
+                pairing = self._jcbb(lin, candidate)
+                pairing, near = settle_pairing(candidate, lin.d2, pairing, self.ambiguity_margin)
+        keys: list[int | None] = [None] * n
+        for i, j in enumerate(pairing):
+            if j is not None:
+                key = self._keys[j]
+                self._update(key, observations[i])
+                keys[i] = key
+        for i, observation in enumerate(observations):
+            if pairing[i] is not None:
+                continue
+            if near[i]:
+                self.rejected_observations += 1
+                continue
+            key = self._next_key
+            self._next_key -= 1
+            self._add_landmark(key, observation)
+            self.landmarks_created += 1
+            keys[i] = key
+        return keys
+
+    def _jcbb(self, lin: Linearised, compatible: np.ndarray) -> list[int | None]:
+        """JCBB over the reduced state: the pose and the landmarks that are candidates
+        (``compatible``, the new-landmark gate) of some observation."""
+        obs, cand, H, P_red = reduced_problem(lin, compatible, self._cov, self._x_index, self._h_index)
+        result = jcbb(
+            lin.nu[np.ix_(obs, cand)],
+            H,
+            P_red,
+            lin.R[obs],
+            dof=lin.dof[np.ix_(obs, cand)],
+            probability=self.gate_probability,
+            candidate_probability=self.new_landmark_probability,
+            joint_test=self.joint_test,
+            max_nodes=self.max_jcbb_nodes,
+        )
+        self.jcbb_nodes_max = max(self.jcbb_nodes_max, result.nodes)
+        self.jcbb_truncated += int(result.truncated)
+        pairing: list[int | None] = [None] * lin.nu.shape[0]
+        for a, c in enumerate(result.pairing):
+            if c is not None:
+                pairing[int(obs[a])] = int(cand[c])
+        return pairing

@@ -52,29 +52,24 @@ The filter's arithmetic is in small pure functions, each testable on its own:
 :mod:`ekf.observation` (R, the model and its Jacobians with a height, the inverse model,
 NIS), :mod:`ekf.map_association` (the association problem from the state) and
 :mod:`ekf.association` (gates, nearest neighbour, JCBB). :class:`EkfSlam` holds the state
-and the bookkeeping.
+and the bookkeeping; three mixins hold the rest of its methods, by responsibility:
+:class:`ekf.map_association.MapAssociation` (a step's id-less observations against the map),
+:class:`ekf.range_updates.RangeOnlyUpdates` (range-only readings, delayed initialisation) and
+:class:`ekf.reading_error_states.ReadingErrorStates` (correlated reading errors as states).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ekf.association import (
-    DEFAULT_AMBIGUITY_MARGIN,
-    DEFAULT_GATE_PROBABILITY,
-    DEFAULT_MAX_NODES,
-    chi2_gate,
-    gated_nearest_neighbour,
-    jcbb,
-    settle_pairing,
-)
+from ekf.association import DEFAULT_AMBIGUITY_MARGIN, DEFAULT_GATE_PROBABILITY, DEFAULT_MAX_NODES, chi2_gate
 from ekf.covariance import add_low_rank_in_place, augment_covariance, joseph_factors, kalman_gain, predict_covariance
-from ekf.map_association import Linearised, linearise_map, reduced_problem
+from ekf.filter_outputs import FilterOutputs
+from ekf.map_association import MapAssociation
 from ekf.models import (
     LANDMARK_DIM,
     ROBOT_DIM,
     motion_jacobians,
-    normalised_innovation_squared,
     predict_pose,
     range_bearing,
     range_bearing_jacobians,
@@ -88,11 +83,13 @@ from ekf.observation import (
     observation_model,
     observation_nis,
 )
-from ekf.range_only import DelayedInitRule, try_initialise
-from ekf.reading_error import gauss_markov_step, reading_error_model, reading_sigmas
+from ekf.range_only import DelayedInitRule
+from ekf.range_updates import RangeOnlyUpdates
+from ekf.reading_error import reading_error_model
+from ekf.reading_error_states import ReadingErrorStates
 from slamio.geometry import wrap_angle
 from slamio.log import Header, Observation, Step
-from slamio.noise_model import noise_expects_outliers
+from slamio.noise.model import noise_expects_outliers
 
 __all__ = [
     "EkfSlam",
@@ -126,7 +123,7 @@ def log_expects_outliers(header: Header) -> bool:
     return simulated or noise_expects_outliers(header.noise)
 
 
-class EkfSlam:
+class EkfSlam(MapAssociation, RangeOnlyUpdates, ReadingErrorStates, FilterOutputs):
     """Range-bearing EKF-SLAM with known or associated landmark ids
     (implements ``slamio.estimator.AssociatingEstimator``).
 
@@ -327,18 +324,6 @@ class EkfSlam:
         ignored with ``association=None``)."""
         return list(self._associations)
 
-    def current_pose(self) -> tuple[float, float, float]:
-        """The current robot pose estimate ``(x_m, y_m, theta_rad)``."""
-        x, y, th = self._mean[:ROBOT_DIM]
-        return float(x), float(y), float(th)
-
-    def finish(self) -> None:
-        """Nothing to do: a filter's estimate is final as soon as a step is consumed."""
-
-    def trajectory(self) -> np.ndarray:
-        """(n, 3) array: the pose estimate right after each step (for a filter, online = final)."""
-        return np.array(self._trajectory, dtype=float).reshape(-1, ROBOT_DIM)
-
     def landmarks(self) -> dict[int, tuple[float, float]]:
         """Landmark key → estimated ``(x_m, y_m)``, in the order the landmarks were first seen."""
         return {lid: (float(self._mean[i]), float(self._mean[i + 1])) for lid, i in self._slot.items()}
@@ -402,30 +387,6 @@ class EkfSlam:
             out.append(observation_nis(pose, self._mean[i : i + 2], joint, observation))
         return out
 
-    def _nis_with_reading_error(self, pose, P_rr, F, observation: Observation) -> float:
-        """NIS of a reading of a landmark that carries reading-error states (nothing changes):
-        the errors decayed to the reading's time, then ``ν = z − h − e`` and
-        ``S = H Σ Hᵀ + (1 − ρ)R`` over (pose, landmark, errors)."""
-        key = observation.landmark_id
-        i, j = self._slot[key], self._error_index[key]
-        scale, added = self._error_transition(key, observation)
-        rows = [i, i + 1, j, j + 1]
-        joint = np.empty((7, 7))
-        joint[:3, :3] = P_rr
-        joint[:3, 3:] = F @ self._cov[:ROBOT_DIM, rows]
-        joint[3:, :3] = joint[:3, 3:].T
-        joint[3:, 3:] = self._cov[np.ix_(rows, rows)]
-        A = np.diag(np.r_[np.ones(5), scale])  # the decay of the two errors
-        joint = A @ joint @ A + np.diag(np.r_[np.zeros(5), added])
-        predicted_range, predicted_bearing = range_bearing(pose, self._mean[i : i + 2])
-        error = scale * self._mean[j : j + 2]
-        nu = np.array([observation.range_m - predicted_range - error[0],
-                       wrap_angle(observation.bearing_rad - predicted_bearing - error[1])])
-        H_pose, H_landmark = range_bearing_jacobians(pose, self._mean[i : i + 2])
-        H = np.hstack([H_pose, H_landmark, np.eye(2)])
-        S = H @ joint @ H.T + (1.0 - self.reading_error.share) * measurement_covariance(observation)
-        return normalised_innovation_squared(nu, S)
-
     def state_mean(self) -> np.ndarray:
         """The full state vector ``[x, y, θ, l1x, l1y, (l1h,) (l1 range error, l1 bearing error,) ...]``
         (a copy; the reading errors only with a ``correlated_share`` in the header's noise,
@@ -442,17 +403,6 @@ class EkfSlam:
         scale, added = self._errors_to_now()
         return self._cov[: self._dim, : self._dim] * np.outer(scale, scale) + np.diag(added)
 
-    def _errors_to_now(self) -> tuple[np.ndarray, np.ndarray]:
-        """Per state entry: the scale and added variance that carry each landmark's reading
-        errors from its last reading to the last step (ones and zeros elsewhere)."""
-        scale, added = np.ones(self._dim), np.zeros(self._dim)
-        for key, j in self._error_index.items():
-            sigma = self._error_sigma[key]
-            scale[j : j + 2], added[j : j + 2] = gauss_markov_step(
-                self._time - self._error_time[key], self.reading_error.time_s, sigma, sigma, self.reading_error.share
-            )
-        return scale, added
-
     def landmark_index(self, landmark_id: int) -> int:
         """Index of the landmark's x coordinate in :meth:`state_mean` (y, then h if any, follow it)."""
         return self._slot[landmark_id]
@@ -461,17 +411,6 @@ class EkfSlam:
     def capacity(self) -> int:
         """Allocated state size; grows by doubling (always ≥ the state size)."""
         return self._mean.shape[0]
-
-    def association_distances(self, observations) -> tuple[list[int], np.ndarray, np.ndarray]:
-        """``(keys, d2, dof)`` of observations against every landmark of the current map.
-
-        ``d2[i, j]`` is the squared Mahalanobis distance of observation i to landmark
-        ``keys[j]`` (innovation covariance ``H P Hᵀ + R`` at the current estimate, bearing
-        residual wrapped; with the height row when both carry a height) and ``dof[i, j]`` its
-        number of measured components. Nothing is changed.
-        """
-        problem = linearise_map(self._mean, self._cov, self._x_index, self._h_index, list(observations))
-        return list(self._keys), problem.d2, problem.dof
 
     # ------------------------------------------------------------------ the three operations
 
@@ -515,49 +454,6 @@ class EkfSlam:
         self._register_landmark(key, n, with_height)
         if self.reading_error is not None:
             self._add_reading_error(key, observation, G_measurement)
-
-    def _add_reading_error(self, key: int, observation: Observation, G_measurement: np.ndarray) -> None:
-        """Append the landmark's reading errors (range, bearing) just after it.
-
-        The landmark was placed from ``z = h + e + w``, so it carries ``−G_z·e``: its
-        covariance (already ``G_z R G_zᵀ``, R the whole reading variance) stays, and it is
-        correlated with the errors by ``−G_z·ρR``; the errors start at 0 with variance ρR
-        and are independent of everything else."""
-        j = self._dim
-        sigma = reading_sigmas(observation)
-        P_ee = np.diag(self.reading_error.share * sigma**2)
-        i, k = self._slot[key], self._landmark_dim(key)
-        self._mean[j : j + 2] = 0.0
-        self._cov[j : j + 2, :j] = 0.0
-        self._cov[:j, j : j + 2] = 0.0
-        P_le = -G_measurement[:, :2] @ P_ee
-        self._cov[i : i + k, j : j + 2] = P_le
-        self._cov[j : j + 2, i : i + k] = P_le.T
-        self._cov[j : j + 2, j : j + 2] = P_ee
-        self._error_index[key] = j
-        self._error_time[key] = observation.stamp_s
-        self._error_sigma[key] = sigma
-        self._dim = j + 2
-
-    def _error_transition(self, key: int, observation: Observation) -> tuple[np.ndarray, np.ndarray]:
-        """(scale, added variance) from the landmark's last reading to ``observation``."""
-        return gauss_markov_step(
-            observation.stamp_s - self._error_time[key], self.reading_error.time_s,
-            self._error_sigma[key], reading_sigmas(observation), self.reading_error.share,
-        )
-
-    def _decay_reading_error(self, key: int, observation: Observation) -> None:
-        """Carry the landmark's reading errors to ``observation``'s time, in place, O(n)."""
-        j = self._error_index[key]
-        n = self._dim
-        scale, added = self._error_transition(key, observation)
-        self._mean[j : j + 2] *= scale
-        self._cov[j : j + 2, :n] *= scale[:, None]
-        self._cov[:n, j : j + 2] *= scale[None, :]
-        self._cov[j, j] += added[0]
-        self._cov[j + 1, j + 1] += added[1]
-        self._error_time[key] = observation.stamp_s
-        self._error_sigma[key] = reading_sigmas(observation)
 
     def _register_landmark(self, key: int, n: int, with_height: bool) -> None:
         """Book a landmark just placed at state index ``n`` (its mean and covariance are set)."""
@@ -619,51 +515,6 @@ class EkfSlam:
         self.updates += 1
         return True
 
-    def _update_range(self, key: int, observation: Observation) -> None:
-        """One scalar EKF update with a range: ``H = [−e/r, 0 | e/r]`` over (x, y, θ, lx, ly)."""
-        n = self._dim
-        i = self._slot[key]
-        mean = self._mean[:n]
-        P = self._cov[:n, :n]
-        pose, landmark = mean[:ROBOT_DIM], mean[i : i + 2]
-        predicted_range, _ = range_bearing(pose, landmark)
-        H_pose, H_landmark = range_bearing_jacobians(*self._linearisation_point(key, pose, landmark))
-        cols = np.array([0, 1, 2, i, i + 1])
-        H_cols = np.hstack([H_pose[:1], H_landmark[:1]])
-        R = np.array([[observation.sigma_range_m**2]])
-        K, _, _ = kalman_gain(P, cols, H_cols, R)
-        mean += K @ np.array([observation.range_m - predicted_range])
-        mean[2] = wrap_angle(float(mean[2]))
-        add_low_rank_in_place(self._cov, n, *joseph_factors(P, cols, H_cols, K, R))
-        self.range_updates += 1
-
-    def _buffer_range(self, key: int, observation: Observation) -> bool:
-        """Keep a range to a landmark not in the state; add the landmark once its ranges pin
-        it down (:func:`ekf.range_only.try_initialise`). True when it was added.
-
-        The new landmark's mean is the trilateration from the robot positions estimated at
-        the time of each range; its covariance is the trilateration's plus the current robot
-        position covariance, with no cross-covariance (an approximation: the buffered
-        ranges' link to the robot's past is not tracked). The buffered ranges are not
-        applied again: their information is in that covariance.
-        """
-        buffer = self._range_buffer.setdefault(key, [])
-        buffer.append((float(self._mean[0]), float(self._mean[1]), observation.range_m, observation.sigma_range_m))
-        del buffer[: -self.range_rule.max_buffer]
-        data = np.array(buffer)
-        fit = try_initialise(data[:, :2], data[:, 2], data[:, 3], self.range_rule)
-        if fit is None:
-            return False
-        n = self._dim
-        self._reserve(n + LANDMARK_DIM)
-        self._mean[n : n + 2] = fit.xy
-        covariance = fit.covariance + self._cov[:2, :2]
-        augment_covariance(self._cov, n, np.zeros((LANDMARK_DIM, ROBOT_DIM)), np.eye(LANDMARK_DIM), covariance)
-        self._register_landmark(key, n, with_height=False)
-        del self._range_buffer[key]
-        self.range_landmarks_initialised += 1
-        return True
-
     def _reserve(self, needed: int) -> None:
         """Make room for a state of size ``needed``, doubling the capacity when it is full."""
         capacity = self._mean.shape[0]
@@ -678,61 +529,3 @@ class EkfSlam:
         cov[:n, :n] = self._cov[:n, :n]
         self._mean, self._cov = mean, cov
 
-    # ------------------------------------------------------------------ data association
-
-    def _associate_and_apply(self, observations: list[Observation]) -> list[int | None]:
-        """One association problem for the id-less observations of a step, then the updates
-        and new landmarks it implies. Returns the key used by each observation (or None)."""
-        n = len(observations)
-        pairing: list[int | None] = [None] * n
-        near = np.zeros(n, dtype=bool)
-        if self._keys:
-            lin = linearise_map(self._mean, self._cov, self._x_index, self._h_index, observations)
-            candidate = lin.d2 <= chi2_gate(lin.dof, self.new_landmark_probability)  # the new-landmark gate
-            near = candidate.any(axis=1)
-            if self.association == "nn":
-                pairing = gated_nearest_neighbour(lin.d2, chi2_gate(lin.dof, self.gate_probability))
-            elif near.any():
-                pairing = self._jcbb(lin, candidate)
-                pairing, near = settle_pairing(candidate, lin.d2, pairing, self.ambiguity_margin)
-        keys: list[int | None] = [None] * n
-        for i, j in enumerate(pairing):
-            if j is not None:
-                key = self._keys[j]
-                self._update(key, observations[i])
-                keys[i] = key
-        for i, observation in enumerate(observations):
-            if pairing[i] is not None:
-                continue
-            if near[i]:
-                self.rejected_observations += 1
-                continue
-            key = self._next_key
-            self._next_key -= 1
-            self._add_landmark(key, observation)
-            self.landmarks_created += 1
-            keys[i] = key
-        return keys
-
-    def _jcbb(self, lin: Linearised, compatible: np.ndarray) -> list[int | None]:
-        """JCBB over the reduced state: the pose and the landmarks that are candidates
-        (``compatible``, the new-landmark gate) of some observation."""
-        obs, cand, H, P_red = reduced_problem(lin, compatible, self._cov, self._x_index, self._h_index)
-        result = jcbb(
-            lin.nu[np.ix_(obs, cand)],
-            H,
-            P_red,
-            lin.R[obs],
-            dof=lin.dof[np.ix_(obs, cand)],
-            probability=self.gate_probability,
-            candidate_probability=self.new_landmark_probability,
-            joint_test=self.joint_test,
-            max_nodes=self.max_jcbb_nodes,
-        )
-        self.jcbb_nodes_max = max(self.jcbb_nodes_max, result.nodes)
-        self.jcbb_truncated += int(result.truncated)
-        pairing: list[int | None] = [None] * lin.nu.shape[0]
-        for a, c in enumerate(result.pairing):
-            if c is not None:
-                pairing[int(obs[a])] = int(cand[c])
-        return pairing

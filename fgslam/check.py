@@ -42,8 +42,13 @@ TOML file next to the log (``<log>.check.toml``, or the file given), and from th
     max_ate_m = 0.8
 
 A 3-D log (seed 003's stereo camera + IMU) is checked the same way with its own
-estimators (:mod:`fgslam.check3d`): the ATE in 3-D, the pose NEES on SE(3) against χ²₆'s
-band [1.24, 14.45], the smoothed solution from the stereo factor graph.
+estimators (:func:`score_3d`): the reference is the log's truth (``--against truth``) or
+batch Levenberg–Marquardt on the stereo factor graph of ``isam2-3d`` (:mod:`fgslam.smoother3d`)
+started from iSAM2's result, exactly as ``fgslam run`` computes it; the ATE is the RMSE of the
+3-D positions without alignment (every estimator starts at the IMU's first pose); the NEES is
+the pose NEES on SE(3) (right perturbation) against χ²₆'s band [1.24, 14.45]. A smoothed
+solution whose graph holds no landmark seen twice is no better than the IMU alone and is
+refused, as in 2-D. Which estimators a log takes comes from :mod:`fgslam.registry`.
 
 In pytest::
 
@@ -61,13 +66,18 @@ from pathlib import Path
 import numpy as np
 
 from fgslam.compare import ate_rmse_m, nees_band, nees_over_truth
-from fgslam.runner import ESTIMATORS, require_motion, require_usable_reference, run_estimator, truth_reference
+from fgslam.registry import CHECK_DEFAULTS, names_for
+from fgslam.runner import (
+    ESTIMATORS, UnusableReferenceError, require_motion, require_usable_reference, run_estimator, truth_reference,
+)
 from fgslam.smoother import Isam2Smoother, batch_solve
 from slamio.errors import FgslamError, InputFileError, read_text
 from slamio.log import read_log
 from slamio.safe_input import parse_toml
 
 __all__ = [
+    "DEFAULT_ESTIMATOR_3D",
+    "score_3d",
     "DEFAULT_TOLERANCES",
     "TOLERANCE_RANGES",
     "MIN_TRUTH_POSES",
@@ -79,6 +89,9 @@ __all__ = [
     "tolerance_is_valid",
     "require_enough_truth",
 ]
+
+#: The estimator ``fgslam check`` checks on a 3-D log when none is named: the consistent joint EKF.
+DEFAULT_ESTIMATOR_3D = CHECK_DEFAULTS[3]
 
 #: Tolerances used when neither the call nor a TOML file sets them.
 DEFAULT_TOLERANCES = {"max_ate_m": 0.5, "max_nees_outside": 0.1}
@@ -176,8 +189,8 @@ def check_estimator(
 ) -> CheckResult:
     """Run ``estimator`` on the log at ``log_path`` and check it against the reference.
 
-    ``estimator`` defaults to ``ekf`` on a planar log and to :data:`fgslam.check3d.DEFAULT_ESTIMATOR_3D`
-    on a 3-D log (seed 003's stereo + IMU; :mod:`fgslam.check3d`)."""
+    ``estimator`` defaults to ``ekf`` on a planar log and to :data:`DEFAULT_ESTIMATOR_3D`
+    on a 3-D log (seed 003's stereo + IMU; :func:`score_3d`)."""
     if against not in AGAINST:
         raise FgslamError(f"--against must be one of {', '.join(AGAINST)}, got {against!r}")
     for key, value in (("max_ate_m", max_ate_m), ("max_nees_outside", max_nees_outside)):
@@ -185,15 +198,11 @@ def check_estimator(
             raise FgslamError(f"{key} must be {TOLERANCE_RANGES[key]}, got {value!r}")
     log = read_log(log_path)
     require_motion(log, "check")
-    if log.header.is_3d:
-        from fgslam.check3d import DEFAULT_ESTIMATOR_3D, score_3d
-        from fgslam.runner3d import ESTIMATORS_3D as known
-
-        estimator = estimator or DEFAULT_ESTIMATOR_3D
-    else:
-        known, estimator = ESTIMATORS, estimator or "ekf"
+    dimension = 3 if log.header.is_3d else 2
+    estimator = estimator or CHECK_DEFAULTS[dimension]
+    known = names_for(dimension)
     if estimator not in known:
-        kind = "a 3-D log" if log.header.is_3d else "a planar log"
+        kind = "a 3-D log" if dimension == 3 else "a planar log"
         raise FgslamError(f"unknown estimator {estimator!r} for {kind}; choose from {', '.join(known)}")
     file = tolerance_file_for(log_path) if tolerances_file is None else Path(tolerances_file)
     if tolerances_file is not None and not os.path.lexists(file):
@@ -251,6 +260,53 @@ def _score_planar(log, log_path, estimator: str, against: str) -> Score:
     if run.online_covariances is not None:
         values, dofs = nees_over_truth(run.online, run.online_covariances, reference_poses, has_pose)
     return Score(ate, values, dofs, int(np.count_nonzero(has_pose[:m])), len(steps))
+
+
+def score_3d(log, log_path, estimator: str, against: str) -> Score:
+    """The :class:`Score` of the 3-D ``estimator`` on the 3-D ``log`` against ``against``."""
+    from fgslam.runner3d import (
+        POSE_DOF, make_estimator_3d, noise_of, pose_nees_series, position_rmse_m, run_estimator_3d,
+        truth_reference_3d,
+    )
+    from fgslam.smoother3d import batch_solve as batch_solve_3d
+    from slamio.datasets.seed003_log import log_to_drive
+
+    steps = log.steps()  # grouped once: the drive, its noise and the truth come from them
+    drive = log_to_drive(log, steps)
+    noise = noise_of(log, steps)
+    run = None
+    if against == "truth":
+        reference = truth_reference_3d(log, steps)
+        require_enough_truth(log_path, 0 if reference is None else reference.poses_with_truth, drive.n_steps)
+        reference_poses, has_pose = reference.trajectory, reference.mask
+    else:
+        graph = make_estimator_3d("isam2-3d", drive, noise)
+        # checking isam2-3d itself: its one run (with covariances) also gives the graph
+        graph_run = run_estimator_3d(graph, drive, covariances=estimator == "isam2-3d")
+        require_landmarks_seen_twice(graph, log_path)
+        if estimator == "isam2-3d":
+            run = graph_run
+        reference_poses = batch_solve_3d(graph).trajectory()
+        has_pose = np.ones(drive.n_steps, dtype=bool)
+    if run is None:
+        run = run_estimator_3d(make_estimator_3d(estimator, drive, noise), drive)
+    ate = position_rmse_m(run.final, reference_poses, 3, has_pose)
+    values = None
+    if run.covariances is not None and np.any(np.isfinite(run.covariances)):
+        values = pose_nees_series(run.online, run.covariances, reference_poses)[has_pose]
+    dofs = None if values is None else np.full(len(values), POSE_DOF)
+    return Score(ate, values, dofs, int(np.count_nonzero(has_pose)), drive.n_steps)
+
+
+def require_landmarks_seen_twice(graph, log_path) -> None:
+    """Refuse a 3-D smoothed solution that no landmark constrains beyond the IMU: every stereo
+    factor is then a landmark's only one."""
+    if graph.stereo_factors <= len(graph.landmark_ids()):
+        raise UnusableReferenceError(
+            f"{log_path}: the smoothed solution is the IMU dead reckoning (no landmark is seen twice with a "
+            f"usable disparity: {graph.stereo_factors} stereo factors on {len(graph.landmark_ids())} landmarks); "
+            "check against the truth (--against truth) or record a log whose tracks last"
+        )
 
 
 def _judge(score: Score, log_path, estimator: str, against: str, tol: dict[str, float]) -> CheckResult:

@@ -11,7 +11,8 @@ or a Dask cluster's executor (``dask.distributed.Client(address).get_executor()`
 each run is an independent, picklable task (:func:`run_one`).
 
 The scenario ``stereo-loop`` is seed 003's simulated car (stereo camera + IMU) with the 3-D
-estimators; its NEES is on SE(3), 6 DoF (:mod:`fgslam.montecarlo3d`).
+estimators; its NEES is on SE(3), 6 DoF (:func:`run_one_3d`). Which estimators a scenario
+takes, and its defaults, come from :mod:`fgslam.registry`.
 
 Simulated logs have truth at every pose. Should a run lack truth at some poses, its NEES is
 NaN there, its ATE is over the poses with truth, and the per-step average (with its band for
@@ -28,12 +29,19 @@ from dataclasses import dataclass
 import numpy as np
 
 from fgslam.compare import ate_rmse_m, nees, nees_band
+from fgslam.registry import BENCH_DEFAULTS, names_for
 from fgslam.runner import ESTIMATORS, run_estimator, truth_trajectory
 from slamio.errors import FgslamError
 from slamio.log import group_steps
 from slamio.sim import simulate
 
-__all__ = ["RunResult", "MonteCarloResult", "run_one", "monte_carlo", "dask_executor"]
+__all__ = ["RunResult", "MonteCarloResult", "run_one", "run_one_3d", "monte_carlo", "dask_executor",
+           "DEFAULT_BENCH_ESTIMATORS_3D", "POSE_DOF_3D"]
+
+#: What ``fgslam bench stereo-loop`` runs when no estimator is named.
+DEFAULT_BENCH_ESTIMATORS_3D = BENCH_DEFAULTS[3]
+#: Degrees of freedom of one pose's NEES on SE(3) (fgslam.runner3d.POSE_DOF).
+POSE_DOF_3D = 6
 
 
 @dataclass(frozen=True)
@@ -103,6 +111,29 @@ def run_one(scenario: str, seed: int, estimators: tuple[str, ...], landmarks: in
     return RunResult(int(seed), out_nees, final, online, times, None if has_pose.all() else has_pose)
 
 
+def run_one_3d(seed: int, estimators: tuple[str, ...], scenario=None) -> RunResult:
+    """One seeded simulated stereo + IMU drive (:func:`slamio.sim3d.simulate_drive`, the
+    ``scenario`` a :class:`slamio.sim3d.DriveScenario`) and every estimator on it, as ``fgslam
+    run`` runs them on the drive's log: per step the pose NEES on SE(3) (right perturbation,
+    6 DoF) of the online pose against the truth; the ATE is the 3-D position RMSE without
+    alignment (every estimator starts at the IMU's first pose). A picklable task."""
+    from fgslam.runner3d import make_estimator_3d, pose_nees_series, position_rmse_m, run_estimator_3d
+    from slamio.datasets.seed003 import StereoImuNoise
+    from slamio.sim3d import DriveScenario, simulate_drive
+
+    drive = simulate_drive(seed, scenario or DriveScenario())
+    noise = StereoImuNoise()  # the simulator's noise, what `fgslam sim stereo-loop` writes in the log
+    truth = drive.truth_world_T_imu
+    out_nees, final, online, times = {}, {}, {}, {}
+    for name in estimators:
+        run = run_estimator_3d(make_estimator_3d(name, drive, noise), drive)
+        out_nees[name] = pose_nees_series(run.online, run.covariances, truth)
+        final[name] = position_rmse_m(run.final, truth)
+        online[name] = position_rmse_m(run.online, truth)
+        times[name] = run.total_time_s
+    return RunResult(int(seed), out_nees, final, online, times, None)
+
+
 @contextlib.contextmanager
 def dask_executor(address: str, timeout_s: float = 20.0):
     """``with dask_executor(address) as executor:`` the ``concurrent.futures`` executor of
@@ -144,23 +175,21 @@ def monte_carlo(
     process pool with ``jobs`` workers) and average each estimator's NEES per step.
 
     ``estimators`` default to ekf and isam2, and on ``stereo-loop`` to
-    :data:`fgslam.montecarlo3d.DEFAULT_BENCH_ESTIMATORS_3D`; ``drive_scenario`` (a
+    :data:`DEFAULT_BENCH_ESTIMATORS_3D`; ``drive_scenario`` (a
     :class:`slamio.sim3d.DriveScenario`) changes the stereo-loop's geometry."""
     from slamio.sim3d import STEREO_LOOP
 
     if runs < 1:
         raise FgslamError(f"runs must be >= 1, got {runs}")
-    if scenario == STEREO_LOOP:
-        from fgslam.montecarlo3d import DEFAULT_BENCH_ESTIMATORS_3D, POSE_DOF_3D, run_one_3d
-        from fgslam.runner3d import ESTIMATORS_3D
-
-        known, dof = ESTIMATORS_3D, POSE_DOF_3D
-        estimators = tuple(estimators or DEFAULT_BENCH_ESTIMATORS_3D)
+    dimension = 3 if scenario == STEREO_LOOP else 2
+    estimators = tuple(estimators or BENCH_DEFAULTS[dimension])
+    if dimension == 3:
+        dof = POSE_DOF_3D
         task = functools.partial(run_one_3d, estimators=estimators, scenario=drive_scenario)  # task(seed)
     else:
-        known, dof = ESTIMATORS, 3
-        estimators = tuple(estimators or ("ekf", "isam2"))
+        dof = 3
         task = functools.partial(run_one, scenario, estimators=estimators, landmarks=landmarks, laps=laps)
+    known = names_for(dimension)
     unknown = [e for e in estimators if e not in known]
     if unknown:
         raise FgslamError(f"unknown estimator(s) {', '.join(unknown)}; choose from {', '.join(known)}")

@@ -29,51 +29,20 @@ import numpy as np
 import scipy.linalg  # noqa: F401  (scipy's own BLAS is loaded now, so the thread limit below covers it)
 from threadpoolctl import threadpool_limits
 
-from ekf import DeadReckoning, EkfS000, EkfS001, EkfS004, EkfSlam, FejEkfSlam
 from fgslam.compare import NIS_DOF, EstimatorRun, Reference, relabel_landmarks, score_associations
 from fgslam.memory import PeakMemory
-from fgslam.smoother import FAST_SETTINGS, Isam2Smoother, batch_solve
+from fgslam.registry import DEFAULTS, REGISTRY, isam2_names, names_for, parse_names
+from fgslam.registry import expected_outlier_kernel  # noqa: F401  (scripts import it from here)
+from fgslam.smoother import Isam2Smoother, batch_solve
 from slamio.errors import FgslamError
 from slamio.estimator import Estimator
 from slamio.log import Header, RunLog, Step
-from slamio.noise_model import noise_expects_outliers
 
-#: name → factory(header). Each name is what ``--estimators`` accepts.
-ESTIMATORS: dict[str, Callable[[Header], Estimator]] = {
-    "ekf": EkfSlam,  # textbook EKF-SLAM; JCBB for observations without an id
-    "ekf-nn": lambda header: EkfSlam(header, association="nn"),  # the same with gated NN
-    "ekf-fej": FejEkfSlam,  # the same with first-estimates Jacobians (consistent heading)
-    "ekf-s000": EkfS000,  # seed 000's linear KF, as written
-    "ekf-s001": EkfS001,  # seed 001's GoPiGo EKF, as written
-    "ekf-s004": EkfS004,  # seed 004's AprilTag KF, as written
-    "isam2": lambda header: _named(Isam2Smoother(header, robust=expected_outlier_kernel(header)), "isam2"),
-    "isam2-fast": lambda header: _named(Isam2Smoother(header, **FAST_SETTINGS), "isam2-fast"),  # batched updates
-    "isam2-tags": lambda header: Isam2Smoother(header, tags=True),  # AprilTags as Pose2 landmarks
-    "isam2-huber": lambda header: Isam2Smoother(header, robust="huber"),  # robust landmark factors
-    "isam2-cauchy": lambda header: Isam2Smoother(header, robust="cauchy"),
-    "isam2-tukey": lambda header: Isam2Smoother(header, robust="tukey"),
-    "isam2-dcs": lambda header: Isam2Smoother(header, robust="dcs"),
-    "dead_reckoning": DeadReckoning,
-}
-ISAM2_NAMES = ("isam2", "isam2-fast", "isam2-tags", "isam2-huber", "isam2-cauchy", "isam2-tukey", "isam2-dcs")
-DEFAULT_ESTIMATORS = ("ekf", "isam2", "dead_reckoning")
-
-def expected_outlier_kernel(header: Header) -> str | None:
-    """``"dcs"`` when the log's noise model expects outliers, else None (least squares).
-
-    A noise model fitted by ``fgslam calibrate`` carries the share of readings beyond its
-    5σ gate (``noise.observation.outlier_rate``; MRCLAM: 0.3–1.6 %, misread barcodes).
-    Where it is above zero, plain least squares is the wrong model: on MRCLAM Dataset 6
-    robots 3 and 5 a handful of misread barcodes take plain iSAM2 to 2.6 / 2.4 m ATE, DCS
-    to 0.07 / 0.5 m (docs/datasets-mrclam-rosbag.md). DCS leaves every residual within
-    3.7σ at full weight, so it costs nothing on clean readings.
-    """
-    return "dcs" if noise_expects_outliers(header.noise) else None
-
-
-def _named(estimator, name: str):
-    estimator.name = name
-    return estimator
+#: name → factory(header): the planar estimators of :mod:`fgslam.registry` (what ``--estimators``
+#: accepts on a planar log).
+ESTIMATORS: dict[str, Callable[[Header], Estimator]] = {name: REGISTRY[name].factory for name in names_for(2)}
+ISAM2_NAMES = isam2_names(2)
+DEFAULT_ESTIMATORS = DEFAULTS[2]
 
 
 #: Threads BLAS/OpenMP may use while an estimator runs (see the module docstring).
@@ -148,20 +117,9 @@ OPTIMUM_FLOOR = 1e-3
 
 def parse_estimator_names(text: str, *, need_isam2: bool = True) -> list[str]:
     """``"ekf,isam2"`` → ``["ekf", "isam2"]``, rejecting unknown or missing names, and (with
-    ``need_isam2``, for ``fgslam run``'s batch solve) a list without an iSAM2 estimator."""
-    names = [n.strip() for n in text.split(",") if n.strip()]
-    unknown = [n for n in names if n not in ESTIMATORS]
-    if unknown or not names:
-        raise FgslamError(
-            f"unknown estimator(s) {', '.join(unknown) or '(none given)'}; "
-            f"choose from {', '.join(ESTIMATORS)} (comma-separated)"
-        )
-    if need_isam2 and not any(n in ISAM2_NAMES for n in names):
-        raise FgslamError(
-            "the batch solve (the smoothed reference) starts from iSAM2's result: keep isam2 (or one of "
-            f"{', '.join(n for n in ISAM2_NAMES if n != 'isam2')}) in --estimators"
-        )
-    return list(dict.fromkeys(names))
+    ``need_isam2``, for ``fgslam run``'s batch solve) a list without an iSAM2 estimator
+    (:func:`fgslam.registry.parse_names` for a planar log)."""
+    return parse_names(text, 2, need_isam2=need_isam2)
 
 
 def run_estimator(
@@ -178,79 +136,100 @@ def run_estimator(
     reference or a timing can skip that work. The peak memory of the whole run is measured
     too (:class:`fgslam.memory.PeakMemory`; the consistency work is included in it).
     """
-    online = np.empty((len(steps), 3))
-    step_times_s = np.empty(len(steps))
-    with_covariance = covariances and hasattr(estimator, "current_covariance")
-    with_nis = covariances and hasattr(estimator, "predicted_nis")
-    pose_covariances = np.empty((len(steps), 3, 3)) if with_covariance else None
-    nis_values: list[float] = []
-    nis_steps: list[int] = []
-    nis_dofs: list[int] = []
-    every = max(1, len(steps) // 200)
-    associating = hasattr(estimator, "step_associations")
-    true_ids: list[int | None] = []
-    keys: list[int | None] = []
+    trace = _Trace(len(steps), covariances and hasattr(estimator, "current_covariance"),
+                   covariances and hasattr(estimator, "predicted_nis"), hasattr(estimator, "step_associations"))
     with pinned_threads(blas_threads), PeakMemory() as memory:
-        for i, step in enumerate(steps):
-            if with_nis:  # against the prediction, so before the step; outside the timed region
-                for observation, value in zip(step.observations, estimator.predicted_nis(step)):  # type: ignore[attr-defined]
-                    if value is not None:
-                        nis_values.append(value)
-                        nis_steps.append(i)
-                        nis_dofs.append(1 if observation.range_only else NIS_DOF)
-            start = time.perf_counter()
-            estimator.step(step)
-            online[i] = estimator.current_pose()
-            step_times_s[i] = time.perf_counter() - start
-            if pose_covariances is not None:  # for NEES; outside the timed region
-                try:
-                    pose_covariances[i] = estimator.current_covariance()  # type: ignore[attr-defined]
-                except RuntimeError:  # gtsam.IndeterminateSystemException: no marginal this step
-                    pose_covariances[i] = np.nan
-            if associating:  # bookkeeping for the score, outside the timed region
-                keys.extend(estimator.step_associations())  # type: ignore[attr-defined]
-                true_ids.extend(_true_id(o) for o in step.observations)
-            if progress is not None and (i % every == 0 or i == len(steps) - 1):
-                progress(i + 1, len(steps), estimator.name)
+        _feed_steps(estimator, steps, progress, trace)
         start = time.perf_counter()
         estimator.finish()
         final = np.asarray(estimator.trajectory(), dtype=float)
         finish_s = time.perf_counter() - start
+    landmarks, heights, landmark_covariances, association = _final_map(estimator, steps, trace, covariances)
+    with_nis = trace.with_nis
+    run = EstimatorRun(
+        name=estimator.name,
+        online=trace.online,
+        final=final,
+        landmarks=landmarks,
+        step_times_s=trace.step_times_s,
+        total_time_s=float(trace.step_times_s.sum() + finish_s),
+        association=association,
+        landmark_heights=heights or None,
+        online_covariances=trace.pose_covariances,
+        nis=np.array(trace.nis_values) if with_nis else None,
+        nis_steps=np.array(trace.nis_steps, dtype=int) if with_nis else None,
+        nis_dofs=np.array(trace.nis_dofs, dtype=int) if with_nis else None,
+        peak_memory_bytes=memory.peak_bytes,
+        landmark_covariances=landmark_covariances or None,
+        unused_observations=unused_observations(estimator),
+    )
+    return run, estimator
 
+
+class _Trace:
+    """What :func:`run_estimator` records step by step: the online poses and step times, and
+    outside the timed region the pose covariances, the NIS values and the association keys."""
+
+    def __init__(self, n: int, with_covariance: bool, with_nis: bool, associating: bool) -> None:
+        self.online = np.empty((n, 3))
+        self.step_times_s = np.empty(n)
+        self.pose_covariances = np.empty((n, 3, 3)) if with_covariance else None
+        self.with_nis = with_nis
+        self.associating = associating
+        self.nis_values: list[float] = []
+        self.nis_steps: list[int] = []
+        self.nis_dofs: list[int] = []
+        self.true_ids: list[int | None] = []
+        self.keys: list[int | None] = []
+
+
+def _feed_steps(estimator: Estimator, steps: Sequence[Step], progress: Progress | None, trace: _Trace) -> None:
+    """Every step into ``estimator``, timing ``step`` and ``current_pose`` alone."""
+    every = max(1, len(steps) // 200)
+    for i, step in enumerate(steps):
+        if trace.with_nis:  # against the prediction, so before the step; outside the timed region
+            for observation, value in zip(step.observations, estimator.predicted_nis(step)):  # type: ignore[attr-defined]
+                if value is not None:
+                    trace.nis_values.append(value)
+                    trace.nis_steps.append(i)
+                    trace.nis_dofs.append(1 if observation.range_only else NIS_DOF)
+        start = time.perf_counter()
+        estimator.step(step)
+        trace.online[i] = estimator.current_pose()
+        trace.step_times_s[i] = time.perf_counter() - start
+        if trace.pose_covariances is not None:  # for NEES; outside the timed region
+            try:
+                trace.pose_covariances[i] = estimator.current_covariance()  # type: ignore[attr-defined]
+            except RuntimeError:  # gtsam.IndeterminateSystemException: no marginal this step
+                trace.pose_covariances[i] = np.nan
+        if trace.associating:  # bookkeeping for the score, outside the timed region
+            trace.keys.extend(estimator.step_associations())  # type: ignore[attr-defined]
+            trace.true_ids.extend(_true_id(o) for o in step.observations)
+        if progress is not None and (i % every == 0 or i == len(steps) - 1):
+            progress(i + 1, len(steps), estimator.name)
+
+
+def _final_map(estimator: Estimator, steps: Sequence[Step], trace: _Trace, covariances: bool):
+    """``(landmarks, heights, landmark covariances, association score)`` after the run, the
+    maps relabelled to the true ids when the estimator associated observations itself."""
     landmarks = dict(estimator.landmarks())
     heights = dict(estimator.landmark_heights()) if hasattr(estimator, "landmark_heights") else None
     landmark_covariances = (
         dict(estimator.landmark_covariances())  # type: ignore[attr-defined]
         if covariances and hasattr(estimator, "landmark_covariances") else None
     )
-    association = None
+    keys = trace.keys
     if hasattr(estimator, "associations"):  # ids settled after their step (deferred first sightings)
         keys = estimator.associations()  # type: ignore[attr-defined]
     hidden = any(o.landmark_id is None and not o.range_only for step in steps for o in step.observations)
-    if associating and (hidden or any(k is not None and k < 0 for k in keys)):  # it associated observations itself: score it
-        association = score_associations(true_ids, keys)
+    association = None
+    if trace.associating and (hidden or any(k is not None and k < 0 for k in keys)):  # it associated: score it
+        association = score_associations(trace.true_ids, keys)
         landmarks = relabel_landmarks(landmarks, association)
         heights = relabel_landmarks(heights, association) if heights else heights
         if landmark_covariances:
             landmark_covariances = relabel_landmarks(landmark_covariances, association)
-    run = EstimatorRun(
-        name=estimator.name,
-        online=online,
-        final=final,
-        landmarks=landmarks,
-        step_times_s=step_times_s,
-        total_time_s=float(step_times_s.sum() + finish_s),
-        association=association,
-        landmark_heights=heights or None,
-        online_covariances=pose_covariances,
-        nis=np.array(nis_values) if with_nis else None,
-        nis_steps=np.array(nis_steps, dtype=int) if with_nis else None,
-        nis_dofs=np.array(nis_dofs, dtype=int) if with_nis else None,
-        peak_memory_bytes=memory.peak_bytes,
-        landmark_covariances=landmark_covariances or None,
-        unused_observations=unused_observations(estimator),
-    )
-    return run, estimator
+    return landmarks, heights, landmark_covariances, association
 
 
 def unused_observations(estimator) -> dict[str, int] | None:

@@ -24,66 +24,44 @@ from typing import Callable
 import numpy as np
 
 from ekf.drive3d import steps_of
-from ekf.seed003 import AS_THE_FIGURES_SHOW, EkfS003
-from ekf.vio import VioEkf, pose_nees
-from fgslam.compare import nees_band
+from ekf.vio import pose_nees
+from fgslam.compare import TOP_LEVEL_KEYS, nees_band
+from fgslam.registry import DEFAULTS, REGISTRY, build, names_for, parse_names
 from fgslam.runner import pinned_threads
 from slamio.datasets.seed003 import StereoImuDrive, StereoImuNoise
 from slamio.datasets.seed003_log import log_to_drive
 from slamio.errors import FgslamError
-from slamio.log import RunLog, group_steps
-from slamio.log3d import TruthLandmark3, pose3_from_matrix
+from slamio.log import RunLog, TruthLandmark3, group_steps, pose3_from_matrix
 
-#: name → factory(drive, noise). What ``fgslam run --estimators`` accepts on a 3-D log.
+#: name → factory(drive, noise): the 3-D estimators of :mod:`fgslam.registry` (what ``fgslam run
+#: --estimators`` accepts on a 3-D log).
 ESTIMATORS_3D: dict[str, Callable[[StereoImuDrive, StereoImuNoise], object]] = {
-    "ekf-s003": lambda d, n: EkfS003(d.K, d.baseline_m, d.cam_T_imu, n),
-    "ekf-s003-figures": lambda d, n: _named(EkfS003(d.K, d.baseline_m, d.cam_T_imu, n, **AS_THE_FIGURES_SHOW),
-                                            "ekf-s003-figures"),
-    "ekf-vio": lambda d, n: VioEkf(d.K, d.baseline_m, d.cam_T_imu, n),
-    "ekf-vio-fej": lambda d, n: VioEkf(d.K, d.baseline_m, d.cam_T_imu, n, first_estimates=True),
-    "isam2-3d": None,  # built in run_log3d: the batch solve needs it (fgslam.smoother3d imports gtsam)
+    name: REGISTRY[name].factory for name in names_for(3)
 }
-DEFAULT_ESTIMATORS_3D = ("ekf-s003", "ekf-vio", "ekf-vio-fej", "isam2-3d")
+DEFAULT_ESTIMATORS_3D = DEFAULTS[3]
 POSE_DOF = 6
 STEREO_DOF = 4
 
 
-def _named(estimator, name: str):
-    estimator.name = name
-    return estimator
-
-
 def make_estimator_3d(name: str, drive: StereoImuDrive, noise: StereoImuNoise):
     """A fresh estimator ``name`` of :data:`ESTIMATORS_3D` for ``drive``, named ``name``."""
-    if name == "isam2-3d":
-        from fgslam.smoother3d import StereoIsam2  # imports gtsam
-
-        return _named(StereoIsam2(drive.K, drive.baseline_m, drive.cam_T_imu, noise), name)
-    return _named(ESTIMATORS_3D[name](drive, noise), name)
+    return build(name, 3, drive, noise)
 
 
 def parse_estimator_names_3d(text: str | None) -> list[str]:
     """``"ekf-vio,isam2-3d"`` → names; unknown names and a missing isam2-3d are one-line errors."""
-    names = list(DEFAULT_ESTIMATORS_3D) if text is None else [n.strip() for n in text.split(",") if n.strip()]
-    unknown = [n for n in names if n not in ESTIMATORS_3D]
-    if unknown or not names:
-        raise FgslamError(
-            f"unknown estimator(s) for a 3-D log: {', '.join(unknown) or '(none given)'}; "
-            f"choose from {', '.join(ESTIMATORS_3D)} (comma-separated)"
-        )
-    if "isam2-3d" not in names:
-        raise FgslamError("the batch solve (the reference without truth) starts from iSAM2's result: keep isam2-3d")
-    return list(dict.fromkeys(names))
+    return parse_names(text, 3)
 
 
-def noise_of(log: RunLog) -> StereoImuNoise:
+def noise_of(log: RunLog, steps=None) -> StereoImuNoise:
     """The one noise level the 3-D estimators assume, read from the log's records.
 
     Every ``stereo_observation`` must carry the same ``sigma_px`` and every
     ``velocity_odometry`` the same diagonal covariance, equal on the three linear and on the
     three angular axes (what ``fgslam import seed003`` and ``fgslam sim stereo-loop`` write).
+    ``steps``: the log's steps when the caller has grouped them already.
     """
-    steps = group_steps(log.header, log.records)
+    steps = group_steps(log.header, log.records) if steps is None else steps
     sigmas = {o.sigma_px for s in steps for o in s.observations}
     covs = {s.odometry.covariance for s in steps if s.odometry is not None}
     if len(sigmas) > 1 or len(covs) > 1:
@@ -137,10 +115,11 @@ class Reference3d:
         return int(np.count_nonzero(self.mask)) if self.kind == "ground_truth" else 0
 
 
-def truth_reference_3d(log: RunLog) -> Reference3d | None:
+def truth_reference_3d(log: RunLog, steps=None) -> Reference3d | None:
     """The log's ground truth as a :class:`Reference3d` (NaN poses and ``has_pose`` False in
-    its gaps), with every ``truth_landmark3`` as the map; None when no pose has truth."""
-    steps = group_steps(log.header, log.records)
+    its gaps), with every ``truth_landmark3`` as the map; None when no pose has truth
+    (``steps``: the log's steps when the caller has grouped them already)."""
+    steps = group_steps(log.header, log.records) if steps is None else steps
     trajectory = np.full((len(steps), 4, 4), np.nan)
     has_pose = np.array([s.truth is not None for s in steps], dtype=bool)
     if not has_pose.any():
@@ -160,6 +139,11 @@ class Comparison3d:
     smoother: object  # the StereoIsam2 the batch solve started from
     batch_error: float
     isam2_error: float
+
+    def smoother_short_of_optimum(self) -> None:
+        """No note on a 3-D log (a planar :class:`fgslam.runner.Comparison` gives one when
+        iSAM2's final estimate is not the batch optimum; metrics.json has both graph errors)."""
+        return None
 
 
 def run_estimator_3d(estimator, drive: StereoImuDrive, *, covariances: bool = True, progress=None) -> Run3d:
@@ -197,8 +181,9 @@ def run_log3d(log: RunLog, names: list[str], *, consistency: bool = True, progre
     """Every named estimator on ``log``, then the batch solve from isam2-3d's graph."""
     from fgslam.smoother3d import batch_solve
 
-    drive = log_to_drive(log)
-    noise = noise_of(log)
+    steps = log.steps()  # grouped once: the drive, its noise and the truth come from them
+    drive = log_to_drive(log, steps)
+    noise = noise_of(log, steps)
     runs = []
     smoother = None
     for name in names:
@@ -210,7 +195,7 @@ def run_log3d(log: RunLog, names: list[str], *, consistency: bool = True, progre
     with pinned_threads():
         batch = batch_solve(smoother)
     runs.append(Run3d("batch", None, batch.trajectory(), batch.landmarks(), None, batch.seconds))
-    reference = truth_reference_3d(log) or Reference3d("batch", batch.trajectory(), batch.landmarks())
+    reference = truth_reference_3d(log, steps) or Reference3d("batch", batch.trajectory(), batch.landmarks())
     return Comparison3d(runs, reference, drive.stamps_s, smoother, float(batch.error), smoother.error())
 
 
@@ -265,71 +250,135 @@ def _finite_or_none(value) -> float | None:
     return float(value) if value is not None and math.isfinite(float(value)) else None
 
 
+#: The per-estimator keys of a 3-D run's metrics.json beyond those it shares with a planar one
+#: (:data:`fgslam.compare.METRIC_KEYS`): the top-view ATE, the median map error, the mean step time.
+METRIC_KEYS_3D = (
+    "ate_rmse_m", "ate_2d_rmse_m", "ate_online_rmse_m", "final_pose_error_m", "landmarks_estimated",
+    "map_median_m", "map_rmse_m", "time_step_mean_s", "time_step_p50_s", "time_step_p99_s", "time_step_max_s",
+    "time_total_s", "steps", "nees_mean", "nees_inside_95", "nees_dof", "nis_mean", "nis_inside_95",
+)
+#: Top-level keys only a 3-D run's metrics.json has (with :data:`fgslam.compare.TOP_LEVEL_KEYS`).
+TOP_LEVEL_KEYS_3D = ("dimension", "nees_band_95", "nis_band_95", "isam2_graph_error", "batch_graph_error")
+#: A 3-D metrics.json from before the one schema (entries under "estimators"): old key → (new key, scale).
+OLD_KEYS_3D = {
+    "ate_3d_m": ("ate_rmse_m", 1.0), "ate_2d_m": ("ate_2d_rmse_m", 1.0), "ate_3d_online_m": ("ate_online_rmse_m", 1.0),
+    "final_position_error_m": ("final_pose_error_m", 1.0), "landmarks": ("landmarks_estimated", None),
+    "step_ms_mean": ("time_step_mean_s", 1e-3), "step_ms_median": ("time_step_p50_s", 1e-3),
+    "total_s": ("time_total_s", 1.0), "nees_in_band": ("nees_inside_95", 1.0), "nis_in_band": ("nis_inside_95", 1.0),
+}
+
+
 def compute_metrics_3d(result: Comparison3d, *, log_path: str) -> dict:
-    """metrics.json content for a 3-D log: one entry per estimator, plus what the reference is."""
+    """metrics.json content for a 3-D log, in the planar run's schema
+    (:func:`fgslam.compare.compute_metrics`): what the reference is at the top level, then one
+    entry per estimator, keyed by its name, with the planar key names for the same figures
+    (:data:`METRIC_KEYS_3D`), plus ``"dimension": 3`` and the 3-D bands and graph errors. The
+    reference is ``"ground_truth"`` or ``"smoothed"`` (the batch solution) as in 2-D; a 3-D run
+    has no RPE (no ``rpe_delta_frames``)."""
     reference = result.reference
-    low6, high6 = nees_band(POSE_DOF)
-    low4, high4 = nees_band(STEREO_DOF)
+    kind = "ground_truth" if reference.kind == "ground_truth" else "smoothed"  # a planar run's names
     metrics: dict = {
+        "reference": kind,
         "log": log_path,
-        "dimension": 3,
-        "reference": reference.kind,
         "poses": int(len(result.stamps_s)),
         "reference_poses_with_truth": reference.poses_with_truth,
+        "landmark_reference": kind if reference.landmarks else None,
         "reference_landmarks": len(reference.landmarks),
-        "nees_band_95": [low6, high6],
-        "nis_band_95": [low4, high4],
+        "dimension": 3,
+        "nees_band_95": list(nees_band(POSE_DOF)),
+        "nis_band_95": list(nees_band(STEREO_DOF)),
         "isam2_graph_error": result.isam2_error,
         "batch_graph_error": result.batch_error,
-        "estimators": {},
     }
     for run in result.runs:
-        errors = map_errors_m(run.landmarks, reference.landmarks)
-        scored = reference.mask
-        m = {
-            "ate_3d_m": position_rmse_m(run.final, reference.trajectory, 3, scored),
-            "ate_2d_m": position_rmse_m(run.final, reference.trajectory, 2, scored),
-            "ate_3d_online_m": None if run.online is None else position_rmse_m(run.online, reference.trajectory, 3,
-                                                                                scored),
-            "final_position_error_m": final_position_error_m(run.final, reference),
-            "landmarks": len(run.landmarks),
-            "map_median_m": float(np.median(errors)) if len(errors) else None,
-            "map_rmse_m": float(np.sqrt(np.mean(errors**2))) if len(errors) else None,
-            "step_ms_mean": None if run.step_times_s is None else 1e3 * float(np.mean(run.step_times_s)),
-            "step_ms_median": None if run.step_times_s is None else 1e3 * float(np.median(run.step_times_s)),
-            "total_s": run.total_time_s,
-        }
-        nees = nees_values(run, reference)
-        if nees is not None and np.any(np.isfinite(nees)):
-            v = nees[np.isfinite(nees)]
-            m["nees_mean"] = float(np.mean(v))
-            m["nees_in_band"] = float(np.mean((v >= low6) & (v <= high6)))
-        if run.nis is not None and len(run.nis):
-            m["nis_mean"] = float(np.mean(run.nis))
-            m["nis_in_band"] = float(np.mean((run.nis >= low4) & (run.nis <= high4)))
-        metrics["estimators"][run.name] = {k: _finite_or_none(v) if isinstance(v, float) else v for k, v in m.items()}
+        if run.name in metrics:
+            raise FgslamError(f"estimator name {run.name!r} clashes with another key of the metrics; rename it")
+        m = {**_pose_metrics_3d(run, reference), **_time_metrics_3d(run), **_consistency_metrics_3d(run, reference)}
+        metrics[run.name] = {k: _finite_or_none(v) if isinstance(v, float) else v for k, v in m.items()}
     return metrics
 
 
+def _pose_metrics_3d(run: Run3d, reference: Reference3d) -> dict:
+    """ATE (3-D and top view), final error and map figures of one run."""
+    errors = map_errors_m(run.landmarks, reference.landmarks)
+    scored = reference.mask
+    return {
+        "ate_rmse_m": position_rmse_m(run.final, reference.trajectory, 3, scored),
+        "ate_2d_rmse_m": position_rmse_m(run.final, reference.trajectory, 2, scored),
+        "ate_online_rmse_m": None if run.online is None else position_rmse_m(run.online, reference.trajectory, 3,
+                                                                             scored),
+        "final_pose_error_m": final_position_error_m(run.final, reference),
+        "landmarks_estimated": len(run.landmarks),
+        "map_median_m": float(np.median(errors)) if len(errors) else None,
+        "map_rmse_m": float(np.sqrt(np.mean(errors**2))) if len(errors) else None,
+    }
+
+
+def _time_metrics_3d(run: Run3d) -> dict:
+    """Step times (mean, median, 99th percentile, slowest; None for batch) and the total, seconds."""
+    times = None if run.step_times_s is None or not len(run.step_times_s) else np.asarray(run.step_times_s, float)
+    p50, p99 = (None, None) if times is None else (float(v) for v in np.percentile(times, [50.0, 99.0]))
+    return {
+        "time_step_mean_s": None if times is None else float(np.mean(times)),
+        "time_step_p50_s": p50,
+        "time_step_p99_s": p99,
+        "time_step_max_s": None if times is None else float(np.max(times)),
+        "time_total_s": run.total_time_s,
+        "steps": int(len(run.final)),
+    }
+
+
+def _consistency_metrics_3d(run: Run3d, reference: Reference3d) -> dict:
+    """Pose NEES on SE(3) (χ²₆) against the truth and stereo NIS (χ²₄), where measured."""
+    out: dict = {}
+    nees = nees_values(run, reference)
+    if nees is not None and np.any(np.isfinite(nees)):
+        low6, high6 = nees_band(POSE_DOF)
+        v = nees[np.isfinite(nees)]
+        out.update(nees_mean=float(np.mean(v)), nees_inside_95=float(np.mean((v >= low6) & (v <= high6))),
+                   nees_dof=POSE_DOF)
+    if run.nis is not None and len(run.nis):
+        low4, high4 = nees_band(STEREO_DOF)
+        out.update(nis_mean=float(np.mean(run.nis)), nis_inside_95=float(np.mean((run.nis >= low4) & (run.nis <= high4))))
+    return out
+
+
+def estimator_entries_3d(metrics: dict) -> dict[str, dict]:
+    """name → figures of a 3-D metrics dictionary; one from before the one schema (entries
+    under ``"estimators"``, :data:`OLD_KEYS_3D`) is read with the new key names."""
+    if isinstance(metrics.get("estimators"), dict):  # an old 3-D metrics.json
+        return {name: _upgrade_entry_3d(m) for name, m in metrics["estimators"].items()}
+    skip = {*TOP_LEVEL_KEYS, *TOP_LEVEL_KEYS_3D}
+    return {k: v for k, v in metrics.items() if k not in skip and isinstance(v, dict)}
+
+
+def _upgrade_entry_3d(m: dict) -> dict:
+    out = {}
+    for key, value in m.items():
+        new, scale = OLD_KEYS_3D.get(key, (key, None))
+        out[new] = value * scale if scale is not None and value is not None else value
+    return out
+
+
 COLUMNS_3D = (
-    ("ATE 3-D m", "ate_3d_m", 1.0, 3),
-    ("ATE 2-D m", "ate_2d_m", 1.0, 3),
-    ("online 3-D m", "ate_3d_online_m", 1.0, 3),
-    ("final m", "final_position_error_m", 1.0, 2),
+    ("ATE 3-D m", "ate_rmse_m", 1.0, 3),
+    ("ATE 2-D m", "ate_2d_rmse_m", 1.0, 3),
+    ("online 3-D m", "ate_online_rmse_m", 1.0, 3),
+    ("final m", "final_pose_error_m", 1.0, 2),
     ("map med m", "map_median_m", 1.0, 3),
-    ("landmarks", "landmarks", None, 0),
+    ("landmarks", "landmarks_estimated", None, 0),
     ("NEES", "nees_mean", 1.0, 1),
-    ("in band", "nees_in_band", 100.0, 0),
+    ("in band", "nees_inside_95", 100.0, 0),
     ("NIS", "nis_mean", 1.0, 2),
-    ("ms/step", "step_ms_mean", 1.0, 2),
-    ("total s", "total_s", 1.0, 2),
+    ("ms/step", "time_step_mean_s", 1e3, 2),
+    ("total s", "time_total_s", 1.0, 2),
 )
 
 
 def table_rows_3d(metrics: dict) -> tuple[list[str], list[list[str]]]:
     header = ["estimator"] + [c[0] for c in COLUMNS_3D]
     rows = []
-    for name, m in metrics["estimators"].items():
+    for name, m in estimator_entries_3d(metrics).items():
         cells = [name]
         for _, key, scale, digits in COLUMNS_3D:
             v = m.get(key)

@@ -14,24 +14,22 @@ other detector settings tried while choosing the front-end decoded (each named) 
 set-up finds. Finding those is not a false detection. Every tag of the listing was checked
 by eye on an enlarged crop with the detected outline drawn.
 
-Usage: ``.venv/bin/python scripts/apriltag_union.py [--photos DIR] [--out FILE]``.
+Usage: ``.venv/bin/python -m scripts.apriltag_union [--photos DIR] [--out FILE]``.
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import cv2  # noqa: E402
 
 from slamio.camera.accuracy import read_corner_list  # noqa: E402
 from slamio.camera.apriltag import AprilTagDetector  # noqa: E402
 from slamio.camera.tag_union import ListedTag, add_detections, write_union  # noqa: E402
+from scripts.common import APRILTAG_PHOTOS  # noqa: E402
 
-PHOTOS = Path(__file__).resolve().parents[1] / "tests" / "data" / "apriltag-photos"
+PHOTOS = APRILTAG_PHOTOS
 
 #: The eight set-ups, by the name the listing's "found by" column uses.
 SETUPS = {

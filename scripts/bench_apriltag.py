@@ -20,22 +20,21 @@ and, by kind of frame (robot-camera photos, NASA crops), the CPU time per frame 
 front-end detector's passes, of the detector and of the whole front-end (detection,
 refinement, pose, geometry): median, p90 and worst frame. Everything runs on one thread
 (AprilTag 3's ``nthreads`` 1, and OpenCV's calls inside the detector and the front-end).
-Usage: ``.venv/bin/python scripts/bench_apriltag.py [--photos DIR] [--repeats N] [--only SUBSTRING]``.
+Usage: ``.venv/bin/python -m scripts.bench_apriltag [--photos DIR] [--repeats N] [--only SUBSTRING]``.
 """
 
 from __future__ import annotations
 
 import os
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-os.environ.setdefault("OMP_NUM_THREADS", "1")
+from scripts.common import one_blas_thread
+
+one_blas_thread(force=False)
 
 import argparse  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
@@ -48,8 +47,9 @@ from slamio.camera.sources import Frame  # noqa: E402
 from slamio.camera.tag_passes import TagPasses  # noqa: E402
 from slamio.camera.tag_union import found_by_a_setup as counts_for_recall  # noqa: E402
 from slamio.camera.tag_union import read_union, score_against_union  # noqa: E402
+from scripts.common import APRILTAG_PHOTOS  # noqa: E402
 
-DEFAULT_PHOTOS = Path(__file__).resolve().parents[1] / "tests" / "data" / "apriltag-photos"
+DEFAULT_PHOTOS = APRILTAG_PHOTOS
 FIRST_PASS = dict(backend="apriltag3", quad_decimate=1.0)  # decimate 1, no upsampling: the reference for times
 ARUCO_PASS = dict(backend="aruco", aruco_refinement="none", aruco_window_px=3, aruco_min_perimeter=0.1)
 # AprilTag 3's quad thresholds: no threshold in 4x4 tiles of less contrast, quads of fewer edge pixels dropped

@@ -1,8 +1,8 @@
 """Smoother data association on logs without ids: association score and ATE vs the same log with ids.
 
-Usage: python scripts/bench_association.py OUTDIR SCENARIO[,SCENARIO...] SEEDS [OUTLIERS [ESTIMATOR]]
+Usage: python -m scripts.bench_association OUTDIR SCENARIO[,SCENARIO...] SEEDS [OUTLIERS [ESTIMATOR]]
 (e.g. ``/tmp/a arena-octagon,cylinders 1-5 0.1``). Makes the logs with ``fgslam sim``.
-Or: python scripts/bench_association.py --pair IDS.jsonl HIDDEN.jsonl ESTIMATOR[,ESTIMATOR...]
+Or: python -m scripts.bench_association --pair IDS.jsonl HIDDEN.jsonl ESTIMATOR[,ESTIMATOR...]
 for two existing logs (e.g. ``fgslam import mrclam ... [--hide-ids]``).
 """
 
@@ -15,7 +15,7 @@ from pathlib import Path
 
 from fgslam.compare import ate_rmse_m
 from fgslam.runner import ESTIMATORS, run_estimator, truth_trajectory
-from seed_sweep import parse_seeds  # scripts/ is on the path when this script runs
+from scripts.common import parse_seeds
 from slamio.log import read_log
 
 

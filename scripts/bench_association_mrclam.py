@@ -25,16 +25,15 @@ nearest-neighbour distance between the surveyed landmarks.
 
 Usage::
 
-    .venv/bin/python scripts/bench_association_mrclam.py ../shared/data/mrclam/MRCLAM_Dataset6
-    .venv/bin/python scripts/bench_association_mrclam.py FOLDER --robots 1,2 --estimators isam2 --diagnose
+    .venv/bin/python -m scripts.bench_association_mrclam ../shared/data/mrclam/MRCLAM_Dataset6
+    .venv/bin/python -m scripts.bench_association_mrclam FOLDER --robots 1,2 --estimators isam2 --diagnose
 """
 
 from __future__ import annotations
 
-import os
+from scripts.common import one_blas_thread
 
-os.environ["OPENBLAS_NUM_THREADS"] = "1"
-os.environ.setdefault("OMP_NUM_THREADS", "1")
+one_blas_thread()
 
 import argparse  # noqa: E402
 import json  # noqa: E402
@@ -42,11 +41,9 @@ import math  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 import numpy as np  # noqa: E402
 
-from bench_mrclam import add_dataset_arguments, chosen_robots, leave_one_out, raw_logs  # noqa: E402
+from scripts.bench_mrclam import add_dataset_arguments, chosen_robots, leave_one_out, raw_logs  # noqa: E402
 from ekf.association import DEFAULT_AMBIGUITY_MARGIN, chi2_gate  # noqa: E402
 from ekf.models import range_bearing  # noqa: E402
 from fgslam.cli.import_ import hide_landmark_ids  # noqa: E402

@@ -15,25 +15,22 @@ FOLDER is either a folder laid out as ``shared/data/rgbd-real`` (``sequence/colo
 ``sequence/depth/*.png`` in mm, ``other/TUM_*`` at 5000 per metre, ``other/SUN_*`` in mm with
 SUN RGB-D's 3-bit rotation) or ``tests/data/rgbd-real``. The Kinect sits 0.10 m ahead of the
 robot's centre at 0.30 m, level, with fx = fy = 525.
-Usage: ``.venv/bin/python scripts/bench_colour_real.py [FOLDER] [--supersample N]``.
+Usage: ``.venv/bin/python -m scripts.bench_colour_real [FOLDER] [--supersample N]``.
 """
 
 from __future__ import annotations
 
-import os
+from scripts.common import one_blas_thread
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+one_blas_thread(force=False)
 
 import argparse  # noqa: E402
 import math  # noqa: E402
-import sys  # noqa: E402
 import time  # noqa: E402
 from collections import Counter  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from slamio.camera.colour import DEFAULT_COLOURS, depth_from_mm  # noqa: E402
 from slamio.camera.composite import composite_trial  # noqa: E402
@@ -41,6 +38,7 @@ from slamio.camera.detect import FrontEnd, FrontEndConfig  # noqa: E402
 from slamio.camera.model import T_robot_camera_from_mount, kinect_v1_default  # noqa: E402
 from slamio.camera.render import CYLINDER_BGR, CylinderSpec  # noqa: E402
 from slamio.camera.sources import Frame, read_depth_png, read_image  # noqa: E402
+from scripts.common import SHARED_DATA  # noqa: E402
 
 SHIFTS_PX = ((0, 0), (2, 0), (-2, 0), (0, 2), (0, -2), (2, 2))
 DISTANCES_M = (1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0)
@@ -89,7 +87,7 @@ def cylinders() -> list[CylinderSpec]:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("folder", nargs="?", default=str(Path(__file__).resolve().parents[2] / "shared/data/rgbd-real"))
+    parser.add_argument("folder", nargs="?", default=str(SHARED_DATA / "rgbd-real"))
     parser.add_argument("--supersample", type=int, default=3)
     args = parser.parse_args(argv)
     frames = load_frames(Path(args.folder))

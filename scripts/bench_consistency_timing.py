@@ -10,24 +10,18 @@ each and the ratios.
 
 Usage::
 
-    .venv/bin/python scripts/bench_consistency_timing.py mrclam-fitted:../shared/data/mrclam/MRCLAM_Dataset6:1,2,3,4,5 victoria-park
+    .venv/bin/python -m scripts.bench_consistency_timing mrclam-fitted:../shared/data/mrclam/MRCLAM_Dataset6:1,2,3,4,5 victoria-park
 """
 
 from __future__ import annotations
 
-import os
+from scripts.common import one_blas_thread
 
-os.environ["OPENBLAS_NUM_THREADS"] = "1"
-os.environ.setdefault("OMP_NUM_THREADS", "1")
+one_blas_thread()
 
 import argparse  # noqa: E402
-import sys  # noqa: E402
-from pathlib import Path  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from bench_online import logs  # noqa: E402
+from scripts.bench_online import logs  # noqa: E402
 from fgslam.runner import ESTIMATORS, run_estimator  # noqa: E402
 from slamio.log import group_steps  # noqa: E402
 

@@ -12,27 +12,21 @@ Levenberg–Marquardt. One BLAS thread.
 
 Usage::
 
-    .venv/bin/python scripts/bench_finish.py mrclam-fitted:../shared/data/mrclam/MRCLAM_Dataset6:1,2,3,4,5 victoria-park plaza1
+    .venv/bin/python -m scripts.bench_finish mrclam-fitted:../shared/data/mrclam/MRCLAM_Dataset6:1,2,3,4,5 victoria-park plaza1
 """
 
 from __future__ import annotations
 
-import os
+from scripts.common import one_blas_thread
 
-os.environ["OPENBLAS_NUM_THREADS"] = "1"
-os.environ.setdefault("OMP_NUM_THREADS", "1")
+one_blas_thread()
 
 import argparse  # noqa: E402
-import sys  # noqa: E402
 import time  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import gtsam  # noqa: E402
 
-from bench_online import logs  # noqa: E402
+from scripts.bench_online import logs  # noqa: E402
 from fgslam.runner import expected_outlier_kernel, run_estimator  # noqa: E402
 from fgslam.smoother import Isam2Smoother, batch_solve  # noqa: E402
 from fgslam.smoother.batch import gauss_newton_steps  # noqa: E402

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Benchmark of ``fgslam live`` in the loop with the simulated Create (issue 8's figures).
 
-    python scripts/bench_live.py [--laps 1] [--time-scale 1] [--seed 1] [--path octagon]
+    python -m scripts.bench_live [--laps 1] [--time-scale 1] [--seed 1] [--path octagon]
 
 One hardware-in-the-loop run: the simulated Create on a real pseudo-terminal, frames
 rendered from its true pose, the AprilTag front-end and iSAM2 in the loop, following seed
@@ -20,11 +20,9 @@ import os
 import sys
 import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from fgslam.live import (  # noqa: E402
     polygon_waypoints,

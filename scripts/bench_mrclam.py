@@ -20,9 +20,9 @@ For each robot k of the folder (five iRobot Creates), in one process with BLAS o
 
 Usage::
 
-    .venv/bin/python scripts/bench_mrclam.py ../shared/data/mrclam/MRCLAM_Dataset6
-    .venv/bin/python scripts/bench_mrclam.py FOLDER --figure docs/mrclam_trajectories.png
-    .venv/bin/python scripts/bench_mrclam.py FOLDER --robots 1,2 --estimators ekf,isam2 --no-model
+    .venv/bin/python -m scripts.bench_mrclam ../shared/data/mrclam/MRCLAM_Dataset6
+    .venv/bin/python -m scripts.bench_mrclam FOLDER --figure docs/mrclam_trajectories.png
+    .venv/bin/python -m scripts.bench_mrclam FOLDER --robots 1,2 --estimators ekf,isam2 --no-model
 
 ``--no-model`` scores the round, unfitted default noise instead (the "before" column).
 ``--fit-on 1`` fits one model on robot 1 alone and scores every other robot with it (does
@@ -34,16 +34,15 @@ from __future__ import annotations
 
 import os
 
-os.environ["OPENBLAS_NUM_THREADS"] = "1"
-os.environ.setdefault("OMP_NUM_THREADS", "1")
+from scripts.common import one_blas_thread
+
+one_blas_thread()
 
 import argparse  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 from scipy.stats import chi2  # noqa: E402
@@ -52,7 +51,8 @@ from fgslam.compare import align_se2, apply_se2  # noqa: E402
 from fgslam.runner import ESTIMATORS, compare_log, parse_estimator_names, run_estimator  # noqa: E402
 from slamio.datasets.mrclam import ROBOT_SUBJECTS, import_mrclam  # noqa: E402
 from slamio.log import RunLog  # noqa: E402
-from slamio.noise_fit import CalibrationError, fit_noise_model  # noqa: E402
+from slamio.noise.errors import NoiseModelError  # noqa: E402
+from slamio.noise.fit_truth import fit_noise_model  # noqa: E402
 
 
 def _rmse(a: np.ndarray, b: np.ndarray) -> float:
@@ -226,7 +226,7 @@ def main(argv=None) -> int:
             parser.error(f"{option}: need at least one robot of {sorted(raw)} to fit on and one other to score")
         try:
             shared = fit_noise_model([raw[j] for j in fit_on])
-        except CalibrationError as exc:
+        except NoiseModelError as exc:
             parser.error(f"{option}: {exc}")
     results, models = {}, {}
     for k in robots:

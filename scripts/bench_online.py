@@ -11,25 +11,21 @@ reference's, final χ²/2 and its ratio to the batch optimum's.
 
 Usage::
 
-    .venv/bin/python scripts/bench_online.py arena:1-20
-    .venv/bin/python scripts/bench_online.py victoria-park --reference-skip 10
-    .venv/bin/python scripts/bench_online.py mrclam:/path/MRCLAM_Dataset6:1,3 plaza1
-    .venv/bin/python scripts/bench_online.py mrclam-fitted:/path/MRCLAM_Dataset6:4 --robust dcs   # bench_mrclam.py's noise
-    .venv/bin/python scripts/bench_online.py arena:1-3 --candidate "update_every=5" --candidate "update_every=20"
+    .venv/bin/python -m scripts.bench_online arena:1-20
+    .venv/bin/python -m scripts.bench_online victoria-park --reference-skip 10
+    .venv/bin/python -m scripts.bench_online mrclam:/path/MRCLAM_Dataset6:1,3 plaza1
+    .venv/bin/python -m scripts.bench_online mrclam-fitted:/path/MRCLAM_Dataset6:4 --robust dcs   # bench_mrclam.py's noise
+    .venv/bin/python -m scripts.bench_online arena:1-3 --candidate "update_every=5" --candidate "update_every=20"
 """
 
 from __future__ import annotations
 
-import os
+from scripts.common import one_blas_thread
 
-os.environ["OPENBLAS_NUM_THREADS"] = "1"
-os.environ.setdefault("OMP_NUM_THREADS", "1")
+one_blas_thread()
 
 import argparse  # noqa: E402
-import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
@@ -38,9 +34,7 @@ from fgslam.compare import ate_rmse_m  # noqa: E402
 from fgslam.runner import run_estimator  # noqa: E402
 from fgslam.smoother import Isam2Smoother, batch_solve  # noqa: E402
 from slamio.log import group_steps  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_victoria_park import parse_sets as parse_assignments  # noqa: E402
+from scripts.common import parse_assignments  # noqa: E402
 
 #: The every-step iSAM2 the online ATE is compared with: an update and a relinearisation
 #: check at every step, the newest pose read straight from iSAM2.
@@ -71,7 +65,7 @@ def logs(spec: str):
 
         yield spec, *import_plaza(spec)
     elif spec.startswith("mrclam-fitted:"):  # each robot with noise fitted on the others, as bench_mrclam.py
-        from bench_mrclam import leave_one_out, raw_logs
+        from scripts.bench_mrclam import leave_one_out, raw_logs
 
         folder, _, robots = spec.split(":", 1)[1].rpartition(":")
         raw = raw_logs(folder)

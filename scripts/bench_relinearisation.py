@@ -16,9 +16,9 @@ against the EKF's whole run: what the candidate would cost with no Python at all
 
 Usage::
 
-    .venv/bin/python scripts/bench_relinearisation.py mrclam:../shared/data/mrclam/MRCLAM_Dataset6:3 --robust dcs \\
+    .venv/bin/python -m scripts.bench_relinearisation mrclam:../shared/data/mrclam/MRCLAM_Dataset6:3 --robust dcs \\
         --candidate "relinearize_skip=10" --candidate ""
-    .venv/bin/python scripts/bench_relinearisation.py victoria-park plaza1 --candidate "relinearize_threshold=(0.3,0.1)"
+    .venv/bin/python -m scripts.bench_relinearisation victoria-park plaza1 --candidate "relinearize_threshold=(0.3,0.1)"
 
 If an update fails, the smoother rebuilds its ``ISAM2`` (fgslam/smoother/recovery.py) and
 the calls after that are not counted: the row says so.
@@ -26,22 +26,16 @@ the calls after that are not counted: the row says so.
 
 from __future__ import annotations
 
-import os
+from scripts.common import one_blas_thread
 
-os.environ["OPENBLAS_NUM_THREADS"] = "1"
-os.environ.setdefault("OMP_NUM_THREADS", "1")
+one_blas_thread()
 
 import argparse  # noqa: E402
-import sys  # noqa: E402
 import time  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import numpy as np  # noqa: E402
 
-from bench_online import logs, parse_sets, truth_of  # noqa: E402
+from scripts.bench_online import logs, parse_sets, truth_of  # noqa: E402
 from ekf import EkfSlam  # noqa: E402
 from fgslam.compare import ate_rmse_m  # noqa: E402
 from fgslam.runner import run_estimator  # noqa: E402

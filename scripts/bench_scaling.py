@@ -14,16 +14,12 @@ OPENBLAS_NUM_THREADS is forced to 1 before numpy loads (shared machine).
 
 from __future__ import annotations
 
-import os
+from scripts.common import one_blas_thread
 
-os.environ["OPENBLAS_NUM_THREADS"] = "1"
-os.environ.setdefault("OMP_NUM_THREADS", "1")
+one_blas_thread()
 
 import argparse  # noqa: E402
-import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
@@ -33,10 +29,7 @@ from fgslam.runner import run_estimator  # noqa: E402
 from fgslam.runner import ESTIMATORS  # noqa: E402
 from slamio.log import group_steps  # noqa: E402
 from slamio.sim import simulate  # noqa: E402
-
-
-def ms(run, q):
-    return 1e3 * float(np.percentile(run.step_times_s, q))
+from scripts.common import step_ms as ms  # noqa: E402
 
 
 def main(argv=None) -> int:

@@ -5,10 +5,10 @@
 
 Usage::
 
-    .venv/bin/python scripts/bench_victoria_park.py                  # the isam2-fast preset
-    .venv/bin/python scripts/bench_victoria_park.py --preset default # Isam2Smoother() as is
-    .venv/bin/python scripts/bench_victoria_park.py --set relinearize_skip=5 ...
-    .venv/bin/python scripts/bench_victoria_park.py --sweep          # the knob table of docs/performance.md
+    .venv/bin/python -m scripts.bench_victoria_park                  # the isam2-fast preset
+    .venv/bin/python -m scripts.bench_victoria_park --preset default # Isam2Smoother() as is
+    .venv/bin/python -m scripts.bench_victoria_park --set relinearize_skip=5 ...
+    .venv/bin/python -m scripts.bench_victoria_park --sweep          # the knob table of docs/performance.md
 
 Prints total time, per-step p50/p99 for EKF and iSAM2, the batch solve's time, χ²/2 of
 iSAM2's final estimate and of the batch optimum (LM seeded from iSAM2), and the ratios
@@ -19,19 +19,11 @@ and then a fixed list of iSAM2 settings, printing one markdown table row each.
 
 from __future__ import annotations
 
-import os
+from scripts.common import one_blas_thread
 
-os.environ["OPENBLAS_NUM_THREADS"] = "1"
-os.environ.setdefault("OMP_NUM_THREADS", "1")
+one_blas_thread()
 
 import argparse  # noqa: E402
-import ast  # noqa: E402
-import sys  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-import numpy as np  # noqa: E402
 
 from ekf import EkfSlam  # noqa: E402
 from fgslam.compare import ate_rmse_m  # noqa: E402
@@ -39,6 +31,7 @@ from fgslam.runner import run_estimator  # noqa: E402
 from fgslam.smoother import FAST_SETTINGS, Isam2Smoother, batch_solve  # noqa: E402
 from slamio.datasets.victoria_park import import_victoria_park  # noqa: E402
 from slamio.log import group_steps  # noqa: E402
+from scripts.common import parse_assignments as parse_sets, step_ms as ms  # noqa: E402
 
 PRESETS = {"fast": FAST_SETTINGS, "default": {}}
 
@@ -58,21 +51,6 @@ SWEEP = [
     ("isam2-fast, `final_iterations=0`", {**FAST_SETTINGS, "final_iterations": 0}),
     ("isam2-fast, `update_every=100`", {**FAST_SETTINGS, "update_every": 100, "max_held_steps": 100}),
 ]
-
-
-def parse_sets(items: list[str]) -> dict:
-    out = {}
-    for item in items:
-        key, _, text = item.partition("=")
-        try:
-            out[key] = ast.literal_eval(text)
-        except (ValueError, SyntaxError):
-            out[key] = text
-    return out
-
-
-def ms(run, q: float) -> float:
-    return 1e3 * float(np.percentile(run.step_times_s, q))
 
 
 def _run_isam2(kwargs: dict):

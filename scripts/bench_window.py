@@ -10,30 +10,24 @@ against the batch optimum, and how many times the window slid.
 
 Usage::
 
-    .venv/bin/python scripts/bench_window.py arena-laps:1:40 --window 200 500
-    .venv/bin/python scripts/bench_window.py plaza1 victoria-park --window 500 1000
-    .venv/bin/python scripts/bench_window.py mrclam-fitted:../shared/data/mrclam/MRCLAM_Dataset6:1,2,3,4,5
+    .venv/bin/python -m scripts.bench_window arena-laps:1:40 --window 200 500
+    .venv/bin/python -m scripts.bench_window plaza1 victoria-park --window 500 1000
+    .venv/bin/python -m scripts.bench_window mrclam-fitted:../shared/data/mrclam/MRCLAM_Dataset6:1,2,3,4,5
 
 Sources as in scripts/bench_online.py.
 """
 
 from __future__ import annotations
 
-import os
+from scripts.common import one_blas_thread
 
-os.environ["OPENBLAS_NUM_THREADS"] = "1"
-os.environ.setdefault("OMP_NUM_THREADS", "1")
+one_blas_thread()
 
 import argparse  # noqa: E402
-import sys  # noqa: E402
-from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from bench_online import logs, online_ate_m, truth_of  # noqa: E402
+from scripts.bench_online import logs, online_ate_m, truth_of  # noqa: E402
 from fgslam.runner import expected_outlier_kernel, run_estimator  # noqa: E402
 from fgslam.smoother import Isam2Smoother, batch_solve  # noqa: E402
 from slamio.log import group_steps  # noqa: E402

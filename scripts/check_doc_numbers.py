@@ -3,15 +3,18 @@
 quoted vs measured. Exit status 1 when a number does not match (or its text is no longer in
 the doc), 0 otherwise.
 
-    python scripts/check_doc_numbers.py                    # cheap and slow sources (a few minutes)
-    python scripts/check_doc_numbers.py --cheap            # only the cheap ones (under a minute)
-    python scripts/check_doc_numbers.py --long             # also the long experiments (seed sweeps)
-    python scripts/check_doc_numbers.py --shared ../shared # also the numbers measured on the shared data
-    python scripts/check_doc_numbers.py --source grid200   # one source (repeatable)
-    python scripts/check_doc_numbers.py --list             # the registry, without running anything
+Run it from the repository root, as a module (the root is then on the import path, so the
+packages and the scripts it calls import without any path manipulation):
 
-The registry is scripts/doc_numbers/registry.py: each entry is the doc, the exact text that
-holds the number, the measurement (scripts/doc_numbers/sources.py) and the tolerance (by
+    python -m scripts.check_doc_numbers                    # cheap and slow sources (a few minutes)
+    python -m scripts.check_doc_numbers --cheap            # only the cheap ones (under a minute)
+    python -m scripts.check_doc_numbers --long             # also the long experiments (seed sweeps)
+    python -m scripts.check_doc_numbers --shared ../shared # also the numbers measured on the shared data
+    python -m scripts.check_doc_numbers --source grid200   # one source (repeatable)
+    python -m scripts.check_doc_numbers --list             # the registry, without running anything
+
+The registry is scripts/doc_numbers/registry/ (one module per doc): each entry is the doc, the
+exact text that holds the number, the measurement (scripts/doc_numbers/sources/) and the tolerance (by
 default half a unit of the last quoted digit). Numbers that need the shared data folder
 (real datasets that are not shipped) are skipped, with the reason, unless --shared is given.
 Times are never registered: they depend on the machine.
@@ -24,11 +27,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # doc_numbers, and the scripts it calls
-
-from doc_numbers.quotes import ROOT, Checker, Context, format_outcomes  # noqa: E402
-from doc_numbers.registry import QUOTES  # noqa: E402
-from doc_numbers.sources import SOURCES  # noqa: E402
+from scripts.doc_numbers.quotes import ROOT, Checker, Context, format_outcomes
+from scripts.doc_numbers.registry import QUOTES
+from scripts.doc_numbers.sources import SOURCES
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -3,8 +3,8 @@
 flaw switched off in turn and with all of them off, on the bundled logs, and print a
 markdown table of final ATE and map RMSE against ground truth (docs/estimators.md quotes it).
 
-    python scripts/flaw_costs.py                 # data/arena_octagon.jsonl, data/arena_square.jsonl
-    python scripts/flaw_costs.py LOG [LOG ...]
+    python -m scripts.flaw_costs                 # data/arena_octagon.jsonl, data/arena_square.jsonl
+    python -m scripts.flaw_costs LOG [LOG ...]
 
 Every setting is a keyword of the variant's class; the defaults are the paper as written.
 """
@@ -19,8 +19,8 @@ from ekf import EkfS000, EkfS001, EkfS004, EkfSlam
 from fgslam.compare import compute_metrics
 from fgslam.runner import run_estimator, truth_reference
 from slamio.log import read_log
+from scripts.common import ROOT
 
-ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_LOGS = [ROOT / "data" / "arena_octagon.jsonl", ROOT / "data" / "arena_square.jsonl"]
 
 S000_FIXED = {"rotation": "compass", "landmark_init": "offset-from-robot", "noise": "log",

@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Are replayed live-simulation logs consistent? Each run's mean NEES against its own band.
 
-    .venv/bin/python scripts/live_nees.py --record 10 [--draws 100]   # record seeds 1–10, then score
-    .venv/bin/python scripts/live_nees.py runs/live*.jsonl             # score logs you have
+    .venv/bin/python -m scripts.live_nees --record 10 [--draws 100]   # record seeds 1–10, then score
+    .venv/bin/python -m scripts.live_nees runs/live*.jsonl             # score logs you have
 
 ``--record N`` drives N lockstep octagon laps of ``fgslam live``'s simulation (the simulated
 Create on a pseudo-terminal, frames rendered from its true pose, the AprilTag front-end and
@@ -28,7 +28,9 @@ from __future__ import annotations
 
 import os
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+from scripts.common import one_blas_thread
+
+one_blas_thread(force=False)
 
 import argparse  # noqa: E402
 import sys  # noqa: E402
@@ -36,8 +38,6 @@ import tempfile  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from fgslam.compare import nees_band  # noqa: E402
 from fgslam.consistency import mean_nees, reading_z_scores, run_nees_band  # noqa: E402

@@ -8,7 +8,7 @@ the published layout (four ``#`` header lines, the same columns and number forma
 
 Usage::
 
-    .venv/bin/python scripts/make_mrclam_excerpt.py ../shared/data/mrclam/MRCLAM_Dataset6 tests/data/mrclam_excerpt
+    .venv/bin/python -m scripts.make_mrclam_excerpt ../shared/data/mrclam/MRCLAM_Dataset6 tests/data/mrclam_excerpt
 """
 
 from __future__ import annotations

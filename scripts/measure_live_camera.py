@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Measure the noise of ``fgslam live --port sim``'s camera: the σ its observations must state.
 
-    .venv/bin/python scripts/measure_live_camera.py [--frames 400] [--seed 0]
+    .venv/bin/python -m scripts.measure_live_camera [--frames 400] [--seed 0]
 
 The simulated live camera (:func:`fgslam.live.simulated_camera`) renders seed 004's eight
 arena tags from the simulated Create's true pose (640×480, the Kinect's intrinsics, pixel
@@ -23,18 +23,14 @@ lockstep laps of ``tests/test_live.py`` are then checked against them, not fitte
 
 from __future__ import annotations
 
-import os
+from scripts.common import one_blas_thread
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+one_blas_thread(force=False)
 
 import argparse  # noqa: E402
 import math  # noqa: E402
-import sys  # noqa: E402
-from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from fgslam.live import arena_tag_scene, live_sim_camera, polygon_waypoints  # noqa: E402
 from slamio.camera.detect import FrontEnd, FrontEndConfig  # noqa: E402

@@ -12,23 +12,19 @@
    The gains of the model are the ratios of those RMS errors to the model's formula with
    gain 1 at the rendered corner precision (medians over cells; p_r a least-squares slope).
 
-Usage: ``.venv/bin/python scripts/measure_tag_noise.py [--repeats N] [--noise GREY]``.
+Usage: ``.venv/bin/python -m scripts.measure_tag_noise [--repeats N] [--noise GREY]``.
 Prints the real-photo corner σ, the per-cell table, the fitted gains and, per cell, the
 model's σ over the measured RMS (1 = the model fits).
 """
 
 from __future__ import annotations
 
-import os
+from scripts.common import one_blas_thread
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+one_blas_thread(force=False)
 
 import argparse  # noqa: E402
 import math  # noqa: E402
-import sys  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
@@ -40,6 +36,7 @@ from slamio.camera.render import Scene, TagSpec, project_world_points, render, t
 from slamio.camera.sources import Frame  # noqa: E402
 from slamio.camera.tag_noise import TagNoise, TagNoiseGains  # noqa: E402
 from slamio.geometry import wrap_angle  # noqa: E402
+from scripts.common import APRILTAG_PHOTOS  # noqa: E402
 
 DISTANCES_M = (0.75, 1.25, 2.0, 2.75, 3.5)
 VIEWS_DEG = (0.0, 10.0, 20.0, 35.0, 50.0, 60.0, 70.0)
@@ -118,7 +115,7 @@ def main(argv=None) -> int:
                         help="rays per pixel side when rendering (default 2; fgslam live --port sim renders with 1)")
     args = parser.parse_args(argv)
 
-    sigma_real, n_real = real_corner_sigma_px(Path(__file__).resolve().parents[1] / "tests" / "data" / "apriltag-photos")
+    sigma_real, n_real = real_corner_sigma_px(APRILTAG_PHOTOS)
     print(f"real photos (pupil-labs, refined corners): {n_real} tags, corner sigma ≈ {sigma_real:.2f} px")
 
     rng = np.random.default_rng(args.seed)

@@ -31,7 +31,7 @@ previous reading (where the misses below the band are).
 
 Usage::
 
-    .venv/bin/python scripts/mrclam_adaptive_noise.py ../shared/data/mrclam/MRCLAM_Dataset6 [--open-loop] [--sim] [--json FILE]
+    .venv/bin/python -m scripts.mrclam_adaptive_noise ../shared/data/mrclam/MRCLAM_Dataset6 [--open-loop] [--sim] [--json FILE]
 
 Prints, per robot (noise fitted on the other four) and as medians: NIS share inside the
 95 % χ²(2) band, median NIS (χ²(2) has 1.39), ATE against Vicon anchored and SE(2)-aligned.
@@ -41,9 +41,9 @@ whose noise is exact, to see that the adaptation leaves a consistent filter cons
 
 from __future__ import annotations
 
-import os
+from scripts.common import one_blas_thread
 
-os.environ["OPENBLAS_NUM_THREADS"] = "1"
+one_blas_thread()
 
 import argparse  # noqa: E402
 import dataclasses  # noqa: E402
@@ -52,18 +52,19 @@ import math  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
 import numpy as np  # noqa: E402
 from scipy.stats import chi2  # noqa: E402
 
-from bench_mrclam import ate_pair_m, leave_one_out, nis_inside, raw_logs  # noqa: E402
+from scripts.bench_mrclam import ate_pair_m, leave_one_out, nis_inside, raw_logs  # noqa: E402
 from ekf.models import motion_jacobians, predict_pose, range_bearing, range_bearing_jacobians  # noqa: E402
 from ekf.observation import measurement_covariance  # noqa: E402
 from ekf.slam import EkfSlam  # noqa: E402
 from slamio.geometry import wrap_angle  # noqa: E402
 from slamio.log import RunLog, Step, read_log  # noqa: E402
+from slamio.noise.dead_reckoning import turn_rate_radps  # noqa: E402
+from slamio.noise.fit_truth import _true_range_bearing  # noqa: E402
+from slamio.noise.fitting import line_fit, truth_data  # noqa: E402
+from scripts.common import DATA  # noqa: E402
 
 LOW, HIGH = chi2.ppf(0.025, 2), chi2.ppf(0.975, 2)
 
@@ -239,15 +240,26 @@ def share_in_band(z: np.ndarray, range_scale: float, bearing_scale: float) -> fl
     return float(np.mean((d2 >= LOW) & (d2 <= HIGH)))
 
 
+def reading_z(raw: RunLog, model) -> np.ndarray:
+    """(n, 2): each reading's range and bearing error against Vicon at the picture time, less
+    the run's own scale and bias (a line fitted to the run), over ``model``'s σ."""
+    obs, odometry = model.observation, model.odometry
+    data = truth_data(raw)
+    rm, bm, r, b, t, _ = _true_range_bearing(data, obs.camera_latency_s)
+    omega = odometry.turn_scale * turn_rate_radps(data.chain, t - odometry.lag_s)
+    along = r * np.cos(b) if obs.range_is_depth else r
+    sigma_r = np.array([obs.sigma_range_m(float(v)) for v in r])
+    sigma_b = np.array([obs.sigma_bearing_rad(float(w)) for w in omega])
+    return np.column_stack([line_fit(along, rm)[2] / sigma_r, line_fit(b, bm)[2] / sigma_b])
+
+
 def reading_ceiling(raws: dict[int, RunLog], models: dict) -> dict[int, tuple[float, ...]]:
     """Per robot, readings against Vicon (no estimator: every pose known; each run's own
-    scale and bias removed, ``mrclam_models_tried.reading_z``): ``(share with the model's σ,
+    scale and bias removed, :func:`reading_z`): ``(share with the model's σ,
     best share with the run's own variance scales, that range scale, that bearing scale,
     mean z_r², mean z_b²)``, the scales searched on a log grid 0.1–10 (an oracle: chosen
     after the fact), the means over the readings within 5σ (the run's variance over the
     model's: what an adaptive scale should find)."""
-    from mrclam_models_tried import reading_z
-
     grid = np.exp(np.linspace(math.log(0.1), math.log(10.0), 41))
     out = {}
     for k, raw in raws.items():
@@ -375,7 +387,7 @@ def main(argv=None) -> int:
         variants[ORACLE] = {k: {"adapt": (), "fixed": {"range": readings[k]["range_variance_ratio"],
                                                        "bearing": readings[k]["bearing_variance_ratio"]}} for k in logs}
     print("## closed loop: NIS in band / median NIS / ATE anchored / ATE aligned (m); scale medians (range, bearing, odometry)")
-    sim = read_log(str(Path(__file__).resolve().parents[1] / "data" / "arena_octagon.jsonl")) if args.sim else None
+    sim = read_log(str(DATA / "arena_octagon.jsonl")) if args.sim else None
     columns = ("nis_inside", "nis_median", "ate_m", "ate_aligned_m")
     for name, per_robot in variants.items():
         rows = {k: run_adaptive(log, **per_robot[k]) for k, log in logs.items()}

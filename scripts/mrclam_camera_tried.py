@@ -28,7 +28,7 @@ what the correlated part depends on, and what knowing it would be worth:
 
 Usage::
 
-    .venv/bin/python scripts/mrclam_camera_tried.py ../shared/data/mrclam/MRCLAM_Dataset6 [pairs|oracle|ekf ...]
+    .venv/bin/python -m scripts.mrclam_camera_tried ../shared/data/mrclam/MRCLAM_Dataset6 [pairs|oracle|ekf ...]
 
 ``pairs`` and ``ekf`` take seconds to a minute, ``oracle`` a few minutes.
 """
@@ -37,7 +37,9 @@ from __future__ import annotations
 
 import os
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+from scripts.common import one_blas_thread
+
+one_blas_thread(force=False)
 
 import argparse  # noqa: E402
 import json  # noqa: E402
@@ -46,20 +48,16 @@ import sys  # noqa: E402
 from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
 import numpy as np  # noqa: E402
 
-from bench_mrclam import ate_and_turn, leave_one_out, nis_inside, raw_logs, score_robot  # noqa: E402
+from scripts.bench_mrclam import ate_and_turn, leave_one_out, nis_inside, raw_logs, score_robot  # noqa: E402
 from ekf import EkfSlam  # noqa: E402
 from ekf.reading_error import reading_sigmas  # noqa: E402
 from slamio.geometry import wrap_angle  # noqa: E402
 from slamio.log import Observation, RunLog  # noqa: E402
-from slamio.noise_fit import (  # noqa: E402
-    GATE_SIGMAS, _log_data, _mad_sigma, _residuals_about_own_lines, _true_range_bearing, fit_noise_model,
-    turn_rate_radps,
-)
+from slamio.noise.dead_reckoning import turn_rate_radps  # noqa: E402
+from slamio.noise.fit_truth import _true_range_bearing, fit_noise_model  # noqa: E402
+from slamio.noise.fitting import GATE_SIGMAS, mad_sigma, residuals_about_own_lines, truth_data  # noqa: E402
 
 #: Bins of the time between two readings of one landmark (s).
 TIME_BINS_S = (0.0, 0.5, 2.0, 8.0, 32.0, 64.0)
@@ -88,16 +86,16 @@ def normalised_errors(raw: dict[int, RunLog]) -> dict[str, np.ndarray]:
     error over σ, about its run's own scale and bias (``slamio.noise_fit``'s residuals)."""
     model = fit_noise_model(list(raw.values()))
     obs, odo = model.observation, model.odometry
-    datas = [_log_data(log) for log in raw.values()]
+    datas = [truth_data(log) for log in raw.values()]
     parts = [_true_range_bearing(d, obs.camera_latency_s) for d in datas]
     rm, bm, r, b, t = (np.concatenate([p[j] for p in parts]) for j in range(5))
     landmark = np.unique(np.vstack([p[5] for p in parts]), axis=0, return_inverse=True)[1].ravel()
     run = np.concatenate([np.full(len(p[0]), j) for j, p in enumerate(parts)])
     omega = np.concatenate([odo.turn_scale * turn_rate_radps(d.chain, p[4] - odo.lag_s) for d, p in zip(datas, parts)])
     along = r * np.cos(b) if obs.range_is_depth else r
-    res_r = _residuals_about_own_lines(along, rm, run, (obs.range_scale, obs.range_bias_m))
-    res_b = _residuals_about_own_lines(b, bm, run, (obs.bearing_scale, obs.bearing_bias_rad))
-    inlier = (np.abs(res_r) <= GATE_SIGMAS * _mad_sigma(res_r)) & (np.abs(res_b) <= GATE_SIGMAS * _mad_sigma(res_b))
+    res_r = residuals_about_own_lines(along, rm, run, (obs.range_scale, obs.range_bias_m))
+    res_b = residuals_about_own_lines(b, bm, run, (obs.bearing_scale, obs.bearing_bias_rad))
+    inlier = (np.abs(res_r) <= GATE_SIGMAS * mad_sigma(res_r)) & (np.abs(res_b) <= GATE_SIGMAS * mad_sigma(res_b))
     sigma_r = np.array([obs.sigma_range_m(float(v)) for v in r])
     sigma_b = np.array([obs.sigma_bearing_rad(float(w)) for w in omega])
     z = np.column_stack([res_r / sigma_r, res_b / sigma_b])
@@ -123,7 +121,7 @@ def _pairs(e: dict[str, np.ndarray], same_landmark: bool, max_dt_s: float) -> np
     return np.vstack(rows) if rows else np.zeros((0, 8))
 
 
-def _binned(pairs: np.ndarray, column: int, edges, mask=None) -> list[dict]:
+def binned(pairs: np.ndarray, column: int, edges, mask=None) -> list[dict]:
     """Correlation of the range and of the bearing errors per bin of ``pairs[:, column]``."""
     out = []
     for lo, hi in zip(edges[:-1], edges[1:]):
@@ -143,10 +141,10 @@ def pairs_report(raw: dict[int, RunLog]) -> dict:
     same = _pairs(e, True, TIME_BINS_S[-1])
     cross = _pairs(e, False, CROSS_WINDOW_S)
     result = {
-        "by_time": _binned(same, 0, TIME_BINS_S),
-        "by_picture_within_0_5s": _binned(same, 1, PICTURE_BINS_RAD, mask=same[:, 0] < 0.5),
-        "by_picture_2_to_8s": _binned(same, 1, PICTURE_BINS_RAD, mask=(same[:, 0] >= 2.0) & (same[:, 0] < 8.0)),
-        "other_landmarks_by_picture": _binned(cross, 1, PICTURE_BINS_RAD),
+        "by_time": binned(same, 0, TIME_BINS_S),
+        "by_picture_within_0_5s": binned(same, 1, PICTURE_BINS_RAD, mask=same[:, 0] < 0.5),
+        "by_picture_2_to_8s": binned(same, 1, PICTURE_BINS_RAD, mask=(same[:, 0] >= 2.0) & (same[:, 0] < 8.0)),
+        "other_landmarks_by_picture": binned(cross, 1, PICTURE_BINS_RAD),
     }
     for name, rows, unit in (("one landmark, by time apart", result["by_time"], "s"),
                              ("one landmark < 0.5 s apart, by |Δ bearing|", result["by_picture_within_0_5s"], "rad"),
@@ -185,7 +183,7 @@ def robust_polyfit(x: np.ndarray, y: np.ndarray, degree: int) -> tuple[np.ndarra
     for _ in range(4):
         coef = np.polyfit(x[keep], y[keep], degree)
         res = y - np.polyval(coef, x)
-        keep = np.abs(res - np.median(res[keep])) <= GATE_SIGMAS * max(_mad_sigma(res[keep]), 1e-12)
+        keep = np.abs(res - np.median(res[keep])) <= GATE_SIGMAS * max(mad_sigma(res[keep]), 1e-12)
     return coef, keep
 
 

@@ -19,7 +19,7 @@ Vicon, straight from the dataset's files (no noise model, no estimator):
 
 Usage::
 
-    .venv/bin/python scripts/mrclam_motor_lens_tried.py ../shared/data/mrclam/MRCLAM_Dataset6 [motor|lens ...]
+    .venv/bin/python -m scripts.mrclam_motor_lens_tried ../shared/data/mrclam/MRCLAM_Dataset6 [motor|lens ...]
 
 Takes a few seconds.
 """
@@ -32,8 +32,6 @@ import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 from scipy.signal import lfilter  # noqa: E402

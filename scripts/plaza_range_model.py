@@ -16,7 +16,7 @@ the batch optimum is solved, as ``fgslam run`` does. Printed per run and import:
 * NEES of the online positions against GPS (2 degrees of freedom: the truth has no
   heading): share inside the 95 % χ²(2) band.
 
-    python scripts/plaza_range_model.py            # ~1 min
+    python -m scripts.plaza_range_model            # ~1 min
 """
 
 from __future__ import annotations
@@ -24,17 +24,15 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from fgslam.compare import align_se2, apply_se2, compute_metrics  # noqa: E402
 from fgslam.runner import compare_log  # noqa: E402
 from slamio.datasets.plaza import import_plaza  # noqa: E402
 from slamio.log import RunLog  # noqa: E402
-from slamio.noise_fit import fit_noise_model  # noqa: E402
+from slamio.noise.fit_truth import fit_noise_model  # noqa: E402
 
 RUNS = ("plaza1", "plaza2")
 ESTIMATORS = ("ekf", "isam2", "isam2-fast", "dead_reckoning")

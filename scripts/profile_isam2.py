@@ -4,9 +4,9 @@
 
 Usage::
 
-    .venv/bin/python scripts/profile_isam2.py data/arena_octagon.jsonl
-    .venv/bin/python scripts/profile_isam2.py victoria-park           # the log shipped with gtsam
-    .venv/bin/python scripts/profile_isam2.py LOG --preset fast --set relinearize_skip=5
+    .venv/bin/python -m scripts.profile_isam2 data/arena_octagon.jsonl
+    .venv/bin/python -m scripts.profile_isam2 victoria-park           # the log shipped with gtsam
+    .venv/bin/python -m scripts.profile_isam2 LOG --preset fast --set relinearize_skip=5
 
 Runs ``Isam2Smoother`` over the log the way ``fgslam run`` does: before each step the NIS
 of its observations (``predicted_nis``), then the step (the timed region), then the
@@ -35,19 +35,16 @@ from __future__ import annotations
 
 import os
 
-os.environ["OPENBLAS_NUM_THREADS"] = "1"
-os.environ.setdefault("OMP_NUM_THREADS", "1")
+from scripts.common import one_blas_thread
+
+one_blas_thread()
 
 import argparse  # noqa: E402
 import ast  # noqa: E402
 import cProfile  # noqa: E402
 import pstats  # noqa: E402
-import sys  # noqa: E402
 import time  # noqa: E402
 from collections import defaultdict  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from fgslam.smoother import FAST_SETTINGS, Isam2Smoother  # noqa: E402
 from slamio.log import group_steps, read_log  # noqa: E402

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Render a report.html in headless Chromium to a PNG: what a user sees in the browser.
 
-    python scripts/report_screenshot.py out/demo/report.html --out docs/report_screenshot.png --colours 64
+    python -m scripts.report_screenshot out/demo/report.html --out docs/report_screenshot.png --colours 64
 
 Needs Chromium (Debian: ``apt-get install chromium``; also found as ``chromium-browser`` or
 ``google-chrome``; or pass ``--browser PATH``). The page is opened from the file system,

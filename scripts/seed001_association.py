@@ -17,29 +17,25 @@ covariance, the arc motion model: only the nearest-neighbour rule left) and prin
 Association fails where the spacing is no longer several times the sum of those two
 errors, or where the gate cannot separate a landmark's own scatter from its neighbours.
 
-    .venv/bin/python scripts/seed001_association.py --jobs 2
+    .venv/bin/python -m scripts.seed001_association --jobs 2
 
 docs/seeds.md quotes its output.
 """
 
 from __future__ import annotations
 
-import os
+from scripts.common import one_blas_thread
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+one_blas_thread(force=False)
 
 import argparse  # noqa: E402
 import math  # noqa: E402
 import statistics  # noqa: E402
-import sys  # noqa: E402
 from concurrent.futures import ProcessPoolExecutor  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
-from ekf.seed001 import EkfS001  # noqa: E402
+from ekf.signature_ekf import EkfS001  # noqa: E402
 from fgslam.compare import ate_rmse_m  # noqa: E402
 from fgslam.runner import run_estimator  # noqa: E402
 from slamio.log import TruthLandmark, group_steps  # noqa: E402

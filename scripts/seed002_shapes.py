@@ -12,24 +12,20 @@ Each frame goes through the colour front-end twice, as ``fgslam detect`` does: w
 ``gHeight`` (``--height-method gheight``) and with the exact pinhole height (the default), and
 the table prints observed heights and the "percentage of deviation" the paper prints.
 
-    .venv/bin/python scripts/seed002_shapes.py
+    .venv/bin/python -m scripts.seed002_shapes
 
 docs/seeds.md quotes its output.
 """
 
 from __future__ import annotations
 
-import os
+from scripts.common import one_blas_thread
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+one_blas_thread(force=False)
 
 import argparse  # noqa: E402
 import math  # noqa: E402
-import sys  # noqa: E402
 from dataclasses import replace  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 

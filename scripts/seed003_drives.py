@@ -1,7 +1,7 @@
 """Every seed-003 estimator on the seed's real drives and on simulated drives: tables + top views.
 
-    python scripts/seed003_drives.py [--data /work/shared/data/seed003] [--seeds 1-10] [--out docs]
-    python scripts/seed003_drives.py --scaling      # time per step as the map grows
+    python -m scripts.seed003_drives [--data /work/shared/data/seed003] [--seeds 1-10] [--out docs]
+    python -m scripts.seed003_drives --scaling      # time per step as the map grows
 
 For each drive: ``ekf-s003`` as written and with its typos read as the paper's figures
 require (``AS_THE_FIGURES_SHOW``; its pose is the IMU dead reckoning), ``ekf-vio``,
@@ -16,23 +16,23 @@ The real drives (KITTI-derived, CC BY-NC-SA) are read from ``--data``, never cop
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from pathlib import Path
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+from scripts.common import one_blas_thread
+
+one_blas_thread(force=False)
 
 import numpy as np  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 from ekf.drive3d import position_errors_m, steps_of  # noqa: E402
-from ekf.seed003 import AS_THE_FIGURES_SHOW, EkfS003  # noqa: E402
+from ekf.stereo_imu_ekf import AS_THE_FIGURES_SHOW, EkfS003  # noqa: E402
 from ekf.vio import VioEkf  # noqa: E402
 from fgslam.smoother3d import StereoIsam2, batch_solve  # noqa: E402
 from slamio.datasets.seed003 import load_drive  # noqa: E402
 from slamio.sim3d import simulate_drive  # noqa: E402
+from scripts.common import SHARED_DATA, parse_seeds  # noqa: E402
 
 FLAW_VARIANTS = {
     "as written": {},
@@ -171,16 +171,9 @@ def scaling(seed: int = 1) -> None:
             print(f"| {lo}–{min(hi, int(n.max()))} | {ekf_ms:.1f} | {isam_ms:.1f} |")
 
 
-def parse_seeds(text: str) -> list[int]:
-    if "-" in text:
-        a, b = text.split("-")
-        return list(range(int(a), int(b) + 1))
-    return [int(s) for s in text.split(",") if s]
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data", default="/work/shared/data/seed003")
+    parser.add_argument("--data", default=str(SHARED_DATA / "seed003"))
     parser.add_argument("--seeds", default="1-10")
     parser.add_argument("--out", default="docs")
     parser.add_argument("--scaling", action="store_true", help="only the time-per-step table on a large simulated drive")

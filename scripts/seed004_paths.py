@@ -12,7 +12,7 @@ the SE(2) alignment of the comparison) and ATE, then per estimator how many seed
 octagon's map is the better one and the medians. It also counts, per path, the tag
 sightings and the spread of viewing angles they come from (the mechanism the paper names).
 
-    .venv/bin/python scripts/seed004_paths.py --seeds 1-20 --jobs 2
+    .venv/bin/python -m scripts.seed004_paths --seeds 1-20 --jobs 2
 
 docs/seeds.md quotes its output.
 """
@@ -21,17 +21,15 @@ from __future__ import annotations
 
 import os
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+from scripts.common import one_blas_thread
+
+one_blas_thread(force=False)
 
 import argparse  # noqa: E402
 import math  # noqa: E402
 import statistics  # noqa: E402
-import sys  # noqa: E402
 import tempfile  # noqa: E402
 from concurrent.futures import ProcessPoolExecutor  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
@@ -39,16 +37,10 @@ from fgslam.compare import compute_metrics  # noqa: E402
 from fgslam.runner import compare_log  # noqa: E402
 from slamio.log import Observation, TruthLandmark, TruthPose, read_log, write_log  # noqa: E402
 from slamio.sim import simulate  # noqa: E402
+from scripts.common import parse_seeds  # noqa: E402
 
 ESTIMATORS = ("ekf-s004", "ekf", "isam2")
 PATHS = ("arena-square", "arena-octagon")
-
-
-def parse_seeds(text: str) -> list[int]:
-    if "-" in text:
-        first, last = (int(v) for v in text.split("-"))
-        return list(range(first, last + 1))
-    return [int(v) for v in text.split(",")]
 
 
 def viewing_angles_deg(records) -> dict[int, list[float]]:

@@ -2,8 +2,8 @@
 """How robust is a result over random seeds? Simulate SCENARIO for several seeds, run every
 estimator, and print per-seed ATEs plus how often each claim of the skeleton holds.
 
-    python scripts/seed_sweep.py arena-octagon --seeds 0-9
-    python scripts/seed_sweep.py grid --landmarks 200 --seeds 0-4 --jobs 2
+    python -m scripts.seed_sweep arena-octagon --seeds 0-9
+    python -m scripts.seed_sweep grid --landmarks 200 --seeds 0-4 --jobs 2
 
 One seed is one draw: errors are strongly correlated in time, so a single run is a handful
 of independent samples at best. README.md quotes this script's output.
@@ -22,13 +22,7 @@ from fgslam.compare import compute_metrics
 from fgslam.runner import compare_log
 from slamio.log import read_log, write_log
 from slamio.sim import SCENARIOS, simulate
-
-
-def parse_seeds(text: str) -> list[int]:
-    if "-" in text:
-        first, last = (int(v) for v in text.split("-"))
-        return list(range(first, last + 1))
-    return [int(v) for v in text.split(",")]
+from scripts.common import parse_seeds
 
 
 def one_seed(scenario: str, seed: int, landmarks: int) -> dict:

@@ -30,121 +30,25 @@ import json
 import math
 import os
 import re
-import stat
 from dataclasses import dataclass, field
 from typing import Any, Iterable
 
-from slamio.errors import FgslamError, InputFileError
+from slamio.errors import (  # opening and reading files whole lives with the errors it raises
+    MAX_TEXT_BYTES, FgslamError, InputFileError, check_regular, decode_utf8, open_regular, read_bytes, read_text,
+)
 
 __all__ = [
     "MAX_INTEGER_DIGITS", "MAX_NESTING", "MAX_TEXT_BYTES", "Document", "InputFileError", "check_regular",
-    "field_name", "open_regular", "parse_json", "parse_toml", "parse_yaml", "read_bytes", "shown",
+    "decode_utf8", "field_name", "open_regular", "parse_json", "parse_toml", "parse_yaml", "read_bytes", "read_text",
+    "shown",
 ]
 
-#: The largest text file (noise model, calibration, trials, camera, landmark, tolerance or
-#: waypoint file) read whole: 16 MiB, a thousand times what any of them holds.
-MAX_TEXT_BYTES = 16 * 2**20
 #: How deeply lists and objects may nest in a JSON, YAML or TOML file fgslam reads.
 MAX_NESTING = 64
 #: The most digits an integer in a JSON, YAML or TOML file may have (ids, counts and seeds
 #: fit in 19; a longer one is a corrupted file, and beyond 308 it overflows every float).
 MAX_INTEGER_DIGITS = 19
 
-_KINDS = (
-    (stat.S_ISFIFO, "a named pipe (FIFO)"),
-    (stat.S_ISCHR, "a character device (like /dev/zero)"),
-    (stat.S_ISBLK, "a block device (a disk)"),
-    (stat.S_ISSOCK, "a socket"),
-    (stat.S_ISDIR, "a folder"),
-)
-
-
-# --------------------------------------------------------------------------- opening files
-
-
-def _not_regular(path: str, what: str, mode: int, error: type[FgslamError]) -> FgslamError | None:
-    if stat.S_ISREG(mode):
-        return None
-    kind = next((name for test, name in _KINDS if test(mode)), "not a regular file")
-    fix = ("give the file inside it" if stat.S_ISDIR(mode)
-           else "fgslam reads only regular files: save the data to a file and give that")
-    return error(f"{path}: the {what} is {kind}, not a regular file; {fix}")
-
-
-def _os_error(path: str, what: str, exc: OSError, error: type[FgslamError]) -> FgslamError:
-    import errno
-
-    if exc.errno == errno.ELOOP:
-        return error(f"{path}: cannot read the {what}: a loop of symbolic links (a link that leads, through "
-                     "others, back to itself); point the link at the real file")
-    hint = {errno.ENOENT: "check the path", errno.ENOTDIR: "a part of the path is a file, not a folder",
-            errno.EACCES: "check its permissions"}.get(exc.errno or 0)
-    return error(f"{path}: cannot read the {what}: cannot open it ({exc.strerror or exc})" + (f"; {hint}" if hint else ""))
-
-
-def check_regular(path: str | os.PathLike[str], what: str, error: type[FgslamError] = InputFileError) -> int:
-    """The size of the regular file at ``path``; one ``error`` line naming it when it is
-    missing, a FIFO, a device, a socket, a folder or a loop of symbolic links. For files
-    another library opens (numpy, rosbags); :func:`open_regular` when fgslam reads them."""
-    path = os.fspath(path)
-    try:
-        st = os.stat(path)
-    except (OSError, ValueError) as exc:  # ValueError: a NUL byte in the name
-        raise (_os_error(path, what, exc, error) if isinstance(exc, OSError)
-               else error(f"{path!r}: not a file name ({exc})")) from None
-    bad = _not_regular(path, what, st.st_mode, error)
-    if bad is not None:
-        raise bad
-    return st.st_size
-
-
-def open_regular(path: str | os.PathLike[str], what: str, error: type[FgslamError] = InputFileError) -> int:
-    """A file descriptor open for reading on the regular file at ``path`` (see
-    :func:`check_regular`). Never blocks: a FIFO swapped in after the first look is opened
-    without waiting and refused by a second look at what was opened."""
-    path = os.fspath(path)
-    check_regular(path, what, error)
-    flags = os.O_RDONLY
-    for name in ("O_NONBLOCK", "O_NOCTTY", "O_CLOEXEC", "O_BINARY"):
-        flags |= getattr(os, name, 0)
-    try:
-        fd = os.open(path, flags)
-    except OSError as exc:
-        raise _os_error(path, what, exc, error) from None
-    bad = _not_regular(path, what, os.fstat(fd).st_mode, error)
-    if bad is not None:
-        os.close(fd)
-        raise bad
-    return fd
-
-
-def _too_large(path: str, what: str, size: int | None, limit: int, error: type[FgslamError]) -> FgslamError:
-    shown = f"{size} bytes" if size is not None else f"more than {limit} bytes"
-    return error(f"{path}: the {what} is {shown}, more than the {_mib(limit)} fgslam reads; "
-                 "is this the right file? (split a long recording into several)")
-
-
-def _mib(n: int) -> str:
-    return f"{n / 2**30:g} GiB" if n >= 2**30 else f"{n / 2**20:g} MiB"
-
-
-def read_bytes(path: str | os.PathLike[str], what: str, *, limit: int = MAX_TEXT_BYTES,
-               error: type[FgslamError] = InputFileError) -> bytes:
-    """The whole regular file at ``path`` (:func:`open_regular`), at most ``limit`` bytes;
-    larger is one ``error`` line saying so."""
-    path = os.fspath(path)
-    fd = open_regular(path, what, error)
-    with os.fdopen(fd, "rb") as f:
-        size = os.fstat(fd).st_size
-        if size > limit:
-            raise _too_large(path, what, size, limit, error)
-        try:
-            data = f.read(limit + 1)  # the file may grow while it is read
-        except OSError as exc:
-            raise _os_error(path, what, exc, error) from None
-    if len(data) > limit:
-        raise _too_large(path, what, None, limit, error)
-    return data
 
 
 def shown(text: str, limit: int = 40) -> str:

@@ -164,9 +164,9 @@ from slamio.sim_models import (  # re-exported (__all__): slamio.sim is the simu
     MAX_WHEEL_SPEED_M_S,
     WHEEL_BASE_M,
     MotionModel,
-    OdometryNoise,
     SensorModel,
     Sightings,
+    WheelSlipNoise,
     World,
     odometry_covariance,
     range_sigma_m,
@@ -208,7 +208,7 @@ __all__ = [
     "grid_landmarks_xy",
     "grid_path",
     "World",
-    "OdometryNoise",
+    "WheelSlipNoise",
     "ARENA_SIDE_M",
     "ARENA_PATH_WIDTH_M",
     "TAG_HEIGHT_M",
@@ -471,19 +471,37 @@ def simulate(
         if outlier_mode == "add":
             header = dataclasses.replace(header, source={**header.source, "outlier_mode": "add"})
 
-    # Odometry records: the Create's reading from the measured wheels, the arc increment,
-    # and the covariance of the generative noise at the true wheel distances.
-    distance_m, angle_rad = wheel_reading(drive.left_meas_m, drive.right_meas_m)
-    covariances = odometry_covariance(drive.left_true_m, drive.right_true_m, sc.odometry).tolist()
-
     # Observations: exact values for every landmark in view, then noise.
     seen = visible_landmarks(drive.poses, sc.world, sc.sensor)
+    measured = _measure(seen, sc, noise_scale, tag_noise, outliers, outlier_mode, sensor_rng, outlier_rng)
+    return header, _records(sc, drive, seen, measured, hide_ids)
+
+
+@dataclass
+class _Measured:
+    """Every observation's measured values and σ (lists, one entry per row of the sightings)."""
+
+    ranges: list[float]
+    bearings: list[float]
+    sigmas_r: list[float]
+    sigmas_b: list[float]
+    sigmas_yaw: list[float] | None
+    heights: list[float] | None
+    yaws: list[float] | None
+    extra: list[bool] | None = None  # add mode: whether observation j is followed by a misdetection
+    range_out: list[float] | None = None  # add mode: the misdetections' values
+    bearing_out: list[float] | None = None
+
+
+def _measure(seen: Sightings, sc: Scenario, noise_scale: float, tag_noise: str, outliers: float, outlier_mode: str,
+             sensor_rng: np.random.Generator, outlier_rng: np.random.Generator) -> _Measured:
+    """The noise and the misdetections (module docstring, step 6) on the exact sightings."""
     s = sc.sensor
     n = noise_scale * sensor_rng.standard_normal((len(seen.pose_index), 4))
     sigma_range, sigma_bearing, sigma_yaw = _observation_sigmas(seen, s, tag_noise)
     range_meas = seen.range_m + sigma_range * n[:, 0]
     bearing_meas = wrap_angle(seen.bearing_rad + sigma_bearing * n[:, 1])
-    extra = None  # add mode: whether observation j is followed by a misdetection
+    extra = range_out = bearing_out = None
     if outliers > 0.0:
         # Misdetections with a valid id (step 6); drawn for every observation so that the
         # values do not depend on p, and a larger p only adds outliers.
@@ -495,6 +513,7 @@ def simulate(
             is_outlier = u < outliers
             range_meas = np.where(is_outlier, range_out, range_meas)
             bearing_meas = np.where(is_outlier, bearing_out, bearing_meas)
+            range_out = bearing_out = None
         else:
             extra = (u < outliers / (1.0 - outliers)).tolist()
             range_out, bearing_out = range_out.tolist(), bearing_out.tolist()
@@ -504,7 +523,13 @@ def simulate(
     yaw_meas = None
     if sigma_yaw is not None:
         yaw_meas = wrap_angle(seen.tag_yaw_rad + sigma_yaw * n[:, 3]).tolist()
+    return _Measured(range_meas.tolist(), bearing_meas.tolist(), sigma_range.tolist(), sigma_bearing.tolist(),
+                     None if sigma_yaw is None else sigma_yaw.tolist(), height_meas, yaw_meas,
+                     extra, range_out, bearing_out)
 
+
+def _records(sc: Scenario, drive: _Drive, seen: Sightings, m: _Measured, hide_ids: bool) -> list[Record]:
+    """The run's records in the order :func:`simulate` gives."""
     records: list[Record] = []
     world = sc.world
     for i, (x, y) in enumerate(world.landmarks_xy.tolist()):
@@ -514,14 +539,15 @@ def simulate(
             None if world.yaws_rad is None else float(world.yaws_rad[i]),
         ))
 
+    # Odometry records: the Create's reading from the measured wheels, the arc increment,
+    # and the covariance of the generative noise at the true wheel distances.
+    distance_m, angle_rad = wheel_reading(drive.left_meas_m, drive.right_meas_m)
+    covariances = odometry_covariance(drive.left_true_m, drive.right_true_m, sc.odometry).tolist()
     n_steps = len(drive.left_true_m)
     stamps = [round(k * sc.motion.dt_s, 9) for k in range(n_steps + 1)]
     bounds = np.searchsorted(seen.pose_index, np.arange(n_steps + 2)).tolist()
     ids = seen.landmark_id.tolist()
-    ranges, bearings = range_meas.tolist(), bearing_meas.tolist()
-    sigmas_r, sigmas_b = sigma_range.tolist(), sigma_bearing.tolist()
-    sigma_h = s.sigma_height_m
-    sigmas_yaw = None if sigma_yaw is None else sigma_yaw.tolist()
+    sigma_h = sc.sensor.sigma_height_m
     poses = drive.poses.tolist()
     distances, angles = distance_m.tolist(), angle_rad.tolist()
     for k in range(n_steps + 1):
@@ -534,16 +560,16 @@ def simulate(
             ))
         records.append(TruthPose(stamp, *poses[k]))
         for j in range(bounds[k], bounds[k + 1]):
-            observed = [(ranges[j], bearings[j])]
-            if extra is not None and extra[j]:  # add mode: a misdetection after the real one
-                observed.append((range_out[j], bearing_out[j]))
+            observed = [(m.ranges[j], m.bearings[j])]
+            if m.extra is not None and m.extra[j]:  # add mode: a misdetection after the real one
+                observed.append((m.range_out[j], m.bearing_out[j]))  # type: ignore[index]
             for range_m, bearing_rad in observed:
                 records.append(Observation(
-                    stamp, None if hide_ids else ids[j], range_m, bearing_rad, sigmas_r[j], sigmas_b[j],
-                    None if height_meas is None else height_meas[j],
+                    stamp, None if hide_ids else ids[j], range_m, bearing_rad, m.sigmas_r[j], m.sigmas_b[j],
+                    None if m.heights is None else m.heights[j],
                     sigma_h,
-                    None if yaw_meas is None else yaw_meas[j],
-                    None if sigmas_yaw is None else sigmas_yaw[j],
+                    None if m.yaws is None else m.yaws[j],
+                    None if m.sigmas_yaw is None else m.sigmas_yaw[j],
                     ids[j] if hide_ids else None,
                 ))
-    return header, records
+    return records

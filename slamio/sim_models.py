@@ -32,7 +32,7 @@ class MotionModel:
 
 
 @dataclass(frozen=True)
-class OdometryNoise:
+class WheelSlipNoise:
     """Generative odometry noise: relative wheel error per step and slip per step."""
 
     k_wheel: float
@@ -128,7 +128,7 @@ def _arc_jacobians(distance_m: np.ndarray, angle_rad: np.ndarray) -> np.ndarray:
     return jac
 
 
-def odometry_covariance(left_m, right_m, noise: OdometryNoise, wheel_base_m: float = WHEEL_BASE_M) -> np.ndarray:
+def odometry_covariance(left_m, right_m, noise: WheelSlipNoise, wheel_base_m: float = WHEEL_BASE_M) -> np.ndarray:
     """Covariance over (dx, dy, dθ) of one odometry increment, from the true wheel distances.
 
     First-order propagation of the wheel noise ``σ = k_wheel·|d|`` per wheel through

@@ -13,7 +13,7 @@ import numpy as np
 
 from slamio.camera.tag_noise import TagNoise
 from slamio.geometry import wrap_angle
-from slamio.sim_models import MotionModel, OdometryNoise, SensorModel, World
+from slamio.sim_models import MotionModel, SensorModel, WheelSlipNoise, World
 
 SCENARIOS = ("arena-square", "arena-octagon", "cylinders", "grid")
 
@@ -39,13 +39,13 @@ class Scenario:
     waypoints_xy: np.ndarray  # (n, 2) closed polygon; the robot starts on waypoint 0
     default_laps: int
     motion: MotionModel
-    odometry: OdometryNoise
+    odometry: WheelSlipNoise
     sensor: SensorModel
     extra_sensor_info: dict[str, Any]
 
 
 _ARENA_MOTION = MotionModel(dt_s=0.1, speed_m_s=0.2, max_turn_rate_rad_s=0.8, turn_gain_per_s=2.0, lookahead_m=0.25)
-_ARENA_ODOMETRY = OdometryNoise(k_wheel=0.05, slip_sigma_x_m=5e-4, slip_sigma_y_m=5e-4, slip_sigma_theta_rad=1e-3)
+_ARENA_ODOMETRY = WheelSlipNoise(k_wheel=0.05, slip_sigma_x_m=5e-4, slip_sigma_y_m=5e-4, slip_sigma_theta_rad=1e-3)
 _TAG_CAMERA = SensorModel(
     landmark_kind="apriltag",
     fov_rad=1.2,
@@ -70,7 +70,7 @@ _KINECT = SensorModel(
     sigma_height_m=0.02,
 )
 _GRID_MOTION = MotionModel(dt_s=0.2, speed_m_s=0.5, max_turn_rate_rad_s=1.0, turn_gain_per_s=2.0, lookahead_m=1.0)
-_GRID_ODOMETRY = OdometryNoise(k_wheel=0.01, slip_sigma_x_m=2e-3, slip_sigma_y_m=2e-3, slip_sigma_theta_rad=1e-3)
+_GRID_ODOMETRY = WheelSlipNoise(k_wheel=0.01, slip_sigma_x_m=2e-3, slip_sigma_y_m=2e-3, slip_sigma_theta_rad=1e-3)
 _GRID_SENSOR = SensorModel(
     landmark_kind="point",
     fov_rad=math.radians(120.0),

@@ -1,29 +1,10 @@
-"""Small record builders and helpers shared by the tests (pytest puts tests/ on sys.path)."""
+"""Small record builders and helpers shared by the tests (pytest puts tests/ on the import path)."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 import time
-from pathlib import Path
 
 from slamio.log import Header
-
-
-SCRIPTS = Path(__file__).resolve().parent.parent / "scripts"
-
-
-def load_script(name: str):
-    """``scripts/NAME.py`` as a module, as when it is run from there (its folder on
-    ``sys.path``, so it can import its sibling scripts; registered in ``sys.modules``, which
-    dataclasses need while their class is built)."""
-    if str(SCRIPTS) not in sys.path:
-        sys.path.insert(0, str(SCRIPTS))
-    spec = importlib.util.spec_from_file_location(name, SCRIPTS / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
 
 
 def wait_for(predicate, timeout_s=30.0):

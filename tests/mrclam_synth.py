@@ -1,12 +1,12 @@
-"""A synthetic MRCLAM dataset with a known sensor and motion model (tests/test_noise_fit.py).
+"""A synthetic MRCLAM dataset with a known sensor and motion model (tests/test_noise_fit_truth.py).
 
 :func:`write_dataset` writes ``Barcodes.dat``, ``Landmark_Groundtruth.dat`` and
 ``RobotN_Odometry.dat``, ``RobotN_Measurement.dat``, ``RobotN_Groundtruth.dat`` in the
 published layout (four ``#`` header lines, whitespace-separated columns, Unix times with
 millisecond resolution) from a seeded :class:`numpy.random.Generator`, so that the
-calibration (``slamio.noise_fit.fit_noise_model``) can be checked against the numbers the
+calibration (``slamio.noise.fit_truth.fit_noise_model``) can be checked against the numbers the
 data were made with (:class:`Truth`). Nothing here imports fgslam: the model is written out
-independently of ``slamio.noise_model``.
+independently of ``slamio.noise.model``.
 
 * **Commands** (the odometry file, ~67 Hz with 13-17 ms jitter, as MRCLAM logs them):
   piecewise constant, a new command every 1-3 s at an odometry line: a stop, a straight

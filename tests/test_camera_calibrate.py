@@ -1,32 +1,22 @@
-"""scripts/calibrate_camera.py on synthetic chessboard views seen through a known lens."""
+"""``fgslam calibrate-camera`` (:mod:`slamio.camera.chessboard`) on chessboard views rendered
+through a known lens."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from fgslam.cli import main
+from slamio.camera.chessboard import calibrate
 from slamio.camera.model import CameraModel, load_camera
 
-SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "calibrate_camera.py"
 TRUE_K = np.array([[540.0, 0.0, 322.0], [0.0, 538.0, 236.0], [0.0, 0.0, 1.0]])
 TRUE_D = np.array([-0.12, 0.08, 0.0005, -0.0008, 0.0])
 BOARD = (9, 6)  # inner corners: a board of 10 × 7 squares
 SQUARE_M = 0.03
 PX = 24  # texture pixels per square
-
-
-@pytest.fixture(scope="module")
-def script():
-    spec = importlib.util.spec_from_file_location("calibrate_camera", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up while the class is built
-    spec.loader.exec_module(module)
-    yield module
-    sys.modules.pop(spec.name, None)
 
 
 def _texture():
@@ -71,10 +61,10 @@ def _views(folder: Path, count: int, seed: int = 7):
     return paths
 
 
-def test_calibration_recovers_the_lens(script, tmp_path):
+def test_calibration_recovers_the_lens(tmp_path):
     paths = _views(tmp_path, 12)
     (tmp_path / "not_a_board.png").write_bytes(b"junk")
-    result = script.calibrate(paths + [str(tmp_path / "not_a_board.png")], BOARD, SQUARE_M)
+    result = calibrate(paths + [str(tmp_path / "not_a_board.png")], BOARD, SQUARE_M)
     cam = result.camera
     assert result.board_not_found == [str(tmp_path / "not_a_board.png")]
     assert result.rms_px < 0.3
@@ -83,11 +73,11 @@ def test_calibration_recovers_the_lens(script, tmp_path):
     assert cam.dist_coeffs[0] == pytest.approx(-0.12, abs=0.03)
 
 
-def test_command_line_writes_a_loadable_camera_file(script, tmp_path, capsys):
+def test_command_line_writes_a_loadable_camera_file(tmp_path, capsys):
     paths = _views(tmp_path, 8, seed=11)
     out = tmp_path / "cam.yaml"
-    assert script.main([str(tmp_path / "view_*.png"), "--board", "9x6", "--square", str(SQUARE_M),
-                        "--mount", "0.1,0,0.3,0,0.05,0", "--out", str(out)]) == 0
+    assert main(["calibrate-camera", str(tmp_path / "view_*.png"), "--board", "9x6", "--square", str(SQUARE_M),
+                 "--mount", "0.1,0,0.3,0,0.05,0", "--out", str(out)]) == 0
     cam = load_camera(out)
     assert cam.width_px == 640 and cam.fx == pytest.approx(540.0, rel=0.02)
     assert cam.T_robot_camera[2, 3] == pytest.approx(0.3)
@@ -95,8 +85,38 @@ def test_command_line_writes_a_loadable_camera_file(script, tmp_path, capsys):
     assert len(paths) == 8
 
 
-def test_too_few_views_is_explained(script, tmp_path, capsys):
+def test_too_few_views_is_explained(tmp_path, capsys):
     _views(tmp_path, 2)
-    assert script.main([str(tmp_path / "*.png"), "--board", "9x6", "--square", "0.03",
-                        "--out", str(tmp_path / "c.yaml")]) == 1
-    assert "need at least 5" in capsys.readouterr().err
+    assert main(["calibrate-camera", str(tmp_path / "*.png"), "--board", "9x6", "--square", "0.03",
+                 "--out", str(tmp_path / "c.yaml")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("fgslam: error:") and "need at least 5" in err
+    assert not (tmp_path / "c.yaml").exists()
+
+
+def test_an_existing_camera_file_is_kept_unless_overwrite(tmp_path, capsys):
+    _views(tmp_path, 6, seed=3)
+    out = tmp_path / "cam.yaml"
+    out.write_text("mine\n")
+    argv = ["calibrate-camera", str(tmp_path / "view_*.png"), "--board", "9x6", "--square", str(SQUARE_M),
+            "--out", str(out)]
+    assert main(argv) == 1
+    assert "exists" in capsys.readouterr().err and out.read_text() == "mine\n"
+    assert main(argv + ["--overwrite"]) == 0
+    assert load_camera(out).width_px == 640
+
+
+@pytest.mark.parametrize("option, value, message", [("--board", "9", "COLSxROWS"), ("--square", "0", "--square"),
+                                                    ("--mount", "1,2,3", "--mount")])
+def test_bad_options_are_one_line_before_any_work(tmp_path, capsys, option, value, message):
+    options = {"--board": "9x6", "--square": "0.03", option: value}
+    argv = ["calibrate-camera", str(tmp_path / "*.png"), "--out", str(tmp_path / "c.yaml")]
+    argv += [text for pair in options.items() for text in pair]
+    try:
+        status = main(argv)
+    except SystemExit as stop:  # argparse refuses a malformed value itself
+        status = stop.code
+    assert status == 1
+    err = capsys.readouterr().err
+    assert err.startswith("fgslam: error:") and message in err and err.count("\n") == 1
+    assert not (tmp_path / "c.yaml").exists()

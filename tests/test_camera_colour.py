@@ -15,15 +15,17 @@ from slamio.camera.colour import (
     candidate_blobs,
     clean_mask,
     colour_mask,
+    detect_colour_landmarks,
+    find_blobs,
+    largest_blob,
+    measure_blob,
+)
+from slamio.camera.kinect import (
     depth_from_kinect_raw,
     depth_from_mm,
     depth_from_scaled,
-    detect_colour_landmarks,
-    find_blobs,
     gheight_seed002,
-    largest_blob,
     linear_bearing_error_rad,
-    measure_blob,
 )
 from slamio.camera.colour_checks import colour_rows_past, rim_arc_rows, rows_outside_body
 from slamio.camera.detect import FrontEnd, FrontEndConfig

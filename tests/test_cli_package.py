@@ -16,7 +16,8 @@ import fgslam.cli as cli
 PACKAGE = Path(cli.__file__).parent
 VERB_MODULES = {"sim": "sim", "run": "run", "import": "import_", "export": "export", "validate": "validate",
                 "check": "check", "bench": "bench", "record": "record", "calibrate": "calibrate",
-                "detect": "detect", "tune-colours": "tune_colours", "live": "live"}
+                "detect": "detect", "tune-colours": "tune_colours", "calibrate-camera": "calibrate_camera",
+                "live": "live"}
 
 
 def test_one_module_per_verb_each_with_its_parser_and_handler():

@@ -228,7 +228,8 @@ def test_compute_metrics_values_keys_and_json():
     text = json.dumps(metrics, allow_nan=False)  # plain types, no NaN
     assert json.loads(text) == metrics
     assert set(metrics) == {"reference", "log", "poses", "rpe_delta_frames", "reference_poses_with_truth",
-                            "landmark_reference", "reference_landmarks", "ekf", "batch"}
+                            "landmark_reference", "reference_landmarks", "dimension", "ekf", "batch"}
+    assert metrics["dimension"] == 2
     assert metrics["reference"] == "ground_truth"
     assert metrics["reference_poses_with_truth"] == 100  # full truth: every pose
     assert metrics["landmark_reference"] == "ground_truth" and metrics["reference_landmarks"] == 6

@@ -12,7 +12,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from slamio.create import protocol as p
-from slamio.create.protocol import ProtocolError, StreamParser
+from slamio.create.protocol import ProtocolError
+from slamio.create.stream_parser import StreamParser
 
 SPEC_EXAMPLE = bytes([19, 5, 29, 2, 25, 13, 0, 163])
 

@@ -38,14 +38,9 @@ from slamio.create import protocol as p
 from slamio.create.link import CreateLink
 from slamio.create.odometry import integrate_records
 from slamio.create.protocol import OiMode
-from slamio.create.record import (
-    PathController,
-    RecorderSettings,
-    TeleopController,
-    TerminalKeys,
-    path_moves,
-    record,
-)
+from slamio.create.controllers import PathController, TeleopController, TerminalKeys, path_moves
+from slamio.create.record import record
+from slamio.create.record_settings import RecorderSettings
 from slamio.create.sim import SimulatedCreate
 from slamio.errors import FgslamError
 from slamio.log import Odometry, read_log

@@ -16,7 +16,9 @@ import serial
 from slamio.create import protocol as p
 from slamio.create.odometry import CREATE2_MM_PER_COUNT, WHEEL_BASE_M, OdometryNoise, counts_delta, quantisation_floor
 from slamio.create.protocol import OiMode
-from slamio.create.sim import STEP_S, SimulatedCreate, wheel_speeds_from_drive
+from slamio.create.sim import STEP_S, SimulatedCreate
+from slamio.create.sim_model import wheel_speeds_from_drive
+from slamio.create.stream_parser import StreamParser
 
 NOISELESS = OdometryNoise(np.zeros((3, 3)), np.zeros((3, 3)), quantisation_floor("create2"))
 from slamio.errors import FgslamError
@@ -158,7 +160,7 @@ def test_stream_frames_every_step_and_pause(manual):
     sim, port = manual()
     sim.handle_bytes(p.start() + p.safe() + p.stream([7, 35, 43, 44]))
     steps(sim, 10 * STEP_S)
-    parser = p.StreamParser([7, 35, 43, 44])
+    parser = StreamParser([7, 35, 43, 44])
     frames = parser.feed(port.read(10 * 13))
     assert len(frames) == 10 and frames[0].values[35] == OiMode.SAFE
     assert {f.raw for f in frames} <= sim.sent_frames
@@ -188,7 +190,7 @@ def test_faults_damage_and_drop_bytes_from_their_own_stream(manual):
     data = port.read(1300 - sim.bytes_dropped)
     assert sim.bytes_corrupted > 0 and sim.bytes_dropped > 0
     assert len(data) == 1300 - sim.bytes_dropped
-    parser = p.StreamParser([7, 35, 43, 44])
+    parser = StreamParser([7, 35, 43, 44])
     frames = parser.feed(data)
     assert parser.bad_frames > 0
     assert all(p.frame_checksum_ok(f.raw) for f in frames)
@@ -236,7 +238,7 @@ def test_encoder_errors_follow_the_stated_noise_model_whatever_the_step():
     over a drive of length L with turn Δθ the (distance, heading) error has covariance
     L·F + |Δθ|·R, however many 15 ms steps make the drive (measured_wheel_travel_m called
     directly: 400 independent drives of 1 m on a 1 rad arc, cut into 10 or into 200 steps)."""
-    from slamio.create.sim import measured_wheel_travel_m, wheel_odometry_noise
+    from slamio.create.sim_model import measured_wheel_travel_m, wheel_odometry_noise
 
     noise = wheel_odometry_noise("create2")
     length_m, turn_rad = 1.0, 1.0

@@ -1,4 +1,4 @@
-"""The numbers README.md and docs/*.md quote, rerun (scripts/check_doc_numbers.py).
+"""The numbers README.md and docs/*.md quote, rerun (``python -m scripts.check_doc_numbers``).
 
 Every registered quote must still be in its doc, and every number must be what the code
 measures today, within half a unit of its last quoted digit. The cheap sources run in the
@@ -9,20 +9,13 @@ left to the script (``--long``, ``--shared``).
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import pytest
 
-SCRIPTS = Path(__file__).resolve().parents[1] / "scripts"
-sys.path.insert(0, str(SCRIPTS))
-
-from doc_numbers.quotes import ROOT, Checker, Context, Quote, Source, numbers_in, parse_number, quote_in_doc  # noqa: E402
-from doc_numbers.readers import markdown_rows  # noqa: E402
-from doc_numbers.registry import QUOTES  # noqa: E402
-from doc_numbers.sources import SOURCES  # noqa: E402
-
-import check_doc_numbers  # noqa: E402
+from scripts import check_doc_numbers
+from scripts.doc_numbers.quotes import ROOT, Checker, Context, Quote, Source, numbers_in, parse_number, quote_in_doc
+from scripts.doc_numbers.readers import markdown_rows
+from scripts.doc_numbers.registry import QUOTES
+from scripts.doc_numbers.sources import SOURCES
 
 BY_NAME = {s.name: s for s in SOURCES}
 

@@ -439,8 +439,9 @@ def test_random_bytes_as_any_side_file_are_one_input_file_error(tmp_path, data):
     from fgslam.check import load_tolerances
     from slamio.camera.landmark_file import load_landmarks
     from slamio.camera.model import load_camera
-    from slamio.create.calibrate import load_calibration, read_trials
-    from slamio.noise_model import NoiseModelError, load_noise_model
+    from slamio.noise.errors import NoiseModelError
+    from slamio.noise.model import load_noise_model
+    from slamio.noise.trials import load_calibration, read_trials
 
     path = tmp_path / "side"
     path.write_bytes(data)

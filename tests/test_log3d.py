@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from slamio.datasets.seed003_log import drive_to_log, log_to_drive
 from slamio.log import Header, LogFormatError, format_line, read_log, write_log
-from slamio.log3d import (
+from slamio.log import (
     SIGMA_PIXEL_PX,
     StereoObservation,
     TruthLandmark3,

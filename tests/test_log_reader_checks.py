@@ -17,7 +17,7 @@ import pytest
 
 from fgslam.cli import main
 from slamio.log import Header, LogFormatError, format_line, read_log
-from slamio.log3d import TruthLandmark3, stereo_sensor
+from slamio.log import TruthLandmark3, stereo_sensor
 
 OCTAGON = Path(__file__).resolve().parent.parent / "data" / "arena_octagon.jsonl"
 LINES = OCTAGON.read_text(encoding="utf-8").splitlines()

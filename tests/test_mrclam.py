@@ -16,13 +16,8 @@ import shutil
 import numpy as np
 import pytest
 
-from slamio.datasets.mrclam import (
-    CommandOdometryNoise,
-    import_mrclam,
-    integrate_commands,
-    interpolate_pose,
-    pose_times,
-)
+from slamio.datasets.mrclam import import_mrclam
+from slamio.datasets.mrclam_motion import CommandOdometryNoise, integrate_commands, interpolate_pose, pose_times
 from slamio.datasets.victoria_park import DatasetFormatError
 from slamio.errors import FgslamError
 from slamio.geometry import arc_increment, compose_pose, wrap_angle
@@ -376,7 +371,7 @@ def test_binary_garbage_is_a_format_error(folder):
 
 
 def test_short_zero_command_blips_are_filled_and_real_stops_kept():
-    from slamio.datasets.mrclam import fill_zero_blips
+    from slamio.datasets.mrclam_motion import fill_zero_blips
 
     t = np.array([0.0, 0.01, 0.02, 0.05, 0.06, 0.5, 1.0, 1.1])
     v = np.array([0.1, 0.0, 0.0, 0.1, 0.0, 0.1, 0.0, 0.0])

@@ -12,7 +12,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from builders import load_script
+from scripts import mrclam_camera_tried
 
 from slamio.log import Observation, RunLog, read_log
 
@@ -23,7 +23,7 @@ ARENA = os.path.join(HERE, "..", "data", "arena_octagon.jsonl")
 
 @pytest.fixture(scope="module")
 def script():
-    return load_script("mrclam_camera_tried")
+    return mrclam_camera_tried
 
 
 def test_the_bins_give_the_correlation_the_pairs_were_drawn_with(script):
@@ -36,7 +36,7 @@ def test_the_bins_give_the_correlation_the_pairs_were_drawn_with(script):
     a = rng.normal(size=(n, 2))
     b = rho * a + np.sqrt(1.0 - rho**2) * rng.normal(size=(n, 2))
     pairs = np.column_stack([dt, np.zeros(n), a * b, a**2, b**2])
-    near, far = script._binned(pairs, 0, (0.0, 1.0, 2.0))
+    near, far = script.binned(pairs, 0, (0.0, 1.0, 2.0))
     assert near["range"] == pytest.approx(0.6, abs=0.02) and near["bearing"] == pytest.approx(0.2, abs=0.03)
     assert abs(far["range"]) < 0.03 and abs(far["bearing"]) < 0.03
     assert near["pairs"] + far["pairs"] == n

@@ -18,9 +18,9 @@ from fgslam.cli import main
 from fgslam.runner import ESTIMATORS, expected_outlier_kernel, run_estimator
 from slamio.datasets.mrclam import import_mrclam
 from slamio.log import RunLog, read_log
-from slamio.noise_fit import fit_noise_model
+from slamio.noise.fit_truth import fit_noise_model
 
-from builders import load_script
+from scripts import bench_association_mrclam, bench_mrclam
 
 EXCERPT = os.path.join(os.path.dirname(__file__), "data", "mrclam_excerpt")
 
@@ -136,7 +136,7 @@ def test_a_missing_noise_file_is_one_clear_line(tmp_path, capsys):
 
 def test_the_real_robot_benchmark_script_runs_on_the_excerpt(tmp_path, capsys):
     """scripts/bench_mrclam.py end to end (leave-one-out over the excerpt's three robots)."""
-    bench = load_script("bench_mrclam")
+    bench = bench_mrclam
     out = tmp_path / "bench.json"
     assert bench.main([EXCERPT, "--estimators", "ekf,isam2", "--json", str(out), "--figure", str(tmp_path / "f.png")]) == 0
     table = capsys.readouterr().out
@@ -155,7 +155,7 @@ def test_the_benchmark_fits_on_one_robot_and_scores_the_others(tmp_path, capsys)
     """``--fit-on 1``: one model, fitted on robot 1 alone, scores robots 2 and 3; a robot the
     folder lacks, a robot that is not a number, or ``--fit-on`` with ``--no-model`` is one
     clear line (argparse's exit 2), not a traceback."""
-    bench = load_script("bench_mrclam")
+    bench = bench_mrclam
     out = tmp_path / "bench.json"
     assert bench.main([EXCERPT, "--fit-on", "1", "--estimators", "ekf,isam2", "--json", str(out)]) == 0
     saved = json.loads(out.read_text())
@@ -229,7 +229,7 @@ def test_the_hidden_barcode_benchmark_scores_both_estimators_against_the_bound(t
     and 2): every reading is correct, wrong or unused; "ambiguous" is part of "rejected"; and
     the bound with the Vicon pose and the surveyed map splits the readings into right,
     ambiguous and wrong (its right share at most the nearest-is-the-barcode share)."""
-    bench = load_script("bench_association_mrclam")  # it imports bench_mrclam, as when run from scripts/
+    bench = bench_association_mrclam
     out = tmp_path / "hidden.json"
     assert bench.main([EXCERPT, "--robots", "3", "--json", str(out)]) == 0
     table = capsys.readouterr().out

@@ -10,7 +10,7 @@ import os
 import numpy as np
 import pytest
 
-from builders import load_script
+from scripts import mrclam_motor_lens_tried
 
 HERE = os.path.dirname(__file__)
 EXCERPT = os.path.join(HERE, "data", "mrclam_excerpt")
@@ -18,7 +18,7 @@ EXCERPT = os.path.join(HERE, "data", "mrclam_excerpt")
 
 @pytest.fixture(scope="module")
 def script():
-    return load_script("mrclam_motor_lens_tried")
+    return mrclam_motor_lens_tried
 
 
 def test_a_pure_delay_shifts_the_command_by_whole_grid_steps(script):

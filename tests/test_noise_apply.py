@@ -1,4 +1,4 @@
-"""slamio.noise_apply: a fitted noise model applied to a log that is already written."""
+"""slamio.noise.apply: a fitted noise model applied to a log that is already written."""
 
 from __future__ import annotations
 
@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from slamio.datasets.mrclam import import_mrclam
-from slamio.errors import FgslamError
 from slamio.log import Observation, Odometry, RunLog, read_log
-from slamio.noise_apply import apply_noise_model
-from slamio.noise_fit import fit_noise_model
-from slamio.noise_model import NoiseModel, ObservationModel, OdometryModel, correct_observation
+from slamio.noise.apply import apply_noise_model, correct_observation
+from slamio.noise.errors import NoiseModelError
+from slamio.noise.fit_truth import fit_noise_model
+from slamio.noise.model import NoiseModel, ObservationModel, OdometryModel
 
 DATA = os.path.join(os.path.dirname(__file__), "..", "data", "arena_octagon.jsonl")
 EXCERPT = os.path.join(os.path.dirname(__file__), "data", "mrclam_excerpt")
@@ -76,5 +76,5 @@ def test_a_log_that_already_carries_a_model_is_refused():
     model = fit_noise_model([raw, RunLog("r3", *[(h, tuple(r)) for h, r in [import_mrclam(EXCERPT, 3)]][0])])
     applied, _ = apply_noise_model(raw, model)
     assert applied.header.noise["fitted_on"] == ["r2", "r3"]
-    with pytest.raises(FgslamError, match="already carries a fitted noise model"):
+    with pytest.raises(NoiseModelError, match="already carries a fitted noise model"):
         apply_noise_model(applied, model)

@@ -1,4 +1,5 @@
-"""slamio.noise_model: the noise-model file (round trip, validation) and correct_observation.
+"""slamio.noise.model: the noise-model file (round trip, validation), and
+slamio.noise.apply.correct_observation.
 
 The forward model of a reading is written out here independently of the module (the
 docstring's formulas): ``measured_bearing = bearing_scale·b + bearing_bias_rad`` and
@@ -16,14 +17,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from slamio.errors import FgslamError
-from slamio.noise_model import (
+from slamio.noise.apply import correct_observation
+from slamio.noise.errors import NoiseModelError
+from slamio.noise.model import (
     NOISE_MODEL_FORMAT,
     NoiseModel,
-    NoiseModelError,
     ObservationModel,
     OdometryModel,
     OdometryNoiseRates,
-    correct_observation,
     load_noise_model,
     noise_model_from_dict,
     save_noise_model,

@@ -127,7 +127,7 @@ def test_gps_start_heading_undoes_a_rotation_of_the_track():
 
 def test_a_fitted_range_model_corrects_every_range(tmp_path):
     """``--noise``: each range becomes (r − bias)/scale with the model's σ / scale."""
-    from slamio.noise_model import NoiseModel, ObservationModel
+    from slamio.noise.model import NoiseModel, ObservationModel
 
     model = NoiseModel(observation=ObservationModel(range_scale=1.07, range_bias_m=0.03, range_sigma_m=0.54))
     _, raw = import_plaza("plaza2")
@@ -149,8 +149,8 @@ def test_run_noise_on_a_range_only_log_applies_the_range_model_as_the_importer_d
     against a truth heading that is the odometry's own — says the heading never errs. A log
     with a range model already in it is refused, whichever way it got there."""
     from slamio.log import RunLog
-    from slamio.noise_apply import apply_noise_model
-    from slamio.noise_model import NoiseModel, ObservationModel, OdometryModel, OdometryNoiseRates
+    from slamio.noise.apply import apply_noise_model
+    from slamio.noise.model import NoiseModel, ObservationModel, OdometryModel, OdometryNoiseRates
 
     degenerate = OdometryNoiseRates(heading_rad2_per_rad=3e-30, heading_rad2_per_m=3e-31)
     model = NoiseModel(odometry=OdometryModel(noise=degenerate), fitted_on=("plaza1.jsonl",),

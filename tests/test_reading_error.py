@@ -29,7 +29,7 @@ from ekf.models import (
 from ekf.reading_error import ReadingErrorModel, gauss_markov_step, reading_error_model
 from slamio.geometry import wrap_angle
 from slamio.log import Observation, Odometry, Step, as_matrix3
-from slamio.noise_fit import fit_reading_correlation
+from slamio.noise.fitting import fit_reading_correlation
 
 SHARE, TIME_S = 0.6, 3.0
 

@@ -233,14 +233,9 @@ def test_ellipse_is_the_95_percent_contour():
 
 
 def _screenshot_module():
-    import importlib.util
-    from pathlib import Path
+    from scripts import report_screenshot
 
-    path = Path(__file__).resolve().parent.parent / "scripts" / "report_screenshot.py"
-    spec = importlib.util.spec_from_file_location("report_screenshot", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return report_screenshot
 
 
 def test_screenshot_crop_keeps_the_page_and_drops_the_empty_window():

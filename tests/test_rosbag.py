@@ -21,7 +21,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from slamio.datasets.mrclam import CommandOdometryNoise
+from slamio.datasets.mrclam_motion import CommandOdometryNoise
 from slamio.datasets.rosbag import (
     DETECTIONS_TOPIC,
     ODOMETRY_TOPIC,

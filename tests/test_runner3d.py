@@ -26,7 +26,7 @@ from fgslam.runner3d import (
 from slamio.datasets.seed003_log import drive_to_log
 from slamio.errors import FgslamError
 from slamio.log import read_log, write_log
-from slamio.log3d import StereoObservation
+from slamio.log import StereoObservation
 from slamio.se3 import exp_se3
 from slamio.sim3d import DriveScenario, simulate_drive
 
@@ -61,7 +61,7 @@ def test_evo_reads_our_se3_tum_files_and_agrees_on_the_3d_ate(run_dir, name):
     ape = evo_metrics.APE(evo_metrics.PoseRelation.translation_part)
     ape.process_data((ref, est))
     rmse = float(ape.get_statistic(evo_metrics.StatisticsType.rmse))
-    assert rmse == pytest.approx(metrics["estimators"][name]["ate_3d_m"], abs=1e-6)
+    assert rmse == pytest.approx(metrics[name]["ate_rmse_m"], abs=1e-6)
     # evo sees a genuinely 3-D trajectory: rotations about x and y and a changing height
     poses = np.array(est.poses_se3)
     assert np.ptp(poses[:, 2, 3]) > 0.1 and np.max(np.abs(poses[:, 2, 0])) > 1e-3
@@ -75,21 +75,51 @@ def test_the_reference_tum_file_is_the_logs_truth(run_dir, small_log):
 
 def test_the_comparison_shows_what_seed_003_is_about(run_dir):
     m = json.loads((run_dir / "metrics.json").read_text())
-    e = m["estimators"]
+    e = {k: v for k, v in m.items() if isinstance(v, dict) and k != "provenance"}
     assert m["dimension"] == 3 and m["reference"] == "ground_truth"
     # the factor graph beats the joint EKF, which beats the IMU alone; the paper as written is lost
-    assert e["isam2-3d"]["ate_3d_m"] < e["ekf-vio"]["ate_3d_m"] < e["ekf-s003-figures"]["ate_3d_m"]
-    assert e["ekf-s003"]["ate_3d_m"] > 10.0 * e["ekf-s003-figures"]["ate_3d_m"]
+    assert e["isam2-3d"]["ate_rmse_m"] < e["ekf-vio"]["ate_rmse_m"] < e["ekf-s003-figures"]["ate_rmse_m"]
+    assert e["ekf-s003"]["ate_rmse_m"] > 10.0 * e["ekf-s003-figures"]["ate_rmse_m"]
     for name, row in e.items():
-        assert row["ate_2d_m"] <= row["ate_3d_m"] + 1e-12, name
+        assert row["ate_2d_rmse_m"] <= row["ate_rmse_m"] + 1e-12, name
     # iSAM2 after finish() reaches the batch solution on a simulated drive
     assert m["isam2_graph_error"] == pytest.approx(m["batch_graph_error"], rel=1e-3)
     assert e["ekf-vio"]["nis_mean"] == pytest.approx(4.0, abs=1.0)
     # first-estimate Jacobians make the joint EKF consistent (docs/seed003.md, *Consistency*)
-    assert e["ekf-vio-fej"]["nees_in_band"] >= 0.9 > e["ekf-vio"]["nees_in_band"]
-    assert 0.0 <= e["isam2-3d"]["nees_in_band"] <= 1.0 and e["batch"].get("nees_mean") is None
+    assert e["ekf-vio-fej"]["nees_inside_95"] >= 0.9 > e["ekf-vio"]["nees_inside_95"]
+    assert 0.0 <= e["isam2-3d"]["nees_inside_95"] <= 1.0 and e["batch"].get("nees_mean") is None
     assert (run_dir / "report.html").exists() and (run_dir / "top_view.png").stat().st_size > 10_000
     assert "top view" in (run_dir / "report.html").read_text()
+
+
+def test_a_3d_run_writes_the_planar_metrics_schema(run_dir):
+    from fgslam.compare import METRIC_KEYS, TOP_LEVEL_KEYS
+    from fgslam.runner3d import METRIC_KEYS_3D, estimator_entries_3d, table_rows_3d
+
+    m = json.loads((run_dir / "metrics.json").read_text())
+    assert "estimators" not in m and m["blas_threads"] == 1
+    assert set(TOP_LEVEL_KEYS) - {"rpe_delta_frames"} <= set(m) and m["landmark_reference"] == "ground_truth"
+    entries = estimator_entries_3d(m)
+    assert list(entries) == ["ekf-s003", "ekf-s003-figures", "ekf-vio", "ekf-vio-fej", "isam2-3d", "batch"]
+    shared = {"ate_rmse_m", "ate_online_rmse_m", "final_pose_error_m", "landmarks_estimated", "map_rmse_m",
+              "time_step_p50_s", "time_step_p99_s", "time_step_max_s", "time_total_s", "steps", "nees_mean",
+              "nees_inside_95", "nees_dof", "nis_mean", "nis_inside_95"}
+    assert shared <= set(METRIC_KEYS) and shared <= set(METRIC_KEYS_3D)
+    vio = entries["ekf-vio"]
+    assert set(vio) == set(METRIC_KEYS_3D) and vio["nees_dof"] == 6
+    assert vio["time_step_p50_s"] <= vio["time_step_p99_s"] <= vio["time_step_max_s"] <= vio["time_total_s"]
+    assert entries["batch"]["time_step_p99_s"] is None and entries["batch"]["ate_online_rmse_m"] is None
+    # a metrics.json from before the one schema reads the same
+    old_names = {"ate_rmse_m": "ate_3d_m", "ate_2d_rmse_m": "ate_2d_m", "ate_online_rmse_m": "ate_3d_online_m",
+                 "final_pose_error_m": "final_position_error_m", "landmarks_estimated": "landmarks",
+                 "time_total_s": "total_s", "nees_inside_95": "nees_in_band", "nis_inside_95": "nis_in_band"}
+    old = {k: v for k, v in m.items() if k not in entries}
+    old["estimators"] = {}
+    for name, e in entries.items():
+        row = {old_names.get(k, k): v for k, v in e.items() if not k.startswith("time_step")}
+        row["step_ms_mean"] = None if e["time_step_mean_s"] is None else 1e3 * e["time_step_mean_s"]
+        old["estimators"][name] = row
+    assert table_rows_3d(old) == table_rows_3d(m)
 
 
 def test_position_rmse_and_nees_against_closed_forms():
@@ -108,7 +138,7 @@ def test_position_rmse_and_nees_against_closed_forms():
 
 
 def test_tum3_writes_position_and_quaternion_and_projects_a_non_rigid_pose():
-    from slamio.log3d import pose3_matrix
+    from slamio.log import pose3_matrix
 
     T = exp_se3(np.array([1.0, 2.0, 3.0, 0.3, -0.2, 0.1]))
     values = [float(v) for v in format_tum3([0.5], [T]).split()]

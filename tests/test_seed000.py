@@ -1,4 +1,4 @@
-"""Tests of ``ekf.seed000`` (``ekf-s000``) against independent references.
+"""Tests of ``ekf.linear_kf_kinect`` (``ekf-s000``) against independent references.
 
 * the edge conversions (compass ↔ counter-clockwise, the start-anchored paper frame, the
   paper's robot frame) on known values and round trips;
@@ -21,7 +21,7 @@ import math
 import numpy as np
 import pytest
 
-from ekf.seed000 import (
+from ekf.linear_kf_kinect import (
     EkfS000,
     arc_reading,
     ccw_from_compass,

@@ -1,4 +1,4 @@
-"""Tests of ``ekf.seed001`` (seed 001's GoPiGo EKF-SLAM, as written) against independent references.
+"""Tests of ``ekf.signature_ekf`` (seed 001's GoPiGo EKF-SLAM, as written) against independent references.
 
 * a one- and a two-step case computed by hand in this file, in plain numpy, from the paper's
   own equations (eqs. 19, 20, 23–26 and Algorithm 3 lines 2–6) — never calling the module's
@@ -19,7 +19,7 @@ import math
 import numpy as np
 import pytest
 
-from ekf.seed001 import (
+from ekf.signature_ekf import (
     DEFAULT_GATE_M,
     EkfS001,
     expected_observation,
@@ -97,7 +97,7 @@ def hand_two_steps(q_power):
     """Seed 001's EKF for a small scene, written out from the paper's equations.
 
     ``q_power`` is 1 for eq. 20 as written (Q = diag(σ)) and 2 for variances. Returns the
-    (mean, covariance) after step 0, step 1 and step 2. Nothing from ekf.seed001 is used.
+    (mean, covariance) after step 0, step 1 and step 2. Nothing from ekf.signature_ekf is used.
 
     Scene: start pose (1, 2, 0.3). Step 0 sees a landmark with height (a signature) → the
     state grows to (x, y, θ, m_x, m_y, s) (eq. 19). Step 1 moves forward 0.5 m (eqs. 23,
@@ -472,10 +472,10 @@ def test_trial_calibration_in_the_header_gives_the_filter_its_R_and_Q(tmp_path):
     """Seed 001's procedure end to end: the trials' pooled covariance becomes R and the sensor
     trials' σ become Q's σ_r, σ_φ (σ_s stays each observation's own), read from the header
     where `fgslam record --calibration` and `fgslam run --calibration` put it."""
-    from ekf.seed001 import EkfS001, trial_calibration
-    from slamio.create.calibrate import calibrate, read_trials
+    from ekf.signature_ekf import EkfS001, trial_calibration
+    from slamio.noise.trials import calibrate_from_trials, read_trials
 
-    calibration = calibrate(*read_trials("data/calibration_trials_s001.csv"), source="trials")
+    calibration = calibrate_from_trials(*read_trials("data/calibration_trials_s001.csv"), source="trials")
     header = minimal_header()
     assert trial_calibration(header) == (None, None)
     header = dataclasses.replace(header, noise={**header.noise, "calibration": calibration.to_dict()})

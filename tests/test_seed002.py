@@ -1,4 +1,4 @@
-"""Tests of ``ekf.seed002``: the paper's gHeight against exact pinhole geometry.
+"""Tests of ``ekf.kinect_height``: the paper's gHeight against exact pinhole geometry.
 
 * gHeight line by line against a hand computation, and against the law of cosines it is;
 * ``exact_height_m`` recovers rendered segments to 1e-9 (z-depths and ray lengths, and
@@ -17,7 +17,7 @@ import math
 import numpy as np
 import pytest
 
-from ekf.seed002 import (
+from ekf.kinect_height import (
     KINECT_CY,
     KINECT_FY,
     angle_between_rows_rad,

@@ -1,4 +1,4 @@
-"""ekf.seed003 (seed 003's EKF as written, flaws as keywords) against closed forms and the simulator's truth."""
+"""ekf.stereo_imu_ekf (seed 003's EKF as written, flaws as keywords) against closed forms and the simulator's truth."""
 
 import numpy as np
 import pytest
@@ -6,7 +6,7 @@ from scipy.linalg import expm
 
 from ekf.drive3d import position_errors_m, run_drive
 from slamio.se3 import curly_hat, exp_se3, hat, inverse
-from ekf.seed003 import AS_THE_FIGURES_SHOW, EkfS003, expm_series
+from ekf.stereo_imu_ekf import AS_THE_FIGURES_SHOW, EkfS003, expm_series
 from slamio.stereo import projection, stereo_matrix, stereo_pixels
 from slamio.datasets.seed003 import StereoImuNoise
 from slamio.sim3d import KITTI_LIKE_CAM_T_IMU, KITTI_LIKE_K, DriveScenario, simulate_drive

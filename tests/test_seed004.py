@@ -1,4 +1,4 @@
-"""Tests of ``ekf.seed004`` (``ekf-s004``) against independent references.
+"""Tests of ``ekf.apriltag_kf`` (``ekf-s004``) against independent references.
 
 * the paper's H for two tags, printed in the paper, reproduced literally;
 * the velocity input: Δt cancels, a body velocity is added to the world pose unrotated;
@@ -17,7 +17,7 @@ import math
 import numpy as np
 import pytest
 
-from ekf.seed004 import (
+from ekf.apriltag_kf import (
     EkfS004,
     body_velocity,
     measurement_matrix,

@@ -209,7 +209,7 @@ def _good(good_calibration) -> dict:
      "holds no calibration"),
 ])
 def test_bad_calibration_contents(capsys, good_calibration, tmp_path, change, says):
-    from slamio.create.calibrate import load_calibration
+    from slamio.noise.trials import load_calibration
 
     data = _good(good_calibration)
     change(data)
@@ -225,7 +225,7 @@ def test_bad_calibration_contents(capsys, good_calibration, tmp_path, change, sa
 
 
 def test_good_calibration_still_loads(good_calibration):
-    from slamio.create.calibrate import load_calibration
+    from slamio.noise.trials import load_calibration
 
     c = load_calibration(good_calibration)
     assert c.forward["trials"] == 30 and c.observation["trials"] == 15
@@ -234,7 +234,7 @@ def test_good_calibration_still_loads(good_calibration):
 def test_bad_calibration_in_a_log_header_is_one_line(capsys, small_log, tmp_path):
     """A log whose header carries a broken noise.calibration (edited by hand): seed 001's EKF
     says so in one line instead of a ValueError."""
-    from ekf.seed001 import trial_calibration
+    from ekf.signature_ekf import trial_calibration
     from slamio.log import read_log
 
     lines = small_log.read_text().splitlines(keepends=True)

@@ -285,9 +285,9 @@ def test_odometry_covariance_is_the_first_order_propagation():
     """Against geometry.arc_increment_jacobian and an explicit wheel Jacobian."""
     header, _ = sim("arena-octagon", 0)
     noise = header.noise["odometry"]
-    from slamio.sim import OdometryNoise
+    from slamio.sim import WheelSlipNoise
 
-    model = OdometryNoise(noise["k_wheel"], noise["slip_sigma_x_m"], noise["slip_sigma_y_m"], noise["slip_sigma_theta_rad"])
+    model = WheelSlipNoise(noise["k_wheel"], noise["slip_sigma_x_m"], noise["slip_sigma_y_m"], noise["slip_sigma_theta_rad"])
     b = WHEEL_BASE_M
     for left, right in [(0.02, 0.02), (0.015, 0.025), (-0.01, 0.01), (0.0, 0.03), (0.02, 0.01999999)]:
         distance, angle = (left + right) / 2, (right - left) / b

@@ -20,7 +20,8 @@ from fgslam.compare import chi2_summary, compute_metrics, nees, nees_dofs
 from fgslam.runner import compare_log, truth_reference
 from slamio.errors import FgslamError
 from slamio.log import RunLog, TruthPose, read_log, write_log
-from slamio.noise_fit import CalibrationError, fit_noise_model
+from slamio.noise.errors import NoiseModelError
+from slamio.noise.fit_truth import fit_noise_model
 from slamio.redraw import redraw_noise
 from slamio.sim import simulate
 
@@ -107,7 +108,7 @@ def test_check_uses_the_two_dof_band(gps_log, tmp_path):
 def test_tools_that_need_the_true_heading_say_so(gps_log):
     with pytest.raises(FgslamError, match="has no heading"):
         redraw_noise(gps_log, np.random.default_rng(0))
-    with pytest.raises(CalibrationError, match="truth has no heading"):
+    with pytest.raises(NoiseModelError, match="truth has no heading"):
         fit_noise_model([gps_log])
 
 
@@ -154,9 +155,9 @@ def test_a_mixed_truth_counts_each_pose_by_its_own_dof(gps_log):
 def test_a_model_fitted_on_gps_corrects_ranges_only(tmp_path, capsys):
     """``fgslam calibrate`` on a range-only log with GPS truth fits the radios and says the
     odometry was not fitted; applying that model to a log with bearings is refused."""
-    from slamio.noise_apply import apply_noise_model
-    from slamio.noise_model import load_noise_model
-    from tests.test_range_model import radio_log
+    from slamio.noise.apply import apply_noise_model
+    from slamio.noise.model import load_noise_model
+    from tests.test_noise_range import radio_log
 
     radio = radio_log(1.07, 0.2, 0.05)
     gps = RunLog("radio.jsonl", radio.header, tuple(_without_heading(radio.records)))

@@ -25,6 +25,7 @@ from typing import Sequence
 from fgslam.cli import (
     bench,
     calibrate,
+    calibrate_camera,
     check,
     detect,
     export,
@@ -44,16 +45,21 @@ __all__ = ["main", "build_parser", "ESTIMATOR_HELP", "VERBS"]
 
 DESCRIPTION = """\
 fgslam compares factor-graph smoothing (GTSAM iSAM2) against EKF-SLAM on the same
-2-D landmark run log: record or simulate a run, run every estimator on it, read the
-comparison.
+run log: a 2-D landmark log (range/bearing observations, planar odometry) or a 3-D
+stereo camera + IMU log (seed 003). The log says its dimension; run, check and bench
+pick the estimators that take it. Record, import or simulate a run, run every
+estimator on it, read the comparison.
 
 typical use:
   fgslam sim arena-octagon --seed 1 --out run.jsonl
   fgslam run run.jsonl --out results/
+  fgslam sim stereo-loop --seed 1 --out drive.jsonl     (a 3-D log)
+  fgslam run drive.jsonl --out results3d/
 """
 
 #: The verb modules, in the order ``fgslam --help`` lists them.
-VERBS = (sim, run, import_, export, validate, check, bench, detect, tune_colours, record, calibrate, live)
+VERBS = (sim, run, import_, export, validate, check, bench, detect, tune_colours, record, calibrate,
+         calibrate_camera, live)
 
 
 class _Parser(argparse.ArgumentParser):

@@ -79,21 +79,18 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
     from fgslam.montecarlo import dask_executor, monte_carlo
 
-    from fgslam.runner import ESTIMATORS
+    from fgslam.registry import BENCH_DEFAULTS, names_for
     from slamio.errors import FgslamError
     from slamio.sim3d import STEREO_LOOP
 
     _check_counts(args)
-    if args.scenario == STEREO_LOOP:
-        from fgslam.montecarlo3d import DEFAULT_BENCH_ESTIMATORS_3D as default
-        from fgslam.runner3d import ESTIMATORS_3D as known
-
+    dimension = 3 if args.scenario == STEREO_LOOP else 2
+    if dimension == 3:
         planar_only = [flag for flag, value in (("--landmarks", args.landmarks), ("--laps", args.laps))
                        if value is not None]
         if planar_only:
             raise FgslamError(f"{', '.join(planar_only)}: not available for {STEREO_LOOP} (its drive is one fixed loop)")
-    else:
-        known, default = ESTIMATORS, ("ekf", "isam2")
+    known, default = names_for(dimension), BENCH_DEFAULTS[dimension]
     text = ",".join(default) if args.estimators is None else args.estimators
     estimators = tuple(n.strip() for n in text.split(",") if n.strip())
     unknown = [e for e in estimators if e not in known]

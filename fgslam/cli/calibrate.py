@@ -1,4 +1,13 @@
-"""``fgslam calibrate``: noise from measured trials (seed 001's method) or fitted on logs."""
+"""``fgslam calibrate``: the noise of the odometry and the landmark readings, two ways.
+
+* **from truth** (``fgslam calibrate LOG.jsonl... --out noise.json``): fit a noise model
+  against the logs' ground truth (:mod:`slamio.noise.fit_truth`);
+* **from trials** (``fgslam calibrate TRIALS.csv [--out cal.json]``): seed 001's trial
+  calibration, covariances of tape-measured trials (:mod:`slamio.noise.trials`).
+
+The files say which (``.jsonl`` run logs, or one trials CSV); ``--from truth|trials`` names
+it. Not the camera's intrinsics: that is ``fgslam calibrate-camera``.
+"""
 
 from __future__ import annotations
 
@@ -7,25 +16,33 @@ import json
 from pathlib import Path
 
 from fgslam.cli.common import add_overwrite_option, check_new_file, holds_outputs, read, write_new_file
-from slamio.errors import FgslamError
+from slamio.noise.errors import NoiseModelError
+
+#: The two modes of ``fgslam calibrate`` (``--from``).
+MODES = ("truth", "trials")
 
 CALIBRATE_DESCRIPTION = """\
-Two ways to learn the noise:
+Learn the noise of the odometry and of the landmark readings, one of two ways. The files
+given choose the way (run logs end in .jsonl; anything else is one trials CSV), or --from
+names it: --from truth reads every file as a run log, whatever its name; --from trials
+takes one CSV. (A camera's intrinsics and lens distortion are not this: use fgslam
+calibrate-camera.)
 
-fgslam calibrate LOG.jsonl [LOG.jsonl ...] --out noise.json
+from truth:   fgslam calibrate LOG.jsonl [LOG.jsonl ...] --out noise.json [--from truth]
   Fit a noise model against the ground truth in run logs (motion capture, a simulator):
   odometry lag, scale, turn per metre and variance rates; the camera's range model (range
   or depth, scale, bias), bearing scale and bias, latency, sigmas that grow with range and
-  turn rate, and the outlier rate (slamio.noise_fit). Several logs are pooled. Use the file
-  on *other* runs: fgslam import mrclam SOURCE OUT --robot N --noise noise.json. Fit on logs
-  imported without --noise.
+  turn rate, the outlier rate and the readings' correlation in time (slamio.noise.fit_truth;
+  range-only radios: slamio.noise.range). Several logs are pooled. Use the file on *other*
+  runs: fgslam import mrclam SOURCE OUT --robot N --noise noise.json, or fgslam run LOG
+  --noise noise.json. Fit on logs imported without --noise.
 
-fgslam calibrate TRIALS.csv [--out cal.json]
-  Compute motion and measurement noise from measured trials, the way seed 001 did: drive
-forward (and turn in place) many times, tape-measure where the robot really ended, and take
-the covariance of the errors. Prints the biases and standard deviations; --out writes the
-JSON that `fgslam record --calibration` puts in the log header and uses for the odometry
-covariances.
+from trials:  fgslam calibrate TRIALS.csv [--out cal.json] [--from trials]
+  Seed 001's trial calibration (slamio.noise.trials): motion and measurement covariances
+  from measured trials. Drive forward (and turn in place) many times, tape-measure where
+  the robot really ended, and take the covariance of the errors. Prints the biases and
+  standard deviations; --out writes the JSON that `fgslam record --calibration` puts in the
+  log header and `fgslam run --calibration` uses for the odometry covariances.
 
 TRIALS.csv columns (blank where a column does not apply, # starts a comment):
   kind,command_distance_m,command_angle_rad,x_m,y_m,theta_rad,true_range_m,true_bearing_rad,range_m,bearing_rad
@@ -40,40 +57,63 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     """Add ``fgslam calibrate`` to the sub-parsers ``verbs``; returns its parser."""
     p = verbs.add_parser(
         "calibrate",
-        help="learn the noise: a model fitted to logs with ground truth, or covariances from "
-        "measured forward/rotate/sensor trials (seed 001's method)",
+        help="learn the odometry and reading noise: a noise model fitted to logs with ground truth "
+        "(LOG.jsonl...), or seed 001's covariances from measured trials (TRIALS.csv); "
+        "not the camera (calibrate-camera)",
         description=CALIBRATE_DESCRIPTION,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("trials", nargs="+", metavar="TRIALS.csv | LOG.jsonl",
-                   help="the measured trials (one .csv), or run logs with ground truth (.jsonl, one or more)")
+    p.add_argument("trials", nargs="+", metavar="LOG.jsonl|TRIALS.csv",
+                   help="run logs with ground truth (.jsonl, one or more: from truth), or the measured trials "
+                   "(one CSV: from trials)")
+    p.add_argument("--from", dest="mode", choices=MODES, default=None,
+                   help="name the way instead of reading it from the files: truth (fit a noise model on the "
+                   "logs' ground truth; every file is read as a run log) or trials (seed 001's trial "
+                   "calibration of one TRIALS.csv)")
     p.add_argument("--out", default=None, metavar="FILE",
-                   help="write the calibration (trials) or noise model (logs) JSON here; an existing file is kept")
+                   help="write the noise model (from truth) or the trial calibration (from trials) JSON here; "
+                   "an existing file is kept")
     add_overwrite_option(p, "an existing --out FILE")
     p.set_defaults(func=cmd_calibrate)
     return p
 
 
-
 # --------------------------------------------------------------------------- handlers
+
+
+def calibration_mode(paths: list[str], mode: str | None) -> str:
+    """Which way ``fgslam calibrate paths`` calibrates: ``"truth"`` or ``"trials"`` (``mode``,
+    from ``--from``, or read from the files: any ``.jsonl`` is a run log); one
+    :class:`NoiseModelError` line when the files do not fit it."""
+    logs = [p for p in paths if p.endswith(".jsonl")]
+    others = [p for p in paths if not p.endswith(".jsonl")]
+    if mode is None:  # read from the files
+        if logs and others:
+            raise NoiseModelError(
+                f"calibrate: mix of logs and other files ({' '.join(others)}); give only .jsonl logs (from truth) "
+                "or one TRIALS.csv (from trials)"
+            )
+        mode = "truth" if logs else "trials"
+    if mode == "trials" and (logs or len(paths) != 1):  # --from truth takes logs of any name
+        raise NoiseModelError(
+            f"calibrate from trials takes one TRIALS.csv, got {' '.join(paths)}; run logs with ground truth "
+            "(.jsonl, one or more) are calibrated from truth"
+        )
+    return mode
 
 
 @holds_outputs(out="--out")
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    logs = [p for p in args.trials if p.endswith(".jsonl")]
-    if logs:
-        return _calibrate_from_logs(args, logs)
-    if len(args.trials) != 1:
-        raise FgslamError(
-            f"calibrate takes one TRIALS.csv or one or more LOG.jsonl, got {' '.join(args.trials)}"
-        )
-    from slamio.create.calibrate import calibrate, read_trials
+    mode = calibration_mode(args.trials, getattr(args, "mode", None))
+    if mode == "truth":
+        return _calibrate_from_logs(args, args.trials)
+    from slamio.noise.trials import calibrate_from_trials, read_trials
 
     trials = args.trials[0]
     if args.out:  # before the work: an existing file is kept unless --overwrite
         check_new_file(args.out, overwrite=args.overwrite, example="calibration.json")
     motion, sensor = read_trials(trials)
-    calibration = calibrate(motion, sensor, source=trials)
+    calibration = calibrate_from_trials(motion, sensor, source=trials)
     print(calibration.summary())
     if args.out:
         text = json.dumps(calibration.to_dict(), indent=2) + "\n"
@@ -84,13 +124,10 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 
 
 def _calibrate_from_logs(args: argparse.Namespace, paths: list[str]) -> int:
-    """``fgslam calibrate LOG.jsonl...``: fit a noise model against the logs' ground truth."""
-    from slamio.noise_fit import fit_noise_model
-    from slamio.noise_model import save_noise_model
+    """``fgslam calibrate LOG.jsonl...`` (from truth): fit a noise model against the logs' ground truth."""
+    from slamio.noise.fit_truth import fit_noise_model
+    from slamio.noise.model import save_noise_model
 
-    others = [p for p in args.trials if not p.endswith(".jsonl")]
-    if others:
-        raise FgslamError(f"calibrate: mix of logs and other files ({' '.join(others)}); give only .jsonl logs")
     if args.out:  # before the fit, so nothing is computed for nothing
         check_new_file(args.out, overwrite=args.overwrite, example="noise.json")
     model = fit_noise_model([read(p) for p in paths])
@@ -130,7 +167,7 @@ def noise_model_summary(model) -> str:
 
 
 def _radio_lines(model) -> list[str]:
-    """The observation lines of a range-only model (ranging radios, slamio.range_fit)."""
+    """The observation lines of a range-only model (ranging radios, slamio.noise.range)."""
     z, offset = model.observation, model.fit_report["observation"]["constant_offset_fit"]
     return [
         f"ranges (no bearing): measured = {z.range_scale:.4f} x distance {z.range_bias_m:+.4f} m "

@@ -139,7 +139,7 @@ def add_overwrite_option(parser: argparse.ArgumentParser, what: str = "an existi
 def summary(log) -> str:
     """One line on what a run log holds."""
     from slamio.log import Observation
-    from slamio.log3d import StereoObservation, TruthLandmark3
+    from slamio.log import StereoObservation, TruthLandmark3
 
     steps = log.steps()
     observations = [r for r in log.records if isinstance(r, (Observation, StereoObservation))]

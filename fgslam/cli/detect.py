@@ -257,11 +257,82 @@ def _remove(files: list[Path], folders: list[Path]) -> None:
             pass
 
 
-@holds_outputs(out="--out", show="--show")
-def cmd_detect(args: argparse.Namespace) -> int:
+def _existing_log(out: Path, replace_observations: bool):
+    """The recorded run log ``out`` (None for a new static log), without its earlier
+    observations when they are replaced, and how many were removed."""
+    existing = read_log(out) if out.exists() else None
+    if existing is not None and existing.truncated:
+        print(f"fgslam: warning: {existing.truncated}; the cut-off line is dropped when the log is rewritten")
+    removed = 0
+    if existing is not None:
+        existing, removed = _without_observations(existing, out, replace_observations)
+    return existing, removed
+
+
+def _check_out(out: Path, static: bool) -> None:
+    """``--out`` must be a recorded run log, or (``--static``) a new file."""
+    if out.is_dir():
+        raise DetectError(f"--out {out} is a folder; give the run log to add the observations to, e.g. {out / 'run.jsonl'}")
+    if not out.exists() and not static:
+        raise DetectError(
+            f"{out} does not exist: detect adds observations to a recorded run log (header and odometry "
+            "first); pass --static to start a new log for a camera that did not move"
+        )
+    if out.exists() and static:
+        raise DetectError(
+            f"--static starts a new log, but {out} already exists; leave out --static to add the observations to "
+            "this recorded run (each frame joins the pose its odometry gives), or give --out a new file name "
+            "(to redo a static log, remove it first)"
+        )
+
+
+def _make_show(show: Path, frames_source: str) -> list[Path]:
+    """Check and create the ``--show`` folder; the folders it made (deepest first)."""
+    made: list[Path] = []
+    if show.exists() and not show.is_dir():
+        raise DetectError(f"--show {show} is a file; give a folder for the annotated frames")
+    check_show(show, frames_source)
+    probe_writable(show, option="--show")
+    folder = show
+    while not folder.exists() and folder != folder.parent:
+        made.append(folder)
+        folder = folder.parent
+    show.mkdir(parents=True, exist_ok=True)
+    return made
+
+
+def _annotate(show: Path, frame, result, camera, shown: list[Path]) -> None:
+    """Write ``frame`` annotated with its detections into the ``--show`` folder (its path
+    appended to ``shown``)."""
     import cv2
 
-    from slamio.camera.detect import DetectionStats, FrontEnd, annotate
+    from slamio.camera.detect import annotate
+
+    name = Path(frame.name.replace("/", "_").replace(":", "_").replace("#", "_")).stem
+    shown.append(show / f"{frame.index:06d}_{name}.png")  # before writing: a failed run removes it
+    cv2.imwrite(str(shown[-1]), annotate(frame.bgr, result, camera))
+
+
+def _run_settings(command: str, camera, config, front, stats, offset_s: float | None) -> dict:
+    """What this detect run records in the log's ``source.detect``."""
+    settings = {
+        "command": command, "camera": camera.name, "kind": config.kind, "time_offset_s": offset_s,
+        "frames": stats.frames, "observations": stats.observations,
+        "rejected": dict(sorted(stats.reasons.items())),
+        "noise": front.noise.describe(),
+    }
+    if config.kind == "apriltag":
+        settings.update(tag_family=config.tag_family, tag_size_m=config.tag_size_m,
+                        tag_upsample=config.tag_upsample, tag_second_pass=config.tag_second_pass)
+    else:
+        settings.update(bearing=config.colour.bearing_method, height=config.colour.height_method,
+                        landmarks=landmark_settings(config.colour))
+    return settings
+
+
+@holds_outputs(out="--out", show="--show")
+def cmd_detect(args: argparse.Namespace) -> int:
+    from slamio.camera.detect import DetectionStats, FrontEnd
     from slamio.camera.model import load_camera
 
     _check_options(args)  # before anything is read, opened or written
@@ -269,39 +340,12 @@ def cmd_detect(args: argparse.Namespace) -> int:
     config = _config_from_args(args)
     front = FrontEnd(camera, config)
     out = Path(args.out)
-    if out.is_dir():
-        raise DetectError(f"--out {out} is a folder; give the run log to add the observations to, e.g. {out / 'run.jsonl'}")
-    if not out.exists() and not args.static:
-        raise DetectError(
-            f"{out} does not exist: detect adds observations to a recorded run log (header and odometry "
-            "first); pass --static to start a new log for a camera that did not move"
-        )
-    if out.exists() and args.static:
-        raise DetectError(
-            f"--static starts a new log, but {out} already exists; leave out --static to add the observations to "
-            "this recorded run (each frame joins the pose its odometry gives), or give --out a new file name "
-            "(to redo a static log, remove it first)"
-        )
+    _check_out(out, args.static)
     probe_writable(out.parent, target=out)  # the log is rewritten at the end: check before the frames
-    existing = read_log(out) if out.exists() else None
-    if existing is not None and existing.truncated:
-        print(f"fgslam: warning: {existing.truncated}; the cut-off line is dropped when the log is rewritten")
-    removed = 0
-    if existing is not None:
-        existing, removed = _without_observations(existing, out, args.replace)
+    existing, removed = _existing_log(out, args.replace)
     show = Path(args.show) if args.show else None
     shown: list[Path] = []  # the annotated frames and the folders --show made: removed when the run fails
-    made: list[Path] = []
-    if show is not None:
-        if show.exists() and not show.is_dir():
-            raise DetectError(f"--show {show} is a file; give a folder for the annotated frames")
-        check_show(show, args.frames)
-        probe_writable(show, option="--show")
-        folder = show
-        while not folder.exists() and folder != folder.parent:
-            made.append(folder)
-            folder = folder.parent
-        show.mkdir(parents=True, exist_ok=True)
+    made = [] if show is None else _make_show(show, args.frames)
     stats = DetectionStats()
     problems = FrameProblems(camera)
     frames: list[tuple[float, list[Observation]]] = []
@@ -321,9 +365,7 @@ def cmd_detect(args: argparse.Namespace) -> int:
                 frames.append((frame.stamp_s + offset_s,
                                [replace(o, stamp_s=o.stamp_s + offset_s) for o in result.observations]))
                 if show is not None:
-                    name = Path(frame.name.replace("/", "_").replace(":", "_").replace("#", "_")).stem
-                    shown.append(show / f"{frame.index:06d}_{name}.png")
-                    cv2.imwrite(str(shown[-1]), annotate(frame.bgr, result, camera))
+                    _annotate(show, frame, result, camera, shown)
         except KeyboardInterrupt:  # a live source runs until stopped: keep what was seen
             progress.close()
             print(f"fgslam: interrupted after {stats.frames} frames; writing their observations")
@@ -348,18 +390,7 @@ def cmd_detect(args: argparse.Namespace) -> int:
         for reason, count in dropped.items():
             if count:
                 stats.reject(reason, count)
-    settings = {
-        "command": command, "camera": camera.name, "kind": config.kind, "time_offset_s": offset_s,
-        "frames": stats.frames, "observations": stats.observations,
-        "rejected": dict(sorted(stats.reasons.items())),
-        "noise": front.noise.describe(),
-    }
-    if config.kind == "apriltag":
-        settings.update(tag_family=config.tag_family, tag_size_m=config.tag_size_m,
-                        tag_upsample=config.tag_upsample, tag_second_pass=config.tag_second_pass)
-    else:
-        settings.update(bearing=config.colour.bearing_method, height=config.colour.height_method,
-                        landmarks=landmark_settings(config.colour))
+    settings = _run_settings(command, camera, config, front, stats, offset_s)
     earlier = header.source.get("detect")
     runs = list(earlier) if isinstance(earlier, list) else []
     if removed:
@@ -392,7 +423,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
             "(rgb/, depth/, rgb.txt, depth.txt), a folder of images (stamps from numeric file names,\n"
             "else --fps), a video file, camera:N (a live cv2.VideoCapture device) or kinect:N (a live\n"
             "Kinect through the optional freenect package). CAM.yaml is a ROS camera_info file with an\n"
-            "optional robot_mount (scripts/calibrate_camera.py writes one).\n\n"
+            "optional robot_mount (fgslam calibrate-camera writes one).\n\n"
             "Observations go into the pose current at each frame's stamp (the last odometry record at or\n"
             "before it); a frame with no pose within --max-pose-gap is dropped and counted. Frames that\n"
             "cannot be used (corrupt, over-exposed, no landmark, no depth) are counted by reason, never\n"

@@ -157,7 +157,7 @@ def _import(args: argparse.Namespace, source: str | None, out: str) -> int:
 
         model = None
         if args.noise is not None:
-            from slamio.noise_model import load_noise_model
+            from slamio.noise.model import load_noise_model
 
             model = load_noise_model(args.noise)
         header, records = import_mrclam(source, args.robot, model=model)
@@ -177,7 +177,7 @@ def _import(args: argparse.Namespace, source: str | None, out: str) -> int:
 
         model = None
         if args.noise is not None:
-            from slamio.noise_model import load_noise_model
+            from slamio.noise.model import load_noise_model
 
             model = load_noise_model(args.noise)
         header, records = import_plaza(

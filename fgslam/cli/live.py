@@ -307,7 +307,7 @@ def _real_camera(args):
     if args.camera is None:
         if args.frames is not None:
             raise FgslamError(f"--frames {args.frames} needs --camera CAM.yaml, the camera's calibration "
-                              "(scripts/calibrate_camera.py writes one)")
+                              "(fgslam calibrate-camera writes one)")
         say("fgslam live: no --camera: odometry only (iSAM2 smooths the odometry; no landmarks). Give --camera "
             "CAM.yaml to map landmarks")
         return None, None

@@ -157,7 +157,7 @@ def _frame_saver(args, sim, settings):
 
 
 def cmd_record(args: argparse.Namespace) -> int:
-    from slamio.create.calibrate import load_calibration
+    from slamio.noise.trials import load_calibration
     from slamio.create.record import RecorderSettings
 
     # Before the port is opened and the recorder starts the log: an existing recording is never

@@ -21,11 +21,10 @@ OWN_NAMES = ("metrics.json", "report.html", "graph.g2o", "reference.tum")
 def own_names() -> list[str]:
     """Every file name ``fgslam run`` can write (for a folder without a manifest)."""
     from fgslam import report
-    from fgslam.runner import ESTIMATORS
-    from fgslam.runner3d import ESTIMATORS_3D
+    from fgslam.registry import REGISTRY
 
     names = list(OWN_NAMES)
-    for name in [*ESTIMATORS, *ESTIMATORS_3D, "batch"]:
+    for name in [*REGISTRY, "batch"]:
         names += [f"{name}.tum", f"{name}_online.tum"]
     names += [value for key, value in vars(report).items()
               if key.endswith(("_PNG", "_HTML")) and isinstance(value, str)]
@@ -93,7 +92,7 @@ def with_trial_calibration(log, path):
     """``log`` with the trial calibration at ``path`` in its header (``noise.calibration``)."""
     import dataclasses
 
-    from slamio.create.calibrate import load_calibration
+    from slamio.noise.trials import load_calibration
 
     noise = {**log.header.noise, "calibration": load_calibration(path).to_dict()}
     return dataclasses.replace(log, header=dataclasses.replace(log.header, noise=noise))
@@ -101,40 +100,33 @@ def with_trial_calibration(log, path):
 
 @holds_outputs(out="--out")
 def cmd_run(args: argparse.Namespace) -> int:
+    """One path for every log: read it once, pick its estimators from the registry by the
+    log's dimension, run them, compute the metrics (one schema), write, print the table."""
     # The results folder first (before the estimators are even loaded): an unusable --out is
     # one line at once, never a FileExistsError after the whole run.
     results = ResultsFolder(args.out, overwrite=args.overwrite, verb="run", own_names=own_names,
                             source=str(Path(args.log).resolve())).check()
 
-    from fgslam.compare import compute_metrics, format_table
-    from fgslam.runner import DEFAULT_ESTIMATORS, TIMING, compare_log, parse_estimator_names, require_motion
+    from fgslam.provenance import provenance
+    from fgslam.registry import parse_names
+    from fgslam.runner import TIMING, require_motion
 
     log = read(args.log)
     require_motion(log, "estimate or score")
-    if log.header.is_3d:  # seed 003's stereo + IMU logs: their own estimators and table
-        from fgslam.cli.run3d import cmd_run3d
-
-        return cmd_run3d(args, results, log)
-    # without iSAM2 there is no batch solve: fine where the log's truth is the reference (compare_log says)
-    names = parse_estimator_names(",".join(DEFAULT_ESTIMATORS) if args.estimators is None else args.estimators,
-                                  need_isam2=False)
-    if args.noise is not None:
-        from slamio.noise_apply import apply_noise_model
-        from slamio.noise_model import load_noise_model
-
-        if log.header.source.get("generator") == "slamio.sim":
-            raise FgslamError(f"{args.log} was simulated (fgslam sim): its noise is the simulator's own and its "
-                              "covariances are exact, so a fitted noise model does not apply; --noise is for a log "
-                              "recorded or imported without one")
-        log, dropped = apply_noise_model(log, load_noise_model(args.noise))
-        print(f"applied the noise model {args.noise}" + (f" ({dropped} readings could not be corrected and were dropped)" if dropped else ""))
-    if args.calibration is not None:
-        log = with_trial_calibration(log, args.calibration)
-        print(f"seed 001's R and Q from the trial calibration {args.calibration}")
-    print(f"{args.log}: {summary(log)}")
+    dimension = 3 if log.header.is_3d else 2
+    if dimension == 3:  # seed 003's stereo + IMU logs: their records carry their noise
+        for flag, value in (("--noise", args.noise), ("--calibration", args.calibration)):
+            if value is not None:
+                raise FgslamError(f"{flag} applies to planar logs; {args.log} is a 3-D log (its records carry "
+                                  "their noise)")
+    # 2-D without iSAM2 has no batch solve: fine where the log's truth is the reference (compare_log says)
+    names = parse_names(args.estimators, dimension, need_isam2=dimension == 3)
+    log = _with_side_inputs(args, log)
+    print(f"{args.log}: {'3-D log, ' if dimension == 3 else ''}{summary(log)}")
+    compare, compute_metrics, format_table, write_results = _pipeline(dimension)
     with Progress() as progress:
-        result = compare_log(log, names, progress=progress, consistency=not args.no_consistency)
-    metrics = compute_metrics(result.runs, result.reference, log_path=str(args.log))
+        result = compare(log, names, progress=progress, consistency=not args.no_consistency)
+    metrics = compute_metrics(result, log_path=str(args.log))
     metrics["timing"] = TIMING["what"]  # strings: not mistaken for an estimator
     metrics["blas_threads"] = TIMING["blas_threads"]
     if log.truncated:
@@ -148,17 +140,49 @@ def cmd_run(args: argparse.Namespace) -> int:
     short = result.smoother_short_of_optimum()
     if short is not None:
         metrics["smoother_short_of_optimum"] = short
-    from fgslam.provenance import provenance
-
     metrics["provenance"] = provenance(args.log, [r.name for r in result.runs], command=command_line(args, "run"))
 
     replaced = results.clear()
     with results.filling(**run_provenance(args)):
-        written = _write_results(args, metrics, result)
+        written = write_results(args, metrics, result)
         results.finish(**run_provenance(args))
-    slowed = not args.no_consistency and any(name.startswith("isam2") for name in names)
+    slowed = dimension == 2 and not args.no_consistency and any(name.startswith("isam2") for name in names)
     return finish_run(args, results, log, written, replaced, format_table(metrics), notes=[short] if short else [],
                       timing_note=TIMING["consistency_note"] if slowed else None)
+
+
+def _pipeline(dimension: int):
+    """``(compare, compute_metrics, format_table, write_results)`` for a log of ``dimension``:
+    the one place ``fgslam run`` tells a planar log from a 3-D one."""
+    if dimension == 3:
+        from fgslam.runner3d import compute_metrics_3d, format_table_3d, run_log3d
+
+        return run_log3d, compute_metrics_3d, format_table_3d, _write_results_3d
+    from fgslam.compare import compute_metrics, format_table
+    from fgslam.runner import compare_log
+
+    def metrics_2d(result, *, log_path: str) -> dict:
+        return compute_metrics(result.runs, result.reference, log_path=log_path)
+
+    return compare_log, metrics_2d, format_table, _write_results
+
+
+def _with_side_inputs(args: argparse.Namespace, log):
+    """The planar ``log`` with --noise's model and --calibration's R and Q applied (if given)."""
+    if args.noise is not None:
+        from slamio.noise.apply import apply_noise_model
+        from slamio.noise.model import load_noise_model
+
+        if log.header.source.get("generator") == "slamio.sim":
+            raise FgslamError(f"{args.log} was simulated (fgslam sim): its noise is the simulator's own and its "
+                              "covariances are exact, so a fitted noise model does not apply; --noise is for a log "
+                              "recorded or imported without one")
+        log, dropped = apply_noise_model(log, load_noise_model(args.noise))
+        print(f"applied the noise model {args.noise}" + (f" ({dropped} readings could not be corrected and were dropped)" if dropped else ""))
+    if args.calibration is not None:
+        log = with_trial_calibration(log, args.calibration)
+        print(f"seed 001's R and Q from the trial calibration {args.calibration}")
+    return log
 
 
 def _write_results(args: argparse.Namespace, metrics: dict, result) -> list[str]:
@@ -216,3 +240,27 @@ def finish_run(args: argparse.Namespace, results, log, written: list[str], repla
     for text in notes:
         print(f"note: {text}")
     return 0
+
+
+def _write_results_3d(args: argparse.Namespace, metrics: dict, result) -> list[str]:
+    """metrics.json, the TUM files and the report of a 3-D run into --out; each file whole or
+    not at all. Returns what to say was written."""
+    from fgslam.runner3d import reference_line_3d, table_rows_3d, write_tum3
+
+    out = Path(args.out)
+    write_text_whole(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
+    has_pose = result.reference.mask  # TUM files are stamped: leave the poses without truth out
+    write_tum3(out / "reference.tum", result.stamps_s[has_pose], result.reference.trajectory[has_pose])
+    for run in result.runs:
+        write_tum3(out / f"{run.name}.tum", result.stamps_s, run.final)
+        if run.online is not None and run.online is not run.final:
+            write_tum3(out / f"{run.name}_online.tum", result.stamps_s, run.online)
+    written = ["metrics.json", "*.tum"]
+    if not args.no_report:
+        from fgslam.report import write_report_3d
+
+        header, rows = table_rows_3d(metrics)
+        html = write_report_3d(out, metrics, result.runs, result.reference, title=f"fgslam run {Path(args.log).name}",
+                               table_header=header, table_rows=rows, reference_text=reference_line_3d(metrics))
+        written.insert(1, html.name)
+    return written

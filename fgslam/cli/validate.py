@@ -21,7 +21,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
 
 def cmd_validate(args: argparse.Namespace) -> int:
     from slamio.log import Odometry
-    from slamio.log3d import VelocityOdometry
+    from slamio.log import VelocityOdometry
 
     log = read(args.log)
     odometry = sum(isinstance(r, (Odometry, VelocityOdometry)) for r in log.records)

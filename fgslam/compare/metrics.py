@@ -4,6 +4,70 @@ Also the keys of that dictionary (:data:`TOP_LEVEL_KEYS`, :data:`METRIC_KEYS`), 
 transform each run is measured with (:func:`estimator_alignment`; the report draws with the
 same one), the NEES of the online poses that have truth (:func:`nees_over_truth`) and the
 estimator entries of a dictionary (:func:`estimator_names`).
+
+The shape of :func:`compute_metrics`'s dictionary (a 3-D log's run has the same shape,
+:func:`fgslam.runner3d.compute_metrics_3d`)::
+
+    {"reference": "ground_truth" | "smoothed",  # where the reference *trajectory* is from
+     "log": log_path, "poses": n,
+     "rpe_delta_frames": int,            # Δ of the RPE: the reference's frames per ~1 m
+     "reference_poses_with_truth": int,  # poses scored against ground truth (n when all
+                                         # have it; 0 against the smoothed solution)
+     "landmark_reference": "ground_truth" | "smoothed" | None,  # where the reference
+                                         # landmarks come from (None: there are none)
+     "reference_landmarks": int,         # how many reference landmarks
+     "dimension": 2,                     # of the log (a 3-D log's run: 3, same schema,
+                                         # fgslam.runner3d.compute_metrics_3d)
+     "<estimator name>": {
+         "ate_rmse_m": float,            # final trajectory vs reference
+         "ate_online_rmse_m": float|None,# online trajectory; None for batch
+         "ate_aligned_rmse_m": float,    # final, after the SE(2) fit over poses with truth
+         "ate_online_aligned_rmse_m": float|None,  # online, the same
+         "final_pose_error_m": float,    # position error of the last pose with truth
+         "rpe_trans_rmse_m": float|None, # RPE over rpe_delta_frames, final trajectory
+                                         # (pairs whose both ends have truth with a
+                                         # heading; None when the truth has none)
+         "rpe_heading_rmse_rad": float|None,
+         "nees_mean": float|None,        # mean NEES of the online poses with truth
+                                         # (3-DoF; 3 if consistent; position-only, 2-DoF,
+                                         # where the truth has no heading); None without
+                                         # covariances, against a smoothed reference,
+                                         # or when aligned
+         "nees_inside_95": float|None,   # share of them whose NEES is inside the 95 %
+                                         # band of its dof: χ²(3) [0.216, 9.35],
+                                         # χ²(2) [0.0506, 7.38]
+         "nees_count": int|None,         # how many online poses have a NEES (those with
+                                         # truth and a positive-definite covariance)
+         "nees_dof": int|None,           # their degrees of freedom: 3, or 2 when the
+                                         # truth has no heading (None: none, or mixed)
+         "nis_mean": float|None,         # mean NIS of the observations of landmarks
+                                         # already mapped, against the prediction before
+                                         # their step (2-DoF range-bearing; 2 if
+                                         # consistent; range-only readings 1-DoF, 1);
+                                         # needs no reference
+         "nis_inside_95": float|None,    # share of them inside their χ²(dof) band: χ²(2)
+                                         # [0.0506, 7.38], χ²(1) [0.000982, 5.02]
+         "nis_count": int|None,          # how many observations have a NIS
+         "map_rmse_m": float|None,       # None when no landmark id in common
+         "map_height_rmse_m": float|None,# 3-D maps against true heights, else None
+         "landmarks_estimated": int,
+         "landmarks_found": int,         # reference landmarks it estimated
+         "landmarks_missed": int,        # reference landmarks it never put in its map
+         "association": dict|None,       # when the log has observations without ids (or the
+                                         # estimator created landmarks): observations,
+                                         # correct, wrong, rate, rejected, new (=
+                                         # landmarks_created), duplicate_landmarks
+         "unused_observations": dict|None, # the estimator's own counts of observations it
+                                         # did not use (skipped, rejected, unconfirmed, ...)
+         "aligned": bool,                # SE(2) alignment applied (first poses differ)
+         "time_total_s": float,
+         "time_step_p50_s": float|None,  # median step time; None for batch
+         "time_step_p99_s": float|None,  # 99th percentile step time; None for batch
+         "time_step_max_s": float|None,  # slowest step; None for batch
+         "peak_memory_mb": float|None,   # resident memory the run added at its peak, MB
+                                         # (10⁶ bytes; fgslam.memory); None if unmeasured
+         "steps": int},                  # poses this estimator estimated
+     ...}
 """
 
 from __future__ import annotations
@@ -38,6 +102,7 @@ TOP_LEVEL_KEYS = (
     "reference_poses_with_truth",
     "landmark_reference",
     "reference_landmarks",
+    "dimension",
     "provenance",
 )
 METRIC_KEYS = (
@@ -139,66 +204,7 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
     not scored. The map error is against ``reference.landmarks`` (the log's surveyed
     landmarks whenever it has them, :attr:`Reference.landmark_reference`).
 
-    Shape::
-
-        {"reference": "ground_truth" | "smoothed",  # where the reference *trajectory* is from
-         "log": log_path, "poses": n,
-         "rpe_delta_frames": int,            # Δ of the RPE: the reference's frames per ~1 m
-         "reference_poses_with_truth": int,  # poses scored against ground truth (n when all
-                                             # have it; 0 against the smoothed solution)
-         "landmark_reference": "ground_truth" | "smoothed" | None,  # where the reference
-                                             # landmarks come from (None: there are none)
-         "reference_landmarks": int,         # how many reference landmarks
-         "<estimator name>": {
-             "ate_rmse_m": float,            # final trajectory vs reference
-             "ate_online_rmse_m": float|None,# online trajectory; None for batch
-             "ate_aligned_rmse_m": float,    # final, after the SE(2) fit over poses with truth
-             "ate_online_aligned_rmse_m": float|None,  # online, the same
-             "final_pose_error_m": float,    # position error of the last pose with truth
-             "rpe_trans_rmse_m": float|None, # RPE over rpe_delta_frames, final trajectory
-                                             # (pairs whose both ends have truth with a
-                                             # heading; None when the truth has none)
-             "rpe_heading_rmse_rad": float|None,
-             "nees_mean": float|None,        # mean NEES of the online poses with truth
-                                             # (3-DoF; 3 if consistent; position-only, 2-DoF,
-                                             # where the truth has no heading); None without
-                                             # covariances, against a smoothed reference,
-                                             # or when aligned
-             "nees_inside_95": float|None,   # share of them whose NEES is inside the 95 %
-                                             # band of its dof: χ²(3) [0.216, 9.35],
-                                             # χ²(2) [0.0506, 7.38]
-             "nees_count": int|None,         # how many online poses have a NEES (those with
-                                             # truth and a positive-definite covariance)
-             "nees_dof": int|None,           # their degrees of freedom: 3, or 2 when the
-                                             # truth has no heading (None: none, or mixed)
-             "nis_mean": float|None,         # mean NIS of the observations of landmarks
-                                             # already mapped, against the prediction before
-                                             # their step (2-DoF range-bearing; 2 if
-                                             # consistent; range-only readings 1-DoF, 1);
-                                             # needs no reference
-             "nis_inside_95": float|None,    # share of them inside their χ²(dof) band: χ²(2)
-                                             # [0.0506, 7.38], χ²(1) [0.000982, 5.02]
-             "nis_count": int|None,          # how many observations have a NIS
-             "map_rmse_m": float|None,       # None when no landmark id in common
-             "map_height_rmse_m": float|None,# 3-D maps against true heights, else None
-             "landmarks_estimated": int,
-             "landmarks_found": int,         # reference landmarks it estimated
-             "landmarks_missed": int,        # reference landmarks it never put in its map
-             "association": dict|None,       # when the log has observations without ids (or the
-                                             # estimator created landmarks): observations,
-                                             # correct, wrong, rate, rejected, new (=
-                                             # landmarks_created), duplicate_landmarks
-             "unused_observations": dict|None, # the estimator's own counts of observations it
-                                             # did not use (skipped, rejected, unconfirmed, ...)
-             "aligned": bool,                # SE(2) alignment applied (first poses differ)
-             "time_total_s": float,
-             "time_step_p50_s": float|None,  # median step time; None for batch
-             "time_step_p99_s": float|None,  # 99th percentile step time; None for batch
-             "time_step_max_s": float|None,  # slowest step; None for batch
-             "peak_memory_mb": float|None,   # resident memory the run added at its peak, MB
-                                             # (10⁶ bytes; fgslam.memory); None if unmeasured
-             "steps": int},                  # poses this estimator estimated
-         ...}
+    The dictionary's shape is in the module docstring.
 
     An estimator that estimated fewer poses than the reference (an interrupted run) is
     compared over the poses it has: ``steps`` says how many. Any figure that is not finite
@@ -207,8 +213,7 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
     if reference.kind not in REFERENCE_KINDS:
         raise ComparisonError(f"reference kind {reference.kind!r}; expected one of {REFERENCE_KINDS}")
     ref = _as_poses(reference.trajectory, "reference.trajectory")
-    valid = reference.has_pose
-    delta = rpe_delta_frames(ref, has_pose=valid)
+    delta = rpe_delta_frames(ref, has_pose=reference.has_pose)
     metrics: dict = {
         "reference": reference.kind,
         "log": str(log_path),
@@ -217,80 +222,102 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
         "reference_poses_with_truth": reference.poses_with_truth,
         "landmark_reference": reference.landmark_reference,
         "reference_landmarks": int(len(reference.landmarks)),
+        "dimension": 2,
     }
     for run in runs:
         if run.name in TOP_LEVEL_KEYS or run.name in metrics:
             raise ComparisonError(
                 f"estimator name {run.name!r} clashes with another key of the metrics; rename it"
             )
-        final = _as_poses(run.final, f"{run.name}.final")
-        m = len(final)
-        aligned, rot, trans = estimator_alignment(run, reference)
-        final_a = apply_se2(final, rot, trans) if m else final
-
-        ate_online = None
-        if run.online is not None:
-            online = _as_poses(run.online, f"{run.name}.online")
-            if len(online) > len(ref):
-                raise ComparisonError(
-                    f"estimator {run.name!r}: online trajectory has {len(online)} poses, "
-                    f"reference {len(ref)}"
-                )
-            if len(online):
-                k = len(online)
-                online_a = apply_se2(online, rot, trans)
-                ate_online = _rmse(position_errors_m(online_a, ref[:k])[valid[:k]])
-
-        p50 = p99 = tmax = None
-        if run.step_times_s is not None:
-            times = np.asarray(run.step_times_s, dtype=float).reshape(-1)
-            if len(times):
-                p50, p99 = np.percentile(times, [50.0, 99.0])
-                tmax = float(np.max(times))
-        found = len(set(run.landmarks) & set(reference.landmarks))
-
-        rpe_trans, rpe_heading = relative_pose_errors(final, ref[:m], delta, has_pose=valid[:m])
-        nees_mean = nees_inside = nees_count = nees_dof = None
-        if (run.online_covariances is not None and run.online is not None and not aligned
-                and reference.kind == "ground_truth"):
-            values, dofs = nees_over_truth(run.online, run.online_covariances, ref, valid)
-            nees_mean, nees_inside, nees_count = chi2_summary(values, dofs)
-            finite_dofs = set(dofs[np.isfinite(values)].tolist())
-            nees_dof = finite_dofs.pop() if len(finite_dofs) == 1 else None
-        nis_mean, nis_inside, nis_count = nis_summary(run.nis, run.nis_dofs)
-        metrics[run.name] = {
-            "ate_rmse_m": _json_float(_rmse(position_errors_m(final_a, ref[:m])[valid[:m]])),
-            "ate_online_rmse_m": _json_float(ate_online),
-            "ate_aligned_rmse_m": _json_float(aligned_ate_m(final, ref[:m], valid[:m])),
-            "ate_online_aligned_rmse_m": _json_float(
-                aligned_ate_m(_as_poses(run.online, "online"), ref, valid) if run.online is not None else None
-            ),
-            "final_pose_error_m": _json_float(final_pose_error_m(final_a, ref[:m], has_pose=valid[:m])),
-            "rpe_trans_rmse_m": _json_float(_rmse(rpe_trans)),
-            "rpe_heading_rmse_rad": _json_float(_rmse(rpe_heading)),
-            "nees_mean": _json_float(nees_mean),
-            "nees_inside_95": _json_float(nees_inside),
-            "nees_count": nees_count,
-            "nees_dof": nees_dof,
-            "nis_mean": _json_float(nis_mean),
-            "nis_inside_95": _json_float(nis_inside),
-            "nis_count": nis_count,
-            "map_rmse_m": _json_float(map_rmse_m(run.landmarks, reference.landmarks, rot, trans)),
-            "map_height_rmse_m": _json_float(_height_rmse_m(run.landmark_heights, reference.landmark_heights)),
-            "landmarks_estimated": int(len(run.landmarks)),
-            "landmarks_found": int(found),
-            "landmarks_missed": int(len(reference.landmarks) - found),
-            "association": _association_dict(run.association),
-            "unused_observations": None if run.unused_observations is None else dict(run.unused_observations),
-            "aligned": bool(aligned),
-            "time_total_s": _json_float(run.total_time_s),
-            "time_step_p50_s": _json_float(p50),
-            "time_step_p99_s": _json_float(p99),
-            "time_step_max_s": _json_float(tmax),
-            "peak_memory_mb": None if run.peak_memory_bytes is None else round(run.peak_memory_bytes / 1e6, 3),
-            "steps": int(m),
-        }
+        metrics[run.name] = _run_metrics(run, reference, ref, delta)
     return metrics
+
+
+def _run_metrics(run: EstimatorRun, reference: Reference, ref: np.ndarray, delta: int) -> dict:
+    """One estimator's entry of :func:`compute_metrics` (``ref``: the reference poses)."""
+    valid = reference.has_pose
+    final = _as_poses(run.final, f"{run.name}.final")
+    m = len(final)
+    aligned, rot, trans = estimator_alignment(run, reference)
+    final_a = apply_se2(final, rot, trans) if m else final
+    rpe_trans, rpe_heading = relative_pose_errors(final, ref[:m], delta, has_pose=valid[:m])
+    found = len(set(run.landmarks) & set(reference.landmarks))
+    return {
+        "ate_rmse_m": _json_float(_rmse(position_errors_m(final_a, ref[:m])[valid[:m]])),
+        "ate_online_rmse_m": _json_float(_online_ate_m(run, ref, valid, rot, trans)),
+        "ate_aligned_rmse_m": _json_float(aligned_ate_m(final, ref[:m], valid[:m])),
+        "ate_online_aligned_rmse_m": _json_float(
+            aligned_ate_m(_as_poses(run.online, "online"), ref, valid) if run.online is not None else None
+        ),
+        "final_pose_error_m": _json_float(final_pose_error_m(final_a, ref[:m], has_pose=valid[:m])),
+        "rpe_trans_rmse_m": _json_float(_rmse(rpe_trans)),
+        "rpe_heading_rmse_rad": _json_float(_rmse(rpe_heading)),
+        **_consistency_metrics(run, reference, ref, aligned),
+        "map_rmse_m": _json_float(map_rmse_m(run.landmarks, reference.landmarks, rot, trans)),
+        "map_height_rmse_m": _json_float(_height_rmse_m(run.landmark_heights, reference.landmark_heights)),
+        "landmarks_estimated": int(len(run.landmarks)),
+        "landmarks_found": int(found),
+        "landmarks_missed": int(len(reference.landmarks) - found),
+        "association": _association_dict(run.association),
+        "unused_observations": None if run.unused_observations is None else dict(run.unused_observations),
+        "aligned": bool(aligned),
+        **_time_metrics(run),
+        "steps": int(m),
+    }
+
+
+def _online_ate_m(run: EstimatorRun, ref: np.ndarray, valid: np.ndarray, rot, trans) -> float | None:
+    """ATE of the online trajectory, with the final trajectory's alignment (None for batch)."""
+    if run.online is None:
+        return None
+    online = _as_poses(run.online, f"{run.name}.online")
+    if len(online) > len(ref):
+        raise ComparisonError(
+            f"estimator {run.name!r}: online trajectory has {len(online)} poses, "
+            f"reference {len(ref)}"
+        )
+    if not len(online):
+        return None
+    k = len(online)
+    return _rmse(position_errors_m(apply_se2(online, rot, trans), ref[:k])[valid[:k]])
+
+
+def _consistency_metrics(run: EstimatorRun, reference: Reference, ref: np.ndarray, aligned: bool) -> dict:
+    """NEES of the online poses against ground truth (not when aligned) and NIS, in key order."""
+    nees_mean = nees_inside = nees_count = nees_dof = None
+    if (run.online_covariances is not None and run.online is not None and not aligned
+            and reference.kind == "ground_truth"):
+        values, dofs = nees_over_truth(run.online, run.online_covariances, ref, reference.has_pose)
+        nees_mean, nees_inside, nees_count = chi2_summary(values, dofs)
+        finite_dofs = set(dofs[np.isfinite(values)].tolist())
+        nees_dof = finite_dofs.pop() if len(finite_dofs) == 1 else None
+    nis_mean, nis_inside, nis_count = nis_summary(run.nis, run.nis_dofs)
+    return {
+        "nees_mean": _json_float(nees_mean),
+        "nees_inside_95": _json_float(nees_inside),
+        "nees_count": nees_count,
+        "nees_dof": nees_dof,
+        "nis_mean": _json_float(nis_mean),
+        "nis_inside_95": _json_float(nis_inside),
+        "nis_count": nis_count,
+    }
+
+
+def _time_metrics(run: EstimatorRun) -> dict:
+    """Total time, median/99th-percentile/slowest step (None for batch) and peak memory."""
+    p50 = p99 = tmax = None
+    if run.step_times_s is not None:
+        times = np.asarray(run.step_times_s, dtype=float).reshape(-1)
+        if len(times):
+            p50, p99 = np.percentile(times, [50.0, 99.0])
+            tmax = float(np.max(times))
+    return {
+        "time_total_s": _json_float(run.total_time_s),
+        "time_step_p50_s": _json_float(p50),
+        "time_step_p99_s": _json_float(p99),
+        "time_step_max_s": _json_float(tmax),
+        "peak_memory_mb": None if run.peak_memory_bytes is None else round(run.peak_memory_bytes / 1e6, 3),
+    }
 
 
 def _height_rmse_m(estimated: Mapping[int, float] | None, reference: Mapping[int, float] | None) -> float | None:

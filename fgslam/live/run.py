@@ -120,6 +120,20 @@ def unlabelled_landmarks(front_end) -> list[str]:
     return unlabelled_colours(config.colour)
 
 
+def _default_smoother(start_pose: tuple, front_end, window_poses: int | None):
+    """:func:`run_live`'s smoother when the caller gives none: :class:`fgslam.smoother.Isam2Smoother`
+    with its defaults and a sliding window of ``window_poses`` (none when ``front_end`` reports
+    landmarks without an id: they are paired against every pose)."""
+    from fgslam.smoother import Isam2Smoother
+    from slamio.log import Header
+
+    if unlabelled_landmarks(front_end):  # paired against every pose: no window
+        window_poses = None
+    header = Header(stamp_s=0.0, start_pose=start_pose, start_sigma=(1e-3, 1e-3, 1e-3),  # as the recorder's
+                    robot={"name": "live"}, sensor={"kind": "live"}, noise={"odometry": {}, "observation": {}})
+    return Isam2Smoother(header, window_poses=window_poses)
+
+
 def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front_end=None,
              settings: LiveSettings = LiveSettings(), smoother=None, truth=None, truth_landmarks=(),
              clock: Callable[[], float] = time.monotonic, sensor: dict | None = None,
@@ -147,20 +161,14 @@ def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front
     ``overwrite`` and ``signals`` go to :func:`slamio.create.record.record`: the log replaces
     an existing ``out_path`` only once the robot has answered, and the terminating signals
     stop the robot (the caller installs ``signals``; None: the recording installs its own)."""
-    from fgslam.smoother import Isam2Smoother
     from slamio.create.record import RecorderSettings, record
-    from slamio.log import Header
 
     start_pose = tuple(float(v) for v in start_pose)
     if lockstep is not None and not lockstep.frame_s < settings.frame_timeout_s:
         raise FgslamError(f"lockstep frame budget {lockstep.frame_s} s must be below frame_timeout_s "
                           f"{settings.frame_timeout_s} s")
     if smoother is None:
-        if unlabelled_landmarks(front_end):  # paired against every pose: no window
-            window_poses = None
-        header = Header(stamp_s=0.0, start_pose=start_pose, start_sigma=(1e-3, 1e-3, 1e-3),  # as the recorder's
-                        robot={"name": "live"}, sensor={"kind": "live"}, noise={"odometry": {}, "observation": {}})
-        smoother = Isam2Smoother(header, window_poses=window_poses)
+        smoother = _default_smoother(start_pose, front_end, window_poses)
     tracker = PoseTracker(start_pose)
     camera = None
     if grab_for is not None and front_end is not None:

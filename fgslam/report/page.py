@@ -143,55 +143,11 @@ def _baseline_note(runs: list[EstimatorRun], baseline: str, baselines) -> str:
             f"are in the table). ")
 
 
-def write_report(
-    out_dir: str | os.PathLike[str],
-    metrics: dict,
-    runs: list[EstimatorRun],
-    reference: Reference,
-    stamps_s: np.ndarray,
-    *,
-    truth_landmarks: dict | None = None,
-    title: str = "fgslam: estimator comparison",
-    command: str | Sequence[str] | None = None,
-    provenance_info: dict | None = None,
-    baseline: str = "fade",
-    baselines=BASELINE_ESTIMATORS,
-) -> Path:
-    """Write the figures (see the module docstring; ``nees.png`` only with ground truth,
-    ``nis.png`` only when an estimator predicted its observations) and ``report.html``
-    into ``out_dir``.
-
-    Args:
-        out_dir: directory to write into (created if missing; files are overwritten).
-        metrics: the output of :func:`fgslam.compare.compute_metrics` for these runs.
-        runs, reference: what the metrics were computed from (drawn in the figures).
-        stamps_s: ``(n,)`` time stamp of each reference pose, seconds.
-        truth_landmarks: optional true landmark map to draw as well (useful when the
-            reference is the smoothed solution but a simulator knows the true map).
-        title: page and figure title.
-        command: the command line that made the report, for its provenance (a string, or
-            a list joined with shell quoting); default ``sys.argv``.
-        provenance_info: the provenance to show, as :func:`provenance` returns it; default
-            ``metrics["provenance"]`` when the caller put it there (so the page and
-            ``metrics.json`` say the same), else ``provenance(metrics["log"], <the runs'
-            names>, command=command)``.
-        baseline: what the figures do with a baseline estimator such as dead reckoning:
-            ``"fade"`` (faint, the axes zoomed to the others), ``"drop"`` (not drawn; still
-            in the table) or ``"show"`` (drawn like the others).
-        baselines: the names of the baseline estimators (default: ``dead_reckoning``).
-
-    Returns:
-        The path of ``report.html``.
-    """
-    if baseline not in BASELINE_MODES:
-        raise ValueError(f"baseline must be one of {', '.join(BASELINE_MODES)}, not {baseline!r}")
-    prov = provenance_info if provenance_info is not None else metrics.get("provenance")
-    if not isinstance(prov, dict):
-        prov = provenance(metrics.get("log"), [r.name for r in runs], command=command)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+def _figures(out: Path, runs: list[EstimatorRun], reference: Reference, stamps_s: np.ndarray, *,
+             truth_landmarks: dict | None, title: str, baseline: str, baselines) -> list[_Figure]:
+    """Draw every figure of the report into ``out`` (see :func:`write_report`)."""
     styles = {"baseline": baseline, "baselines": baselines}
-    figures = [
+    return [
         _Figure("fig-trajectories", "Trajectories and maps", TRAJECTORIES_PNG,
                 "every estimator's final trajectory and landmarks over the reference, with 95 % "
                 "covariance ellipses (online poses, final landmarks): the whole map, zoomed to the "
@@ -219,6 +175,9 @@ def write_report(
                 plot_step_times(out / STEP_TIME_PNG, runs, **styles), "No per-step times."),
     ]
 
+
+def _page_html(title: str, metrics: dict, prov: dict, figures: list[_Figure], baseline_note: str) -> str:
+    """``report.html``'s text: the metrics table, provenance and every figure embedded."""
     e = html.escape
     reference_text = reference_description(metrics)
     shown, _, _ = table_rows(metrics)
@@ -273,7 +232,7 @@ solve has no online estimate and no per-step time).</p>
 {figure_rows}
 </tbody>
 </table>
-<p class="note">{e(_baseline_note(runs, baseline, baselines))}Each figure is embedded in this page and also
+<p class="note">{e(baseline_note)}Each figure is embedded in this page and also
 written as a PNG next to it.</p>
 
 {sections}
@@ -283,4 +242,57 @@ written as a PNG next to it.</p>
 </body>
 </html>
 """
+    return page
+
+
+def write_report(
+    out_dir: str | os.PathLike[str],
+    metrics: dict,
+    runs: list[EstimatorRun],
+    reference: Reference,
+    stamps_s: np.ndarray,
+    *,
+    truth_landmarks: dict | None = None,
+    title: str = "fgslam: estimator comparison",
+    command: str | Sequence[str] | None = None,
+    provenance_info: dict | None = None,
+    baseline: str = "fade",
+    baselines=BASELINE_ESTIMATORS,
+) -> Path:
+    """Write the figures (see the module docstring; ``nees.png`` only with ground truth,
+    ``nis.png`` only when an estimator predicted its observations) and ``report.html``
+    into ``out_dir``.
+
+    Args:
+        out_dir: directory to write into (created if missing; files are overwritten).
+        metrics: the output of :func:`fgslam.compare.compute_metrics` for these runs.
+        runs, reference: what the metrics were computed from (drawn in the figures).
+        stamps_s: ``(n,)`` time stamp of each reference pose, seconds.
+        truth_landmarks: optional true landmark map to draw as well (useful when the
+            reference is the smoothed solution but a simulator knows the true map).
+        title: page and figure title.
+        command: the command line that made the report, for its provenance (a string, or
+            a list joined with shell quoting); default ``sys.argv``.
+        provenance_info: the provenance to show, as :func:`provenance` returns it; default
+            ``metrics["provenance"]`` when the caller put it there (so the page and
+            ``metrics.json`` say the same), else ``provenance(metrics["log"], <the runs'
+            names>, command=command)``.
+        baseline: what the figures do with a baseline estimator such as dead reckoning:
+            ``"fade"`` (faint, the axes zoomed to the others), ``"drop"`` (not drawn; still
+            in the table) or ``"show"`` (drawn like the others).
+        baselines: the names of the baseline estimators (default: ``dead_reckoning``).
+
+    Returns:
+        The path of ``report.html``.
+    """
+    if baseline not in BASELINE_MODES:
+        raise ValueError(f"baseline must be one of {', '.join(BASELINE_MODES)}, not {baseline!r}")
+    prov = provenance_info if provenance_info is not None else metrics.get("provenance")
+    if not isinstance(prov, dict):
+        prov = provenance(metrics.get("log"), [r.name for r in runs], command=command)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    figures = _figures(out, runs, reference, stamps_s, truth_landmarks=truth_landmarks, title=title,
+                       baseline=baseline, baselines=baselines)
+    page = _page_html(title, metrics, prov, figures, _baseline_note(runs, baseline, baselines))
     return write_text_whole(out / REPORT_HTML, page)

@@ -69,6 +69,37 @@ def _shade_truth_gaps(ax, times_s, reference: Reference) -> None:
                    label="no ground truth (not scored)" if j == 0 else None)
 
 
+def _position_error_series(runs: list[EstimatorRun], reference: Reference, ref: np.ndarray, t: np.ndarray,
+                           baseline: str, baselines) -> list[tuple]:
+    """The curves of :func:`plot_position_errors`: per estimator its final (and online, when
+    it differs) position errors, as ``(label, colour, style, times, errors, faint)``."""
+    series = []  # (label, colour, style, times, errors, faint)
+    for i, run, faint in _plotted(runs, baselines, baseline):
+        colour, _ = _style(i)
+        final, aligned, rot, trans = _aligned_final(run, reference)
+        m = len(final)
+        err = position_errors_m(final, ref[:m])  # NaN where the reference has no pose
+        finite_err = err[np.isfinite(err)]
+        zero = bool(len(finite_err)) and float(finite_err.max()) < _ZERO_ERROR_M
+        if zero:
+            label = f"{run.name} final (= reference, error < 1 µm)"
+        else:
+            label = f"{run.name} final"
+        online = None if run.online is None else np.asarray(run.online, dtype=float).reshape(-1, 3)
+        same = online is not None and online.shape == final.shape and np.array_equal(
+            apply_se2(online, rot, trans) if len(online) else online, final
+        )
+        if same:  # a filter: online and final estimates are the same poses
+            label = label.replace(" final", " final = online")
+        series.append((_faint(label) if faint else label, colour, "-", t[:m], err, faint))
+        if online is not None and len(online) and not same:
+            k = len(online)
+            err_on = position_errors_m(apply_se2(online, rot, trans), ref[:k])
+            label = f"{run.name} online"
+            series.append((_faint(label) if faint else label, colour, "--", t[:k], err_on, faint))
+    return series
+
+
 def plot_position_errors(
     path: str | os.PathLike[str],
     runs: list[EstimatorRun],
@@ -96,30 +127,7 @@ def plot_position_errors(
         raise ComparisonError(f"plot_position_errors: {len(stamps)} stamps for {len(ref)} reference poses")
     t = stamps - stamps[0] if len(stamps) else stamps
 
-    series = []  # (label, colour, style, times, errors, faint)
-    for i, run, faint in _plotted(runs, baselines, baseline):
-        colour, _ = _style(i)
-        final, aligned, rot, trans = _aligned_final(run, reference)
-        m = len(final)
-        err = position_errors_m(final, ref[:m])  # NaN where the reference has no pose
-        finite_err = err[np.isfinite(err)]
-        zero = bool(len(finite_err)) and float(finite_err.max()) < _ZERO_ERROR_M
-        if zero:
-            label = f"{run.name} final (= reference, error < 1 µm)"
-        else:
-            label = f"{run.name} final"
-        online = None if run.online is None else np.asarray(run.online, dtype=float).reshape(-1, 3)
-        same = online is not None and online.shape == final.shape and np.array_equal(
-            apply_se2(online, rot, trans) if len(online) else online, final
-        )
-        if same:  # a filter: online and final estimates are the same poses
-            label = label.replace(" final", " final = online")
-        series.append((_faint(label) if faint else label, colour, "-", t[:m], err, faint))
-        if online is not None and len(online) and not same:
-            k = len(online)
-            err_on = position_errors_m(apply_se2(online, rot, trans), ref[:k])
-            label = f"{run.name} online"
-            series.append((_faint(label) if faint else label, colour, "--", t[:k], err_on, faint))
+    series = _position_error_series(runs, reference, ref, t, baseline, baselines)
 
     fig = _new_figure()
     ax = fig.add_subplot()

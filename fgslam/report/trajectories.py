@@ -137,6 +137,79 @@ def detail_pose(runs: list[EstimatorRun], reference: Reference, *, baselines=BAS
     return int(np.argmax(worst))
 
 
+def _draw_run(panel, run: EstimatorRun, reference: Reference, style, faint: bool, *, legend: bool,
+              picks_at: int | None) -> np.ndarray:
+    """Draw one estimator on one panel of :func:`trajectory_figure`: its final trajectory,
+    landmarks and 95 % ellipses (faint: the trajectory alone). ``picks_at`` None: pose
+    ellipses spread over the run (the overview); else the one at that pose (the detail).
+    Returns its final trajectory as drawn (aligned when it had to be)."""
+    colour, marker = style
+    final, aligned, rot, trans = _aligned_final(run, reference)
+    suffix = " (aligned SE(2))" if aligned else ""
+    label = f"{run.name}{suffix}"
+    if faint:
+        if len(final):
+            panel.plot(final[:, 0], final[:, 1], color=colour, lw=0.8, alpha=_FAINT_ALPHA,
+                       label=_faint(label) + "; no landmarks or ellipses" if legend else None, zorder=0.5)
+        return final
+    if len(final):
+        panel.plot(final[:, 0], final[:, 1], color=colour, lw=1.3, label=label if legend else None, zorder=2)
+        panel.plot(final[-1, 0], final[-1, 1], marker="s", ms=7, color=colour, ls="none", zorder=4)
+    lm = _landmark_array(run.landmarks)
+    if len(lm):
+        lm = apply_se2(lm, rot, trans)
+        panel.scatter(lm[:, 0], lm[:, 1], marker=marker, s=36, facecolors="none", edgecolors=colour,
+                      lw=1.1, label=f"{run.name} landmarks" if legend else None, zorder=3)
+    if run.online_covariances is not None and run.online is not None and len(run.online):
+        online = apply_se2(np.asarray(run.online, dtype=float).reshape(-1, 3), rot, trans)
+        if picks_at is None:
+            picks = np.unique(np.linspace(0, len(online) - 1, _ELLIPSES_PER_RUN).round().astype(int))
+        else:  # the detail: the pose at its centre
+            picks = np.array([picks_at]) if picks_at < len(online) else np.zeros(0, dtype=int)
+        _draw_ellipses(panel, online[picks, :2], np.asarray(run.online_covariances)[picks], rot, colour,
+                       f"{run.name} 95 % pose ellipse (online)" if legend else None)
+    if run.landmark_covariances:
+        ids = [k for k in sorted(run.landmarks) if k in run.landmark_covariances]
+        centres = apply_se2(np.array([run.landmarks[k] for k in ids], dtype=float).reshape(-1, 2), rot, trans)
+        _draw_ellipses(panel, centres, [run.landmark_covariances[k] for k in ids], rot, colour, None)
+    return final
+
+
+def _draw_detail(ax, detail, plotted, finals: dict, centre: np.ndarray, k_detail: int, span: float,
+                 baselines) -> None:
+    """The detail panel of :func:`trajectory_figure`: pose ``k_detail`` (reference at
+    ``centre``) and each estimate joined to it, zoomed to their errors; its window marked on
+    the overview ``ax`` (``span``: the overview's larger side)."""
+    errors = []
+    for i, run, faint in plotted:
+        final = finals[run.name]
+        if faint or k_detail >= len(final):
+            continue
+        colour, _ = _style(i)
+        e = float(np.hypot(*(final[k_detail, :2] - centre)))
+        errors.append((run.name, e, _is_baseline(run, baselines)))
+        detail.plot([centre[0], final[k_detail, 0]], [centre[1], final[k_detail, 1]], color=colour, lw=0.8,
+                    zorder=4)
+        detail.plot(final[k_detail, 0], final[k_detail, 1], marker="o", ms=6, color=colour, mec="black",
+                    mew=0.5, ls="none", zorder=5)
+    detail.plot(centre[0], centre[1], marker="o", ms=7, color="0.55", mec="black", ls="none", zorder=5)
+    # the window fits the estimators' errors, not a baseline's (drawn there with baseline="show")
+    sizing = [e for _, e, base in errors if not base] or [e for _, e, _ in errors]
+    half = max(_DETAIL_SPAN * max(sizing, default=0.0), _DETAIL_MIN_SHARE * span, _DETAIL_MIN_HALF_M)
+    detail.set_xlim(centre[0] - half, centre[0] + half)
+    detail.set_ylim(centre[1] - half, centre[1] + half)
+    detail.set_aspect("equal", adjustable="box")
+    detail.set_title(f"Detail around pose {k_detail}, where the estimators' error is largest", fontsize=10)
+    detail.text(0.02, 0.02, "position error at pose {}:\n{}".format(
+                    k_detail, "\n".join(f"{name}: {e:.3f} m" for name, e, _ in errors)),
+                transform=detail.transAxes, fontsize=8, va="bottom", ha="left", zorder=6,
+                bbox={"boxstyle": "round", "fc": "white", "ec": "0.7", "alpha": 0.9})
+    ax.add_patch(Rectangle((centre[0] - half, centre[1] - half), 2 * half, 2 * half, fill=False, ec="black",
+                           lw=1.0, ls=":", zorder=6, label="detail window (right)"))
+    detail.plot([], [], marker="o", color="0.55", mec="black", ls="none",
+                label=f"pose {k_detail}: reference (grey) and each estimate, joined")
+
+
 def trajectory_figure(
     runs: list[EstimatorRun],
     reference: Reference,
@@ -177,36 +250,8 @@ def trajectory_figure(
             panel.scatter(truth_lm[:, 0], truth_lm[:, 1], marker="+", s=60, c="0.4", lw=1.2,
                           label="true landmarks" if legend else None, zorder=3)
         for i, run, faint in plotted:
-            colour, marker = _style(i)
-            final, aligned, rot, trans = _aligned_final(run, reference)
-            finals[run.name] = final
-            suffix = " (aligned SE(2))" if aligned else ""
-            label = f"{run.name}{suffix}"
-            if faint:
-                if len(final):
-                    panel.plot(final[:, 0], final[:, 1], color=colour, lw=0.8, alpha=_FAINT_ALPHA,
-                               label=_faint(label) + "; no landmarks or ellipses" if legend else None, zorder=0.5)
-                continue
-            if len(final):
-                panel.plot(final[:, 0], final[:, 1], color=colour, lw=1.3, label=label if legend else None, zorder=2)
-                panel.plot(final[-1, 0], final[-1, 1], marker="s", ms=7, color=colour, ls="none", zorder=4)
-            lm = _landmark_array(run.landmarks)
-            if len(lm):
-                lm = apply_se2(lm, rot, trans)
-                panel.scatter(lm[:, 0], lm[:, 1], marker=marker, s=36, facecolors="none", edgecolors=colour,
-                              lw=1.1, label=f"{run.name} landmarks" if legend else None, zorder=3)
-            if run.online_covariances is not None and run.online is not None and len(run.online):
-                online = apply_se2(np.asarray(run.online, dtype=float).reshape(-1, 3), rot, trans)
-                if panel is ax:
-                    picks = np.unique(np.linspace(0, len(online) - 1, _ELLIPSES_PER_RUN).round().astype(int))
-                else:  # the detail: the pose at its centre
-                    picks = np.array([k_detail]) if k_detail < len(online) else np.zeros(0, dtype=int)
-                _draw_ellipses(panel, online[picks, :2], np.asarray(run.online_covariances)[picks], rot, colour,
-                               f"{run.name} 95 % pose ellipse (online)" if legend else None)
-            if run.landmark_covariances:
-                ids = [k for k in sorted(run.landmarks) if k in run.landmark_covariances]
-                centres = apply_se2(np.array([run.landmarks[k] for k in ids], dtype=float).reshape(-1, 2), rot, trans)
-                _draw_ellipses(panel, centres, [run.landmark_covariances[k] for k in ids], rot, colour, None)
+            finals[run.name] = _draw_run(panel, run, reference, _style(i), faint, legend=legend,
+                                         picks_at=None if panel is ax else k_detail)
 
     valid = np.flatnonzero(reference.has_pose)
     if len(valid):
@@ -227,36 +272,8 @@ def trajectory_figure(
                  + (f" ({', '.join(dropped)} left out)" if dropped else ""), fontsize=10)
 
     if detail is not None:
-        centre = ref[k_detail, :2]
-        errors = []
-        for i, run, faint in plotted:
-            final = finals[run.name]
-            if faint or k_detail >= len(final):
-                continue
-            colour, _ = _style(i)
-            e = float(np.hypot(*(final[k_detail, :2] - centre)))
-            errors.append((run.name, e, _is_baseline(run, baselines)))
-            detail.plot([centre[0], final[k_detail, 0]], [centre[1], final[k_detail, 1]], color=colour, lw=0.8,
-                        zorder=4)
-            detail.plot(final[k_detail, 0], final[k_detail, 1], marker="o", ms=6, color=colour, mec="black",
-                        mew=0.5, ls="none", zorder=5)
-        detail.plot(centre[0], centre[1], marker="o", ms=7, color="0.55", mec="black", ls="none", zorder=5)
-        span = max(xmax - xmin, ymax - ymin)
-        # the window fits the estimators' errors, not a baseline's (drawn there with baseline="show")
-        sizing = [e for _, e, base in errors if not base] or [e for _, e, _ in errors]
-        half = max(_DETAIL_SPAN * max(sizing, default=0.0), _DETAIL_MIN_SHARE * span, _DETAIL_MIN_HALF_M)
-        detail.set_xlim(centre[0] - half, centre[0] + half)
-        detail.set_ylim(centre[1] - half, centre[1] + half)
-        detail.set_aspect("equal", adjustable="box")
-        detail.set_title(f"Detail around pose {k_detail}, where the estimators' error is largest", fontsize=10)
-        detail.text(0.02, 0.02, "position error at pose {}:\n{}".format(
-                        k_detail, "\n".join(f"{name}: {e:.3f} m" for name, e, _ in errors)),
-                    transform=detail.transAxes, fontsize=8, va="bottom", ha="left", zorder=6,
-                    bbox={"boxstyle": "round", "fc": "white", "ec": "0.7", "alpha": 0.9})
-        ax.add_patch(Rectangle((centre[0] - half, centre[1] - half), 2 * half, 2 * half, fill=False, ec="black",
-                               lw=1.0, ls=":", zorder=6, label="detail window (right)"))
-        detail.plot([], [], marker="o", color="0.55", mec="black", ls="none",
-                    label=f"pose {k_detail}: reference (grey) and each estimate, joined")
+        _draw_detail(ax, detail, plotted, finals, ref[k_detail, :2], k_detail,
+                     max(xmax - xmin, ymax - ymin), baselines)
     for panel in panels:
         panel.set_xlabel("x [m]")
         panel.set_ylabel("y [m]")

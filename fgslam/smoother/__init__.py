@@ -3,8 +3,14 @@
 Where things are
 ----------------
 ======================  ==================================================================
-``isam2.py``            :class:`Isam2Smoother`: the step loop, the queries; it composes
+``isam2.py``            :class:`Isam2Smoother`: the step loop and ``finish()``; it composes
                         the modules below (start reading here)
+``updates.py``          giving held steps to iSAM2: when an update is due, the update with
+                        its relinearisation check, recovery, the window's slide (a mixin)
+``queries.py``          the smoother's answers: poses, landmarks, covariances, NIS, the
+                        whole graph and its estimate (a mixin)
+``pairings.py``         the smoother's side of id-less observations: handing them to
+                        ``association.py``, holding the pairings, re-deciding them (a mixin)
 ``settings.py``         :class:`Isam2Settings`: every knob of how the graph is solved,
                         validated, each default with the measurement that chose it
 ``factors.py``          log records → factors and noise models (pure maths: odometry, tag

@@ -9,16 +9,27 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import gtsam
 import numpy as np
 
-from fgslam.smoother.variables import heights_of, landmarks_of, poses_of, yaws_of
+from fgslam.smoother.variables import LandmarkRegistry, heights_of, landmarks_of, poses_of, yaws_of
 from slamio.errors import FgslamError
 
-if TYPE_CHECKING:
-    from fgslam.smoother.isam2 import Isam2Smoother
+
+class WholeGraphSmoother(Protocol):
+    """What :func:`batch_solve` reads of a smoother (:class:`~fgslam.smoother.isam2.Isam2Smoother`;
+    named here, not imported, so this module does not import the smoother that imports it)."""
+
+    num_poses: int
+    _landmarks: LandmarkRegistry
+
+    def graph(self) -> gtsam.NonlinearFactorGraph: ...
+
+    def estimate(self) -> gtsam.Values: ...
+
+    def landmarks(self) -> dict[int, tuple[float, float]]: ...
 
 
 @dataclass(frozen=True, eq=False)
@@ -127,7 +138,7 @@ def gauss_newton_steps(graph: gtsam.NonlinearFactorGraph, start: gtsam.Values, m
     return Polished(values, iterations, error)
 
 
-def batch_solve(smoother: "Isam2Smoother", *, max_iterations: int = 100) -> BatchResult:
+def batch_solve(smoother: WholeGraphSmoother, *, max_iterations: int = 100) -> BatchResult:
     """Levenberg–Marquardt on the smoother's whole graph, started from its current estimate.
 
     This is the "smoothed ground truth" when a run has no real ground truth. It stops when

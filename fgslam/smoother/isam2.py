@@ -23,7 +23,11 @@ Levenberg–Marquardt on the same problem, started from iSAM2's answer (batch LM
 local minimum on real data; started from iSAM2 it converges — docs/datasets.md, Victoria Park).
 
 The smoother itself holds the iSAM2 object, the graph and initial values accepted so far
-(for :meth:`Isam2Smoother.graph` and the batch solve) and the step loop; what it composes
+(for :meth:`Isam2Smoother.graph` and the batch solve), the step loop and ``finish``. Its
+other methods come from three mixins, by responsibility: giving held steps to iSAM2
+(:mod:`~fgslam.smoother.updates`: when, the update itself, recovery, the window's slide),
+answering questions (:mod:`~fgslam.smoother.queries`) and the smoother's side of pairing
+observations without an id (:mod:`~fgslam.smoother.pairings`). What it composes
 lives in its own module: its settings and why each default (:mod:`~fgslam.smoother.settings`),
 factors and noise models (:mod:`~fgslam.smoother.factors`),
 held steps and keyframes (:mod:`~fgslam.smoother.policy`), observations waiting outside
@@ -34,8 +38,6 @@ holds (:mod:`~fgslam.smoother.variables`).
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import H, L, X
@@ -43,36 +45,29 @@ from gtsam.symbol_shorthand import H, L, X
 from ekf.range_only import DelayedInitRule
 from ekf.observation import has_height  # the same rule as the EKF's for a usable height
 from fgslam.smoother.correction import PoseCorrector
-from fgslam.smoother.association import SmootherAssociation, world_joint_marginal
+from fgslam.smoother.association import SmootherAssociation
 from fgslam.smoother.batch import gauss_newton_steps
-from fgslam.smoother.chain import OdometryChain
 from fgslam.smoother.factors import (
     DEFAULT_ROBUST_K,
     FactorBuilder,
-    PendingObservation,
     has_tag_yaw,
     odometry_noise_covariance,
     robust_estimator,
-    update_batch,
 )
-from fgslam.smoother.online import OnlinePose, landmark_covariances
+from fgslam.smoother.online import OnlinePose
+from fgslam.smoother.pairings import IdlessPairings
 from fgslam.smoother.pending import MAX_UNCONFIRMED, PENDING_GATE, PendingObservations, RangeOnlyLandmarks
 from fgslam.smoother.policy import HeldSteps, Keyframes
-from fgslam.smoother.recovery import rebuild
-from fgslam.smoother.relinearisation import held_back
+from fgslam.smoother.queries import EstimateQueries
 from fgslam.smoother.settings import Isam2Settings
+from fgslam.smoother.updates import Isam2Updates
 from fgslam.smoother.variables import LandmarkRegistry
 from fgslam.smoother.window import SlidingWindow
 from slamio.errors import FgslamError
 from slamio.log import Header, Observation, Step
 
 
-#: While observations without an id are associated, check relinearisation on every this
-#: many updates (``relinearize_skip``'s own schedule continues alongside).
-ASSOCIATION_RELINEARIZE_SKIP = 10
-
-
-class Isam2Smoother:
+class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
     """Online landmark SLAM with iSAM2 (implements :class:`slamio.estimator.Estimator`).
 
     Parameters
@@ -277,87 +272,6 @@ class Isam2Smoother:
         for obs in observations:
             self._add_observation(k, seed, obs)
 
-    def _point_landmarks(self) -> list[int]:
-        """The point landmarks iSAM2 holds (tags excluded): what association pairs with."""
-        return [i for i in self._landmarks.ids if i not in self._landmarks.tag_ids]
-
-    def _marginal_at_pose(self, p: int, pose: gtsam.Pose2, ids):
-        """iSAM2's joint marginal of pose ``p`` (at ``pose``) and landmarks ``ids``, in the world
-        frame (:func:`~fgslam.smoother.association.world_joint_marginal`)."""
-        return world_joint_marginal(self._isam, OdometryChain(p), pose, ids)
-
-    def _associate(self, k: int, seed: gtsam.Pose2, observations) -> list[Observation]:
-        """The step's observations with the id-less ones given the id association chose
-        (:mod:`fgslam.smoother.association`); those it did not place are left out. First
-        sightings confirmed now are held too, at their own poses."""
-        points = self._point_landmarks()
-        for s, lid in self._association.retry_rejected(k, self._isam, self._marginal_at_pose, points):
-            self._add_observation(s.pose_index, s.seed, replace(s.observation, landmark_id=lid))
-        unknown = [(i, o) for i, o in enumerate(observations) if o.landmark_id is None and not o.range_only]
-        self._held.uncorrected |= bool(unknown)
-        self._unlabelled |= bool(unknown)
-        if not unknown:
-            return list(observations)
-        if self._window is not None:
-            raise FgslamError(
-                f"Isam2Smoother: step {k} has an observation without a landmark id, and window_poses is set; "
-                "pairing such observations reads every pose of the run, so run them with window_poses=None")
-        since = self._online._caught_up_since_chain()
-        decision = self._association.associate(
-            k, seed, unknown, self._isam, lambda ids: world_joint_marginal(self._isam, since, seed, ids), points)
-        for lid, sightings in decision.confirmed.items():
-            self._landmarks.is_tag(lid, False)
-            for s in sightings:
-                self._add_observation(s.pose_index, s.seed, replace(s.observation, landmark_id=lid))
-        out = []
-        for i, obs in enumerate(observations):
-            if obs.landmark_id is None and i in decision.paired:
-                self._landmarks.is_tag(decision.paired[i], False)
-                out.append(replace(obs, landmark_id=decision.paired[i]))
-            elif obs.landmark_id is not None or obs.range_only:
-                out.append(obs)
-        return out
-
-    def _redecide(self) -> bool:
-        """Re-decide the id-less pairings against the settled map
-        (:meth:`~fgslam.smoother.association.SmootherAssociation.redecide`): each changed
-        pairing's factor is removed from iSAM2 (and from the kept graph) and, when it was
-        re-paired, the factor to its new landmark added, in one update. If GTSAM refuses
-        the update, nothing changes (the iSAM2 it was given is rebuilt as it was)."""
-        changes = self._association.redecide(self._isam, self._marginal_at_pose, self._point_landmarks())
-        if not changes:
-            return False
-        gone = {(X(c.pose_index), L(c.old)) for c in changes if c.old is not None}
-        held = self._isam.getFactorsUnsafe()
-        remove = [i for i in range(held.size()) if held.exists(i) and tuple(held.at(i).keys()) in gone]
-        added = gtsam.NonlinearFactorGraph()
-        for c in changes:
-            if c.new is not None:
-                pose = self._isam.calculateEstimatePose2(X(c.pose_index))
-                added.add(self._factors.observation(c.pose_index, pose, replace(c.observation, landmark_id=c.new),
-                                                    False).factor)
-        graph = gtsam.NonlinearFactorGraph()
-        for i in range(self._graph.size()):
-            f = self._graph.at(i)
-            if f is not None and tuple(f.keys()) not in gone:
-                graph.add(f)
-        graph.push_back(added)
-        before = self._isam.calculateBestEstimate()
-        try:
-            self._isam.update(added, gtsam.Values(), remove)
-            self._isam.update()  # one more relinearisation: the next pass reads a settled map
-        except RuntimeError as exc:  # leave the pairings as they were
-            self.update_failures += 1
-            self.last_failure = str(exc)
-            self._isam = gtsam.ISAM2(self.settings.isam2_params())
-            self._isam_updates = 0
-            self._isam_update(self._graph, before)
-            return False
-        self._graph = graph
-        self._association.apply(changes)
-        self._estimate_cache = None
-        return True
-
     def _add_observation(self, k: int, seed: gtsam.Pose2, obs: Observation) -> None:
         """Hold the factor of one observation made from pose ``k`` (and its height)."""
         if obs.landmark_id is None:
@@ -381,43 +295,6 @@ class Isam2Smoother:
         if obs.landmark_id not in self._landmarks.height_ids:
             self._held.values.insert(H(obs.landmark_id), float(obs.height_m))
             self._landmarks.height_ids.add(obs.landmark_id)
-
-    def _due(self, k: int) -> bool:
-        """Whether the held steps go to iSAM2 now (see ``update_every`` / ``update_on``)."""
-        if k == 0 or self._held.steps >= self.settings.max_held_steps or self._held.urgent:
-            return True
-        if self._held.unlikely and self._held.steps >= self.settings.update_tail_min_steps:
-            return True
-        if (self.settings.update_observations and self._held.uncorrected
-                and self._held.steps >= self.settings.update_observations_min_steps):
-            return True
-        if (self.settings.update_observations and self._held.observations >= self.settings.update_observations
-                and self._held.steps >= self.settings.update_observations_min_steps):
-            return True
-        if self._held.steps < self.settings.update_every:
-            return False
-        return self.settings.update_on == "any" or self._held.observed
-
-    def _flush(self) -> None:
-        """Give every held step to iSAM2 in one update; read back the newest pose."""
-        if self._held.steps == 0:
-            return
-        core, core_values, fresh, ranges = self._held.take()
-        if self._robust is not None:
-            fresh = self._pending.confirm_first_sightings(fresh, self._landmarks.known)
-        entries = self._pending.screen(fresh, self._isam, self._landmarks) + fresh + ranges
-        self._update_with_recovery(core, core_values, entries)
-        self.updates += 1
-        if self.associate:
-            self._association.entered(self._landmarks.known)
-        # the newest pose in iSAM2 is the last keyframe; only the open chain's steps follow it
-        last = self._keyframes.last
-        anchor = self._isam.calculateEstimatePose2(X(last))
-        pose = self._keyframes.latest_pose(anchor)
-        self._online.updated(pose, last, len(self._keyframes.open.links), anchor)
-        self._landmark_xy.clear()
-        if self._corrector is not None:
-            self._corrector.reset((pose.x(), pose.y(), pose.theta()))
 
     def _corrected(self, odo, observations) -> tuple[gtsam.Pose2, tuple]:
         """The online correction (:mod:`fgslam.smoother.correction`): the corrector's pose
@@ -455,17 +332,6 @@ class Isam2Smoother:
                 self._held.urgent = True
         return gtsam.Pose2(*corrector.mean), tuple(used)
 
-    def current_pose(self) -> tuple[float, float, float]:
-        """The online estimate of the latest pose (x_m, y_m, theta_rad).
-
-        iSAM2's estimate when the latest step ran an update; otherwise the last iSAM2
-        estimate composed with the odometry of the steps held since.
-        """
-        pose = self._online.pose
-        if pose is None:
-            raise FgslamError("Isam2Smoother: no step yet")
-        return (pose.x(), pose.y(), pose.theta())
-
     def finish(self) -> None:
         """Flush held steps, then refine: ``final_updates`` plain updates, then up to
         ``final_iterations`` Gauss–Newton steps on the whole graph until the error's
@@ -478,17 +344,7 @@ class Isam2Smoother:
         if self._num_poses == 0:
             return
         self._flush()
-        if self.associate and self._association.unsettled:  # the deferred decisions, against the whole map
-            points = self._point_landmarks()
-            for s, lid in self._association.settle(self._isam, self._marginal_at_pose, points):
-                self._add_observation(s.pose_index, s.seed, replace(s.observation, landmark_id=lid))
-                self._held.steps = max(self._held.steps, 1)
-            self._flush()
-        if self.associate and self.redecide:
-            for _ in range(self.REDECIDE_PASSES):  # each pass settles the map the next one reads
-                if not self._redecide():
-                    break
-        self._association.finish()
+        self._settle_pairings()
         self._estimate_cache = None
         self._landmark_xy.clear()
         self._online.forget_marginal()  # the final updates below change iSAM2
@@ -510,292 +366,3 @@ class Isam2Smoother:
         self._estimate_cache = estimate
         self._finished = True
         self._online.pose = self._keyframes.latest_pose(self._estimate_cache.atPose2(X(self._keyframes.last)))
-
-    def trajectory(self) -> np.ndarray:
-        """(n, 3) array of every pose (x_m, y_m, theta_rad) as estimated now."""
-        return self.trajectory_of(self._estimate())
-
-    def trajectory_of(self, values: gtsam.Values) -> np.ndarray:
-        """(n, 3) array of every pose for the keyframe (or all-pose) estimate ``values``
-        (:meth:`fgslam.smoother.policy.Keyframes.trajectory`: with keyframes the poses between
-        them are rebuilt from the odometry folded into their compound factor)."""
-        return self._keyframes.trajectory(values, self._num_poses)
-
-    def landmarks(self) -> dict[int, tuple[float, float]]:
-        """Landmark id → estimated world (x_m, y_m), for landmarks accepted into iSAM2
-        (a tag's position is its centre)."""
-        return self._landmarks.positions(self._estimate())
-
-    def landmark_yaws(self) -> dict[int, float]:
-        """Tag id → estimated world direction its face points to (rad); tags only (``tags=True``)."""
-        return self._landmarks.yaws(self._estimate())
-
-    def landmark_heights(self) -> dict[int, float]:
-        """Landmark id → estimated height (m), for landmarks observed with a height."""
-        return self._landmarks.heights(self._estimate())
-
-    # ------------------------------------------------------------------ extras
-
-    @property
-    def num_poses(self) -> int:
-        return self._num_poses
-
-    def current_covariance(self, frame: str = "world") -> np.ndarray:
-        """3×3 covariance of :meth:`current_pose`, the online estimate.
-
-        iSAM2's marginal of the newest pose it holds (``isam.marginalCovariance``, which
-        uses the Bayes tree and does not recompute the whole graph's marginals), carried
-        through the odometry of any steps held since (first order: Σ ← Ad(z⁻¹) Σ Ad(z⁻¹)ᵀ + Σ_z
-        per increment z), so asking does not change when iSAM2 updates. GTSAM expresses a
-        Pose2's uncertainty in the robot's own frame (a perturbation ``pose ⊕ δ``). With
-        ``frame="world"`` (the default) it is rotated into world (x, y, theta) coordinates,
-        the same coordinates as the EKF's covariance and as a world-frame pose error, which
-        is what NEES needs; ``frame="body"`` returns GTSAM's own.
-        """
-        if self._num_poses == 0:
-            raise FgslamError("Isam2Smoother: no step yet")
-        if frame not in ("world", "body"):
-            raise FgslamError(f"current_covariance: frame must be 'world' or 'body', got {frame!r}")
-        return self._online.covariance(self._marginals(), frame)
-
-    def landmark_covariances(self) -> dict[int, np.ndarray]:
-        """Landmark id → 2×2 marginal covariance of its (x, y) in the world frame
-        (``isam.marginalCovariance``; for a tag, the position block of its Pose2 marginal
-        rotated from the tag's frame). Flushes held steps."""
-        self._flush()
-        return landmark_covariances(self._marginals(), self._estimate(), self._landmarks.ids, self._landmarks.tag_ids)
-
-    def predicted_nis(self, step: Step) -> list[float | None]:
-        """NIS of each observation of ``step`` against the smoother's prediction, before
-        the step is added (nothing is changed; call it before :meth:`step`).
-
-        The same question the EKF answers (:meth:`ekf.EkfSlam.predicted_nis`): the joint
-        marginal of the newest iSAM2 pose and the observed landmarks
-        (``isam.jointMarginalCovariance``), the pose carried through the odometry held since
-        and this step's (Σ ← A Σ Aᵀ + Σ_z, cross-covariance ← A Σ_pl, A = Ad(z⁻¹)), rotated
-        into world (x, y, θ), then :func:`ekf.models.range_bearing_nis`. None for an
-        observation without an id, of a landmark iSAM2 does not hold yet, or of a tag, and
-        for every observation of the step when iSAM2 cannot form the marginal (an
-        indeterminate system, which real data with gross outliers can produce).
-        """
-        return self._online.predicted_nis(self._isam, step, self._landmarks.tag_ids)
-
-    def graph(self) -> gtsam.NonlinearFactorGraph:
-        """The whole problem: every factor accepted into iSAM2 (pending observations
-        excluded), with a variable for every pose.
-
-        Held steps are given to iSAM2 first, so the graph covers every step taken. With
-        keyframes, each compound odometry factor iSAM2 holds is expanded back into its
-        per-step factors, so this is the same graph as without keyframes."""
-        self._flush()
-        if not self.settings.keyframes:
-            return gtsam.NonlinearFactorGraph(self._graph)
-        return self._keyframes.expanded(self._graph)
-
-    def initial_values(self) -> gtsam.Values:
-        """A copy of the initial guess of every variable of :meth:`graph` (held steps flushed
-        first; with keyframes, poses between keyframes dead-reckoned from the keyframe's)."""
-        self._flush()
-        values = gtsam.Values(self._initial)
-        if self.settings.keyframes:
-            self._keyframes.insert_between(values)
-        return values
-
-    def estimate(self) -> gtsam.Values:
-        """A copy of iSAM2's current estimate of every variable of :meth:`graph` (one full
-        back-substitution, ``calculateBestEstimate``; with keyframes, the poses between them as in :meth:`trajectory`)."""
-        values = gtsam.Values(self._estimate())
-        if self.settings.keyframes:
-            trajectory = self.trajectory_of(values)
-            keyframes = set(self._keyframes.indices)
-            for i in range(self._num_poses):
-                if i not in keyframes:
-                    values.insert(X(i), gtsam.Pose2(*trajectory[i]))
-        return values
-
-    def error(self) -> float:
-        """:meth:`graph`'s error at :meth:`estimate` (χ²/2, like ``graph.error``)."""
-        if self.settings.keyframes:
-            return float(self.graph().error(self.estimate()))
-        return float(self._graph.error(self._estimate()))
-
-    @property
-    def window_slides(self) -> int:
-        """How many times the sliding window (``window_poses``) marginalised the oldest poses."""
-        return 0 if self._window is None else self._window.slides
-
-    @property
-    def pending_observations(self) -> int:
-        """Observations withheld after a failed update, still to be retried."""
-        return len(self._pending.withheld)
-
-    @property
-    def unconfirmed_observations(self) -> int:
-        """Robust mode: first sightings of landmarks still waiting for a second that agrees."""
-        return sum(len(q) for q in self._pending.unconfirmed.values())
-
-    @property
-    def dropped_observations(self) -> int:
-        """Observations withheld after a failed update and then abandoned."""
-        return self._pending.dropped
-
-    @property
-    def rejected_first_sightings(self) -> int:
-        """Robust mode: first sightings no later observation agreed with (dropped)."""
-        return self._pending.rejected_first_sightings
-
-    def step_associations(self) -> list[int | None]:
-        """Per observation of the last step: the landmark id it was used as (the log's id,
-        or one the smoother chose, :mod:`fgslam.smoother.association`), or None (not used
-        yet: rejected, or a first sighting waiting; see :meth:`associations`)."""
-        return self._association.step_keys()
-
-    def associations(self) -> list[int | None]:
-        """Per observation of the whole run, in log order: the id it was finally used as
-        (first sightings confirmed later included), or None (not used)."""
-        return self._association.keys()
-
-    @property
-    def association_counts(self) -> dict[str, int]:
-        """What became of the id-less observations: ``paired`` (to a landmark, new ones
-        included), ``created`` landmarks, ``rejected`` (ambiguous: near a landmark but not
-        jointly compatible, or nearly as likely another's), ``retried`` (paired when asked
-        again), ``repaired`` and ``unpaired`` (pairings moved to another landmark or dropped
-        at the end, :meth:`_redecide`), ``retired`` (landmarks found redundant at the end, whose
-        readings moved to the others but one), ``unconfirmed`` (first sightings nothing agreed with), and
-        ``skipped`` (observations ignored because they had no id, with ``associate=False``
-        or inside a keyframe chain)."""
-        a = self._association
-        counts = {"skipped": self.skipped_unknown_observations}
-        if self.associate:
-            counts.update(paired=a.paired, created=a.created, rejected=a.rejected, retried=a.retried,
-                          repaired=a.repaired, unpaired=a.unpaired, retired=len(a.retired),
-                          unconfirmed=a.unconfirmed,
-                          waiting=sum(len(g) for g in a.waiting))
-        return counts
-
-    # ------------------------------------------------------------------ internals
-
-    def _marginals(self):
-        """Where marginal covariances come from: iSAM2's Bayes tree during the run; after
-        :meth:`finish`, the whole graph linearised at the final estimate (``gtsam.Marginals``,
-        built on the first question), since the final Gauss–Newton steps moved the estimate
-        past iSAM2's linearisation point."""
-        if not self._finished:
-            return self._isam
-        if self._final_marginals is None:
-            self._final_marginals = gtsam.Marginals(self._graph, self._estimate_cache)
-        return self._final_marginals
-
-    def _estimate(self) -> gtsam.Values:
-        self._flush()
-        if self._estimate_cache is None:
-            # the full back-substitution: with the default wildfire threshold (1.0)
-            # calculateEstimate() would leave the deltas deep in the tree stale
-            self._estimate_cache = self._best_estimate()
-        return self._estimate_cache
-
-    def _best_estimate(self) -> gtsam.Values:
-        """iSAM2's full back-substitution (``calculateBestEstimate``), with the poses that
-        left the sliding window at their estimates then."""
-        values = self._isam.calculateBestEstimate()
-        if self._window is not None:
-            values.insert(self._window.frozen)
-        return values
-
-    def _update_with_recovery(self, core, core_values, entries: list[PendingObservation]) -> None:
-        self._estimate_cache = None
-        if self._window is not None:
-            entries = self._entries_in_window(entries)
-        factors, values = update_batch(core, core_values, entries, self._landmarks.known)
-        try:
-            self._isam_update(factors, values)
-        except RuntimeError as exc:
-            self._recover(exc, core, core_values, entries)
-            return
-        self._accept(factors, values)
-        if self._window is not None and self._window.due():
-            self._slide()
-
-    def _entries_in_window(self, entries: list[PendingObservation]) -> list[PendingObservation]:
-        """Of an update's observation entries, those whose pose iSAM2 still holds. The others
-        (first sightings confirmed late, ranges buffered before their landmark was placed)
-        go into the whole graph only — :meth:`finish` solves it — once their landmark is in
-        iSAM2; until then they wait with the withheld observations."""
-        inside = [e for e in entries if self._window.holds(e.pose_index)]
-        late = [e for e in entries if not self._window.holds(e.pose_index)]
-        entering = self._landmarks.known | {e.landmark_id for e in inside}
-        for e in late:
-            if e.landmark_id in entering:
-                self._graph.add(e.factor)
-            else:
-                self._pending.withheld.append(e)
-        return inside
-
-    def _slide(self) -> None:
-        """Marginalise all but the newest ``window_poses`` poses and go on with a fresh
-        iSAM2 holding the rest (:class:`~fgslam.smoother.window.SlidingWindow`)."""
-        estimate = self._isam.calculateBestEstimate()
-        kept = self._window.slide(estimate)
-        fresh = gtsam.ISAM2(self.settings.isam2_params())
-        try:
-            fresh.update(kept.factors, kept.values)
-        except RuntimeError as exc:  # an indeterminate system: go on with every pose, as without a window
-            self.update_failures += 1
-            self.last_failure = str(exc)
-            self._window.stopped = True
-            return
-        self._window.commit(kept, estimate)
-        self._isam, self._isam_updates = fresh, 0
-        self._online.forget_marginal()
-        self._landmark_xy.clear()
-
-    def _isam_update(self, factors: gtsam.NonlinearFactorGraph | None = None,
-                     values: gtsam.Values | None = None) -> None:
-        """One ``ISAM2.update`` (none: no new factors); with observations being associated, a
-        relinearisation check on every :data:`ASSOCIATION_RELINEARIZE_SKIP`-th (GTSAM checks
-        on the n-th update of an ``ISAM2`` when n is a multiple of ``relinearize_skip``);
-        otherwise GTSAM's own check relinearises at most ``relinearize_max_variables``."""
-        self._isam_updates += 1
-        if self._unlabelled and self._isam_updates % ASSOCIATION_RELINEARIZE_SKIP == 0:
-            update_params = gtsam.ISAM2UpdateParams()
-            update_params.force_relinearize = True  # forces the check, not the relinearisation
-            self._isam.update(factors or gtsam.NonlinearFactorGraph(), values or gtsam.Values(), update_params)
-        elif (self.settings.relinearize_max_variables is not None and not self._unlabelled
-              and self._isam_updates % self.settings.relinearize_skip == 0):  # GTSAM's own check, capped
-            update_params = gtsam.ISAM2UpdateParams()
-            held = held_back(self._isam, self.settings.relinearize_threshold, self.settings.relinearize_max_variables)
-            if held.size():
-                update_params.noRelinKeys = held
-            self._isam.update(factors or gtsam.NonlinearFactorGraph(), values or gtsam.Values(), update_params)
-        elif factors is None:
-            self._isam.update()
-        else:
-            self._isam.update(factors, values)
-
-    def _accept(self, factors: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> None:
-        self._graph.push_back(factors)
-        self._initial.insert(values)
-        self._landmarks.enter(values)
-        if self._window is not None:
-            self._window.entered(factors, values)
-
-    def _recover(self, exc: RuntimeError, core, core_values, entries: list[PendingObservation]) -> None:
-        """Replace the broken iSAM2 by a fresh one holding everything but withheld observations
-        (:func:`fgslam.smoother.recovery.rebuild`)."""
-        self.update_failures += 1
-        held, seeds = (self._graph, self._initial) if self._window is None else (self._window.factors, self._window.values)
-        rebuilt = rebuild(exc, self._isam, self.settings.isam2_params(), held, seeds, core, core_values, entries,
-                          self._landmarks.known)
-        self.last_failure = rebuilt.last_failure
-        if rebuilt.isam is None:
-            raise FgslamError(
-                f"Isam2Smoother: the graph is singular even without this step's observations "
-                f"(pose {self._num_poses}); check the odometry covariance and the start sigmas. "
-                f"GTSAM said: {' '.join(self.last_failure.split('Thrown when')[0].split())}"
-            )
-        self._isam = rebuilt.isam
-        self._isam_updates = 0  # counted from the rebuild on (its own updates are not)
-        self._accept(rebuilt.factors, rebuilt.values)
-        self._pending.withhold(rebuilt.withheld)
-

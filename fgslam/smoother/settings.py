@@ -48,7 +48,7 @@ class Isam2Settings:
         Plaza1 (worst 1.023×); every 40th lost 3.5 % on MRCLAM robot 4
         (docs/performance.md). While the smoother associates observations without an id
         (``associate``), the check also runs on every
-        :data:`~fgslam.smoother.isam2.ASSOCIATION_RELINEARIZE_SKIP`-th update, as before: its pairing decisions
+        :data:`~fgslam.smoother.updates.ASSOCIATION_RELINEARIZE_SKIP`-th update, as before: its pairing decisions
         read the map, and every 20th moved MRCLAM Dataset 6 with barcodes withheld to a
         different association (robot 1's ATE 0.589 → 2.85 m, the median ratio to the run with
         barcodes 1.19 → 1.26; with the every-10th check 1.06: the pairings are that

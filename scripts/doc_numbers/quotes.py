@@ -28,7 +28,7 @@ NUMBER = re.compile(r"(?<![\w.])[-\u2212]?(?:\d{1,3}(?: \d{3})+(?!\d|\.\d)|\d+(?
 
 #: How expensive a source is. ``cheap``: seconds (the quick test suite runs it); ``slow``:
 #: up to a few minutes (CI runs it, ``@pytest.mark.slow``); ``long``: longer than CI can
-#: afford (only ``check_doc_numbers.py --long``).
+#: afford (only ``python -m scripts.check_doc_numbers --long``).
 COSTS = ("cheap", "slow", "long")
 
 

@@ -3,7 +3,7 @@ the doc's unit. ``metric_row`` builds the quotes of a line of fgslam's compariso
 
 from __future__ import annotations
 
-from doc_numbers.quotes import Quote, numbers_in, parse_number, row
+from scripts.doc_numbers.quotes import Quote, numbers_in, parse_number, row
 
 
 def metric(estimator: str, key: str, scale: float = 1.0):

@@ -478,53 +478,63 @@ class AprilTagDetector:
         self.settings = dict(quad_decimate=quad_decimate, refine_edges=refine_edges,
                              decode_sharpening=decode_sharpening, quad_sigma=quad_sigma, nthreads=nthreads)
         if backend == "apriltag3":
-            try:
-                detector_class = _pupil_detector_class()
-            except ImportError:
-                raise TagDetectorError(
-                    "AprilTag detection needs the 'pupil-apriltags' package: pip install pupil-apriltags"
-                ) from None
-            try:
-                self._detector = detector_class(
-                    families=family, nthreads=nthreads, quad_decimate=quad_decimate, quad_sigma=quad_sigma,
-                    refine_edges=int(bool(refine_edges)), decode_sharpening=decode_sharpening,
-                )
-            except Exception as exc:  # the binding raises a bare RuntimeError for an unknown family
-                raise TagDetectorError(f"cannot build an AprilTag detector for family {family!r}: {exc}") from None
-            #: whether the quad thresholds asked for are in force (they only save time: with a
-            #: binding laid out otherwise the library's defaults stay, with a warning)
-            self.quad_thresholds_set = (min_white_black_diff, min_cluster_pixels) == (5, 5)
-            if not self.quad_thresholds_set:
-                try:
-                    set_quad_thresholds(self._detector, min_white_black_diff, min_cluster_pixels)
-                    self.quad_thresholds_set = True
-                except TagDetectorError as exc:
-                    warnings.warn(f"{exc}: AprilTag keeps its default quad thresholds (same tags, slower on "
-                                  "textured scenes)", RuntimeWarning, stacklevel=2)
+            self._build_apriltag3(family, nthreads, quad_decimate, quad_sigma, refine_edges, decode_sharpening,
+                                  min_white_black_diff, min_cluster_pixels)
         else:
-            import cv2
+            self._build_aruco(family, aruco_refinement, aruco_window_px, aruco_min_perimeter)
 
-            if family not in ARUCO_DICTIONARIES:
-                raise TagDetectorError(
-                    f"the aruco backend knows families {', '.join(ARUCO_DICTIONARIES)}, not {family!r}"
-                )
-            dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, ARUCO_DICTIONARIES[family]))
-            params = cv2.aruco.DetectorParameters()
-            methods = {"none": cv2.aruco.CORNER_REFINE_NONE, "subpix": cv2.aruco.CORNER_REFINE_SUBPIX,
-                       "contour": cv2.aruco.CORNER_REFINE_CONTOUR, "apriltag": cv2.aruco.CORNER_REFINE_APRILTAG}
-            if aruco_refinement not in methods:
-                raise TagDetectorError(f"aruco_refinement must be one of {', '.join(methods)}")
-            params.cornerRefinementMethod = methods[aruco_refinement]
-            if aruco_window_px is not None:  # one adaptive-threshold window instead of OpenCV's 3, 13, 23 px
-                params.adaptiveThreshWinSizeMin = params.adaptiveThreshWinSizeMax = int(aruco_window_px)
-            params.minMarkerPerimeterRate = float(aruco_min_perimeter)
-            self._detector = cv2.aruco.ArucoDetector(dictionary, params)
-            self._candidates = None
-            if aruco_refinement == "none" and aruco_window_px is not None:
-                # one window and unrefined corners: identify OpenCV's candidates in one array operation
-                # (aruco_codes; with several windows OpenCV tries each tag's candidates in turn)
-                self._codes = family_codes(ARUCO_DICTIONARIES[family])
-                self._candidates = ArucoCandidates(params, self._codes.marker_cells)
+    def _build_apriltag3(self, family, nthreads, quad_decimate, quad_sigma, refine_edges, decode_sharpening,
+                         min_white_black_diff, min_cluster_pixels) -> None:
+        """The pupil-apriltags detector, with the quad thresholds asked for where the binding allows."""
+        try:
+            detector_class = _pupil_detector_class()
+        except ImportError:
+            raise TagDetectorError(
+                "AprilTag detection needs the 'pupil-apriltags' package: pip install pupil-apriltags"
+            ) from None
+        try:
+            self._detector = detector_class(
+                families=family, nthreads=nthreads, quad_decimate=quad_decimate, quad_sigma=quad_sigma,
+                refine_edges=int(bool(refine_edges)), decode_sharpening=decode_sharpening,
+            )
+        except Exception as exc:  # the binding raises a bare RuntimeError for an unknown family
+            raise TagDetectorError(f"cannot build an AprilTag detector for family {family!r}: {exc}") from None
+        #: whether the quad thresholds asked for are in force (they only save time: with a
+        #: binding laid out otherwise the library's defaults stay, with a warning)
+        self.quad_thresholds_set = (min_white_black_diff, min_cluster_pixels) == (5, 5)
+        if not self.quad_thresholds_set:
+            try:
+                set_quad_thresholds(self._detector, min_white_black_diff, min_cluster_pixels)
+                self.quad_thresholds_set = True
+            except TagDetectorError as exc:
+                warnings.warn(f"{exc}: AprilTag keeps its default quad thresholds (same tags, slower on "
+                              "textured scenes)", RuntimeWarning, stacklevel=3)
+
+    def _build_aruco(self, family, aruco_refinement, aruco_window_px, aruco_min_perimeter) -> None:
+        """OpenCV's ArUco detector for ``family``, and the one-array candidate reader where it applies."""
+        import cv2
+
+        if family not in ARUCO_DICTIONARIES:
+            raise TagDetectorError(
+                f"the aruco backend knows families {', '.join(ARUCO_DICTIONARIES)}, not {family!r}"
+            )
+        dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, ARUCO_DICTIONARIES[family]))
+        params = cv2.aruco.DetectorParameters()
+        methods = {"none": cv2.aruco.CORNER_REFINE_NONE, "subpix": cv2.aruco.CORNER_REFINE_SUBPIX,
+                   "contour": cv2.aruco.CORNER_REFINE_CONTOUR, "apriltag": cv2.aruco.CORNER_REFINE_APRILTAG}
+        if aruco_refinement not in methods:
+            raise TagDetectorError(f"aruco_refinement must be one of {', '.join(methods)}")
+        params.cornerRefinementMethod = methods[aruco_refinement]
+        if aruco_window_px is not None:  # one adaptive-threshold window instead of OpenCV's 3, 13, 23 px
+            params.adaptiveThreshWinSizeMin = params.adaptiveThreshWinSizeMax = int(aruco_window_px)
+        params.minMarkerPerimeterRate = float(aruco_min_perimeter)
+        self._detector = cv2.aruco.ArucoDetector(dictionary, params)
+        self._candidates = None
+        if aruco_refinement == "none" and aruco_window_px is not None:
+            # one window and unrefined corners: identify OpenCV's candidates in one array operation
+            # (aruco_codes; with several windows OpenCV tries each tag's candidates in turn)
+            self._codes = family_codes(ARUCO_DICTIONARIES[family])
+            self._candidates = ArucoCandidates(params, self._codes.marker_cells)
 
     def detect(self, grey: np.ndarray) -> list[TagDetection]:
         """Tags in a 2-D uint8 image, sorted by id (OpenCV's calls on ``nthreads`` threads too)."""

@@ -29,15 +29,17 @@ Pipeline for one landmark colour (:class:`ColourSpec`)
    read, so a depth image misregistered against the colour image by up to that many pixels
    (the Kinect's depth-to-colour registration is a few pixels off at edges) reads the
    landmark, not the wall behind it. Depth is registered depth in metres (NaN = missing; see
-   :func:`depth_from_mm`, :func:`depth_from_kinect_raw` for the Kinect's encodings).
+   :func:`~slamio.camera.kinect.depth_from_mm`, :func:`~slamio.camera.kinect.depth_from_kinect_raw`
+   for the Kinect's encodings).
 5. **Bearing** (exact): the blob's left and right silhouette edges (pixel boundaries
    u_left − ½ and u_right + ½, at the blob's middle row) are back-projected through the
    intrinsics and distortion; for a cylinder each ray lies in a vertical plane tangent to it,
    so the axis is at the mean of the two azimuths seen from the camera — exact for any camera
    tilt and any bearing. ``bearing_method="linear"`` is seed 000's map instead: the angle is
    a linear function of the blob's centre column, (cx − u)·HFOV/width, with the Kinect's
-   nominal 57° HFOV; :func:`linear_bearing_error_rad` gives its error against the pinhole
-   with fx = 525: up to 3.2° about 250 px from the centre (2.9° at the image edge).
+   nominal 57° HFOV; :func:`~slamio.camera.kinect.linear_bearing_error_rad` gives its error
+   against the pinhole with fx = 525: up to 3.2° about 250 px from the centre (2.9° at the
+   image edge).
 6. **Range**: the valid depth pixels of the eroded body's middle third of columns are
    back-projected into the robot frame; the median of their horizontal distances from the
    camera is the face distance f; plus the radius for a cylinder, it is the distance of the
@@ -55,7 +57,7 @@ Pipeline for one landmark colour (:class:`ColourSpec`)
    (:func:`_surface_rows`). When something of its colour continues an end so that neither
    colour nor depth can place it well enough there is no height (``height_ambiguous``,
    :func:`_ambiguous_end`). ``height_method="gheight"`` is seed 002's
-   ``gHeight(d1, d2, pd)`` instead (:func:`gheight_seed002`), with d1, d2 read at the top
+   ``gHeight(d1, d2, pd)`` instead (:func:`~slamio.camera.kinect.gheight_seed002`), with d1, d2 read at the top
    and bottom rows as the seed does.
 
 The landmarks and the check tolerances are read from a file the user edits
@@ -86,16 +88,13 @@ from slamio.camera.colour_checks import (
     width_from_silhouette_m,
     z_at_horizontal_distance,
 )
+from slamio.camera.kinect import (
+    KINECT_HFOV_RAD,
+    depth_from_mm,  # noqa: F401  (scripts/bench_colour_real.py imports it from here)
+    gheight_seed002,
+    linear_bearing_rad,
+)
 from slamio.camera.model import CameraModel, transform_points
-
-# Kinect v1 raw 11-bit disparity → metres (N. Burrus's fit); 2047 = no reading.
-KINECT_RAW_MISSING = 2047
-_KINECT_A = -0.0030711016
-_KINECT_B = 3.3309495161
-
-#: Seed 000/002's nominal Kinect fields of view.
-KINECT_HFOV_RAD = math.radians(57.0)
-GHEIGHT_VFOV_DEG = 47.0  # seed 002's gHeight uses 47° over 480 rows
 
 #: Why a candidate blob is not a landmark (the checks of step 3, in order).
 BLOB_REJECTIONS = {
@@ -214,70 +213,6 @@ class ColourOptions:
     edge_rows: int = 3  # rows whose depth seed 002's gHeight reads at the top and bottom edge
     open_px: int = 3
     close_px: int = 5
-
-
-# --------------------------------------------------------------------------- depth encodings
-
-
-def depth_from_mm(depth_mm: np.ndarray) -> np.ndarray:
-    """Registered depth in millimetres (OpenNI2, libfreenect DEPTH_REGISTERED; 0 = missing) → metres."""
-    d = np.asarray(depth_mm).astype(np.float32) / 1000.0
-    d[np.asarray(depth_mm) == 0] = np.nan
-    return d
-
-
-def depth_from_scaled(depth_png: np.ndarray, scale_per_m: float = 5000.0) -> np.ndarray:
-    """16-bit depth PNG with ``scale_per_m`` units per metre (TUM RGB-D: 5000; 0 = missing) → metres."""
-    d = np.asarray(depth_png).astype(np.float32) / float(scale_per_m)
-    d[np.asarray(depth_png) == 0] = np.nan
-    return d
-
-
-def depth_from_kinect_raw(raw: np.ndarray) -> np.ndarray:
-    """Kinect v1 raw 11-bit disparity (2047 = missing) → metres (Burrus's fit)."""
-    r = np.asarray(raw).astype(np.float64)
-    with np.errstate(divide="ignore"):
-        d = 1.0 / (_KINECT_A * r + _KINECT_B)
-    d[(np.asarray(raw) >= KINECT_RAW_MISSING) | ~(d > 0)] = np.nan
-    return d.astype(np.float32)
-
-
-# --------------------------------------------------------------------------- pure maths
-
-
-def linear_bearing_rad(u_px: float, width_px: int, hfov_rad: float = KINECT_HFOV_RAD) -> float:
-    """Seed 000's bearing: linear in the column, 0 at the image centre, +hfov/2 at the left edge."""
-    cx = 0.5 * (width_px - 1)
-    return (cx - u_px) * hfov_rad / width_px
-
-
-def exact_bearing_rad(u_px: float, camera: CameraModel) -> float:
-    """Bearing of a column through the pinhole (camera looking along robot x, no distortion)."""
-    return math.atan2(camera.cx - u_px, camera.fx)
-
-
-def linear_bearing_error_rad(u_px: float, camera: CameraModel, hfov_rad: float = KINECT_HFOV_RAD) -> float:
-    """Seed 000's linear map minus the pinhole bearing of the same column."""
-    return linear_bearing_rad(u_px, camera.width_px, hfov_rad) - exact_bearing_rad(u_px, camera)
-
-
-def gheight_seed002(d1: float, d2: float, pd_px: float, vfov_deg: float = GHEIGHT_VFOV_DEG,
-                    rows: int = 480) -> float:
-    """Seed 002's ``gHeight(d1, d2, pd)``, as written (any length unit in, same unit out).
-
-    ``theta = pd·47/480`` degrees; ``db1 = ds·cos θ``; ``db2 = db − db1``;
-    ``dp = sqrt(ds² − db1²)``; ``h = sqrt(db2² + dp²)`` with ds, db the smaller and larger
-    depth. Algebraically this is the law of cosines, h² = ds² + db² − 2·ds·db·cos θ: the
-    distance between the two points — exact if d1 and d2 were distances *along the rays*
-    and θ the true angle between them. The Kinect gives depth along the optical axis and
-    the angle is not linear in the row, which is where its error comes from.
-    """
-    ds, db = min(d1, d2), max(d1, d2)
-    theta = math.radians(pd_px * vfov_deg / rows)
-    db1 = ds * math.cos(theta)
-    db2 = db - db1
-    dp = math.sqrt(max(ds * ds - db1 * db1, 0.0))
-    return math.sqrt(db2 * db2 + dp * dp)
 
 
 # --------------------------------------------------------------------------- segmentation

@@ -16,7 +16,7 @@ The file
 ========
 
 The ROS ``camera_info`` YAML that ``camera_calibration`` and
-``scripts/calibrate_camera.py`` write, plus one optional key for the mount::
+``fgslam calibrate-camera`` write, plus one optional key for the mount::
 
     image_width: 640
     image_height: 480
@@ -366,7 +366,7 @@ def load_camera(path: str | os.PathLike[str]) -> CameraModel:
     """Read a ROS camera_info YAML (plus the optional mount) into a :class:`CameraModel`."""
     path = os.fspath(path)
     text = read_text(path, "camera file", "a camera file is a UTF-8 ROS camera_info YAML (write one with "
-                     "scripts/calibrate_camera.py; see docs/camera.md)", CameraConfigError)
+                     "fgslam calibrate-camera; see docs/camera.md)", CameraConfigError)
     doc = parse_yaml(path, text, error=CameraConfigError, fix="write a ROS camera_info file")
     return camera_from_dict(doc.data, path, doc)
 

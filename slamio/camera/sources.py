@@ -33,7 +33,7 @@ from typing import Iterator
 
 import numpy as np
 
-from slamio.camera.colour import depth_from_mm, depth_from_scaled
+from slamio.camera.kinect import depth_from_mm, depth_from_scaled
 from slamio.errors import FgslamError
 from slamio.log.fields import STAMP_S
 from slamio.safe_input import check_regular

@@ -13,6 +13,9 @@ Modules, from the wire up:
 * :mod:`slamio.create.sim`       — a simulated Create on a pseudo-terminal, with ground truth
   and fault injection;
 * :mod:`slamio.create.record`    — the recorder behind ``fgslam record``;
+  :mod:`slamio.create.controllers` (scripted paths, teleop), :mod:`slamio.create.readers`
+  (stream and poll readers) and :mod:`slamio.create.record_settings` (settings, header,
+  result) are its parts;
 * :mod:`slamio.create.calibrate` — noise covariances from measured trials
   (``fgslam calibrate``).
 

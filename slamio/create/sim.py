@@ -74,114 +74,46 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import fcntl
 import math
 import os
 import select
 import tempfile
-import termios
 import threading
 import time
-import tty
 from typing import Iterator, Sequence
 
 import numpy as np
 
 from slamio.create import protocol
-from slamio.create.odometry import CREATE2_MM_PER_COUNT, WHEEL_BASE_M, OdometryNoise, default_noise
+from slamio.create.odometry import CREATE2_MM_PER_COUNT, WHEEL_BASE_M, OdometryNoise
 from slamio.create.protocol import Opcode, OiMode
+from slamio.create.pty_port import close_pty, open_pty, unread_bytes
+from slamio.create.sim_model import (
+    bump_bits,
+    command_size,
+    damage_bytes,
+    measured_wheel_travel_m,
+    ramp_wheels,
+    sign,
+    truncate,
+    wheel_odometry_noise,
+    wheel_speeds_from_drive,
+    without_sideways,
+)
 from slamio.errors import FgslamError
 from slamio.geometry import arc_increment, compose_pose
 
-__all__ = ["SimulatedCreate", "STEP_S", "ROBOT_RADIUS_M", "ARENA_M", "DEFAULT_START_POSE"]
+__all__ = [
+    "SimulatedCreate", "STEP_S", "ROBOT_RADIUS_M", "ARENA_M", "DEFAULT_START_POSE",
+    # defined in slamio.create.sim_model; fgslam imports them from here
+    "wheel_odometry_noise", "without_sideways",
+]
 
 STEP_S = 0.015  # the OI updates its sensors and streams every 15 ms
 ROBOT_RADIUS_M = 0.17  # the Create is a disc 339 mm across
 ARENA_M = (3.048, 3.048)  # seed 004's 10 ft × 10 ft arena
 DEFAULT_START_POSE = (0.75, 0.75, 0.0)
 
-# Bytes that follow each opcode (148 and 149: a count, then that many ids).
-_ARG_BYTES = {
-    Opcode.START: 0, Opcode.BAUD: 1, Opcode.SAFE: 0, Opcode.FULL: 0, Opcode.DRIVE: 4,
-    Opcode.DRIVE_DIRECT: 4, Opcode.SENSORS: 1, Opcode.PAUSE_RESUME_STREAM: 1, Opcode.STOP: 0,
-}
-
-
-def _sign(x: float) -> int:
-    return (x > 0) - (x < 0)
-
-
-def _truncate(value: float) -> int:
-    """Toward zero, clamped to int16 (what the robot reports for 19/20)."""
-    return max(-32768, min(32767, int(value)))
-
-
-def wheel_speeds_from_drive(velocity_mm_s: int, radius_mm: int, wheel_base_mm: float) -> tuple[float, float]:
-    """(left, right) wheel speeds in mm/s for a Drive (137) command."""
-    v = max(-500, min(500, velocity_mm_s))
-    if radius_mm in (32767, 32768, -32768):
-        return float(v), float(v)
-    if radius_mm == 1:  # turn in place counter-clockwise
-        return float(-v), float(v)
-    if radius_mm == -1:
-        return float(v), float(-v)
-    r = max(-2000, min(2000, radius_mm))
-    if r == 0:
-        return float(v), float(v)
-    half = wheel_base_mm / 2.0
-    return v * (r - half) / r, v * (r + half) / r
-
-
-def wheel_odometry_noise(model: str) -> OdometryNoise:
-    """The nominal odometry noise (:func:`slamio.create.odometry.default_noise`) without its
-    sideways terms, which wheels cannot produce: what the simulated Create's encoders do,
-    and so what a recording from it states."""
-    return without_sideways(default_noise(model))
-
-
-def without_sideways(noise: OdometryNoise) -> OdometryNoise:
-    """``noise`` with the rows and columns of y (sideways) zeroed in F and R (the floor,
-    the quantisation, is kept)."""
-
-    def drop_y(m) -> np.ndarray:
-        a = np.array(m, float)
-        a[1, :] = 0.0
-        a[:, 1] = 0.0
-        return a
-
-    return OdometryNoise(drop_y(noise.forward_per_m), drop_y(noise.rotate_per_rad), noise.floor,
-                         source=f"{noise.source}; no sideways slip (wheel encoders)")
-
-
-def _matrix_sqrt_2x2(cov: np.ndarray) -> np.ndarray:
-    """A square root S (S·Sᵀ = cov) of a 2×2 covariance that may be singular."""
-    try:
-        return np.linalg.cholesky(cov)
-    except np.linalg.LinAlgError:
-        w, v = np.linalg.eigh(cov)
-        return v * np.sqrt(np.clip(w, 0.0, None))
-
-
-def measured_wheel_travel_m(travel_m: Sequence[float], wheel_base_m: float, noise: OdometryNoise,
-                            rng: np.random.Generator) -> list[float]:
-    """What the (left, right) encoders measure of the wheels' true (left, right) travel in
-    one step: unsigned distances (the counting direction is the commanded one).
-
-    The step's distance Δs and turn Δθ get an error drawn with covariance
-    ``|Δs|·F + |Δθ|·R`` over (distance, heading) — the x and θ rows of ``noise``'s F and R —
-    and the wheels' travel is made back from the erred (Δs, Δθ).
-    """
-    left, right = float(travel_m[0]), float(travel_m[1])
-    ds, dtheta = 0.5 * (left + right), (right - left) / wheel_base_m
-    index = np.ix_((0, 2), (0, 2))
-    cov = abs(ds) * np.array(noise.forward_per_m)[index] + abs(dtheta) * np.array(noise.rotate_per_rad)[index]
-    if cov.any():
-        e_s, e_theta = _matrix_sqrt_2x2(cov) @ rng.standard_normal(2)
-        ds, dtheta = ds + e_s, dtheta + e_theta
-    half = 0.5 * wheel_base_m * dtheta
-    measured = (ds - half, ds + half)
-    # Each wheel counts its own travel's size; an error cannot flip a wheel's direction.
-    return [abs(m) if (m >= 0) == (t >= 0) or t == 0 else 0.0 for m, t in zip(measured, (left, right))]
 
 
 class SimulatedCreate:
@@ -296,26 +228,11 @@ class SimulatedCreate:
         self.close()
 
     def _plug(self) -> None:
-        master, slave = os.openpty()
-        tty.setraw(slave)  # no echo, no line editing: bytes pass unchanged
-        os.set_blocking(master, False)
-        link = self.port + ".new"
-        if os.path.lexists(link):
-            os.unlink(link)
-        os.symlink(os.ttyname(slave), link)
-        os.replace(link, self.port)
-        self._master, self._slave = master, slave
+        self._master, self._slave = open_pty(self.port)
 
     def _unplug_fds(self) -> None:
-        for fd in (self._master, self._slave):
-            if fd is not None:
-                try:
-                    os.close(fd)
-                except OSError:
-                    pass
+        close_pty(self._master, self._slave, self.port)
         self._master = self._slave = None
-        if self.port is not None and os.path.lexists(self.port):
-            os.unlink(self.port)
 
     def unplug(self) -> None:
         """Pull the cable: the host's port fails; the robot keeps its last command."""
@@ -487,10 +404,7 @@ class SimulatedCreate:
         with self._lock:
             if self._slave is None:
                 return 0
-            try:
-                return int.from_bytes(fcntl.ioctl(self._slave, termios.FIONREAD, b"\0\0\0\0"), "little")
-            except OSError:
-                return 0
+            return unread_bytes(self._slave)
 
     def _run(self) -> None:
         wall_step = STEP_S / self.time_scale
@@ -555,18 +469,9 @@ class SimulatedCreate:
         if self._master is None or self._frozen:
             return
         if self.drop_fraction or self.corrupt_fraction:
-            u = self._fault_rng.random((len(data), 2))
-            masks = self._fault_rng.integers(1, 256, len(data))
-            out = bytearray()
-            for byte, (u_drop, u_corrupt), mask in zip(data, u, masks):
-                if u_drop < self.drop_fraction:
-                    self.bytes_dropped += 1
-                    continue
-                if u_corrupt < self.corrupt_fraction:
-                    byte ^= int(mask)
-                    self.bytes_corrupted += 1
-                out.append(byte)
-            data = bytes(out)
+            data, dropped, corrupted = damage_bytes(data, self._fault_rng, self.drop_fraction, self.corrupt_fraction)
+            self.bytes_dropped += dropped
+            self.bytes_corrupted += corrupted
         try:
             _, writable, _ = select.select([], [self._master], [], 0.05)
             written = os.write(self._master, data) if writable else 0
@@ -579,16 +484,10 @@ class SimulatedCreate:
     def _obey(self) -> None:
         buf = self._inbox
         while buf:
-            opcode = buf[0]
-            if opcode in (Opcode.STREAM, Opcode.QUERY_LIST):
-                if len(buf) < 2 or len(buf) < 2 + buf[1]:
-                    return
-                size = 2 + buf[1]
-            elif opcode in _ARG_BYTES:
-                size = 1 + _ARG_BYTES[opcode]
-                if len(buf) < size:
-                    return
-            else:
+            size = command_size(buf)
+            if size is None:
+                return
+            if size == 0:
                 self.unknown_opcodes += 1
                 del buf[:1]
                 continue
@@ -640,17 +539,17 @@ class SimulatedCreate:
         self._command_mm_s = [float(left_mm_s), float(right_mm_s)]
         for i, v in enumerate(self._command_mm_s):
             if v:
-                self._direction[i] = _sign(v)
+                self._direction[i] = sign(v)
 
     def _packet_value(self, packet_id: int) -> int:
         if packet_id == 7:
             drops = 0x0C if self._lifted else 0
             return self._bumps | drops
         if packet_id == 19:
-            value, self._distance_mm = _truncate(self._distance_mm), 0.0
+            value, self._distance_mm = truncate(self._distance_mm), 0.0
             return value
         if packet_id == 20:
-            value, self._angle_deg = _truncate(self._angle_deg), 0.0
+            value, self._angle_deg = truncate(self._angle_deg), 0.0
             return value
         if packet_id == 35:
             return int(self.mode)
@@ -675,18 +574,11 @@ class SimulatedCreate:
             self._command_mm_s = [0.0, 0.0]
         if self.mode not in (OiMode.SAFE, OiMode.FULL):
             self._command_mm_s = [0.0, 0.0]
-        travel = []
-        for i in range(2):
-            target = self._command_mm_s[i] / 1000.0
-            v0 = self._wheel_m_s[i]
-            limit = self.accel_m_s2 * dt
-            v1 = v0 + max(-limit, min(limit, target - v0))
-            self._wheel_m_s[i] = v1
-            travel.append(0.5 * (v0 + v1) * dt)
+        self._wheel_m_s, travel = ramp_wheels(self._wheel_m_s, self._command_mm_s, self.accel_m_s2, dt)
         measured = measured_wheel_travel_m(travel, self.wheel_base_m, self.odometry_noise, self._rng)
         for i in range(2):
             self._ticks[i] += self._direction[i] * measured[i] * 1000.0 / CREATE2_MM_PER_COUNT
-        signed = [_sign(travel[i]) * measured[i] for i in range(2)]
+        signed = [sign(travel[i]) * measured[i] for i in range(2)]
         self._distance_mm += 500.0 * (signed[0] + signed[1])
         self._encoder_distance_m += 0.5 * (signed[0] + signed[1])
         self._encoder_turn_rad += (signed[1] - signed[0]) / self.wheel_base_m
@@ -705,25 +597,4 @@ class SimulatedCreate:
         self._turn_rad += angle_rad
         self._pose = (x, y, theta)
         self._path_m += math.hypot(x - x0, y - y0)
-        self._bumps = self._bump_bits()
-
-    def _bump_bits(self) -> int:
-        if self.arena_m is None:
-            return 0
-        x, y, theta = self._pose
-        r, eps = self.robot_radius_m, 1e-3
-        bits = 0
-        # (touching?, direction from the centre to that wall in the world frame)
-        walls = ((x <= r + eps, math.pi), (x >= self.arena_m[0] - r - eps, 0.0),
-                 (y <= r + eps, -math.pi / 2), (y >= self.arena_m[1] - r - eps, math.pi / 2))
-        for touching, direction in walls:
-            if not touching:
-                continue
-            bearing = (direction - theta + math.pi) % (2 * math.pi) - math.pi
-            if abs(bearing) <= math.radians(20):
-                bits |= 0x03
-            elif 0 < bearing <= math.pi / 2:
-                bits |= 0x02  # left bumper
-            elif -math.pi / 2 <= bearing < 0:
-                bits |= 0x01  # right bumper
-        return bits
+        self._bumps = bump_bits(self._pose, self.arena_m, self.robot_radius_m)

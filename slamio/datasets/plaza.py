@@ -27,7 +27,7 @@ The conversion
   whose GT heading equals the DR heading): per piece of duration Δt,
   ``var(Δs) = (0.05·Δs)² + 0.02² m²/s·Δt``, ``var(Δθ) = (0.05·Δθ)² + 0.005² rad²/s·Δt``,
   mapped through the arc Jacobian, plus ``0.02² m²/s·Δt`` on x and y (sideways slip)
-  (:class:`OdometryNoise`). The time-proportional parts keep a standing robot's covariance
+  (:class:`PlazaOdometryNoise`). The time-proportional parts keep a standing robot's covariance
   positive definite and make the total independent of how an interval is split.
 * **Ranges** (sorted by time: the shipped TD files have blocks out of order): range-only observations (no bearing) of landmark ``receiver_id``, with
   ``range_m − range_bias_m`` and ``sigma_range_m`` (defaults 0 and 1.5 m), or, with
@@ -64,16 +64,18 @@ from pathlib import Path
 
 import numpy as np
 
-from slamio.datasets.mrclam import interpolate_pose
+from slamio.datasets.mrclam_motion import interpolate_pose
 from slamio.datasets.victoria_park import DatasetFormatError
 from slamio.errors import FgslamError, InputFileError
 from slamio.geometry import arc_increment, arc_increment_jacobian, wrap_angle
 from slamio.log import Header, Observation, Odometry, Record, TruthLandmark, TruthPose
 from slamio.log.read import MAX_LOG_BYTES, check_records
-from slamio.noise_model import NoiseModel, NoiseModelError, correct_range
+from slamio.noise.apply import correct_range
+from slamio.noise.errors import NoiseModelError
+from slamio.noise.model import NoiseModel
 from slamio.safe_input import check_regular, shown
 
-__all__ = ["import_plaza", "plaza_files", "PLAZA_RUNS", "odometry_covariance", "OdometryNoise", "gps_start_heading_rad"]
+__all__ = ["import_plaza", "plaza_files", "PLAZA_RUNS", "odometry_covariance", "PlazaOdometryNoise", "gps_start_heading_rad"]
 
 PLAZA_RUNS = ("plaza1", "plaza2")
 START_SIGMA = (1e-3, 1e-3, 1e-3)
@@ -81,7 +83,7 @@ DEFAULT_RANGE_SIGMA_M = 1.5
 
 
 @dataclass(frozen=True)
-class OdometryNoise:
+class PlazaOdometryNoise:
     """Per-interval odometry noise (see the module docstring): proportional parts ``k_*``
     and random-walk densities ``*_per_s`` (variance per second)."""
 
@@ -168,7 +170,7 @@ def _read_mat(path: Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def odometry_covariance(
-    distance_m: float, angle_rad: float, duration_s: float, noise: OdometryNoise = OdometryNoise()
+    distance_m: float, angle_rad: float, duration_s: float, noise: PlazaOdometryNoise = PlazaOdometryNoise()
 ) -> np.ndarray:
     """3×3 covariance of one arc increment over (dx, dy, dθ) (see the module docstring)."""
     dt = max(float(duration_s), 1e-3)
@@ -263,7 +265,7 @@ def import_plaza(
     *,
     range_sigma_m: float = DEFAULT_RANGE_SIGMA_M,
     range_bias_m: float = 0.0,
-    odometry_noise: OdometryNoise = OdometryNoise(),
+    odometry_noise: PlazaOdometryNoise = PlazaOdometryNoise(),
     range_model: NoiseModel | None = None,
 ) -> tuple[Header, list[Record]]:
     """Convert Plaza1 or Plaza2 into ``(header, records)`` (see the module docstring).
@@ -291,6 +293,41 @@ def import_plaza(
     records.append(TruthPose(t_start, start_pose[0], start_pose[1]))  # GPS: a position, no heading
     ranges = [(max(float(t), t_start), int(recv), float(r)) for t, _, recv, r in td]
     dropped_late = sum(1 for t, _, _ in ranges if t > dr[-1, 0])
+    skipped_short = _motion_and_ranges(records, dr, gt, ranges, t_start, odometry_noise, range_sigma_m,
+                                       range_bias_m, range_model)
+
+    digest = hashlib.sha256(dr_path.read_bytes() + td_path.read_bytes()).hexdigest()
+    header = Header(
+        stamp_s=t_start,
+        start_pose=start_pose,
+        start_sigma=(START_SIGMA[0], START_SIGMA[1], START_HEADING_SIGMA_RAD),
+        robot={"name": f"CMU {run.capitalize()} robot (Djugash & Singh, ranging radios)", "drive": "differential",
+               "note": "dead reckoning given as (time, delta distance, delta heading) per interval"},
+        sensor={"kind": "range-only", "landmark_kind": "radio beacon",
+                "beacons": [int(b[0]) for b in tl], "range_bias_removed_m": range_bias_m},
+        noise={
+            "odometry": {"model": "arc increment; var(ds) = (k_distance ds)^2 + distance_m2_per_s dt, "
+                                  "var(dtheta) = (k_heading dtheta)^2 + heading_rad2_per_s dt through the arc "
+                                  "Jacobian, plus sideways_m2_per_s dt on x and y", **asdict(odometry_noise)},
+            "observation": _observation_noise(range_sigma_m, range_bias_m, range_model),
+        },
+        source={"dataset": run, "files": [str(dr_path), str(td_path), str(mat_path)], "sha256": digest,
+                "converted_by": "fgslam import " + run,
+                "start_heading": f"from the GPS track's first {START_HEADING_TRACK_M:g} m (the dead reckoning "
+                                 f"turned onto it): {start_heading:.4f} rad",
+                "truth": "GPS positions; the GT heading is not a measurement and is left out",
+                "ranges_after_last_odometry_dropped": dropped_late,
+                "ranges_not_positive_after_bias_dropped": skipped_short},
+    )
+    return header, list(check_records(f"{dr_path} + {td_path}", header, records))  # no unreadable log
+
+
+def _motion_and_ranges(records: list[Record], dr: np.ndarray, gt: np.ndarray, ranges: list[tuple[float, int, float]],
+                       t_start: float, odometry_noise: PlazaOdometryNoise, range_sigma_m: float, range_bias_m: float,
+                       range_model: NoiseModel | None) -> int:
+    """Append to ``records`` the ranges of pose 0, then the odometry, GPS truth and range
+    records of every dead-reckoning interval, split at the distinct range times inside it.
+    Returns how many ranges were dropped as not positive after the bias."""
     skipped_short = 0
     j = 0  # next range
 
@@ -336,28 +373,4 @@ def import_plaza(
                 observe(t_obs, receiver, range_m)
             done = share
         previous_t = t_end
-
-    digest = hashlib.sha256(dr_path.read_bytes() + td_path.read_bytes()).hexdigest()
-    header = Header(
-        stamp_s=t_start,
-        start_pose=start_pose,
-        start_sigma=(START_SIGMA[0], START_SIGMA[1], START_HEADING_SIGMA_RAD),
-        robot={"name": f"CMU {run.capitalize()} robot (Djugash & Singh, ranging radios)", "drive": "differential",
-               "note": "dead reckoning given as (time, delta distance, delta heading) per interval"},
-        sensor={"kind": "range-only", "landmark_kind": "radio beacon",
-                "beacons": [int(b[0]) for b in tl], "range_bias_removed_m": range_bias_m},
-        noise={
-            "odometry": {"model": "arc increment; var(ds) = (k_distance ds)^2 + distance_m2_per_s dt, "
-                                  "var(dtheta) = (k_heading dtheta)^2 + heading_rad2_per_s dt through the arc "
-                                  "Jacobian, plus sideways_m2_per_s dt on x and y", **asdict(odometry_noise)},
-            "observation": _observation_noise(range_sigma_m, range_bias_m, range_model),
-        },
-        source={"dataset": run, "files": [str(dr_path), str(td_path), str(mat_path)], "sha256": digest,
-                "converted_by": "fgslam import " + run,
-                "start_heading": f"from the GPS track's first {START_HEADING_TRACK_M:g} m (the dead reckoning "
-                                 f"turned onto it): {start_heading:.4f} rad",
-                "truth": "GPS positions; the GT heading is not a measurement and is left out",
-                "ranges_after_last_odometry_dropped": dropped_late,
-                "ranges_not_positive_after_bias_dropped": skipped_short},
-    )
-    return header, list(check_records(f"{dr_path} + {td_path}", header, records))  # no unreadable log
+    return skipped_short

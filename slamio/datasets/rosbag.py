@@ -72,19 +72,14 @@ from __future__ import annotations
 import bisect
 import math
 import os
-import re
-import tempfile
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from slamio.datasets.mrclam import CommandOdometryNoise, interpolate_pose
+from slamio.datasets.mrclam_motion import CommandOdometryNoise, interpolate_pose
 from slamio.datasets.rosbag_export import export_rosbag
 from slamio.datasets.rosbag_messages import (
-    _DETECTION_ARRAY_TYPE,
-    _STRING_TYPE,
     APRILTAG_DETECTION_ARRAY_MSG,
     APRILTAG_DETECTION_MSG,
     DETECTIONS_TOPIC,
@@ -99,21 +94,11 @@ from slamio.datasets.rosbag_messages import (
     compose_jacobians,
     tag_observation_geometry,
 )
-from slamio.datasets.victoria_park import DatasetFormatError
-from slamio.errors import FgslamError, InputFileError
+from slamio.datasets.rosbag_read import BagFormatError, Messages, bag_paths, read_bag
+from slamio.errors import FgslamError
 from slamio.geometry import between_pose, wrap_angle
-from slamio.log import (
-    Header,
-    LogFormatError,
-    Observation,
-    Odometry,
-    Record,
-    TruthPose,
-    as_matrix3,
-    read_log,
-)
+from slamio.log import Header, Observation, Odometry, Record, TruthPose, as_matrix3
 from slamio.log.read import check_records
-from slamio.safe_input import MAX_TEXT_BYTES, check_regular
 from slamio.se3 import quaternion_from_rotation, rotation_from_quaternion, yaw_from_quaternion
 
 __all__ = [
@@ -142,25 +127,6 @@ DEFAULT_SIGMA_HEIGHT_M = 0.05
 DEFAULT_MAX_TRUTH_GAP_S = 0.5
 #: The default model's shortest time per increment (keeps duplicate stamps positive definite).
 MIN_INCREMENT_DT_S = 1e-3
-
-_ODOMETRY_TYPES = ("nav_msgs/msg/Odometry",)
-_POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/PoseWithCovarianceStamped")
-_TRUTH_TYPES = _POSE_TYPES + _ODOMETRY_TYPES
-
-
-class BagFormatError(DatasetFormatError):
-    """A bag that cannot be converted: ``bag: topic T [message N]: what is wrong; what was expected``.
-
-    ``line`` is the 1-based message number on the topic (0 when the topic as a whole is wrong).
-    """
-
-    def __init__(self, path: str, topic: str, message: str, index: int = 0):
-        where = f"{path}: topic {topic}" + (f" message {index}" if index else "")
-        FgslamError.__init__(self, f"{where}: {message}")
-        self.path = path
-        self.line = index
-        self.topic = topic
-
 
 # --------------------------------------------------------------------------- pure maths
 
@@ -198,91 +164,6 @@ def interpolate_se2(pose_a, pose_b, fraction: float) -> tuple[float, float, floa
 
 # --------------------------------------------------------------------------- import
 
-
-def _bag_paths(path: str) -> tuple[Path, int]:
-    p = Path(path)
-    if not os.path.lexists(p):
-        raise InputFileError(f"{path}: no such file or folder; give a ROS 1 .bag file or a ROS 2 bag folder")
-    if p.is_dir():
-        _check_bag_folder(p)
-        return p, 2
-    check_regular(p, "bag file")  # a FIFO would make the reader wait forever
-    if p.suffix == ".bag":
-        return p, 1
-    if p.suffix in (".db3", ".mcap") or p.name == "metadata.yaml":
-        _check_bag_folder(p.parent)
-        return p.parent, 2
-    raise InputFileError(
-        f"{path}: not a ROS bag; give a ROS 1 .bag file or a ROS 2 bag folder (with metadata.yaml)"
-    )
-
-
-def _check_bag_folder(folder: Path) -> None:
-    """Every entry of a ROS 2 bag folder that the reader opens is a regular file (a FIFO or
-    /dev/zero linked in would make it wait or read forever), metadata.yaml of a sane size."""
-    for entry in sorted(folder.iterdir()):
-        if entry.name == "metadata.yaml" or entry.suffix in (".db3", ".mcap", ".zstd"):
-            check_regular(entry, "bag file")
-    metadata = folder / "metadata.yaml"
-    if metadata.is_file() and metadata.stat().st_size > MAX_TEXT_BYTES:
-        raise InputFileError(f"{metadata}: {metadata.stat().st_size} bytes, larger than any bag's metadata; "
-                             "is it the right folder?")
-
-
-def _stamp_ns(msg, bag_time_ns: int, use_header_stamps: bool) -> int:
-    header = getattr(msg, "header", None)
-    if use_header_stamps and header is not None:
-        ns = int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
-        if ns != 0:
-            return ns
-    return int(bag_time_ns)
-
-
-def _pose_of(msg):
-    """geometry_msgs/Pose inside a PoseStamped, PoseWithCovarianceStamped or Odometry."""
-    pose = msg.pose
-    return pose.pose if hasattr(pose, "pose") else pose
-
-
-def _planar(pose_msg) -> tuple[float, float, float]:
-    q = pose_msg.orientation
-    return float(pose_msg.position.x), float(pose_msg.position.y), yaw_from_quaternion(q.x, q.y, q.z, q.w)
-
-
-def _topics_of_type(topics, accepted) -> list[str]:
-    return sorted(name for name, info in topics.items() if info.msgtype in accepted)
-
-
-def _check_topic(path: str, topics, topic: str, accepted: tuple[str, ...], what: str) -> None:
-    if topic not in topics:
-        candidates = _topics_of_type(topics, accepted)
-        hint = f"topics of that type here: {', '.join(candidates)}" if candidates else f"the bag's topics: {', '.join(sorted(topics)) or '(none)'}"
-        raise BagFormatError(path, topic, f"not in the bag; expected {what} ({' or '.join(accepted)}); {hint}")
-    msgtype = topics[topic].msgtype
-    if msgtype not in accepted:
-        raise BagFormatError(path, topic, f"has type {msgtype}, expected {what} ({' or '.join(accepted)})")
-
-
-def _read_run_log(path: str, reader, connections) -> tuple[Header, list[Record]]:
-    lines: list[str] = []
-    for connection, _, raw in reader.messages(connections=connections):
-        msg = reader.deserialize(raw, connection.msgtype)
-        lines.append(msg.data)
-    if not lines:
-        raise BagFormatError(path, RUN_LOG_TOPIC, "has no messages; expected the run log's header line first")
-    with tempfile.TemporaryDirectory() as tmp:
-        log_path = os.path.join(tmp, "run_log.jsonl")
-        with open(log_path, "w", encoding="utf-8") as f:
-            for line in lines:
-                f.write(line + "\n")
-        try:
-            log = read_log(log_path)
-        except LogFormatError as exc:
-            message = str(exc)[len(f"{exc.path}:{exc.line}: "):]
-            raise BagFormatError(path, RUN_LOG_TOPIC, f"{message} (each message is one run-log line)", exc.line) from None
-    return log.header, list(log.records)
-
-
 def _check_options(tag_normal_axis: str, start_from: str, truth_topic: str | None, odom_min_period_s: float,
                    **positive: float) -> None:
     """:func:`import_rosbag`'s options that the bag does not decide; ``positive``: the σ and gaps."""
@@ -307,110 +188,6 @@ def _robot_camera_transform(T_robot_camera: Any) -> np.ndarray:
         raise FgslamError("T_robot_camera must be a 4x4 rigid transform (orthonormal rotation, det +1, last row 0 0 0 1)")
     return T_rc
 
-
-def _checked_topics(path: str, topics, odom_topic: str, detections_topic: str | None, tag_pose_topic: str | None,
-                    truth_topic: str | None) -> dict[str, int]:
-    """Check that every topic asked for is in the bag with a type we read; the tag pose
-    topics found under ``tag_pose_topic`` with their tag ids."""
-    _check_topic(path, topics, odom_topic, _ODOMETRY_TYPES, "the robot's odometry")
-    if detections_topic is not None:
-        # any package's AprilTagDetectionArray with apriltag_ros's fields (forks add fields)
-        msgtype = topics[detections_topic].msgtype if detections_topic in topics else None
-        accepted = (msgtype,) if msgtype and msgtype.endswith("/AprilTagDetectionArray") else (_DETECTION_ARRAY_TYPE,)
-        _check_topic(path, topics, detections_topic, accepted, "tag detections")
-    tag_topics: dict[str, int] = {}
-    if tag_pose_topic is not None:
-        pattern = re.compile(re.escape(tag_pose_topic) + r"\D*?(\d+)\Z")
-        for name in sorted(topics):
-            m = pattern.match(name)
-            if m:
-                _check_topic(path, topics, name, _POSE_TYPES, "one tag's pose in the camera frame")
-                tag_topics[name] = int(m.group(1))
-        if not tag_topics:
-            raise BagFormatError(
-                path, tag_pose_topic + "<id>",
-                "no topic starts with this prefix and ends in a tag id; expected one "
-                f"geometry_msgs/PoseStamped topic per tag such as {tag_pose_topic}0; the bag's topics: "
-                f"{', '.join(sorted(topics))}",
-            )
-    if truth_topic is not None:
-        _check_topic(path, topics, truth_topic, _TRUTH_TYPES, "ground-truth poses")
-    named = {"odometry": odom_topic, "detections": detections_topic, "truth": truth_topic}
-    given = [(role, topic) for role, topic in named.items() if topic is not None]
-    for i, (role, topic) in enumerate(given):
-        for other, same in given[i + 1:]:
-            if same == topic:
-                raise FgslamError(
-                    f"{path}: {topic} is named as both the {role} topic and the {other} topic; each topic "
-                    "is read as one thing: name a different topic for one of them"
-                )
-    return tag_topics
-
-
-@dataclass
-class _Messages:
-    """What a bag's topics hold, in time order (stamps in ns)."""
-
-    odometry: list[tuple[int, tuple[float, float, float], np.ndarray]]  # (stamp, pose, 3×3 covariance of x, y, yaw)
-    truth: list[tuple[int, tuple[float, float, float]]]
-    sightings: list[tuple[int, int, Any, Any]]  # (stamp, tag id, position, quaternion) in the camera frame
-    dropped: dict[str, int]
-
-
-def _read_messages(path: str, reader, odom_topic: str, detections_topic: str | None, truth_topic: str | None,
-                   tag_topics: dict[str, int], use_header_stamps: bool) -> _Messages:
-    """Decode every message of the topics used; a message that cannot be used is a
-    :class:`BagFormatError` naming its topic and index."""
-    wanted = {odom_topic, detections_topic, truth_topic, *tag_topics} - {None}
-    connections = [c for c in reader.connections if c.topic in wanted]
-    odometry: list[tuple[int, tuple[float, float, float], np.ndarray]] = []
-    truth: list[tuple[int, tuple[float, float, float]]] = []
-    sightings: list[tuple[int, int, Any, Any]] = []  # (stamp, tag id, position, quaternion)
-    dropped = {"tag_bundles": 0, "zero_range": 0, "before_first_odometry": 0, "after_last_odometry": 0}
-    counts = {t: 0 for t in wanted}
-    for connection, bag_time, raw in reader.messages(connections=connections):
-        topic = connection.topic
-        counts[topic] += 1
-        index = counts[topic]
-        try:
-            msg = reader.deserialize(raw, connection.msgtype)
-        except Exception as exc:
-            raise BagFormatError(path, topic, f"cannot be decoded as {connection.msgtype} ({exc})", index) from None
-        stamp = _stamp_ns(msg, bag_time, use_header_stamps)
-        if topic == odom_topic:
-            pose = _planar(msg.pose.pose)
-            C = np.asarray(msg.pose.covariance, dtype=float).reshape(6, 6)[np.ix_((0, 1, 5), (0, 1, 5))]
-            if not all(math.isfinite(v) for v in pose):
-                raise BagFormatError(path, topic, f"pose {pose} is not finite", index)
-            odometry.append((stamp, pose, C))
-        elif topic == truth_topic:
-            truth.append((stamp, _planar(_pose_of(msg))))
-        elif topic == detections_topic:
-            detections = getattr(msg, "detections", None)
-            if detections is None or (detections and not hasattr(detections[0], "pose")):
-                raise BagFormatError(
-                    path, topic,
-                    f"{connection.msgtype} has no detections[].pose; expected apriltag_ros's "
-                    "AprilTagDetectionArray (id[], size[], pose). The ROS 2 apriltag_msgs detections "
-                    "carry no pose (that node puts tag poses on /tf): record one PoseStamped per tag "
-                    "and use tag_pose_topic",
-                    index,
-                )
-            for d in detections:
-                ids = [int(i) for i in d.id]
-                if len(ids) != 1:
-                    dropped["tag_bundles"] += 1
-                    continue
-                p = d.pose.pose.pose
-                sightings.append((stamp, ids[0], (p.position.x, p.position.y, p.position.z),
-                                  (p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)))
-        else:
-            p = _pose_of(msg)
-            sightings.append((stamp, tag_topics[topic], (p.position.x, p.position.y, p.position.z),
-                              (p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)))
-    for messages in (odometry, truth, sightings):
-        messages.sort(key=lambda m: m[0])
-    return _Messages(odometry, truth, sightings, dropped)
 
 
 def import_rosbag(
@@ -444,85 +221,85 @@ def import_rosbag(
     docstring for every conversion rule and option. Write the result with
     ``slamio.log.write_log``.
 
-    Raises :class:`BagFormatError` (a :class:`DatasetFormatError`) naming the topic and
-    what was expected for a missing topic, a wrong message type or an unusable message,
-    and :class:`~slamio.errors.FgslamError` for an unreadable bag or a bad option.
+    Raises :class:`BagFormatError` (a
+    :class:`~slamio.datasets.victoria_park.DatasetFormatError`) naming the topic and what
+    was expected for a missing topic, a wrong message type or an unusable message, and
+    :class:`~slamio.errors.FgslamError` for an unreadable bag or a bad option.
     """
     _rosbags()
-    from rosbags.highlevel import AnyReader
-
     path = os.fspath(path)
-    bag, ros_version = _bag_paths(path)
+    bag, ros_version = bag_paths(path)
     _check_options(tag_normal_axis, start_from, truth_topic, odom_min_period_s,
                    sigma_range_m=sigma_range_m, sigma_bearing_rad=sigma_bearing_rad,
                    sigma_tag_yaw_rad=sigma_tag_yaw_rad, sigma_height_m=sigma_height_m, max_truth_gap_s=max_truth_gap_s)
-    T_rc = _robot_camera_transform(T_robot_camera)
-    noise = odometry_noise if odometry_noise is not None else CommandOdometryNoise()
-    normal_sign = 1.0 if tag_normal_axis == "+z" else -1.0
-
-    try:
-        reader = AnyReader([bag], default_typestore=apriltag_typestore(ros_version))
-        reader.open()
-    except FgslamError:
-        raise
-    except Exception as exc:  # rosbags raises several kinds for a damaged or foreign file
-        raise InputFileError(f"{path}: cannot read as a ROS {ros_version} bag ({type(exc).__name__}: {exc})") from None
-    try:
-        topics = reader.topics
-        if not standard_topics_only and RUN_LOG_TOPIC in topics:
-            _check_topic(path, topics, RUN_LOG_TOPIC, (_STRING_TYPE,), "the run log's JSON lines")
-            connections = [c for c in reader.connections if c.topic == RUN_LOG_TOPIC]
-            return _read_run_log(path, reader, connections)
-        if odom_topic is None:
-            candidates = _topics_of_type(topics, _ODOMETRY_TYPES)
-            raise BagFormatError(
-                path, "(odometry)",
-                f"no {RUN_LOG_TOPIC} topic (the bag was not written by fgslam export), so name the "
-                f"odometry topic (nav_msgs/Odometry); candidates: {', '.join(candidates) or '(none)'}",
-            )
-        tag_topics = _checked_topics(path, topics, odom_topic, detections_topic, tag_pose_topic, truth_topic)
-        messages = _read_messages(path, reader, odom_topic, detections_topic, truth_topic, tag_topics, use_header_stamps)
-    finally:
-        reader.close()
-
-    odometry, truth, sightings, dropped = messages.odometry, messages.truth, messages.sightings, messages.dropped
-    if not odometry:
+    o = _Options(
+        path, ros_version, odom_topic, detections_topic, tag_pose_topic, truth_topic,  # type: ignore[arg-type]
+        _robot_camera_transform(T_robot_camera), tag_normal_axis, sigma_range_m, sigma_bearing_rad, sigma_tag_yaw_rad,
+        with_height, sigma_height_m, odometry_noise if odometry_noise is not None else CommandOdometryNoise(),
+        covariance_from_message, odom_min_period_s, interpolate_detections, max_truth_gap_s, start_from,
+    )
+    messages = read_bag(path, bag, ros_version, odom_topic, detections_topic, tag_pose_topic, truth_topic,
+                        use_header_stamps, standard_topics_only)
+    if not isinstance(messages, Messages):  # a bag fgslam exported: its run log, as it was
+        return messages
+    if not messages.odometry:
         raise BagFormatError(path, odom_topic, "has no messages; expected nav_msgs/Odometry poses of the robot")
-    if odom_min_period_s > 0.0:
-        thinned = [odometry[0]]
-        for m in odometry[1:-1]:
-            if m[0] - thinned[-1][0] >= odom_min_period_s * 1e9:
-                thinned.append(m)
-        if len(odometry) > 1:
-            thinned.append(odometry[-1])
-        n_odometry_messages = len(odometry)
-        odometry = thinned
-    else:
-        n_odometry_messages = len(odometry)
+    n_odometry_messages = len(messages.odometry)
+    odometry = _thinned(messages.odometry, odom_min_period_s)
+    at_pose, inside = _observations_by_pose(o, messages.sightings, [m[0] for m in odometry], messages.dropped)
+    truth = _Truth(messages.truth, odometry[0][0], max_truth_gap_s)
+    start_pose = _start_pose(o, odometry, truth)
+    records, counts = _pose_records(o, odometry, at_pose, inside, truth)
+    header = _header(o, messages, start_pose, odometry[0][0], n_odometry_messages, counts,
+                     sum(isinstance(r, Observation) for r in records))
+    return header, list(check_records(path, header, records))  # never a log the reader refuses
 
-    t0 = odometry[0][0]
-    odo_times = [m[0] for m in odometry]
-    truth_times_s = [(t - t0) / 1e9 for t, _ in truth]
-    truth_poses = np.array([p for _, p in truth]) if truth else np.zeros((0, 3))
 
-    def stamp_s(t_ns: int) -> float:
-        return (t_ns - t0) / 1e9
+@dataclass(frozen=True)
+class _Options:
+    """:func:`import_rosbag`'s options, checked, as the conversion uses them."""
 
-    # observations, grouped by the pose they belong to
-    def observation(t_ns: int, tag_id: int, position, quaternion) -> Observation | None:
-        range_m, bearing_rad, yaw, height = tag_observation_geometry(position, quaternion, T_rc, normal_sign)
-        if not range_m > 0.0:
-            dropped["zero_range"] += 1
-            return None
-        return Observation(
-            stamp_s(t_ns), tag_id, range_m, bearing_rad, sigma_range_m, sigma_bearing_rad,
-            height_m=height if with_height else None,
-            sigma_height_m=sigma_height_m if with_height else None,
-            tag_yaw_rad=yaw, sigma_tag_yaw_rad=sigma_tag_yaw_rad if yaw is not None else None,
-        )
+    path: str
+    ros_version: int
+    odom_topic: str
+    detections_topic: str | None
+    tag_pose_topic: str | None
+    truth_topic: str | None
+    T_rc: np.ndarray
+    tag_normal_axis: str
+    sigma_range_m: float
+    sigma_bearing_rad: float
+    sigma_tag_yaw_rad: float
+    with_height: bool
+    sigma_height_m: float
+    noise: CommandOdometryNoise
+    covariance_from_message: bool
+    odom_min_period_s: float
+    interpolate_detections: bool
+    max_truth_gap_s: float
+    start_from: str
 
-    at_pose: dict[int, list[Observation]] = {}  # odometry index -> observations at that pose
-    inside: dict[int, dict[int, list[Observation]]] = {}  # interval end index -> {time: observations}
+
+def _thinned(odometry: list, min_period_s: float) -> list:
+    """The odometry messages at least ``min_period_s`` apart (the first and last always kept)."""
+    if not min_period_s > 0.0:
+        return odometry
+    thinned = [odometry[0]]
+    for m in odometry[1:-1]:
+        if m[0] - thinned[-1][0] >= min_period_s * 1e9:
+            thinned.append(m)
+    if len(odometry) > 1:
+        thinned.append(odometry[-1])
+    return thinned
+
+
+def _observations_by_pose(o: _Options, sightings, odo_times: list[int], dropped: dict[str, int]):
+    """The sightings as observations, grouped by the pose they belong to: ``at_pose``
+    (odometry index → observations) and ``inside`` (interval end index → {time: observations})."""
+    t0 = odo_times[0]
+    normal_sign = 1.0 if o.tag_normal_axis == "+z" else -1.0
+    at_pose: dict[int, list[Observation]] = {}
+    inside: dict[int, dict[int, list[Observation]]] = {}
     for t, tag_id, position, quaternion in sightings:
         if t < odo_times[0]:
             dropped["before_first_odometry"] += 1
@@ -530,49 +307,73 @@ def import_rosbag(
         if t > odo_times[-1]:
             dropped["after_last_odometry"] += 1
             continue
-        obs = observation(t, tag_id, position, quaternion)
-        if obs is None:
+        range_m, bearing_rad, yaw, height = tag_observation_geometry(position, quaternion, o.T_rc, normal_sign)
+        if not range_m > 0.0:
+            dropped["zero_range"] += 1
             continue
+        obs = Observation(
+            (t - t0) / 1e9, tag_id, range_m, bearing_rad, o.sigma_range_m, o.sigma_bearing_rad,
+            height_m=height if o.with_height else None,
+            sigma_height_m=o.sigma_height_m if o.with_height else None,
+            tag_yaw_rad=yaw, sigma_tag_yaw_rad=o.sigma_tag_yaw_rad if yaw is not None else None,
+        )
         k = bisect.bisect_right(odo_times, t) - 1
-        if odo_times[k] == t or not interpolate_detections:
+        if odo_times[k] == t or not o.interpolate_detections:
             at_pose.setdefault(k, []).append(obs)
         else:
             inside.setdefault(k + 1, {}).setdefault(t, []).append(obs)
+    return at_pose, inside
 
-    # start pose
-    if start_from == "odom":
-        start_pose = odometry[0][1]
-    elif start_from == "zero":
-        start_pose = (0.0, 0.0, 0.0)
-    else:
-        start_pose = interpolate_pose(truth_times_s, truth_poses, 0.0, max_truth_gap_s) if truth else None
-        if start_pose is None:
-            raise BagFormatError(path, truth_topic, "has no ground truth at the first odometry message, so start_from='truth' cannot be used")
 
+class _Truth:
+    """The ground-truth messages, interpolated at a log stamp (None where there is none)."""
+
+    def __init__(self, truth: list, t0: int, max_gap_s: float):
+        self.any = bool(truth)
+        self.times_s = [(t - t0) / 1e9 for t, _ in truth]
+        self.poses = np.array([p for _, p in truth]) if truth else np.zeros((0, 3))
+        self.max_gap_s = max_gap_s
+
+    def at(self, stamp_s: float):
+        return interpolate_pose(self.times_s, self.poses, stamp_s, self.max_gap_s) if self.any else None
+
+
+def _start_pose(o: _Options, odometry: list, truth: _Truth) -> tuple[float, float, float]:
+    if o.start_from == "odom":
+        return odometry[0][1]
+    if o.start_from == "zero":
+        return (0.0, 0.0, 0.0)
+    start_pose = truth.at(0.0)
+    if start_pose is None:
+        raise BagFormatError(o.path, o.truth_topic, "has no ground truth at the first odometry message, so start_from='truth' cannot be used")
+    return start_pose
+
+
+def _pose_records(o: _Options, odometry: list, at_pose, inside, truth: _Truth) -> tuple[list[Record], dict[str, Any]]:
+    """The records of every pose (odometry, truth, observations), and the counts of poses,
+    of poses with a truth and of the increments' covariance sources."""
+    t0 = odometry[0][0]
     records: list[Record] = []
-    n_truth = 0
-    covariance_sources = {"from_message": 0, "default_model": 0}
+    counts: dict[str, Any] = {"poses": 1, "poses_with_truth": 0,
+                              "covariance": {"from_message": 0, "default_model": 0}}
 
     def add_pose_records(t_ns: int, observations: list[Observation]) -> None:
-        nonlocal n_truth
-        if truth:
-            tp = interpolate_pose(truth_times_s, truth_poses, stamp_s(t_ns), max_truth_gap_s)
-            if tp is not None:
-                records.append(TruthPose(stamp_s(t_ns), *tp))
-                n_truth += 1
+        tp = truth.at((t_ns - t0) / 1e9)
+        if tp is not None:
+            records.append(TruthPose((t_ns - t0) / 1e9, *tp))
+            counts["poses_with_truth"] += 1
         records.extend(observations)
 
     add_pose_records(t0, at_pose.get(0, []))
-    n_poses = 1
     for i in range(1, len(odometry)):
         (ta, pa, Ca), (tb, pb, Cb) = odometry[i - 1], odometry[i]
         delta = between_pose(pa, pb)
-        Q = increment_covariance_from_poses(Ca, Cb, pa, delta) if covariance_from_message else None
+        Q = increment_covariance_from_poses(Ca, Cb, pa, delta) if o.covariance_from_message else None
         if Q is None:
-            Q = default_increment_covariance(delta, (tb - ta) * 1e-9, noise)
-            covariance_sources["default_model"] += 1
+            Q = default_increment_covariance(delta, (tb - ta) * 1e-9, o.noise)
+            counts["covariance"]["default_model"] += 1
         else:
-            covariance_sources["from_message"] += 1
+            counts["covariance"]["from_message"] += 1
         # poses inside the interval (detections between two odometry messages), then the end
         nodes = [(t, interpolate_se2(pa, pb, (t - ta) / (tb - ta)), obs) for t, obs in sorted(inside.get(i, {}).items())]
         nodes.append((tb, pb, at_pose.get(i, [])))
@@ -580,24 +381,27 @@ def import_rosbag(
         for t, pose, obs in nodes:
             fraction = (t - previous_t) / (tb - ta) if tb > ta else 1.0
             d = between_pose(previous_pose, pose)
-            records.append(Odometry(stamp_s(t), d[0], d[1], d[2], as_matrix3(Q * fraction)))
+            records.append(Odometry((t - t0) / 1e9, d[0], d[1], d[2], as_matrix3(Q * fraction)))
             add_pose_records(t, obs)
             previous_t, previous_pose = t, pose
-            n_poses += 1
+            counts["poses"] += 1
+    return records, counts
 
-    n_observations = sum(isinstance(r, Observation) for r in records)
-    header = Header(
+
+def _header(o: _Options, messages: Messages, start_pose, t0: int, n_odometry_messages: int,
+            counts: dict[str, Any], n_observations: int) -> Header:
+    return Header(
         stamp_s=0.0,
         start_pose=tuple(float(v) for v in start_pose),  # type: ignore[arg-type]
         start_sigma=(1e-3, 1e-3, 1e-3),
-        robot={"name": "robot of a ROS bag", "odometry_topic": odom_topic, "odometry_type": "nav_msgs/Odometry"},
+        robot={"name": "robot of a ROS bag", "odometry_topic": o.odom_topic, "odometry_type": "nav_msgs/Odometry"},
         sensor={
             "kind": "range-bearing",
             "landmark_kind": "apriltag",
-            "detections_topic": detections_topic,
-            "tag_pose_topics": sorted(tag_topics),
-            "T_robot_camera": [[float(v) for v in row] for row in T_rc],
-            "tag_normal_axis": tag_normal_axis,
+            "detections_topic": o.detections_topic,
+            "tag_pose_topics": sorted(messages.tag_topics),
+            "T_robot_camera": [[float(v) for v in row] for row in o.T_rc],
+            "tag_normal_axis": o.tag_normal_axis,
         },
         noise={
             "odometry": {
@@ -607,34 +411,34 @@ def import_rosbag(
                     "with ds = |(dx, dy)|, dtheta = |dtheta|, dt = time between messages (>= 1 ms); "
                     "split in proportion to time where a detection adds a pose"
                 ),
-                "covariance_from_message": covariance_from_message,
-                "default_model": dict(noise.__dict__),
+                "covariance_from_message": o.covariance_from_message,
+                "default_model": dict(o.noise.__dict__),
             },
             "observation": {
                 "model": "constant sigmas (options of the importer); the detections' covariance is ignored",
-                "sigma_range_m": sigma_range_m,
-                "sigma_bearing_rad": sigma_bearing_rad,
-                "sigma_tag_yaw_rad": sigma_tag_yaw_rad,
-                **({"sigma_height_m": sigma_height_m} if with_height else {}),
+                "sigma_range_m": o.sigma_range_m,
+                "sigma_bearing_rad": o.sigma_bearing_rad,
+                "sigma_tag_yaw_rad": o.sigma_tag_yaw_rad,
+                **({"sigma_height_m": o.sigma_height_m} if o.with_height else {}),
             },
         },
         source={
             "dataset": "rosbag",
-            "bag": path,
-            "ros_version": ros_version,
+            "bag": o.path,
+            "ros_version": o.ros_version,
             "converted_by": "fgslam import rosbag",
-            "topics": {"odometry": odom_topic, "detections": detections_topic, "tag_pose_prefix": tag_pose_topic, "truth": truth_topic},
+            "topics": {"odometry": o.odom_topic, "detections": o.detections_topic,
+                       "tag_pose_prefix": o.tag_pose_topic, "truth": o.truth_topic},
             "time_origin_ns": t0,
             "stamps": "seconds since the first odometry message (header stamps, or bag time when zero)",
-            "start_from": start_from,
+            "start_from": o.start_from,
             "odometry_messages": n_odometry_messages,
-            "odometry_min_period_s": odom_min_period_s,
-            "odometry_covariance": covariance_sources,
-            "poses": n_poses,
-            "poses_with_truth": n_truth,
+            "odometry_min_period_s": o.odom_min_period_s,
+            "odometry_covariance": counts["covariance"],
+            "poses": counts["poses"],
+            "poses_with_truth": counts["poses_with_truth"],
             "observations": n_observations,
-            "interpolate_detections": interpolate_detections,
-            "dropped": dropped,
+            "interpolate_detections": o.interpolate_detections,
+            "dropped": messages.dropped,
         },
     )
-    return header, list(check_records(path, header, records))  # never a log the reader refuses

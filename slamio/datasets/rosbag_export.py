@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -94,43 +95,9 @@ def export_rosbag(
         raise FgslamError(f"{out}: already exists; rosbags does not overwrite a bag: remove it or choose another name")
     store = apriltag_typestore(2)
     make = MessageFactory(store, 2)
-
-    # pose of every step, integrated, and its propagated covariance
-    pose = tuple(header.start_pose)
-    P = np.diag(np.square(header.start_sigma))
-    odometry_msgs = [(header.stamp_s, pose, P)]
-    truth_msgs: list[TruthPose] = []
-    truth_without_heading = 0
-    landmarks: list[TruthLandmark] = []
-    detection_groups: dict[tuple[int, float], list[Observation]] = {}
-    skipped = 0
-    step = 0
-    for r in records:
-        if isinstance(r, Odometry):
-            delta = (r.dx_m, r.dy_m, r.dtheta_rad)
-            J1, J2 = compose_jacobians(pose, delta)
-            P = J1 @ P @ J1.T + J2 @ np.array(r.covariance) @ J2.T
-            P = 0.5 * (P + P.T)
-            pose = compose_pose(pose, delta)
-            step += 1
-            odometry_msgs.append((r.stamp_s, pose, P))
-        elif isinstance(r, TruthPose):
-            if r.theta_rad is None:  # a pose message needs an orientation: only /fgslam/run_log has it
-                truth_without_heading += 1
-            else:
-                truth_msgs.append(r)
-        elif isinstance(r, TruthLandmark):
-            landmarks.append(r)
-        elif isinstance(r, Observation):
-            if getattr(r, "bearing_rad", None) is None or r.landmark_id is None:
-                skipped += 1
-            else:
-                detection_groups.setdefault((step, r.stamp_s), []).append(r)
-
-    tag_size_m = header.sensor.get("tag_size_m", 0.0)
-    tag_size_m = float(tag_size_m) if isinstance(tag_size_m, (int, float)) and not isinstance(tag_size_m, bool) else 0.0
-    summary = {RUN_LOG_TOPIC: len(records) + 1, ODOMETRY_TOPIC: len(odometry_msgs), TRUTH_TOPIC: len(truth_msgs),
-               DETECTIONS_TOPIC: len(detection_groups), LANDMARKS_TOPIC: 1 if landmarks else 0}
+    msgs = _topic_messages(header, records)
+    summary = {RUN_LOG_TOPIC: len(records) + 1, ODOMETRY_TOPIC: len(msgs.odometry), TRUTH_TOPIC: len(msgs.truth),
+               DETECTIONS_TOPIC: len(msgs.detection_groups), LANDMARKS_TOPIC: 1 if msgs.landmarks else 0}
     try:
         writer = Writer(out, version=8, storage_plugin=plugins[storage])
         writer.set_custom_data("fgslam.run_log_topic", RUN_LOG_TOPIC)
@@ -143,48 +110,101 @@ def export_rosbag(
             RUN_LOG_TOPIC: writer.add_connection(RUN_LOG_TOPIC, _STRING_TYPE, typestore=store),
             ODOMETRY_TOPIC: writer.add_connection(ODOMETRY_TOPIC, "nav_msgs/msg/Odometry", typestore=store),
         }
-        if truth_msgs:
+        if msgs.truth:
             conn[TRUTH_TOPIC] = writer.add_connection(TRUTH_TOPIC, "geometry_msgs/msg/PoseStamped", typestore=store)
-        if detection_groups:
+        if msgs.detection_groups:
             conn[DETECTIONS_TOPIC] = writer.add_connection(DETECTIONS_TOPIC, _DETECTION_ARRAY_TYPE, typestore=store)
-        if landmarks:
+        if msgs.landmarks:
             conn[LANDMARKS_TOPIC] = writer.add_connection(LANDMARKS_TOPIC, "geometry_msgs/msg/PoseArray", typestore=store)
-
-        # the exact log: strictly increasing bag times keep the file order
-        t_line = _ns(header.stamp_s)
-        writer.write(conn[RUN_LOG_TOPIC], t_line, make.serialize(make.string(format_line(header))))
-        for r in records:
-            stamp = getattr(r, "stamp_s", None)
-            t_line = max(_ns(stamp) if stamp is not None else t_line, t_line + 1)
-            writer.write(conn[RUN_LOG_TOPIC], t_line, make.serialize(make.string(format_line(r))))
-
-        for stamp, pose, P in odometry_msgs:
-            t = _ns(stamp)
-            writer.write(conn[ODOMETRY_TOPIC], t, make.serialize(make.odometry(t, pose, P)))
-        for r in truth_msgs:
-            t = _ns(r.stamp_s)
-            writer.write(conn[TRUTH_TOPIC], t, make.serialize(make.pose_stamped(t, (r.x_m, r.y_m, r.theta_rad))))
-        for (_, stamp), observations in detection_groups.items():
-            t = _ns(stamp)
-            tags = []
-            for o in observations:
-                position, quaternion = tag_pose_in_camera(o.range_m, o.bearing_rad, o.tag_yaw_rad, o.height_m, T_ROBOT_OPTICAL)
-                tags.append(([o.landmark_id], [tag_size_m], position, quaternion))
-            writer.write(conn[DETECTIONS_TOPIC], t, make.serialize(make.detection_array(t, tags)))
-        if landmarks:
-            t = _ns(header.stamp_s)
-            poses = [
-                make.pose(
-                    (lm.x_m, lm.y_m, lm.height_m or 0.0),
-                    (0.0, 0.0, math.sin((lm.yaw_rad or 0.0) / 2.0), math.cos((lm.yaw_rad or 0.0) / 2.0)),
-                )
-                for lm in landmarks
-            ]
-            writer.write(conn[LANDMARKS_TOPIC], t, make.serialize(make.pose_array(t, poses)))
+        _write_run_log(writer, conn[RUN_LOG_TOPIC], make, header, records)
+        _write_topics(writer, conn, make, header, msgs)
     except BaseException:
         writer.close()
         raise
     writer.close()
-    summary["observations_not_on_detections"] = skipped
-    summary["truth_poses_without_heading"] = truth_without_heading
+    summary["observations_not_on_detections"] = msgs.skipped
+    summary["truth_poses_without_heading"] = msgs.truth_without_heading
     return summary
+
+
+@dataclass
+class _TopicMessages:
+    """What the standard topics carry of a run log."""
+
+    odometry: list[tuple[float, tuple, np.ndarray]]  # (stamp, integrated pose, its propagated covariance)
+    truth: list[TruthPose] = field(default_factory=list)
+    truth_without_heading: int = 0
+    landmarks: list[TruthLandmark] = field(default_factory=list)
+    detection_groups: dict[tuple[int, float], list[Observation]] = field(default_factory=dict)
+    skipped: int = 0  # observations no detection message can carry
+    tag_size_m: float = 0.0
+
+
+def _topic_messages(header, records) -> _TopicMessages:
+    """The pose of every step, integrated, and its propagated covariance; the truth poses
+    with a heading, the landmarks and the tag observations grouped by step and stamp."""
+    pose = tuple(header.start_pose)
+    P = np.diag(np.square(header.start_sigma))
+    msgs = _TopicMessages(odometry=[(header.stamp_s, pose, P)])
+    step = 0
+    for r in records:
+        if isinstance(r, Odometry):
+            delta = (r.dx_m, r.dy_m, r.dtheta_rad)
+            J1, J2 = compose_jacobians(pose, delta)
+            P = J1 @ P @ J1.T + J2 @ np.array(r.covariance) @ J2.T
+            P = 0.5 * (P + P.T)
+            pose = compose_pose(pose, delta)
+            step += 1
+            msgs.odometry.append((r.stamp_s, pose, P))
+        elif isinstance(r, TruthPose):
+            if r.theta_rad is None:  # a pose message needs an orientation: only /fgslam/run_log has it
+                msgs.truth_without_heading += 1
+            else:
+                msgs.truth.append(r)
+        elif isinstance(r, TruthLandmark):
+            msgs.landmarks.append(r)
+        elif isinstance(r, Observation):
+            if getattr(r, "bearing_rad", None) is None or r.landmark_id is None:
+                msgs.skipped += 1
+            else:
+                msgs.detection_groups.setdefault((step, r.stamp_s), []).append(r)
+    tag_size_m = header.sensor.get("tag_size_m", 0.0)
+    msgs.tag_size_m = (float(tag_size_m) if isinstance(tag_size_m, (int, float)) and not isinstance(tag_size_m, bool)
+                       else 0.0)
+    return msgs
+
+
+def _write_run_log(writer, connection, make: MessageFactory, header, records) -> None:
+    """The exact log: strictly increasing bag times keep the file order."""
+    t_line = _ns(header.stamp_s)
+    writer.write(connection, t_line, make.serialize(make.string(format_line(header))))
+    for r in records:
+        stamp = getattr(r, "stamp_s", None)
+        t_line = max(_ns(stamp) if stamp is not None else t_line, t_line + 1)
+        writer.write(connection, t_line, make.serialize(make.string(format_line(r))))
+
+
+def _write_topics(writer, conn: dict, make: MessageFactory, header, msgs: _TopicMessages) -> None:
+    for stamp, pose, P in msgs.odometry:
+        t = _ns(stamp)
+        writer.write(conn[ODOMETRY_TOPIC], t, make.serialize(make.odometry(t, pose, P)))
+    for r in msgs.truth:
+        t = _ns(r.stamp_s)
+        writer.write(conn[TRUTH_TOPIC], t, make.serialize(make.pose_stamped(t, (r.x_m, r.y_m, r.theta_rad))))
+    for (_, stamp), observations in msgs.detection_groups.items():
+        t = _ns(stamp)
+        tags = []
+        for o in observations:
+            position, quaternion = tag_pose_in_camera(o.range_m, o.bearing_rad, o.tag_yaw_rad, o.height_m, T_ROBOT_OPTICAL)
+            tags.append(([o.landmark_id], [msgs.tag_size_m], position, quaternion))
+        writer.write(conn[DETECTIONS_TOPIC], t, make.serialize(make.detection_array(t, tags)))
+    if msgs.landmarks:
+        t = _ns(header.stamp_s)
+        poses = [
+            make.pose(
+                (lm.x_m, lm.y_m, lm.height_m or 0.0),
+                (0.0, 0.0, math.sin((lm.yaw_rad or 0.0) / 2.0), math.cos((lm.yaw_rad or 0.0) / 2.0)),
+            )
+            for lm in msgs.landmarks
+        ]
+        writer.write(conn[LANDMARKS_TOPIC], t, make.serialize(make.pose_array(t, poses)))

@@ -32,7 +32,7 @@ import numpy as np
 
 from slamio.errors import InputFileError
 from slamio.log.fields import COORDINATE_M, STAMP_S
-from slamio.log3d import MAX_MOUNT_M, MAX_PIXEL_PX, MAX_SPEED_MPS, MAX_TURN_RATE_RADPS
+from slamio.log.records3d import MAX_MOUNT_M, MAX_PIXEL_PX, MAX_SPEED_MPS, MAX_TURN_RATE_RADPS
 from slamio.safe_input import check_regular
 
 __all__ = ["DriveFormatError", "StereoImuDrive", "StereoImuNoise", "load_drive", "save_drive"]
@@ -138,6 +138,43 @@ def _check_rigid(path, key, T):
         raise DriveFormatError(path, key, "the 3×3 block is not a rotation (RᵀR ≠ I or det < 0)")
 
 
+def _features_px(path, arrays: dict[str, np.ndarray], T: int) -> np.ndarray:
+    """``features`` (4, M, T) with −1 for 'not seen', checked, as (T, M, 4) pixels with NaN."""
+    features = arrays["features"].astype(float)
+    if features.ndim != 3 or features.shape[0] != 4 or features.shape[2] != T:
+        raise DriveFormatError(path, "features", f"shape {features.shape}, expected (4, M, {T}): (u_L, v_L, u_R, v_R) × landmarks × steps")
+    _finite(path, "features", features, MAX_PIXEL_PX, "px")
+    unseen = features == UNSEEN
+    partial = unseen.any(axis=0) & ~unseen.all(axis=0)
+    if partial.any():
+        j, t = (int(i) for i in np.argwhere(partial)[0])
+        raise DriveFormatError(path, "features", f"landmark {j} at step {t} has −1 in some of its four pixels but not all; use −1 in all four for 'not seen'")
+    if np.any(features[~unseen] < 0.0):
+        raise DriveFormatError(path, "features", "negative pixel coordinate other than the −1 'not seen' marker")
+    features_px = np.where(unseen, np.nan, features).transpose(2, 1, 0).copy()
+    return features_px
+
+
+def _camera(path, arrays: dict[str, np.ndarray]) -> tuple[np.ndarray, float, np.ndarray]:
+    """The intrinsics ``K``, the baseline ``b`` (m) and ``cam_T_imu``, checked."""
+    K = arrays["K"].astype(float)
+    _shape(path, "K", K, (3, 3), "camera intrinsics")
+    _finite(path, "K", K, MAX_PIXEL_PX, "px")
+    if not (K[0, 0] > 0.0 and K[1, 1] > 0.0) or not np.allclose(K[2], [0.0, 0.0, 1.0]):
+        raise DriveFormatError(path, "K", "not an intrinsics matrix (needs fx, fy > 0 and last row [0, 0, 1])")
+    b = arrays["b"].astype(float)
+    if b.size != 1:
+        raise DriveFormatError(path, "b", f"shape {b.shape}, expected a scalar baseline in metres")
+    baseline = float(b.reshape(-1)[0])
+    if not (np.isfinite(baseline) and 0.0 < baseline <= MAX_MOUNT_M):
+        raise DriveFormatError(path, "b", f"baseline {baseline!r} must be a positive number of metres")
+    cam_T_imu = arrays["cam_T_imu"].astype(float)
+    _shape(path, "cam_T_imu", cam_T_imu, (4, 4), "IMU pose in the left optical frame")
+    _finite(path, "cam_T_imu", cam_T_imu, MAX_MOUNT_M, "m")
+    _check_rigid(path, "cam_T_imu", cam_T_imu)
+    return K, baseline, cam_T_imu
+
+
 def load_drive(path) -> StereoImuDrive:
     """Read a seed-003 npz (and its truth, if a simulated drive); errors are :class:`DriveFormatError`."""
     path = Path(path)
@@ -170,18 +207,7 @@ def load_drive(path) -> StereoImuDrive:
         k = int(np.argmax(steps <= 0.0))
         raise DriveFormatError(path, "time_stamps", f"not strictly increasing at step {k + 1} ({stamps[k]!r} → {stamps[k + 1]!r})")
 
-    features = arrays["features"].astype(float)
-    if features.ndim != 3 or features.shape[0] != 4 or features.shape[2] != T:
-        raise DriveFormatError(path, "features", f"shape {features.shape}, expected (4, M, {T}): (u_L, v_L, u_R, v_R) × landmarks × steps")
-    _finite(path, "features", features, MAX_PIXEL_PX, "px")
-    unseen = features == UNSEEN
-    partial = unseen.any(axis=0) & ~unseen.all(axis=0)
-    if partial.any():
-        j, t = (int(i) for i in np.argwhere(partial)[0])
-        raise DriveFormatError(path, "features", f"landmark {j} at step {t} has −1 in some of its four pixels but not all; use −1 in all four for 'not seen'")
-    if np.any(features[~unseen] < 0.0):
-        raise DriveFormatError(path, "features", "negative pixel coordinate other than the −1 'not seen' marker")
-    features_px = np.where(unseen, np.nan, features).transpose(2, 1, 0).copy()
+    features_px = _features_px(path, arrays, T)
 
     velocities = {}
     for key in ("linear_velocity", "rotational_velocity"):
@@ -190,21 +216,7 @@ def load_drive(path) -> StereoImuDrive:
         _finite(path, key, v, MAX_SPEED_MPS if key == "linear_velocity" else MAX_TURN_RATE_RADPS, "per s")
         velocities[key] = v.T.copy()
 
-    K = arrays["K"].astype(float)
-    _shape(path, "K", K, (3, 3), "camera intrinsics")
-    _finite(path, "K", K, MAX_PIXEL_PX, "px")
-    if not (K[0, 0] > 0.0 and K[1, 1] > 0.0) or not np.allclose(K[2], [0.0, 0.0, 1.0]):
-        raise DriveFormatError(path, "K", "not an intrinsics matrix (needs fx, fy > 0 and last row [0, 0, 1])")
-    b = arrays["b"].astype(float)
-    if b.size != 1:
-        raise DriveFormatError(path, "b", f"shape {b.shape}, expected a scalar baseline in metres")
-    baseline = float(b.reshape(-1)[0])
-    if not (np.isfinite(baseline) and 0.0 < baseline <= MAX_MOUNT_M):
-        raise DriveFormatError(path, "b", f"baseline {baseline!r} must be a positive number of metres")
-    cam_T_imu = arrays["cam_T_imu"].astype(float)
-    _shape(path, "cam_T_imu", cam_T_imu, (4, 4), "IMU pose in the left optical frame")
-    _finite(path, "cam_T_imu", cam_T_imu, MAX_MOUNT_M, "m")
-    _check_rigid(path, "cam_T_imu", cam_T_imu)
+    K, baseline, cam_T_imu = _camera(path, arrays)
 
     truth_poses = truth_landmarks = None
     if "truth_world_T_imu" in arrays:
@@ -213,7 +225,7 @@ def load_drive(path) -> StereoImuDrive:
         _finite(path, "truth_world_T_imu", truth_poses, COORDINATE_M, "m")
     if "truth_landmarks" in arrays:
         truth_landmarks = arrays["truth_landmarks"].astype(float)
-        _shape(path, "truth_landmarks", truth_landmarks, (features.shape[1], 3), "one world point per landmark")
+        _shape(path, "truth_landmarks", truth_landmarks, (features_px.shape[1], 3), "one world point per landmark")
         _finite(path, "truth_landmarks", truth_landmarks, COORDINATE_M, "m")
 
     return StereoImuDrive(

@@ -17,12 +17,14 @@ import numpy as np
 
 from slamio.datasets.seed003 import StereoImuDrive, StereoImuNoise
 from slamio.errors import FgslamError
-from slamio.log import Header, RunLog, group_steps
-from slamio.log3d import (
+from slamio.log import (
+    Header,
+    RunLog,
     StereoObservation,
     TruthLandmark3,
     TruthPose3,
     VelocityOdometry,
+    group_steps,
     pose3_from_matrix,
     pose3_matrix,
     stereo_calibration,
@@ -78,13 +80,14 @@ def drive_to_log(drive: StereoImuDrive, noise: StereoImuNoise = StereoImuNoise()
     return header, records
 
 
-def log_to_drive(log: RunLog) -> StereoImuDrive:
-    """The drive arrays of a 3-D run log (truth when every pose and landmark has one)."""
+def log_to_drive(log: RunLog, steps=None) -> StereoImuDrive:
+    """The drive arrays of a 3-D run log (truth when every pose and landmark has one);
+    ``steps``: the log's steps when the caller has grouped them already."""
     header = log.header
     if not header.is_3d:
         raise FgslamError(f"{log.path}: a planar log; the 3-D estimators need a 3-D log (start.pose3, stereo observations)")
     calibration = stereo_calibration(header)
-    steps = group_steps(header, log.records)
+    steps = group_steps(header, log.records) if steps is None else steps
     truth_landmarks = {r.landmark_id: r for r in log.records if isinstance(r, TruthLandmark3)}
     # one column per landmark the log names, in id order: never one per possible id (an id
     # may be up to 2^31 - 1)

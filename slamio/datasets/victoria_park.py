@@ -227,16 +227,7 @@ def import_victoria_park(
     if raw_lines and raw_lines[-1] == b"":
         raw_lines.pop()  # the text after the final newline
 
-    records: list[Record] = []
-    pose_ids: set[int] = set()  # file ids of the poses so far
-    current: int | None = None  # file id of the latest pose (the one observations belong to)
-    first_pose_id: int | None = None
-    n_odometry = n_landmark = n_nonuniform = 0
-    odometry_covariances: set[tuple[float, ...]] = set()
-    landmark_covariances: set[tuple[float, float, float]] = set()
-    landmark_ids: set[int] = set()
-    stamp = 0.0
-
+    chain = _Chain(nominal_period_s)
     for number, raw in enumerate(raw_lines, start=1):
         try:
             try:
@@ -248,65 +239,9 @@ def import_victoria_park(
                 continue  # gtsam's parser skips blank lines too
             tag = tokens[0]
             if tag == "ODOMETRY":
-                _count(tokens, _ODOMETRY_FIELDS)
-                i, j = _ints(tokens[1:3], ("pose id i", "pose id j"))
-                dx, dy, dth = _floats(tokens[3:6], ("dx", "dy", "dtheta"))
-                v = tuple(_floats(tokens[6:12], ("v0", "v1", "v2", "v3", "v4", "v5")))
-                if current is None:
-                    current = first_pose_id = i
-                    pose_ids.add(i)
-                if i != current:
-                    raise _BadLine(
-                        f"ODOMETRY {i} {j} does not start at the latest pose {current}: a run log "
-                        "holds one odometry chain, each line continuing from the previous one "
-                        "(loop-closure edges cannot be converted)"
-                    )
-                if j in pose_ids:
-                    raise _BadLine(
-                        f"ODOMETRY {i} {j} returns to pose {j}, which already exists: a run log "
-                        "holds one odometry chain without loop-closure edges"
-                    )
-                try:
-                    M = odometry_file_covariance(v)  # type: ignore[arg-type]
-                except ValueError as exc:
-                    raise _BadLine(str(exc)) from None
-                stamp = len(pose_ids) * nominal_period_s
-                records.append(Odometry(stamp, dx, dy, dth, _end_frame_to_increment(M, dth)))
-                pose_ids.add(j)
-                current = j
-                n_odometry += 1
-                odometry_covariances.add(tuple(float(x) for x in np.diag(M)))
+                chain.odometry(tokens)
             elif tag == "LANDMARK":
-                _count(tokens, _LANDMARK_FIELDS)
-                i, lid = _ints(tokens[1:3], ("pose id i", "landmark id l"))
-                x, y, vxx, vxy, vyy = _floats(tokens[3:8], ("x", "y", "vxx", "vxy", "vyy"))
-                if current is None:
-                    current = first_pose_id = i
-                    pose_ids.add(i)
-                if i != current:
-                    raise _BadLine(
-                        f"LANDMARK seen from pose {i}, but the latest pose is {current}: a "
-                        "landmark line must follow the ODOMETRY line that created its pose"
-                    )
-                range_m = math.sqrt(x * x + y * y)  # load2D's formulas, for identical numbers
-                bearing_rad = math.atan2(y, x)
-                if not range_m > 0.0:
-                    raise _BadLine(
-                        f"landmark {lid} at (x, y) = ({_fmt(x)}, {_fmt(y)}) is at zero range: its "
-                        "bearing is undefined; remove the line"
-                    )
-                if not (vxx > 0.0 and vyy > 0.0):
-                    raise _BadLine(
-                        f"the covariance diagonal vxx = {_fmt(vxx)}, vyy = {_fmt(vyy)} must be > 0 "
-                        "(load2D takes the square root of vxx for the sigmas)"
-                    )
-                sigma_bearing, sigma_range = landmark_sigmas(vxx, vyy)
-                if abs(vxx - vyy) >= 1e-4:
-                    n_nonuniform += 1
-                records.append(Observation(stamp, lid, range_m, bearing_rad, sigma_range, sigma_bearing))
-                n_landmark += 1
-                landmark_covariances.add((vxx, vxy, vyy))
-                landmark_ids.add(lid)
+                chain.landmark(tokens)
             else:
                 raise _BadLine(
                     f"unknown line type {shown(tag)}; a Victoria Park file holds only ODOMETRY and "
@@ -315,23 +250,104 @@ def import_victoria_park(
         except _BadLine as bad:
             raise DatasetFormatError(path, number, str(bad)) from None
 
-    if current is None or first_pose_id is None:
+    if chain.current is None or chain.first_pose_id is None:
         raise DatasetFormatError(path, max(1, len(raw_lines)), "no ODOMETRY or LANDMARK lines; is this the Victoria Park file?")
 
     header = _header(
         path,
         raw_lines,
         nominal_period_s,
-        n_poses=len(pose_ids),
-        n_odometry=n_odometry,
-        n_landmark=n_landmark,
-        n_landmarks=len(landmark_ids),
-        n_nonuniform=n_nonuniform,
-        odometry_covariances=odometry_covariances,
-        landmark_covariances=landmark_covariances,
-        first_pose_id=first_pose_id,
+        n_poses=len(chain.pose_ids),
+        n_odometry=chain.n_odometry,
+        n_landmark=chain.n_landmark,
+        n_landmarks=len(chain.landmark_ids),
+        n_nonuniform=chain.n_nonuniform,
+        odometry_covariances=chain.odometry_covariances,
+        landmark_covariances=chain.landmark_covariances,
+        first_pose_id=chain.first_pose_id,
     )
-    return header, list(check_records(path, header, records))  # never a log the reader refuses
+    return header, list(check_records(path, header, chain.records))  # never a log the reader refuses
+
+
+class _Chain:
+    """The records converted so far: one odometry chain of poses, the landmarks seen from
+    its latest pose, and what the header counts."""
+
+    def __init__(self, nominal_period_s: float):
+        self.nominal_period_s = nominal_period_s
+        self.records: list[Record] = []
+        self.pose_ids: set[int] = set()  # file ids of the poses so far
+        self.current: int | None = None  # file id of the latest pose (the one observations belong to)
+        self.first_pose_id: int | None = None
+        self.n_odometry = self.n_landmark = self.n_nonuniform = 0
+        self.odometry_covariances: set[tuple[float, ...]] = set()
+        self.landmark_covariances: set[tuple[float, float, float]] = set()
+        self.landmark_ids: set[int] = set()
+        self.stamp = 0.0
+
+    def _start(self, i: int) -> None:
+        """The file's first line starts the chain at its pose ``i``."""
+        if self.current is None:
+            self.current = self.first_pose_id = i
+            self.pose_ids.add(i)
+
+    def odometry(self, tokens: list[str]) -> None:
+        _count(tokens, _ODOMETRY_FIELDS)
+        i, j = _ints(tokens[1:3], ("pose id i", "pose id j"))
+        dx, dy, dth = _floats(tokens[3:6], ("dx", "dy", "dtheta"))
+        v = tuple(_floats(tokens[6:12], ("v0", "v1", "v2", "v3", "v4", "v5")))
+        self._start(i)
+        if i != self.current:
+            raise _BadLine(
+                f"ODOMETRY {i} {j} does not start at the latest pose {self.current}: a run log "
+                "holds one odometry chain, each line continuing from the previous one "
+                "(loop-closure edges cannot be converted)"
+            )
+        if j in self.pose_ids:
+            raise _BadLine(
+                f"ODOMETRY {i} {j} returns to pose {j}, which already exists: a run log "
+                "holds one odometry chain without loop-closure edges"
+            )
+        try:
+            M = odometry_file_covariance(v)  # type: ignore[arg-type]
+        except ValueError as exc:
+            raise _BadLine(str(exc)) from None
+        self.stamp = len(self.pose_ids) * self.nominal_period_s
+        self.records.append(Odometry(self.stamp, dx, dy, dth, _end_frame_to_increment(M, dth)))
+        self.pose_ids.add(j)
+        self.current = j
+        self.n_odometry += 1
+        self.odometry_covariances.add(tuple(float(x) for x in np.diag(M)))
+
+    def landmark(self, tokens: list[str]) -> None:
+        _count(tokens, _LANDMARK_FIELDS)
+        i, lid = _ints(tokens[1:3], ("pose id i", "landmark id l"))
+        x, y, vxx, vxy, vyy = _floats(tokens[3:8], ("x", "y", "vxx", "vxy", "vyy"))
+        self._start(i)
+        if i != self.current:
+            raise _BadLine(
+                f"LANDMARK seen from pose {i}, but the latest pose is {self.current}: a "
+                "landmark line must follow the ODOMETRY line that created its pose"
+            )
+        range_m = math.sqrt(x * x + y * y)  # load2D's formulas, for identical numbers
+        bearing_rad = math.atan2(y, x)
+        if not range_m > 0.0:
+            raise _BadLine(
+                f"landmark {lid} at (x, y) = ({_fmt(x)}, {_fmt(y)}) is at zero range: its "
+                "bearing is undefined; remove the line"
+            )
+        if not (vxx > 0.0 and vyy > 0.0):
+            raise _BadLine(
+                f"the covariance diagonal vxx = {_fmt(vxx)}, vyy = {_fmt(vyy)} must be > 0 "
+                "(load2D takes the square root of vxx for the sigmas)"
+            )
+        sigma_bearing, sigma_range = landmark_sigmas(vxx, vyy)
+        if abs(vxx - vyy) >= 1e-4:
+            self.n_nonuniform += 1
+        self.records.append(Observation(self.stamp, lid, range_m, bearing_rad, sigma_range, sigma_bearing))
+        self.n_landmark += 1
+        self.landmark_covariances.add((vxx, vxy, vyy))
+        self.landmark_ids.add(lid)
 
 
 def _header(

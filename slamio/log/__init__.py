@@ -13,7 +13,7 @@ Line 1 is a header; every later line is one record with a ``"type"``. A planar l
 
 A **3-D log** (version 2, start pose ``pose3``) holds ``velocity_odometry``,
 ``stereo_observation``, ``truth_pose3``, ``truth_landmark3`` and ``live_step`` records
-instead (:mod:`slamio.log3d`); the reader refuses planar records in it and 3-D records in a
+instead (:mod:`slamio.log.records3d`); the reader refuses planar records in it and 3-D records in a
 planar log. Writers write version 1 for a planar log, so older readers still read it.
 
 Pose 0 is the header's start pose. Every odometry record starts a new pose; observations
@@ -36,6 +36,7 @@ constants in :mod:`slamio.log.fields`, explained in docs/log-format.md "Bounds")
 
 The package, one responsibility per file: :mod:`~slamio.log.records` (the records, steps and
 :class:`RunLog`), :mod:`~slamio.log.fields` (one field validated against its bounds),
+:mod:`~slamio.log.records3d` (the 3-D records, their parsers and the stereo calibration),
 :mod:`~slamio.log.read` (:func:`read_log`) and :mod:`~slamio.log.write` (:class:`LogWriter`,
 :func:`write_log`). Import everything from ``slamio.log``.
 """
@@ -78,6 +79,25 @@ from slamio.log.records import (
     as_matrix3,
     group_steps,
 )
+from slamio.log.records3d import (
+    MAX_MOUNT_M,
+    MAX_PIXEL_PX,
+    MAX_SPEED_MPS,
+    MAX_TURN_RATE_RADPS,
+    RECORDS_3D,
+    SIGMA_PIXEL_PX,
+    TYPE_OF_3D,
+    StereoCalibration,
+    StereoObservation,
+    TruthLandmark3,
+    TruthPose3,
+    VelocityOdometry,
+    pose3_from_matrix,
+    pose3_matrix,
+    stereo_calibration,
+    stereo_sensor,
+    top_view,
+)
 from slamio.log.write import LogWriter, format_line, header_to_dict, record_to_dict, write_log
 
 __all__ = [
@@ -89,4 +109,8 @@ __all__ = [
     "RunLog", "Step", "TruthLandmark", "TruthPose",
     "as_matrix3", "format_line", "group_steps", "header_to_dict", "parse_header", "parse_record", "read_log",
     "record_to_dict", "sensor_range_limits", "write_log",
+    # the 3-D records (slamio.log.records3d)
+    "MAX_MOUNT_M", "MAX_PIXEL_PX", "MAX_SPEED_MPS", "MAX_TURN_RATE_RADPS", "RECORDS_3D", "SIGMA_PIXEL_PX", "TYPE_OF_3D",
+    "StereoCalibration", "StereoObservation", "TruthLandmark3", "TruthPose3", "VelocityOdometry",
+    "pose3_from_matrix", "pose3_matrix", "stereo_calibration", "stereo_sensor", "top_view",
 ]

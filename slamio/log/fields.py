@@ -1,7 +1,7 @@
 """One field of a log line, validated: a finite number within physical bounds, a σ, an
 angle, an id, a covariance. Each failure raises ``_BadLine`` with what is wrong and how to
 fix it; :func:`slamio.log.read.read_log` adds the file and line. The 3-D records
-(:mod:`slamio.log3d`) use the same checks.
+(:mod:`slamio.log.records3d`) use the same checks.
 """
 
 from __future__ import annotations
@@ -12,7 +12,8 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from slamio.log.records import Matrix3
+#: A 3×3 covariance as written (rows of three floats).
+Matrix3 = tuple[tuple[float, float, float], tuple[float, float, float], tuple[float, float, float]]
 
 # Bounds the reader enforces (docs/log-format.md, "Bounds"). Each is a physical limit with
 # a wide margin, and keeps every square and inverse the estimators compute far from float

@@ -26,6 +26,7 @@ from slamio.log.records import (
     _CLASS_OF, _PLANAR_TYPES, _TYPES_3D, FORMAT_NAME, UNITS, VERSIONS, Header, LiveStep, Observation, Odometry,
     Record, Rejected, RunLog, TruthLandmark, TruthPose,
 )
+import slamio.log.records3d as log3d
 from slamio.safe_input import read_bytes
 
 #: The largest run log read (it is read whole): 1 GiB, about five million records — more
@@ -133,8 +134,6 @@ def _start_pose(value: Any) -> tuple[float, float, float]:
 
 def _parse_header3(d: dict, version: int) -> Header:
     """The header of a 3-D log: ``start.pose3``/``sigma3`` and a stereo ``sensor``."""
-    from slamio import log3d
-
     if version < 2:
         raise _BadLine("'start.pose3' (a 3-D log) needs \"version\": 2; version 1 logs are planar")
     start = _object(d, "start", ("stamp_s", "pose3", "sigma3"))
@@ -164,8 +163,6 @@ def parse_record(d: dict) -> Record:
             f"field 'type' must be a string naming the record type, got {_show(kind)}; "
             f"expected one of {', '.join(sorted(_CLASS_OF))}"
         )
-    from slamio import log3d
-
     cls = _CLASS_OF.get(kind) or log3d.RECORDS_3D.get(kind)
     if cls is None:
         raise _BadLine(
@@ -390,9 +387,7 @@ DT_TOLERANCE_S = 1e-6
 
 def _check_interval(record: Record, pose_stamp: float) -> float:
     """A 3-D log's velocity record spans the time since the previous pose; the latest pose's stamp."""
-    from slamio.log3d import VelocityOdometry
-
-    if not isinstance(record, VelocityOdometry):
+    if not isinstance(record, log3d.VelocityOdometry):
         return pose_stamp
     gap = record.stamp_s - pose_stamp
     if abs(record.dt_s - gap) > DT_TOLERANCE_S + 1e-15 * abs(record.stamp_s):  # + the stamps' rounding
@@ -449,67 +444,89 @@ def read_log(path: str | os.PathLike[str]) -> RunLog:
     del data
     if not lines:
         raise LogFormatError(path, 1, "the file is empty; a run log starts with a header line")
-    header: Header | None = None
-    records: list[Record] = []
-    rejected: list[Rejected] = []
-    limits: tuple[float | None, float | None] = (None, None)
-    last_stamp = -math.inf
+    state = _ReadState(path)
     truncated: str | None = None
-    pose_stamp = -math.inf  # stamp of the latest pose (3-D logs: velocity_odometry.dt_s must span from it)
-    stamp_at = (1, 0, 0)  # last_stamp's (line, records and rejections before it); line 1: the header's
-    truth_at: dict[int, tuple[int, Record, int, int]] = {}  # landmark id -> (line, record, records, rejections)
     for number, raw, ended in lines:
         try:
-            d = _loads(_decode(raw, number))
-            if header is None:
-                header = parse_header(d)
-                limits = sensor_range_limits(header)
-                last_stamp = pose_stamp = header.stamp_s
-                continue
-            if d.get("type") == "header":
-                raise _BadLine("a second header; a log holds one run — split the file")
-            _check_dimension(d.get("type"), header)
-            record = parse_record(d)
-            stamp = getattr(record, "stamp_s", None)
-            if stamp is not None:
-                if stamp < last_stamp:
-                    raise _Conflict(
-                        f"line {number}'s stamp_s {stamp!r} is earlier than "
-                        + (f"line {stamp_at[0]}'s {last_stamp!r}" if stamp_at[0] > 1
-                           else f"the header's start.stamp_s {last_stamp!r} (line 1)")
-                        + ": one of them is wrong; records must be written in time order (fix the wrong stamp "
-                        "or delete its line)",
-                        *stamp_at,
-                    )
-                last_stamp, stamp_at = stamp, (number, len(records), len(rejected))
-            if d.get("type") in _TRUTH_LANDMARK_TYPES:
-                lid = record.landmark_id  # type: ignore[union-attr]
-                if lid in truth_at:
-                    raise _landmark_conflict(d["type"], truth_at[lid], number, record)
-                truth_at[lid] = (number, record, len(records), len(rejected))
-            if header.is_3d:
-                pose_stamp = _check_interval(record, pose_stamp)
-            if isinstance(record, Observation):
-                outside = _outside_sensor(record, *limits)
-                if outside is not None:
-                    reason, message = outside
-                    rejected.append(Rejected(number, reason, f"{path}:{number}: {message}", record))
-                    continue
-            records.append(record)
+            state.take(number, _loads(_decode(raw, number)))
         except _BadLine as bad:
-            if isinstance(bad, _NotJson) and number == len(lines) and not ended and header is not None:
+            if isinstance(bad, _NotJson) and number == len(lines) and not ended and state.header is not None:
                 truncated = (
                     f"{path}:{number}: the last line is cut off (recording interrupted?); "
                     f"using the {number - 1} complete lines before it"
                 )
                 break
-            line, kept, kept_rejected = number, len(records), len(rejected)
-            if isinstance(bad, _Conflict):  # reported at the earlier line: only what precedes it is known good
-                line, kept, kept_rejected = bad.line, bad.records, bad.rejected
-            partial = (
-                None if header is None or line == 1
-                else RunLog(path, header, tuple(records[:kept]), None, tuple(rejected[:kept_rejected]))
+            raise state.error(number, bad) from None
+    assert state.header is not None
+    return RunLog(path, state.header, tuple(state.records), truncated, tuple(state.rejected))
+
+
+class _ReadState:
+    """What :func:`read_log` knows after each line: the header, the records and rejections so
+    far, and what the next lines are checked against (the last stamp, the latest pose's
+    stamp, the truths of landmarks seen)."""
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+        self.header: Header | None = None
+        self.records: list[Record] = []
+        self.rejected: list[Rejected] = []
+        self.limits: tuple[float | None, float | None] = (None, None)
+        self.last_stamp = -math.inf
+        self.pose_stamp = -math.inf  # stamp of the latest pose (3-D logs: velocity_odometry.dt_s must span from it)
+        self.stamp_at = (1, 0, 0)  # last_stamp's (line, records and rejections before it); line 1: the header's
+        self.truth_at: dict[int, tuple[int, Record, int, int]] = {}  # landmark id -> (line, record, records, rejections)
+
+    def take(self, number: int, d: dict) -> None:
+        """Line ``number`` (parsed JSON ``d``): the header, or one record checked against the lines before."""
+        if self.header is None:
+            self.header = parse_header(d)
+            self.limits = sensor_range_limits(self.header)
+            self.last_stamp = self.pose_stamp = self.header.stamp_s
+            return
+        if d.get("type") == "header":
+            raise _BadLine("a second header; a log holds one run — split the file")
+        _check_dimension(d.get("type"), self.header)
+        record = parse_record(d)
+        self._check_stamp(number, record)
+        if d.get("type") in _TRUTH_LANDMARK_TYPES:
+            lid = record.landmark_id  # type: ignore[union-attr]
+            if lid in self.truth_at:
+                raise _landmark_conflict(d["type"], self.truth_at[lid], number, record)
+            self.truth_at[lid] = (number, record, len(self.records), len(self.rejected))
+        if self.header.is_3d:
+            self.pose_stamp = _check_interval(record, self.pose_stamp)
+        if isinstance(record, Observation):
+            outside = _outside_sensor(record, *self.limits)
+            if outside is not None:
+                reason, message = outside
+                self.rejected.append(Rejected(number, reason, f"{self.path}:{number}: {message}", record))
+                return
+        self.records.append(record)
+
+    def _check_stamp(self, number: int, record: Record) -> None:
+        """Stamps must not decrease: a conflict is reported at the earlier line."""
+        stamp = getattr(record, "stamp_s", None)
+        if stamp is None:
+            return
+        if stamp < self.last_stamp:
+            raise _Conflict(
+                f"line {number}'s stamp_s {stamp!r} is earlier than "
+                + (f"line {self.stamp_at[0]}'s {self.last_stamp!r}" if self.stamp_at[0] > 1
+                   else f"the header's start.stamp_s {self.last_stamp!r} (line 1)")
+                + ": one of them is wrong; records must be written in time order (fix the wrong stamp "
+                "or delete its line)",
+                *self.stamp_at,
             )
-            raise LogFormatError(path, line, str(bad), partial) from None
-    assert header is not None
-    return RunLog(path, header, tuple(records), truncated, tuple(rejected))
+        self.last_stamp, self.stamp_at = stamp, (number, len(self.records), len(self.rejected))
+
+    def error(self, number: int, bad: _BadLine) -> LogFormatError:
+        """The :class:`LogFormatError` of a bad line, carrying what precedes the line it is reported at."""
+        line, kept, kept_rejected = number, len(self.records), len(self.rejected)
+        if isinstance(bad, _Conflict):  # reported at the earlier line: only what precedes it is known good
+            line, kept, kept_rejected = bad.line, bad.records, bad.rejected
+        partial = (
+            None if self.header is None or line == 1
+            else RunLog(self.path, self.header, tuple(self.records[:kept]), None, tuple(self.rejected[:kept_rejected]))
+        )
+        return LogFormatError(self.path, line, str(bad), partial)

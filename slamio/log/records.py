@@ -10,16 +10,16 @@ from typing import Any, Iterable, Union
 
 import numpy as np
 
+from slamio.log.fields import Matrix3
+from slamio.log.records3d import StereoObservation, TruthPose3, VelocityOdometry
+
 FORMAT_NAME = "fgslam-run-log"
-#: The newest version this reader reads; version 2 added the 3-D logs (slamio.log3d).
+#: The newest version this reader reads; version 2 added the 3-D logs (slamio.log.records3d).
 FORMAT_VERSION = 2
 #: Every version it reads. A planar log is written as version 1.
 VERSIONS = (1, 2)
 PLANAR_VERSION = 1
 UNITS = {"length": "m", "angle": "rad", "time": "s"}
-
-
-Matrix3 = tuple[tuple[float, float, float], tuple[float, float, float], tuple[float, float, float]]
 
 
 @dataclass(frozen=True)
@@ -150,7 +150,7 @@ class LiveStep:
     latency_s: float
 
 
-Record = Union[Odometry, Observation, TruthPose, TruthLandmark, LiveStep, Any]  # Any: the 3-D records (slamio.log3d)
+Record = Union[Odometry, Observation, TruthPose, TruthLandmark, LiveStep, Any]  # Any: the 3-D records (slamio.log.records3d)
 
 _TYPE_OF = {
     Odometry: "odometry",
@@ -238,8 +238,6 @@ class RunLog:
     def has_motion(self) -> bool:
         """True when a record starts a pose after pose 0 (:func:`group_steps`' odometry, in a
         3-D log ``velocity_odometry``): without one the log is its start pose alone."""
-        from slamio.log3d import VelocityOdometry
-
         return any(isinstance(r, (Odometry, VelocityOdometry)) for r in self.records)
 
     def truth_landmarks(self) -> dict[int, TruthLandmark]:
@@ -257,8 +255,6 @@ def group_steps(header: Header, records: Iterable[Record]) -> list[Step]:
     In a 3-D log ``velocity_odometry`` starts a pose, ``stereo_observation`` records are
     its observations and ``truth_pose3`` its truth.
     """
-    from slamio.log3d import StereoObservation, TruthPose3, VelocityOdometry
-
     steps: list[Step] = []
     stamp, odometry, observations, truth = header.stamp_s, None, [], None
     for record in records:

@@ -8,6 +8,7 @@ from typing import IO, Any, Iterable
 
 from slamio.errors import FgslamError
 from slamio.log.records import _TYPE_OF, FORMAT_NAME, UNITS, Header, Record
+from slamio.log.records3d import TYPE_OF_3D
 
 _ALWAYS_WRITTEN = {"landmark_id"}  # null means "unknown landmark", not "field absent"
 
@@ -35,8 +36,6 @@ def header_to_dict(header: Header) -> dict[str, Any]:
 
 
 def record_to_dict(record: Record) -> dict[str, Any]:
-    from slamio.log3d import TYPE_OF_3D
-
     kind = _TYPE_OF.get(type(record)) or TYPE_OF_3D[type(record)]
     out: dict[str, Any] = {"type": kind}
     for name in record.__dataclass_fields__:

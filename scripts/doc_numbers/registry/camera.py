@@ -1,14 +1,15 @@
-"""docs/camera.md's numbers: the rendered accuracy table, the gHeight sentence, the corner
-precision of the real photos and the AprilTag detectors on the NASA photos and rendered tags
+"""docs/results-camera.md's numbers (split from docs/camera.md, which keeps two): the rendered
+accuracy table, the gHeight sentence, the corner precision of the real photos and the AprilTag detectors on the NASA photos and rendered tags
 (``scripts/bench_apriltag.py`` without its times)."""
 
 from __future__ import annotations
 
-from doc_numbers.quotes import Quote, numbers_in, row
-from doc_numbers.readers import item, same_row
-from doc_numbers.registry.seeds import gheight_range
+from scripts.doc_numbers.quotes import Quote, numbers_in, row
+from scripts.doc_numbers.readers import item, same_row
+from scripts.doc_numbers.registry.seeds import gheight_range
 
-CAM = "docs/camera.md"
+CAM = "docs/results-camera.md"  # the measured sections, split from docs/camera.md
+CAM_USER = "docs/camera.md"  # the user's page keeps a few numbers
 
 ACCURACY_ROWS = (  # python -m slamio.camera.accuracy, row by row
     "| 0.5 m | 9/9 | 0.02 % | 0.034° | 1.1° | 9/9 | 0.15 % | 0.003° | 0.06 % (3) | 1.58° | — |",
@@ -93,7 +94,7 @@ DETECTOR_PROSE = [
          {0: item("timing frames", "tags_per_frame")}),
     *row(CAM, "on those frames with 9.8 tags each", "apriltag-photos", "tags per timing frame (front-end time)",
          {0: item("timing frames", "tags_per_frame")}),
-    *row(CAM, "(oblique, blurred: 10 of the 57 NASA tags found)", "apriltag-photos", "front-end tags not refined",
+    *row(CAM_USER, "(oblique, blurred: 10 of the 57 NASA tags found)", "apriltag-photos", "front-end tags not refined",
          {0: item("refined", "kept"), 1: item("refined", "detections")}),
     *row(CAM, "| 11 robot-camera photos (56 tags) |", "apriltag-photos", "robot-camera timing frames",
          {0: item("timing frames", "robot_frames"), 1: item("timing frames", "robot_tags")}),
@@ -125,7 +126,7 @@ DETECTOR_PROSE = [
                                3: item(SINGLE, "listed"), 4: item(SINGLE, "reference_max")}),
 ]
 
-COLOUR_REAL_ROWS = (  # python scripts/bench_colour_real.py ../shared/data/rgbd-real, row by row
+COLOUR_REAL_ROWS = (  # python -m scripts.bench_colour_real ../shared/data/rgbd-real, row by row
     "| sequence/00000 | 1 | 0 | shape_mismatch 1 |",
     "| sequence/00001 | 2 | 0 | shape_mismatch 2 |",
     "| sequence/00002 | 1 | 0 | shape_mismatch 1 |",
@@ -143,7 +144,7 @@ COLOUR_REAL_ROWS = (  # python scripts/bench_colour_real.py ../shared/data/rgbd-
 
 QUOTES: list[Quote] = [
     *[q for text in ACCURACY_ROWS for q in same_row(CAM, text, "camera-accuracy", "accuracy table")],
-    *row(CAM, "(largest error 11.4–12.9 % per\n   distance at 1–4 m;", "camera-accuracy", "gHeight error range",
+    *row(CAM_USER, "(largest error 11.4–12.9 % per\n   distance at 1–4 m;", "camera-accuracy", "gHeight error range",
          {0: gheight_range(min), 1: gheight_range(max)}),
     *row(CAM, "56 tags: **σ_px = 0.46 px**", "tag-corner-sigma", "real corner sigma",
          {0: lambda r: r[1], 1: lambda r: r[0]}),

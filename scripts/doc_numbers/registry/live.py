@@ -1,14 +1,14 @@
-"""The consistency numbers of one run's mean NEES (docs/estimators.md) and of the ten
-lockstep laps (README.md, docs/camera.md; reproducible: the same seed drives the same lap);
+"""The consistency numbers of one run's mean NEES (docs/results-estimators.md) and of the ten
+lockstep laps (docs/results.md, docs/camera.md; reproducible: the same seed drives the same lap);
 the live smoother's sliding window on the 40-lap arena (docs/performance.md, without times)."""
 
 from __future__ import annotations
 
-from doc_numbers.quotes import Quote, row
+from scripts.doc_numbers.quotes import Quote, row
 
-E = "docs/estimators.md"
+E = "docs/results-estimators.md"  # "One run's mean NEES", split from docs/estimators.md
 P = "docs/performance.md"
-R = "README.md"
+R = "docs/results.md"  # moved out of README.md
 CAM = "docs/camera.md"
 
 

@@ -1,11 +1,13 @@
-"""The NIS experiments on MRCLAM Dataset 6 that docs/datasets-mrclam-rosbag.md ("Consistency
-and accuracy: what was tried") and README.md quote from ``scripts/mrclam_adaptive_noise.py``."""
+"""The NIS experiments on MRCLAM Dataset 6 that docs/results-datasets.md ("MRCLAM: consistency
+and accuracy, what was tried", split from docs/datasets-mrclam-rosbag.md) and docs/results.md
+(moved out of README.md) quote from ``scripts/mrclam_adaptive_noise.py``."""
 
 from __future__ import annotations
 
-from doc_numbers.quotes import Quote, row
+from scripts.doc_numbers.quotes import Quote, row
 
-DATASETS = "docs/datasets-mrclam-rosbag.md"
+# "Consistency and accuracy: what was tried", split from docs/datasets-mrclam-rosbag.md
+DATASETS = "docs/results-datasets.md"
 SOURCE = "mrclam6-adaptive"
 
 #: Each table row's variant in the script, and the row as the doc prints it from its first cell.
@@ -123,10 +125,10 @@ QUOTES: list[Quote] = [
           **dict(zip((2, 3), _variant_range(lambda v: v["arena_octagon"]["nis_median"], SIMULATED)))}),
     *row(DATASETS, "the readings reach 90.4–95.1 % inside the band", SOURCE, "readings with own scales",
          {0: READINGS_OWN[0], 1: READINGS_OWN[1]}),
-    *row("README.md", "keeps 89.3–90.5 % inside the band (median over the robots)", SOURCE, "README: adaptive medians",
+    *row("docs/results.md", "keeps 89.3–90.5 % inside the band (median over the robots)", SOURCE, "results (was README): adaptive medians",
          dict(zip((0, 1), _variant_range(lambda v: 100 * v["median"]["nis_inside"], ADAPTIVE)))),
-    *row("README.md", "no variance scale, even one chosen after the fact, gets a robot\n  above 92.7 %", SOURCE,
-         "README: open-loop best", {0: CONSTANT[1]}),
+    *row("docs/results.md", "no variance scale, even one chosen after the fact, gets a robot\n  above 92.7 %", SOURCE,
+         "results (was README): open-loop best", {0: CONSTANT[1]}),
 ]
 
 MOTOR_LENS = "mrclam6-motor-lens"

@@ -1,13 +1,14 @@
-"""The Plaza numbers of README.md and docs/datasets.md: the radios' errors against GPS and
-both estimators under the other run's fitted range model (``scripts/plaza_range_model.py``);
+"""The Plaza numbers of docs/results.md (once in README.md), docs/results-datasets.md and
+docs/datasets.md: the radios' errors against GPS and both estimators under the other run's fitted range model (``scripts/plaza_range_model.py``);
 and the replay of the shipped live-simulation log."""
 
 from __future__ import annotations
 
-from doc_numbers.quotes import Quote, row
+from scripts.doc_numbers.quotes import Quote, row
 
-R = "README.md"
-D = "docs/datasets.md"
+R = "docs/results.md"  # moved out of README.md
+D = "docs/results-datasets.md"  # the measured sections, split from docs/datasets.md
+D_USER = "docs/datasets.md"
 S = "plaza"
 
 
@@ -108,7 +109,7 @@ QUOTES += [
     *row(D, "| −0.01 / 0.01 / 0.00 | 0.01 / 0.01 / 0.01 |", S, "correlation",
          {0: correlation("plaza1", 0), 1: correlation("plaza1", 3), 2: correlation("plaza1", 6),
           3: correlation("plaza2", 0), 4: correlation("plaza2", 3), 5: correlation("plaza2", 5)}),
-    *row(D, "by +3.15° (Plaza1) and +10.05° (Plaza2)", S, "start heading turn",
+    *row(D_USER, "by +3.15° (Plaza1) and +10.05° (Plaza2)", S, "start heading turn",
          {0: lambda m: m["turn_deg"]["plaza1"], 1: lambda m: m["turn_deg"]["plaza2"]}),
     *row(D, "band less often than 95 %, with the fitted model: EKF 91.9 % (Plaza1) and 86.6 % (Plaza2),\n"
          "  `isam2` 80.1 % and 82.0 %", S, "position NEES",

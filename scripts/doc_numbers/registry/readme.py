@@ -1,38 +1,42 @@
-"""README.md's numbers: the demo and the worked example, what the comparison shows, the seed
-papers' filters, data association, outliers, `fgslam check`, `fgslam bench`, the camera
-summary, and (with --shared) the MRCLAM Dataset 6 table."""
+"""The numbers that README.md quoted before it became a manual, wherever they live now:
+README.md keeps the demo (`make demo`'s table) and `fgslam check`; docs/output.md the worked
+example on the 200-landmark grid; docs/results.md what the comparison shows, the seed papers'
+filters, data association, outliers, `fgslam bench`, the camera summary, and (with --shared)
+the MRCLAM Dataset 6 table."""
 
 from __future__ import annotations
 
-from doc_numbers.quotes import Quote, parse_number, row
-from doc_numbers.readers import association, association_rate, flaw, item, median, metric, metric_row, scene
-from doc_numbers.registry.camera import CHOSEN, SINGLE, SINGLE_ARUCO
+from scripts.doc_numbers.quotes import Quote, parse_number, row
+from scripts.doc_numbers.readers import association, association_rate, flaw, item, median, metric, metric_row, scene
+from scripts.doc_numbers.registry.camera import CHOSEN, SINGLE, SINGLE_ARUCO
 
 R = "README.md"
+OUT = "docs/output.md"  # the worked example on the grid, how to read the table
+RES = "docs/results.md"  # the research results that moved out of the README
 DEMO = "ate online final map landmarks - - - unused nees nis -"  # fgslam run's table with NEES/NIS
 DEAD = "ate online final map landmarks - - - unused nees -"  # the same for dead reckoning (no NIS)
 BATCH = "ate final map landmarks -"
 ACCURACY = "ate online final map landmarks"  # a table row quoted up to its landmarks column
 
 
-def run_table(source: str, lines: dict[str, str]) -> list[Quote]:
+def run_table(source: str, lines: dict[str, str], doc: str = R) -> list[Quote]:
     """The rows of a table ``fgslam run`` printed with its NEES/NIS columns: estimator → its line."""
     columns = {"dead_reckoning": DEAD, "batch": BATCH}
-    return [q for e, line in lines.items() for q in metric_row(R, line, source, e, columns.get(e, DEMO))]
+    return [q for e, line in lines.items() for q in metric_row(doc, line, source, e, columns.get(e, DEMO))]
 
 
 README_DEMO = [
     *run_table("octagon", {
-        "ekf": "ekf                  0.0110        0.0110       0.0071      0.0144          8     172.9        "
-               "0.171        2.543           0       96.1      95.5      1.0",
-        "isam2": "isam2                0.0076        0.0107       0.0066      0.0125          8    1320.3        "
-                 "0.201       17.713           0       96.7      96.2      7.3",
-        "dead_reckoning": "dead_reckoning       0.0668        0.0668       0.0628      0.1171          8      24.3        "
-                          "0.012        0.063           0       88.5         -      0.1",
-        "batch": "batch                0.0076             -       0.0066      0.0125          8      36.0"}),
+        "ekf": "ekf                  0.0110        0.0110       0.0071      0.0144          8     127.2        "
+               "0.088        4.382           0       96.1      95.5      0.8",
+        "isam2": "isam2                0.0076        0.0107       0.0066      0.0125          8     249.9        "
+                 "0.099        5.675           0       96.7      96.2      8.6",
+        "dead_reckoning": "dead_reckoning       0.0668        0.0668       0.0628      0.1171          8      19.0        "
+                          "0.012        0.057           0       88.5         -      0.0",
+        "batch": "batch                0.0076             -       0.0066      0.0125          8      15.6"}),
     Quote(R, "660 poses over 65.9 s, 789 observations of 8 landmarks", "660", "octagon",
           lambda m: m["poses"], "bundled log: poses"),
-    *row(R, "On the bundled log: NEES inside the band ekf 96 %, isam2 97 %; NIS mean 1.93 (ekf) and\n"
+    *row(OUT, "On the bundled log: NEES inside the band ekf 96 %, isam2 97 %; NIS mean 1.93 (ekf) and\n"
          "  1.78 (isam2), 95.5 % and 96.2 % inside.", "octagon", "NEES/NIS sentence",
          {0: metric("ekf", "nees_inside_95", 100), 1: metric("isam2", "nees_inside_95", 100),
           2: metric("ekf", "nis_mean"), 3: metric("isam2", "nis_mean"), 4: metric("ekf", "nis_inside_95", 100),
@@ -47,22 +51,22 @@ README_GRID = [
                  "0.271       41.912           0       98.9      95.3     81.0",
         "dead_reckoning": "dead_reckoning      11.4031       11.4031      15.1154      4.6379        200     216.8        "
                           "0.020        0.064           0       88.2         -      0.5",
-        "batch": "batch                0.1936             -       0.0264      0.1834        200     488.0"}),
-    Quote(R, "wrote runs/grid200.jsonl: 6621 poses over 1324.0 s, 21839 observations", "6621", "grid200",
+        "batch": "batch                0.1936             -       0.0264      0.1834        200     488.0"}, doc=OUT),
+    Quote(OUT, "wrote runs/grid200.jsonl: 6621 poses over 1324.0 s, 21839 observations", "6621", "grid200",
           lambda m: m["poses"], "grid 200: poses"),
-    *row(R, "the same final estimate (0.1936 m);", "grid200", "isam2-fast final",
+    *row(RES, "the same final estimate (0.1936 m);", "grid200", "isam2-fast final",
          {0: metric("isam2-fast", "ate_rmse_m")}),
-    *row(R, "its\n  online ATE is 0.300 m.", "grid200", "isam2-fast online",
+    *row(RES, "its\n  online ATE is 0.300 m.", "grid200", "isam2-fast online",
          {0: metric("isam2-fast", "ate_online_rmse_m")}),
 ]
 
 README_SHOWS = [
-    *row(R, "| arena-octagon (660 poses, 8 tags) | 0.0110 m | 0.0076 m | 0.0076 m | 0.0668 m | 0.0110 m | 0.0107 m |",
+    *row(RES, "| arena-octagon (660 poses, 8 tags) | 0.0110 m | 0.0076 m | 0.0076 m | 0.0668 m | 0.0110 m | 0.0107 m |",
          "octagon", "What the comparison shows, octagon",
          {0: lambda m: m["poses"], 2: metric("ekf", "ate_rmse_m"), 3: metric("isam2", "ate_rmse_m"),
           4: metric("batch", "ate_rmse_m"), 5: metric("dead_reckoning", "ate_rmse_m"),
           6: metric("ekf", "ate_online_rmse_m"), 7: metric("isam2", "ate_online_rmse_m")}),
-    *row(R, "| grid, 200 landmarks (6 621 poses) | 0.4029 m | 0.1936 m | 0.1936 m | 11.40 m | 0.4029 m | 0.3089 m |",
+    *row(RES, "| grid, 200 landmarks (6 621 poses) | 0.4029 m | 0.1936 m | 0.1936 m | 11.40 m | 0.4029 m | 0.3089 m |",
          "grid200", "What the comparison shows, grid 200",
          {1: lambda m: m["poses"], 2: metric("ekf", "ate_rmse_m"), 3: metric("isam2", "ate_rmse_m"),
           4: metric("batch", "ate_rmse_m"), 5: metric("dead_reckoning", "ate_rmse_m"),
@@ -70,47 +74,47 @@ README_SHOWS = [
 ]
 
 README_PAPERS = [
-    *metric_row(R, "ekf              0.0110        0.0110       0.0071      0.0144          8",
+    *metric_row(RES, "ekf              0.0110        0.0110       0.0071      0.0144          8",
                 "octagon", "ekf", ACCURACY),
-    *metric_row(R, "ekf-s000         2.4732        2.4732       1.7789      2.4674          8",
+    *metric_row(RES, "ekf-s000         2.4732        2.4732       1.7789      2.4674          8",
                 "octagon", "ekf-s000", ACCURACY),
-    *metric_row(R, "ekf-s001         0.0337        0.0337       0.0285      0.0475          8",
+    *metric_row(RES, "ekf-s001         0.0337        0.0337       0.0285      0.0475          8",
                 "octagon", "ekf-s001", ACCURACY),
-    Quote(R, "100.00                0/8/0", "100.00", "octagon", association_rate("ekf-s001"),
+    Quote(RES, "100.00                0/8/0", "100.00", "octagon", association_rate("ekf-s001"),
           "ekf-s001 assoc %"),
-    *metric_row(R, "ekf-s004         2.2687        2.2687       2.0489      1.7464          8",
+    *metric_row(RES, "ekf-s004         2.2687        2.2687       2.0489      1.7464          8",
                 "octagon", "ekf-s004", ACCURACY),
-    *metric_row(R, "isam2            0.0076        0.0107       0.0066      0.0125          8",
+    *metric_row(RES, "isam2            0.0076        0.0107       0.0066      0.0125          8",
                 "octagon", "isam2", ACCURACY),
-    *metric_row(R, "isam2-tags       0.0069        0.0105       0.0070      0.0100          8",
+    *metric_row(RES, "isam2-tags       0.0069        0.0105       0.0070      0.0100          8",
                 "octagon", "isam2-tags", ACCURACY),
-    *metric_row(R, "batch            0.0076             -       0.0066      0.0125          8",
+    *metric_row(RES, "batch            0.0076             -       0.0066      0.0125          8",
                 "octagon", "batch", BATCH),
     # the variants' summary: as written (octagon / square) from the runs, fixed from scripts/flaw_costs.py
-    *row(R, "| `ekf-s000` | 2.47 m / 2.48 m |", "octagon", "ekf-s000 octagon", {0: metric("ekf-s000", "ate_rmse_m")}),
-    *row(R, "| `ekf-s000` | 2.47 m / 2.48 m |", "square-papers", "ekf-s000 square", {1: metric("ekf-s000", "ate_rmse_m")}),
-    *row(R, "| `ekf-s001` | 0.034 m / 0.016 m |", "octagon", "ekf-s001 octagon", {0: metric("ekf-s001", "ate_rmse_m")}),
-    *row(R, "| `ekf-s001` | 0.034 m / 0.016 m |", "square-papers", "ekf-s001 square", {1: metric("ekf-s001", "ate_rmse_m")}),
-    *row(R, "| `ekf-s004` | 2.27 m / 7.38 m |", "octagon", "ekf-s004 octagon", {0: metric("ekf-s004", "ate_rmse_m")}),
-    *row(R, "| `ekf-s004` | 2.27 m / 7.38 m |", "square-papers", "ekf-s004 square", {1: metric("ekf-s004", "ate_rmse_m")}),
+    *row(RES, "| `ekf-s000` | 2.47 m / 2.48 m |", "octagon", "ekf-s000 octagon", {0: metric("ekf-s000", "ate_rmse_m")}),
+    *row(RES, "| `ekf-s000` | 2.47 m / 2.48 m |", "square-papers", "ekf-s000 square", {1: metric("ekf-s000", "ate_rmse_m")}),
+    *row(RES, "| `ekf-s001` | 0.034 m / 0.016 m |", "octagon", "ekf-s001 octagon", {0: metric("ekf-s001", "ate_rmse_m")}),
+    *row(RES, "| `ekf-s001` | 0.034 m / 0.016 m |", "square-papers", "ekf-s001 square", {1: metric("ekf-s001", "ate_rmse_m")}),
+    *row(RES, "| `ekf-s004` | 2.27 m / 7.38 m |", "octagon", "ekf-s004 octagon", {0: metric("ekf-s004", "ate_rmse_m")}),
+    *row(RES, "| `ekf-s004` | 2.27 m / 7.38 m |", "square-papers", "ekf-s004 square", {1: metric("ekf-s004", "ate_rmse_m")}),
 ]
 
 
 README_FIXED = [
-    *row(R, "0.10 m / 0.12 m with both fixed", "flaw-costs", "ekf-s000 both fixes",
+    *row(RES, "0.10 m / 0.12 m with both fixed", "flaw-costs", "ekf-s000 both fixes",
          {0: flaw("arena_octagon", "ekf-s000 with both geometry fixes"),
           1: flaw("arena_square", "ekf-s000 with both geometry fixes")}),
-    *row(R, "0.011 m / 0.011 m with its three flaws off", "flaw-costs", "ekf-s001 three off",
+    *row(RES, "0.011 m / 0.011 m with its three flaws off", "flaw-costs", "ekf-s001 three off",
          {0: flaw("arena_octagon", "ekf-s001 all three off"), 1: flaw("arena_square", "ekf-s001 all three off")}),
-    *row(R, "0.028 m / 0.014 m with both off", "flaw-costs", "ekf-s004 both off",
+    *row(RES, "0.028 m / 0.014 m with both off", "flaw-costs", "ekf-s004 both off",
          {0: flaw("arena_octagon", "ekf-s004 both off (heading still treated as known)"),
           1: flaw("arena_square", "ekf-s004 both off (heading still treated as known)")}),
 ]
 
 README_ASSOCIATION = [
-    *row(R, "| arena-octagon | 100.00 % | 100.00 % | 100.00 % |", "octagon-hidden", "association, octagon",
+    *row(RES, "| arena-octagon | 100.00 % | 100.00 % | 100.00 % |", "octagon-hidden", "association, octagon",
          {i: scene("arena-octagon", association_rate(e)) for i, e in enumerate(("ekf", "ekf-nn", "ekf-s001"))}),
-    *row(R, "| grid, 200 landmarks | 99.96 % (8 rejected, 200 landmarks) | 99.87 % (29 rejected) | "
+    *row(RES, "| grid, 200 landmarks | 99.96 % (8 rejected, 200 landmarks) | 99.87 % (29 rejected) | "
          "83.39 % (241 landmarks for 200) |", "grid200-hidden", "association, grid 200",
          {1: association_rate("ekf"), 2: association("ekf", "rejected"), 3: association("ekf", "landmarks_created"),
           4: association_rate("ekf-nn"), 5: association("ekf-nn", "rejected"), 6: association_rate("ekf-s001"),
@@ -118,42 +122,42 @@ README_ASSOCIATION = [
 ]
 
 README_OUTLIERS = [
-    *metric_row(R, "ekf                0.0110        0.0110       0.0071      0.0144          8",
+    *metric_row(RES, "ekf                0.0110        0.0110       0.0071      0.0144          8",
                 "octagon-outliers", "ekf", ACCURACY),
-    *metric_row(R, "isam2              0.1462        0.2039       0.0909      0.1276          8",
+    *metric_row(RES, "isam2              0.1462        0.2039       0.0909      0.1276          8",
                 "octagon-outliers", "isam2", ACCURACY),
-    *metric_row(R, "isam2-huber        0.0077        0.0098       0.0086      0.0137          8",
+    *metric_row(RES, "isam2-huber        0.0077        0.0098       0.0086      0.0137          8",
                 "octagon-outliers", "isam2-huber", ACCURACY),
-    *metric_row(R, "isam2-cauchy       0.0078        0.0107       0.0077      0.0133          8",
+    *metric_row(RES, "isam2-cauchy       0.0078        0.0107       0.0077      0.0133          8",
                 "octagon-outliers", "isam2-cauchy", ACCURACY),
-    *metric_row(R, "isam2-tukey        0.0074        0.0110       0.0070      0.0123          8",
+    *metric_row(RES, "isam2-tukey        0.0074        0.0110       0.0070      0.0123          8",
                 "octagon-outliers", "isam2-tukey", ACCURACY),
-    *metric_row(R, "isam2-dcs          0.0076        0.0107       0.0067      0.0126          8",
+    *metric_row(RES, "isam2-dcs          0.0076        0.0107       0.0067      0.0126          8",
                 "octagon-outliers", "isam2-dcs", ACCURACY),
-    *metric_row(R, "batch              0.1462             -       0.0909      0.1276          8",
+    *metric_row(RES, "batch              0.1462             -       0.0909      0.1276          8",
                 "octagon-outliers", "batch", "ate final map landmarks"),
-    Quote(R, "94 gated", "94", "octagon-outliers", lambda m: m["ekf"]["unused_observations"]["gated"], "ekf gated"),
-    Quote(R, "here it leaves out 94 readings", "94", "octagon-outliers",
+    Quote(RES, "94 gated", "94", "octagon-outliers", lambda m: m["ekf"]["unused_observations"]["gated"], "ekf gated"),
+    Quote(RES, "here it leaves out 94 readings", "94", "octagon-outliers",
           lambda m: m["ekf"]["unused_observations"]["gated"], "ekf gated (prose)"),
-    Quote(R, "wreck it (0.2055 m)", "0.2055", "octagon-outliers-ekf-no-gate", lambda ate: ate, "ekf without its gate"),
+    Quote(RES, "wreck it (0.2055 m)", "0.2055", "octagon-outliers-ekf-no-gate", lambda ate: ate, "ekf without its gate"),
 ]
 
 VICTORIA_PARK = [
-    *metric_row(R, "ekf                 15.1124       15.1124       3.0099     19.4226        151", "victoria-park",
+    *metric_row(RES, "ekf                 15.1124       15.1124       3.0099     19.4226        151", "victoria-park",
                 "ekf", ACCURACY),
-    *metric_row(R, "isam2-fast           0.0080        7.3211       0.0002      0.0129        151", "victoria-park",
+    *metric_row(RES, "isam2-fast           0.0080        7.3211       0.0002      0.0129        151", "victoria-park",
                 "isam2-fast", ACCURACY),
-    *metric_row(R, "dead_reckoning     155.3987      155.3987     202.2922    150.4639        151", "victoria-park",
+    *metric_row(RES, "dead_reckoning     155.3987      155.3987     202.2922    150.4639        151", "victoria-park",
                 "dead_reckoning", ACCURACY),
-    *metric_row(R, "batch                0.0000             -       0.0000      0.0000        151", "victoria-park",
+    *metric_row(RES, "batch                0.0000             -       0.0000      0.0000        151", "victoria-park",
                 "batch", BATCH),
-    *row(R, "(15.11 m from the smoothed solution, against 155.4 m for odometry\nalone)", "victoria-park",
+    *row(RES, "(15.11 m from the smoothed solution, against 155.4 m for odometry\nalone)", "victoria-park",
          "ekf and dead reckoning (prose)", {0: metric("ekf", "ate_rmse_m"), 1: metric("dead_reckoning", "ate_rmse_m")}),
-    *row(R, "it rejects 2 577 of the 3 489 re-observations of\nmapped trees once the heading has drifted, and the EKF "
+    *row(RES, "it rejects 2 577 of the 3 489 re-observations of\nmapped trees once the heading has drifted, and the EKF "
          "ends 191.8 m off", "victoria-park", "ekf with the gate forced on (prose)",
          {0: lambda m: m["ekf-gated"]["unused_observations"]["gated"], 1: lambda m: m["ekf"]["nis_count"],
           2: metric("ekf-gated", "ate_rmse_m")}),
-    *row(R, "(online\nATE 7.32 m;", "victoria-park", "isam2-fast online (prose)", {0: metric("isam2-fast", "ate_online_rmse_m")}),
+    *row(RES, "(online\nATE 7.32 m;", "victoria-park", "isam2-fast online (prose)", {0: metric("isam2-fast", "ate_online_rmse_m")}),
     *row("docs/performance.md", "the EKF's online ATE against it is 15.11 m. (The", "victoria-park",
          "performance.md ekf", {0: metric("ekf", "ate_online_rmse_m")}),
     *row("docs/performance.md", "rejects 2 577 re-observations and ends 191.8 m off", "victoria-park",
@@ -199,18 +203,18 @@ def sweep_quotes() -> list[Quote]:
             cells = {start: sweep_count(claim), start + 1: (lambda rows: len(rows))}
             if first:
                 cells.update({start + 2: sweep_mean(*first), start + 3: sweep_mean(*second)})
-            quotes += row(R, text, source, f"seed sweep {source}", cells)
+            quotes += row(RES, text, source, f"seed sweep {source}", cells)
     return quotes
 
 
 BENCH = [
-    *row(R, "50 runs (seeds 0-49), 654 steps; 95 % band of the average NEES over 50 runs: [2.360, 3.716]",
+    *row(RES, "50 runs (seeds 0-49), 654 steps; 95 % band of the average NEES over 50 runs: [2.360, 3.716]",
          "bench-octagon", "bench band", {3: lambda r: r["steps"], 6: lambda r: r["band"][0], 7: lambda r: r["band"][1]}),
-    *row(R, "ekf                  98.5%        0.8%       3.16        0.0154, 0.0351", "bench-octagon", "bench ekf",
+    *row(RES, "ekf                  98.5%        0.8%       3.16        0.0154, 0.0351", "bench-octagon", "bench ekf",
          {i: item("ekf", i) for i in range(5)}),
-    *row(R, "isam2                95.7%        3.5%       3.25        0.0136, 0.0315", "bench-octagon", "bench isam2",
+    *row(RES, "isam2                95.7%        3.5%       3.25        0.0136, 0.0315", "bench-octagon", "bench isam2",
          {i: item("isam2", i) for i in range(5)}),
-    *row(R, "The default `isam2` is inside the band at 95.7 % of the steps, with\nshort excursions above it "
+    *row(RES, "The default `isam2` is inside the band at 95.7 % of the steps, with\nshort excursions above it "
          "(the longest around steps 177–181 and 333–337; 3.5 % of the steps)", "bench-octagon", "bench isam2 prose",
          {0: item("isam2", 0), 5: item("isam2", 1)}),
 ]
@@ -223,13 +227,13 @@ def largest(column: int):
 
 
 CAMERA = [
-    *row(R, "  - tag range error ≤ 0.63 % and bearing error ≤ 0.034°;\n"
+    *row(RES, "  - tag range error ≤ 0.63 % and bearing error ≤ 0.034°;\n"
          "  - cylinder range error ≤ 0.40 %, bearing ≤ 0.031°, height ≤ 1.24 %;", "camera-accuracy",
          "rendered-frame errors", {i: largest(column) for i, column in enumerate((3, 4, 8, 9, 10))}),
-    *row(R, "of the 61 tags that any of", "apriltag-photos", "union", {0: item(CHOSEN, "counted")}),
-    *row(R, "finds 57\n  with no false detection", "apriltag-photos", "front-end", {0: item(CHOSEN, "union")}),
-    *row(R, "AprilTag 3 alone, which finds 46.", "apriltag-photos", "single pass", {1: item(SINGLE, "union")}),
-    *row(R, "`--tag-upsample 1` finds 52", "apriltag-photos", "single pass + aruco", {1: item(SINGLE_ARUCO, "union")}),
+    *row(RES, "of the 61 tags that any of", "apriltag-photos", "union", {0: item(CHOSEN, "counted")}),
+    *row(RES, "finds 57\n  with no false detection", "apriltag-photos", "front-end", {0: item(CHOSEN, "union")}),
+    *row(RES, "AprilTag 3 alone, which finds 46.", "apriltag-photos", "single pass", {1: item(SINGLE, "union")}),
+    *row(RES, "`--tag-upsample 1` finds 52", "apriltag-photos", "single pass + aruco", {1: item(SINGLE_ARUCO, "union")}),
 ]
 
 #: The columns of the MRCLAM Dataset 6 table after the robot: (estimator, score, scale).
@@ -248,7 +252,7 @@ def mrclam(robot: int | None, estimator: str, score: str, scale: float):
 
 def mrclam_row(text: str, robot: int | None) -> list[Quote]:
     first = 0 if robot is None else 1  # a robot's row starts with its number
-    return row(R, text, "mrclam6", f"MRCLAM Dataset 6 robot {robot or 'median'}",
+    return row(RES, text, "mrclam6", f"MRCLAM Dataset 6 robot {robot or 'median'}",
                {first + i: mrclam(robot, *column) for i, column in enumerate(MRCLAM_COLUMNS)})
 
 

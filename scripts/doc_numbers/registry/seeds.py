@@ -3,8 +3,8 @@ height shapes, the stereo drives, the square-vs-octagon paths)."""
 
 from __future__ import annotations
 
-from doc_numbers.quotes import Quote, parse_number, row
-from doc_numbers.readers import association_rate, flaw, median
+from scripts.doc_numbers.quotes import Quote, parse_number, row
+from scripts.doc_numbers.readers import association_rate, flaw, median
 
 S = "docs/seeds.md"
 LOGS = ("arena_octagon", "arena_square", "cylinders")

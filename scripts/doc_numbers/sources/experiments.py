@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import tempfile
 
-from doc_numbers.quotes import Context
+from scripts.doc_numbers.quotes import Context
 
 MRCLAM6 = "data/mrclam/MRCLAM_Dataset6"  # under the shared data folder
 SEED003 = "data/seed003"
@@ -15,7 +15,7 @@ RGBD_REAL = "data/rgbd-real"
 
 def camera_accuracy(context: Context) -> dict[str, list[str]]:
     """``python -m slamio.camera.accuracy``'s table: first cell → the numbers of its row."""
-    from doc_numbers.readers import markdown_rows
+    from scripts.doc_numbers.readers import markdown_rows
     from slamio.camera.accuracy import error_table, format_table
 
     return markdown_rows(format_table(error_table()))
@@ -40,7 +40,7 @@ def apriltag_photos(context: Context) -> dict:
     truth (``found``, ``max``, ``mean``, ``p95`` px); "timing frames" → the 640×480 frames the
     times are measured on (``frames``, and the whole front-end's ``tags_per_frame``; by kind,
     ``robot_frames``/``robot_tags`` and ``nasa_frames``/``nasa_tags``)."""
-    import bench_apriltag as script
+    from scripts import bench_apriltag as script
     import cv2
     import numpy as np
 
@@ -93,7 +93,7 @@ def seed002_shapes(context: Context) -> dict:
     summary over all frames (min, max, mean deviation in %, frames measured) per method."""
     import math
 
-    import seed002_shapes as script
+    from scripts import seed002_shapes as script
 
     rows = script.measure(2.0, 0)
     out: dict = {(r["shape"], r["distance_m"], r["bearing_deg"]): r for r in rows}
@@ -108,7 +108,7 @@ def seed004_paths(tag_noise: str):
     def measure(context: Context) -> dict:
         from concurrent.futures import ProcessPoolExecutor
 
-        import seed004_paths as script
+        from scripts import seed004_paths as script
 
         jobs = [(p, s) for s in range(1, 21) for p in script.PATHS]
         with ProcessPoolExecutor(max_workers=2) as pool:
@@ -121,7 +121,7 @@ def seed003_drives(names_or_seeds, shared: bool):
     """``scripts/seed003_drives.py``'s first table: drive → estimator → ATE 3-D m (real drives
     against the batch smoother, simulated ones against the truth)."""
     def measure(context: Context) -> dict:
-        import seed003_drives as script
+        from scripts import seed003_drives as script
 
         from ekf.drive3d import position_errors_m
         from slamio.datasets.seed003 import load_drive
@@ -146,7 +146,7 @@ def mrclam_dataset6(context: Context) -> dict:
     import io
     import json
 
-    import bench_mrclam as script
+    from scripts import bench_mrclam as script
 
     out = context.scratch / "mrclam6.json"
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
@@ -162,7 +162,7 @@ def mrclam_dataset6_adaptive(context: Context) -> dict:
     import io
     import json
 
-    import mrclam_adaptive_noise as script
+    from scripts import mrclam_adaptive_noise as script
 
     out = context.scratch / "mrclam6_adaptive.json"
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
@@ -183,7 +183,7 @@ def mrclam_dataset6_camera(context: Context) -> dict:
     import io
     import json
 
-    import mrclam_camera_tried as script
+    from scripts import mrclam_camera_tried as script
 
     out = context.scratch / "mrclam6_camera.json"
     with contextlib.redirect_stdout(io.StringIO()):
@@ -201,7 +201,7 @@ def mrclam_dataset6_motor_lens(context: Context) -> dict:
     import io
     import json
 
-    import mrclam_motor_lens_tried as script
+    from scripts import mrclam_motor_lens_tried as script
 
     out = context.scratch / "mrclam6_motor_lens.json"
     with contextlib.redirect_stdout(io.StringIO()):
@@ -219,7 +219,7 @@ def mrclam_dataset6_hidden(context: Context) -> dict:
     import io
     import json
 
-    import bench_association_mrclam as script
+    from scripts import bench_association_mrclam as script
 
     out = context.scratch / "mrclam6_hidden.json"
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
@@ -233,7 +233,7 @@ def seed001_association(context: Context) -> dict:
     import statistics
     from concurrent.futures import ProcessPoolExecutor
 
-    import seed001_association as script
+    from scripts import seed001_association as script
 
     jobs = [(sp, ns, seed) for sp in SEED001_SPACINGS for ns in SEED001_SCALES for seed in (1, 2, 3)]
     with ProcessPoolExecutor(max_workers=2) as pool:
@@ -256,7 +256,7 @@ def plaza_range_model(context: Context) -> dict:
     fitted range model and under the default import (``results[(run, kind)][estimator]``:
     ``fgslam run``'s metrics plus ``ate_aligned_m`` and ``rotation_deg``), the fitted
     ``models``, their fit ``reports`` and the GT headings' ``turn_deg``."""
-    import plaza_range_model as script
+    from scripts import plaza_range_model as script
 
     return script.measure()
 
@@ -267,8 +267,8 @@ def colour_real(context: Context) -> dict[str, list[str]]:
     import contextlib
     import io
 
-    import bench_colour_real as script
-    from doc_numbers.readers import markdown_rows
+    from scripts import bench_colour_real as script
+    from scripts.doc_numbers.readers import markdown_rows
 
     printed = io.StringIO()
     with contextlib.redirect_stdout(printed):
@@ -279,7 +279,7 @@ def colour_real(context: Context) -> dict[str, list[str]]:
 def exact_models_nees(context: Context) -> dict:
     """``scripts/live_nees.py --simulate 30``: the EKF's run means on 30 simulated octagon laps
     (``means``), how many are ``inside`` their independent-pose ``band``, ``runs_band``."""
-    import live_nees as script
+    from scripts import live_nees as script
 
     return script.exact_models_reference(30)
 
@@ -288,7 +288,7 @@ def live_laps(context: Context) -> dict:
     """``scripts/live_nees.py --record 10``: ten lockstep octagon laps (seeds 1–10, reproducible),
     each scored with the EKF and iSAM2 (``scores``, as :func:`live_nees.score_log`, 100 draws)
     and the band of ten runs' mean NEES (``runs_band``)."""
-    import live_nees as script
+    from scripts import live_nees as script
     from fgslam.compare import nees_band
 
     with tempfile.TemporaryDirectory(prefix="fgslam-live-laps-") as folder:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from doc_numbers.quotes import Context
+from scripts.doc_numbers.quotes import Context
 
 DEFAULT = "ekf,isam2,dead_reckoning"  # fgslam run's default estimators
 PAPERS = "ekf,ekf-s000,ekf-s001,ekf-s004,isam2,isam2-tags"
@@ -103,12 +103,12 @@ def trial_calibration(context: Context) -> dict:
 
     from ekf import EkfS001
     from fgslam.cli.run import with_trial_calibration
-    from slamio.create.calibrate import calibrate, read_trials
+    from slamio.noise.trials import calibrate_from_trials, read_trials
     from slamio.log import read_log
 
     trials = context.root / "data" / "calibration_trials_s001.csv"
     cal = context.scratch / "cal_s001.json"
-    cal.write_text(json.dumps(calibrate(*read_trials(trials), source=str(trials)).to_dict()), encoding="utf-8")
+    cal.write_text(json.dumps(calibrate_from_trials(*read_trials(trials), source=str(trials)).to_dict()), encoding="utf-8")
     out = {}
     for name in ("arena_octagon", "arena_square"):
         log = read_log(context.root / "data" / f"{name}.jsonl")
@@ -130,7 +130,7 @@ def ekf_without_gate(context: Context) -> float:
 def flaw_costs(context: Context) -> dict:
     """``scripts/flaw_costs.py`` on the bundled logs and on the simulated cylinders (seed 1):
     log name → setting → metrics."""
-    import flaw_costs as script  # scripts/ is on sys.path (check_doc_numbers.py, the test)
+    from scripts import flaw_costs as script
     from ekf import DeadReckoning
     from slamio.log import read_log
 
@@ -165,7 +165,7 @@ def seed_sweep(scenario: str, seeds: range, landmarks: int = 200):
     def measure(context: Context) -> list[dict]:
         from concurrent.futures import ProcessPoolExecutor
 
-        import seed_sweep as script
+        from scripts import seed_sweep as script
 
         with ProcessPoolExecutor(max_workers=2) as pool:
             return list(pool.map(script.one_seed, [scenario] * len(seeds), seeds, [landmarks] * len(seeds)))
@@ -213,10 +213,10 @@ def live_replay(context: Context) -> dict:
 
 
 def window_arena(context: Context) -> dict:
-    """``python scripts/bench_window.py arena-laps:1:40 --window 200 500`` without its times:
+    """``python -m scripts.bench_window arena-laps:1:40 --window 200 500`` without its times:
     window → online ATE against the truth over that with every pose kept, and χ²/2 over the
     whole graph's (the batch optimum's)."""
-    from bench_online import logs, online_ate_m, truth_of
+    from scripts.bench_online import logs, online_ate_m, truth_of
     from fgslam.runner import run_estimator
     from fgslam.smoother import Isam2Smoother, batch_solve
     from slamio.log import group_steps

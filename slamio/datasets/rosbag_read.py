@@ -1,0 +1,270 @@
+"""Reading a ROS bag for :func:`slamio.datasets.rosbag.import_rosbag`: where the bag is
+(:func:`bag_paths`: a ROS 1 ``.bag`` file or a ROS 2 folder, every file in it regular), the
+topics checked against the message types read, and every message of them decoded into
+planar poses and tag sightings (:func:`read_bag`, :class:`Messages`). A bag that cannot be
+used is a :class:`BagFormatError` naming the topic and message.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from slamio.datasets.rosbag_messages import _DETECTION_ARRAY_TYPE, _STRING_TYPE, RUN_LOG_TOPIC, apriltag_typestore
+from slamio.datasets.victoria_park import DatasetFormatError
+from slamio.errors import FgslamError, InputFileError
+from slamio.log import Header, LogFormatError, Record, read_log
+from slamio.safe_input import MAX_TEXT_BYTES, check_regular
+from slamio.se3 import yaw_from_quaternion
+
+__all__ = ["BagFormatError", "Messages", "bag_paths", "read_bag"]
+
+_ODOMETRY_TYPES = ("nav_msgs/msg/Odometry",)
+_POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/PoseWithCovarianceStamped")
+_TRUTH_TYPES = _POSE_TYPES + _ODOMETRY_TYPES
+
+
+class BagFormatError(DatasetFormatError):
+    """A bag that cannot be converted: ``bag: topic T [message N]: what is wrong; what was expected``.
+
+    ``line`` is the 1-based message number on the topic (0 when the topic as a whole is wrong).
+    """
+
+    def __init__(self, path: str, topic: str, message: str, index: int = 0):
+        where = f"{path}: topic {topic}" + (f" message {index}" if index else "")
+        FgslamError.__init__(self, f"{where}: {message}")
+        self.path = path
+        self.line = index
+        self.topic = topic
+
+
+def bag_paths(path: str) -> tuple[Path, int]:
+    p = Path(path)
+    if not os.path.lexists(p):
+        raise InputFileError(f"{path}: no such file or folder; give a ROS 1 .bag file or a ROS 2 bag folder")
+    if p.is_dir():
+        _check_bag_folder(p)
+        return p, 2
+    check_regular(p, "bag file")  # a FIFO would make the reader wait forever
+    if p.suffix == ".bag":
+        return p, 1
+    if p.suffix in (".db3", ".mcap") or p.name == "metadata.yaml":
+        _check_bag_folder(p.parent)
+        return p.parent, 2
+    raise InputFileError(
+        f"{path}: not a ROS bag; give a ROS 1 .bag file or a ROS 2 bag folder (with metadata.yaml)"
+    )
+
+
+def _check_bag_folder(folder: Path) -> None:
+    """Every entry of a ROS 2 bag folder that the reader opens is a regular file (a FIFO or
+    /dev/zero linked in would make it wait or read forever), metadata.yaml of a sane size."""
+    for entry in sorted(folder.iterdir()):
+        if entry.name == "metadata.yaml" or entry.suffix in (".db3", ".mcap", ".zstd"):
+            check_regular(entry, "bag file")
+    metadata = folder / "metadata.yaml"
+    if metadata.is_file() and metadata.stat().st_size > MAX_TEXT_BYTES:
+        raise InputFileError(f"{metadata}: {metadata.stat().st_size} bytes, larger than any bag's metadata; "
+                             "is it the right folder?")
+
+
+def _stamp_ns(msg, bag_time_ns: int, use_header_stamps: bool) -> int:
+    header = getattr(msg, "header", None)
+    if use_header_stamps and header is not None:
+        ns = int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+        if ns != 0:
+            return ns
+    return int(bag_time_ns)
+
+
+def _pose_of(msg):
+    """geometry_msgs/Pose inside a PoseStamped, PoseWithCovarianceStamped or Odometry."""
+    pose = msg.pose
+    return pose.pose if hasattr(pose, "pose") else pose
+
+
+def _planar(pose_msg) -> tuple[float, float, float]:
+    q = pose_msg.orientation
+    return float(pose_msg.position.x), float(pose_msg.position.y), yaw_from_quaternion(q.x, q.y, q.z, q.w)
+
+
+def _topics_of_type(topics, accepted) -> list[str]:
+    return sorted(name for name, info in topics.items() if info.msgtype in accepted)
+
+
+def _check_topic(path: str, topics, topic: str, accepted: tuple[str, ...], what: str) -> None:
+    if topic not in topics:
+        candidates = _topics_of_type(topics, accepted)
+        hint = f"topics of that type here: {', '.join(candidates)}" if candidates else f"the bag's topics: {', '.join(sorted(topics)) or '(none)'}"
+        raise BagFormatError(path, topic, f"not in the bag; expected {what} ({' or '.join(accepted)}); {hint}")
+    msgtype = topics[topic].msgtype
+    if msgtype not in accepted:
+        raise BagFormatError(path, topic, f"has type {msgtype}, expected {what} ({' or '.join(accepted)})")
+
+
+def _read_run_log(path: str, reader, connections) -> tuple[Header, list[Record]]:
+    lines: list[str] = []
+    for connection, _, raw in reader.messages(connections=connections):
+        msg = reader.deserialize(raw, connection.msgtype)
+        lines.append(msg.data)
+    if not lines:
+        raise BagFormatError(path, RUN_LOG_TOPIC, "has no messages; expected the run log's header line first")
+    with tempfile.TemporaryDirectory() as tmp:
+        log_path = os.path.join(tmp, "run_log.jsonl")
+        with open(log_path, "w", encoding="utf-8") as f:
+            for line in lines:
+                f.write(line + "\n")
+        try:
+            log = read_log(log_path)
+        except LogFormatError as exc:
+            message = str(exc)[len(f"{exc.path}:{exc.line}: "):]
+            raise BagFormatError(path, RUN_LOG_TOPIC, f"{message} (each message is one run-log line)", exc.line) from None
+    return log.header, list(log.records)
+
+
+
+def _checked_topics(path: str, topics, odom_topic: str, detections_topic: str | None, tag_pose_topic: str | None,
+                    truth_topic: str | None) -> dict[str, int]:
+    """Check that every topic asked for is in the bag with a type we read; the tag pose
+    topics found under ``tag_pose_topic`` with their tag ids."""
+    _check_topic(path, topics, odom_topic, _ODOMETRY_TYPES, "the robot's odometry")
+    if detections_topic is not None:
+        # any package's AprilTagDetectionArray with apriltag_ros's fields (forks add fields)
+        msgtype = topics[detections_topic].msgtype if detections_topic in topics else None
+        accepted = (msgtype,) if msgtype and msgtype.endswith("/AprilTagDetectionArray") else (_DETECTION_ARRAY_TYPE,)
+        _check_topic(path, topics, detections_topic, accepted, "tag detections")
+    tag_topics: dict[str, int] = {}
+    if tag_pose_topic is not None:
+        pattern = re.compile(re.escape(tag_pose_topic) + r"\D*?(\d+)\Z")
+        for name in sorted(topics):
+            m = pattern.match(name)
+            if m:
+                _check_topic(path, topics, name, _POSE_TYPES, "one tag's pose in the camera frame")
+                tag_topics[name] = int(m.group(1))
+        if not tag_topics:
+            raise BagFormatError(
+                path, tag_pose_topic + "<id>",
+                "no topic starts with this prefix and ends in a tag id; expected one "
+                f"geometry_msgs/PoseStamped topic per tag such as {tag_pose_topic}0; the bag's topics: "
+                f"{', '.join(sorted(topics))}",
+            )
+    if truth_topic is not None:
+        _check_topic(path, topics, truth_topic, _TRUTH_TYPES, "ground-truth poses")
+    named = {"odometry": odom_topic, "detections": detections_topic, "truth": truth_topic}
+    given = [(role, topic) for role, topic in named.items() if topic is not None]
+    for i, (role, topic) in enumerate(given):
+        for other, same in given[i + 1:]:
+            if same == topic:
+                raise FgslamError(
+                    f"{path}: {topic} is named as both the {role} topic and the {other} topic; each topic "
+                    "is read as one thing: name a different topic for one of them"
+                )
+    return tag_topics
+
+
+@dataclass
+class Messages:
+    """What a bag's topics hold, in time order (stamps in ns)."""
+
+    odometry: list[tuple[int, tuple[float, float, float], np.ndarray]]  # (stamp, pose, 3×3 covariance of x, y, yaw)
+    truth: list[tuple[int, tuple[float, float, float]]]
+    sightings: list[tuple[int, int, Any, Any]]  # (stamp, tag id, position, quaternion) in the camera frame
+    dropped: dict[str, int]
+    tag_topics: dict[str, int]  # tag pose topic -> tag id
+
+
+def _read_messages(path: str, reader, odom_topic: str, detections_topic: str | None, truth_topic: str | None,
+                   tag_topics: dict[str, int], use_header_stamps: bool) -> Messages:
+    """Decode every message of the topics used; a message that cannot be used is a
+    :class:`BagFormatError` naming its topic and index."""
+    wanted = {odom_topic, detections_topic, truth_topic, *tag_topics} - {None}
+    connections = [c for c in reader.connections if c.topic in wanted]
+    odometry: list[tuple[int, tuple[float, float, float], np.ndarray]] = []
+    truth: list[tuple[int, tuple[float, float, float]]] = []
+    sightings: list[tuple[int, int, Any, Any]] = []  # (stamp, tag id, position, quaternion)
+    dropped = {"tag_bundles": 0, "zero_range": 0, "before_first_odometry": 0, "after_last_odometry": 0}
+    counts = {t: 0 for t in wanted}
+    for connection, bag_time, raw in reader.messages(connections=connections):
+        topic = connection.topic
+        counts[topic] += 1
+        index = counts[topic]
+        try:
+            msg = reader.deserialize(raw, connection.msgtype)
+        except Exception as exc:
+            raise BagFormatError(path, topic, f"cannot be decoded as {connection.msgtype} ({exc})", index) from None
+        stamp = _stamp_ns(msg, bag_time, use_header_stamps)
+        if topic == odom_topic:
+            pose = _planar(msg.pose.pose)
+            C = np.asarray(msg.pose.covariance, dtype=float).reshape(6, 6)[np.ix_((0, 1, 5), (0, 1, 5))]
+            if not all(math.isfinite(v) for v in pose):
+                raise BagFormatError(path, topic, f"pose {pose} is not finite", index)
+            odometry.append((stamp, pose, C))
+        elif topic == truth_topic:
+            truth.append((stamp, _planar(_pose_of(msg))))
+        elif topic == detections_topic:
+            detections = getattr(msg, "detections", None)
+            if detections is None or (detections and not hasattr(detections[0], "pose")):
+                raise BagFormatError(
+                    path, topic,
+                    f"{connection.msgtype} has no detections[].pose; expected apriltag_ros's "
+                    "AprilTagDetectionArray (id[], size[], pose). The ROS 2 apriltag_msgs detections "
+                    "carry no pose (that node puts tag poses on /tf): record one PoseStamped per tag "
+                    "and use tag_pose_topic",
+                    index,
+                )
+            for d in detections:
+                ids = [int(i) for i in d.id]
+                if len(ids) != 1:
+                    dropped["tag_bundles"] += 1
+                    continue
+                p = d.pose.pose.pose
+                sightings.append((stamp, ids[0], (p.position.x, p.position.y, p.position.z),
+                                  (p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)))
+        else:
+            p = _pose_of(msg)
+            sightings.append((stamp, tag_topics[topic], (p.position.x, p.position.y, p.position.z),
+                              (p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)))
+    for messages in (odometry, truth, sightings):
+        messages.sort(key=lambda m: m[0])
+    return Messages(odometry, truth, sightings, dropped, tag_topics)
+
+
+def read_bag(path: str, bag: Path, ros_version: int, odom_topic: str | None, detections_topic: str | None,
+             tag_pose_topic: str | None, truth_topic: str | None, use_header_stamps: bool,
+             standard_topics_only: bool) -> Messages | tuple[Header, list[Record]]:
+    """The messages of the topics asked for (:class:`Messages`); or, for a bag fgslam
+    exported (it has :data:`RUN_LOG_TOPIC`) unless ``standard_topics_only``, the run log it
+    holds as (header, records). ``bag`` and ``ros_version`` are :func:`bag_paths`'s."""
+    from rosbags.highlevel import AnyReader
+
+    try:
+        reader = AnyReader([bag], default_typestore=apriltag_typestore(ros_version))
+        reader.open()
+    except FgslamError:
+        raise
+    except Exception as exc:  # rosbags raises several kinds for a damaged or foreign file
+        raise InputFileError(f"{path}: cannot read as a ROS {ros_version} bag ({type(exc).__name__}: {exc})") from None
+    try:
+        topics = reader.topics
+        if not standard_topics_only and RUN_LOG_TOPIC in topics:
+            _check_topic(path, topics, RUN_LOG_TOPIC, (_STRING_TYPE,), "the run log's JSON lines")
+            connections = [c for c in reader.connections if c.topic == RUN_LOG_TOPIC]
+            return _read_run_log(path, reader, connections)
+        if odom_topic is None:
+            candidates = _topics_of_type(topics, _ODOMETRY_TYPES)
+            raise BagFormatError(
+                path, "(odometry)",
+                f"no {RUN_LOG_TOPIC} topic (the bag was not written by fgslam export), so name the "
+                f"odometry topic (nav_msgs/Odometry); candidates: {', '.join(candidates) or '(none)'}",
+            )
+        tag_topics = _checked_topics(path, topics, odom_topic, detections_topic, tag_pose_topic, truth_topic)
+        return _read_messages(path, reader, odom_topic, detections_topic, truth_topic, tag_topics, use_header_stamps)
+    finally:
+        reader.close()
