@@ -17,11 +17,7 @@ return estimates; they never print, plot or read files.
 from ekf.dead_reckoning import DeadReckoning
 from ekf.fej import FejEkfSlam
 from ekf.models import (
-    landmark_from_range_bearing,
-    landmark_init_jacobians,
-    motion_jacobians,
-    predict_pose,
-    range_bearing,
+    landmark_from_range_bearing, landmark_init_jacobians, motion_jacobians, predict_pose, range_bearing,
     range_bearing_jacobians,
 )
 from ekf.linear_kf_kinect import EkfS000

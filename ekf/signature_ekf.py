@@ -109,11 +109,7 @@ import numpy as np
 
 from ekf.filter_outputs import FilterOutputs
 from ekf.models import (
-    landmark_from_range_bearing,
-    landmark_init_jacobians,
-    motion_jacobians,
-    predict_pose,
-    range_bearing,
+    landmark_from_range_bearing, landmark_init_jacobians, motion_jacobians, predict_pose, range_bearing,
     range_bearing_jacobians,
 )
 from slamio.geometry import wrap_angle

@@ -32,9 +32,10 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from slamio.camera.colour import DEFAULT_COLOURS, depth_from_mm  # noqa: E402
+from slamio.camera.colour import DEFAULT_COLOURS  # noqa: E402
 from slamio.camera.composite import composite_trial  # noqa: E402
 from slamio.camera.detect import FrontEnd, FrontEndConfig  # noqa: E402
+from slamio.camera.kinect import depth_from_mm  # noqa: E402
 from slamio.camera.model import T_robot_camera_from_mount, kinect_v1_default  # noqa: E402
 from slamio.camera.render import CYLINDER_BGR, CylinderSpec  # noqa: E402
 from slamio.camera.sources import Frame, read_depth_png, read_image  # noqa: E402

@@ -15,7 +15,7 @@ Usage::
 
 from __future__ import annotations
 
-from scripts.common import one_blas_thread
+from scripts.common import one_blas_thread, print_table_head, print_table_row
 
 one_blas_thread()
 
@@ -33,8 +33,7 @@ def main(argv=None) -> int:
     ap.add_argument("logs", nargs="+", help="sources as in scripts/bench_online.py")
     ap.add_argument("--repeats", type=int, default=2)
     args = ap.parse_args(argv)
-    print("| log | ekf s: alone / with NIS, NEES | isam2 s: alone / with | isam2 × EKF: alone / with |")
-    print("|---|---|---|---|")
+    print_table_head("log", "ekf s: alone / with NIS, NEES", "isam2 s: alone / with", "isam2 × EKF: alone / with")
     for spec in args.logs:
         for name, header, records in logs(spec):
             steps = group_steps(header, records)
@@ -46,9 +45,9 @@ def main(argv=None) -> int:
                         key = (estimator, consistency)
                         best[key] = min(best.get(key, float("inf")), run.total_time_s)
             ekf, isam2 = (best[("ekf", False)], best[("ekf", True)]), (best[("isam2", False)], best[("isam2", True)])
-            print(f"| {name} | {ekf[0]:.3f} / {ekf[1]:.3f} (×{ekf[1] / ekf[0]:.2f}) | "
-                  f"{isam2[0]:.3f} / {isam2[1]:.3f} (×{isam2[1] / isam2[0]:.2f}) | "
-                  f"{isam2[0] / ekf[0]:.2f} / {isam2[1] / ekf[1]:.2f} |", flush=True)
+            print_table_row(name, f"{ekf[0]:.3f} / {ekf[1]:.3f} (×{ekf[1] / ekf[0]:.2f})",
+                            f"{isam2[0]:.3f} / {isam2[1]:.3f} (×{isam2[1] / isam2[0]:.2f})",
+                            f"{isam2[0] / ekf[0]:.2f} / {isam2[1] / ekf[1]:.2f}")
     return 0
 
 

@@ -17,7 +17,7 @@ Usage::
 
 from __future__ import annotations
 
-from scripts.common import one_blas_thread
+from scripts.common import one_blas_thread, print_table_head, print_table_row
 
 one_blas_thread()
 
@@ -55,9 +55,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("logs", nargs="+", help="sources as in scripts/bench_online.py")
     args = ap.parse_args(argv)
-    print("| log | steps: batch / iSAM2 | ms a step: batch / iSAM2 | total s: batch / iSAM2 | "
-          "χ²/2 × batch LM: batch / iSAM2 |")
-    print("|---|---|---|---|---|")
+    print_table_head("log", "steps: batch / iSAM2", "ms a step: batch / iSAM2", "total s: batch / iSAM2",
+                     "χ²/2 × batch LM: batch / iSAM2")
     for spec in args.logs:
         for name, header, records in logs(spec):
             smoother = Isam2Smoother(header, robust=expected_outlier_kernel(header), final_iterations=0)
@@ -72,9 +71,9 @@ def main(argv=None) -> int:
             isam_s = time.perf_counter() - t0
             optimum = batch_solve(smoother).final_error
             taken = max(polished.iterations, 1)
-            print(f"| {name} | {polished.iterations} / {steps} | {1e3 * batch_s / taken:.0f} / "
-                  f"{1e3 * isam_s / steps:.0f} | {batch_s:.3f} / {isam_s:.3f} | "
-                  f"{polished.error / optimum:.6f} / {isam_error / optimum:.6f} |", flush=True)
+            print_table_row(name, f"{polished.iterations} / {steps}",
+                            f"{1e3 * batch_s / taken:.0f} / {1e3 * isam_s / steps:.0f}", f"{batch_s:.3f} / {isam_s:.3f}",
+                            f"{polished.error / optimum:.6f} / {isam_error / optimum:.6f}")
     return 0
 
 

@@ -19,7 +19,7 @@ Sources as in scripts/bench_online.py.
 
 from __future__ import annotations
 
-from scripts.common import one_blas_thread
+from scripts.common import one_blas_thread, print_table_head, print_table_row
 
 one_blas_thread()
 
@@ -44,9 +44,8 @@ def main(argv=None) -> int:
     ap.add_argument("logs", nargs="+", help="sources as in scripts/bench_online.py")
     ap.add_argument("--window", type=int, nargs="+", default=[200], metavar="N", help="window sizes (default 200)")
     args = ap.parse_args(argv)
-    print("| log | window | p99/slowest step ms, by quarter | total s | online ATE m | × every pose | "
-          "χ²/2 × batch | slides |")
-    print("|---|---|---|---|---|---|---|---|")
+    print_table_head("log", "window", "p99/slowest step ms, by quarter", "total s", "online ATE m", "× every pose",
+                     "χ²/2 × batch", "slides")
     for spec in args.logs:
         for name, header, records in logs(spec):
             steps = group_steps(header, records)
@@ -60,10 +59,9 @@ def main(argv=None) -> int:
                     batch = batch_solve(smoother)
                 ate = online_ate_m(run.online, truth, batch.trajectory)
                 reference_ate = reference_ate or ate
-                slides = smoother.window_slides
-                print(f"| {name} | {window or 'every pose'} | {quarters_ms(run.step_times_s)} | "
-                      f"{run.total_time_s:.2f} | {ate:.4f} | {ate / reference_ate:.3f} | "
-                      f"{smoother.error() / batch.final_error:.5f} | {slides} |", flush=True)
+                print_table_row(name, window or "every pose", quarters_ms(run.step_times_s), f"{run.total_time_s:.2f}",
+                                f"{ate:.4f}", f"{ate / reference_ate:.3f}",
+                                f"{smoother.error() / batch.final_error:.5f}", smoother.window_slides)
     return 0
 
 

@@ -69,3 +69,40 @@ def step_ms(run, q: float) -> float:
     import numpy as np
 
     return 1e3 * float(np.percentile(run.step_times_s, q))
+
+
+def print_table_head(*columns: str) -> None:
+    """The head of a Markdown table: its column names, then the ``|---|`` rule."""
+    print("| " + " | ".join(columns) + " |")
+    print("|" + "---|" * len(columns))
+
+
+def print_table_row(*cells) -> None:
+    """One row of a Markdown table, printed at once (a long benchmark shows its progress)."""
+    print("| " + " | ".join(str(cell) for cell in cells) + " |", flush=True)
+
+
+def parse_folder_and_parts(doc: str, argv, choices: tuple[str, ...], default: str, choose: str):
+    """The command line of a study of an MRCLAM folder: ``FOLDER [PART ...] [--json FILE]``, every
+    part in ``choices`` when none is named (``default`` says so in the help), an unknown one an
+    error ending in ``choose``. Returns the parser (for further errors), the arguments and the parts."""
+    import argparse
+
+    parser = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("folder", help="an MRCLAM dataset folder")
+    parser.add_argument("parts", nargs="*", metavar="|".join(choices), help=f"what to run (default: {default})")
+    parser.add_argument("--json", default=None, metavar="FILE", help="write every figure here")
+    args = parser.parse_args(argv)
+    parts = args.parts or list(choices)
+    unknown = sorted(set(parts) - set(choices))
+    if unknown:
+        parser.error(f"unknown part(s) {', '.join(unknown)}: {choose}")
+    return parser, args, parts
+
+
+def write_json(path, result) -> None:
+    """``result`` as indented JSON (one value a line where short) to ``path``, if a path is given."""
+    import json
+
+    if path:
+        Path(path).write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")

@@ -37,16 +37,13 @@ from __future__ import annotations
 
 import os
 
-from scripts.common import one_blas_thread
+from scripts.common import one_blas_thread, parse_folder_and_parts, write_json
 
 one_blas_thread(force=False)
 
-import argparse  # noqa: E402
-import json  # noqa: E402
 import math  # noqa: E402
 import sys  # noqa: E402
 from dataclasses import replace  # noqa: E402
-from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -298,15 +295,8 @@ def ekf_report(folder: str, raw: dict[int, RunLog]) -> dict:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("folder", help="an MRCLAM dataset folder")
-    parser.add_argument("parts", nargs="*", metavar="pairs|oracle|ekf", help="what to run (default: all three)")
-    parser.add_argument("--json", default=None, metavar="FILE", help="write every figure here")
-    args = parser.parse_args(argv)
-    parts = args.parts or ["pairs", "oracle", "ekf"]
-    unknown = sorted(set(parts) - {"pairs", "oracle", "ekf"})
-    if unknown:
-        parser.error(f"unknown part(s) {', '.join(unknown)}: choose from pairs, oracle and ekf")
+    parser, args, parts = parse_folder_and_parts(__doc__, argv, ("pairs", "oracle", "ekf"), "all three",
+                                                 "choose from pairs, oracle and ekf")
     if not os.path.exists(os.path.join(args.folder, "Robot1_Odometry.dat")):
         parser.error(f"{args.folder}: no Robot1_Odometry.dat here; give an MRCLAM dataset folder")
     raw = raw_logs(args.folder)
@@ -317,8 +307,7 @@ def main(argv=None) -> int:
         result["oracle"] = oracle_report(args.folder, raw)
     if "ekf" in parts:
         result["ekf"] = ekf_report(args.folder, raw)
-    if args.json:
-        Path(args.json).write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
+    write_json(args.json, result)
     return 0
 
 

@@ -26,16 +26,14 @@ Takes a few seconds.
 
 from __future__ import annotations
 
-import argparse
-import json
 import os
 import sys
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np  # noqa: E402
 from scipy.signal import lfilter  # noqa: E402
 
+from scripts.common import parse_folder_and_parts, write_json  # noqa: E402
 from slamio.datasets.mrclam import MAX_ZERO_BLIP_S, ROBOT_SUBJECTS, fill_zero_blips  # noqa: E402
 
 GRID_S = 0.005  #: integration step of the commanded turn rate
@@ -203,15 +201,8 @@ def lens_report(robots: dict[int, Robot], surveyed: dict[int, np.ndarray]) -> di
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("folder", help="an MRCLAM dataset folder")
-    parser.add_argument("parts", nargs="*", metavar="motor|lens", help="what to run (default: both)")
-    parser.add_argument("--json", default=None, metavar="FILE", help="write every figure here")
-    args = parser.parse_args(argv)
-    folder, parts = args.folder, args.parts or ["motor", "lens"]
-    unknown = sorted(set(parts) - {"motor", "lens"})
-    if unknown:
-        parser.error(f"unknown part(s) {', '.join(unknown)}: choose motor and/or lens")
+    parser, args, parts = parse_folder_and_parts(__doc__, argv, ("motor", "lens"), "both", "choose motor and/or lens")
+    folder = args.folder
     robots = {k: load(folder, k) for k in ROBOT_SUBJECTS if os.path.exists(os.path.join(folder, f"Robot{k}_Odometry.dat"))}
     if not robots:
         parser.error(f"{folder}: no RobotN_Odometry.dat here; give an MRCLAM dataset folder")
@@ -220,8 +211,7 @@ def main(argv=None) -> int:
         result["motor"] = motor_report(robots)
     if "lens" in parts:
         result["lens"] = lens_report(robots, landmarks(folder))
-    if args.json:
-        Path(args.json).write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
+    write_json(args.json, result)
     return 0
 
 

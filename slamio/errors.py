@@ -7,13 +7,15 @@ status 1 for a mistake in the command, status 2 for an input file that cannot be
 
 :func:`read_text` and :func:`read_bytes` (with :func:`check_regular` and
 :func:`open_regular`) live here, beside the errors they raise, so that this module imports
-nothing of fgslam's; :mod:`slamio.safe_input` re-exports them and adds the parsers.
+nothing of fgslam's; :mod:`slamio.safe_input` adds the parsers. :func:`content_lines` reads
+the small line-based text formats (TUM trajectories and frame lists).
 """
 
 from __future__ import annotations
 
 import os
 import stat
+from typing import Iterator
 
 #: The largest text file (noise model, calibration, trials, camera, landmark, tolerance or
 #: waypoint file) read whole: 16 MiB, a thousand times what any of them holds.
@@ -154,3 +156,13 @@ def read_bytes(path: str | os.PathLike[str], what: str, *, limit: int = MAX_TEXT
     if len(data) > limit:
         raise _too_large(path, what, None, limit, error)
     return data
+
+
+def content_lines(path: str | os.PathLike[str]) -> Iterator[tuple[int, str]]:
+    """``(line number, stripped text)`` of each line of a UTF-8 text file that is neither
+    blank nor a ``#`` comment."""
+    with open(path, encoding="utf-8") as f:
+        for number, line in enumerate(f, start=1):
+            text = line.strip()
+            if text and not text.startswith("#"):
+                yield number, text

@@ -8,9 +8,9 @@ has them:
 
 - **not a regular file**: a FIFO (opening one for reading waits for a writer, forever), a
   device such as ``/dev/zero`` (never ends), a socket, a folder, or a loop of symbolic
-  links. :func:`open_regular` looks before it reads (``stat``), opens without blocking and
+  links. :func:`~slamio.errors.open_regular` looks before it reads (``stat``), opens without blocking and
   looks again (``fstat``: a file swapped in between is caught too);
-- **too large**: a whole-file read stops at a cap (:data:`MAX_TEXT_BYTES` for text files,
+- **too large**: a whole-file read stops at a cap (:data:`~slamio.errors.MAX_TEXT_BYTES` for text files,
   the run log's own cap for logs) instead of filling the memory;
 - **JSON, YAML and TOML that no fgslam file holds**: nesting deeper than
   :data:`MAX_NESTING` levels (Python's parsers recurse, and a thousand levels crash them),
@@ -33,14 +33,10 @@ import re
 from dataclasses import dataclass, field
 from typing import Any, Iterable
 
-from slamio.errors import (  # opening and reading files whole lives with the errors it raises
-    MAX_TEXT_BYTES, FgslamError, InputFileError, check_regular, decode_utf8, open_regular, read_bytes, read_text,
-)
+from slamio.errors import FgslamError, InputFileError
 
 __all__ = [
-    "MAX_INTEGER_DIGITS", "MAX_NESTING", "MAX_TEXT_BYTES", "Document", "InputFileError", "check_regular",
-    "decode_utf8", "field_name", "open_regular", "parse_json", "parse_toml", "parse_yaml", "read_bytes", "read_text",
-    "shown",
+    "MAX_INTEGER_DIGITS", "MAX_NESTING", "Document", "field_name", "parse_json", "parse_toml", "parse_yaml", "shown",
 ]
 
 #: How deeply lists and objects may nest in a JSON, YAML or TOML file fgslam reads.

@@ -168,6 +168,7 @@ from slamio.sim_models import (  # re-exported (__all__): slamio.sim is the simu
     Sightings,
     WheelSlipNoise,
     World,
+    observation_sigmas,
     odometry_covariance,
     range_sigma_m,
     visible_landmarks,
@@ -351,15 +352,8 @@ def _header(sc: Scenario, start_pose: tuple[float, float, float], seed: int, lap
     sensor.update(sc.extra_sensor_info)
     observation: dict[str, Any] = {
         "model": "range-bearing, additive Gaussian; sigma_range = sigma_range_m + sigma_range_per_m*r + sigma_range_per_m2*r^2 at the true range r",
-        "sigma_range_m": s.sigma_range_m,
-        "sigma_range_per_m": s.sigma_range_per_m,
-        "sigma_range_per_m2": s.sigma_range_per_m2,
-        "sigma_bearing_rad": s.sigma_bearing_rad,
+        **observation_sigmas(s),
     }
-    if s.sigma_height_m is not None:
-        observation["sigma_height_m"] = s.sigma_height_m
-    if s.sigma_tag_yaw_rad is not None:
-        observation["sigma_tag_yaw_rad"] = s.sigma_tag_yaw_rad
     return Header(
         stamp_s=0.0,
         start_pose=start_pose,

@@ -67,6 +67,24 @@ class SensorModel:
     facing_limit_rad: float | None = None
 
 
+def observation_sigmas(noise) -> dict[str, float]:
+    """The σ of a range-bearing noise model — a :class:`SensorModel` or a camera front end's
+    :class:`slamio.camera.detect.NoiseModel` — as a log header's ``observation`` states them:
+    a, b, c of σ_r(r) = a + b·r + c·r², the bearing's σ, then the height's and the tag
+    yaw's when the model has them."""
+    out = {
+        "sigma_range_m": noise.sigma_range_m,
+        "sigma_range_per_m": noise.sigma_range_per_m,
+        "sigma_range_per_m2": noise.sigma_range_per_m2,
+        "sigma_bearing_rad": noise.sigma_bearing_rad,
+    }
+    if noise.sigma_height_m is not None:
+        out["sigma_height_m"] = noise.sigma_height_m
+    if noise.sigma_tag_yaw_rad is not None:
+        out["sigma_tag_yaw_rad"] = noise.sigma_tag_yaw_rad
+    return out
+
+
 @dataclass(frozen=True)
 class World:
     """Landmarks: (N, 2) positions; heights and facing yaws (N,) or None."""

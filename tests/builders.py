@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import json
 import time
 
-from slamio.log import Header
+from slamio.log import Header, read_log, write_log
 
 
 def wait_for(predicate, timeout_s=30.0):
@@ -32,12 +33,45 @@ def minimal_header(start_pose=(0.0, 0.0, 0.0), start_sigma=(1e-3, 1e-3, 1e-3), s
     )
 
 
+def run_estimator(estimator, steps):
+    """``estimator`` (anything with ``step`` and ``finish``) fed every step, then finished."""
+    for step in steps:
+        estimator.step(step)
+    estimator.finish()
+    return estimator
+
+
 def run_smoother(header: Header, steps, **kwargs):
     """An ``Isam2Smoother(header, **kwargs)`` fed every step, then finished."""
     from fgslam.smoother import Isam2Smoother
 
-    smoother = Isam2Smoother(header, **kwargs)
-    for step in steps:
-        smoother.step(step)
-    smoother.finish()
-    return smoother
+    return run_estimator(Isam2Smoother(header, **kwargs), steps)
+
+
+def assert_arena_run_is_sane(estimator, steps, n_landmarks=8):
+    """The finished ``estimator`` on a simulated arena log: one finite pose a step, a finite
+    covariance, every arena landmark mapped, one association per observation of the last step."""
+    import numpy as np
+
+    t = estimator.trajectory()
+    assert t.shape == (len(steps), 3)
+    assert np.isfinite(t).all()
+    assert np.isfinite(estimator.current_covariance()).all()
+    assert set(estimator.landmarks()) == set(range(n_landmarks))
+    assert len(estimator.step_associations()) == len(steps[-1].observations)
+
+
+def assert_log_round_trips(path, header, records):
+    """``header`` and ``records`` written to ``path`` read back exactly, untruncated; the read log."""
+    write_log(path, header, records)
+    log = read_log(path)
+    assert log.truncated is None
+    assert log.header == header
+    assert log.records == tuple(records)
+    return log
+
+
+def run_main_with_json(main, args, out, capsys):
+    """``main([*args, "--json", out])`` succeeds; what it printed and the JSON it wrote."""
+    assert main([*args, "--json", str(out)]) == 0
+    return capsys.readouterr().out, json.loads(out.read_text())

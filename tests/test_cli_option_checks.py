@@ -44,24 +44,22 @@ def camera(tmp_path) -> Path:
     return path
 
 
-@pytest.mark.parametrize("option, value", [
-    ("--threads", "0"),  # was: Floating point exception (exit 136) in the AprilTag detector
-    ("--threads", "-1"),
-    ("--tag-size", "nan"),  # was: a 2 KB line dumping the header
-    ("--tag-size", "0"),
-    ("--quad-decimate", "-1"),
-    ("--quad-decimate", "nan"),
-    ("--tag-upsample", "nan"),
-    ("--max-pose-gap", "-1"),
-    ("--max-pose-gap", "nan"),
-    ("--depth-scale", "0"),  # was: a numpy divide-by-zero warning
-    ("--depth-scale", "-5"),
-    ("--depth-scale", "inf"),
-    ("--min-range", "nan"),
-    ("--max-range", "nan"),
-    ("--fps", "0"),
-    ("--max-frames", "0"),
-])
+# option: the bad values it is given
+DETECT_BAD_NUMBERS = {
+    "--threads": ["0", "-1"],  # 0 was: Floating point exception (exit 136) in the AprilTag detector
+    "--tag-size": ["nan", "0"],  # nan was: a 2 KB line dumping the header
+    "--quad-decimate": ["-1", "nan"],
+    "--tag-upsample": ["nan"],
+    "--max-pose-gap": ["-1", "nan"],
+    "--depth-scale": ["0", "-5", "inf"],  # 0 was: a numpy divide-by-zero warning
+    "--min-range": ["nan"],
+    "--max-range": ["nan"],
+    "--fps": ["0"],
+    "--max-frames": ["0"],
+}
+
+
+@pytest.mark.parametrize("option, value", [(o, v) for o, values in DETECT_BAD_NUMBERS.items() for v in values])
 def test_detect_refuses_bad_numbers_before_reading_a_frame(tmp_path, capsys, camera, option, value):
     out = tmp_path / "st.jsonl"
     argv = ["detect", str(PHOTOS), "--camera", str(camera), "--out", str(out), "--static", option, value]

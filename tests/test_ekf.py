@@ -22,14 +22,8 @@ import pytest
 
 import ekf
 from ekf import DeadReckoning, EkfSlam
-from ekf.models import (
-    landmark_from_range_bearing,
-    landmark_init_jacobians,
-    motion_jacobians,
-    predict_pose,
-    range_bearing,
-    range_bearing_jacobians,
-)
+from ekf.models import motion_jacobians, predict_pose
+from ekf.models import landmark_from_range_bearing, landmark_init_jacobians, range_bearing, range_bearing_jacobians
 from ekf.covariance import (
     add_low_rank_in_place,
     augment_covariance,
@@ -39,14 +33,10 @@ from ekf.covariance import (
     predict_covariance,
 )
 from slamio.geometry import between_pose, compose_pose, wrap_angle
-from builders import minimal_header
-from slamio.log import Header, Observation, Odometry, Step, as_matrix3
+from builders import minimal_header as make_header, run_estimator as run
+from slamio.log import Observation, Odometry, Step, as_matrix3
 
 # --------------------------------------------------------------------------- helpers
-
-
-def make_header(start_pose=(0.0, 0.0, 0.0), start_sigma=(1e-3, 1e-3, 1e-3)) -> Header:
-    return minimal_header(start_pose=start_pose, start_sigma=start_sigma)
 
 
 def numeric_jacobian(f, x, angle_rows=(), h=1e-6):
@@ -62,6 +52,14 @@ def numeric_jacobian(f, x, angle_rows=(), h=1e-6):
             diff[r] = wrap_angle(diff[r])
         J[:, j] = diff / (2.0 * h)
     return J
+
+
+def assert_jacobians_match(f, x, y, J_x, J_y, angle_rows=()):
+    """``J_x`` and ``J_y`` are the derivatives of ``f(x, y)`` by ``x`` and by ``y`` (central
+    differences, to 1e-7); ``J_x=None`` checks only ``J_y``."""
+    if J_x is not None:
+        np.testing.assert_allclose(J_x, numeric_jacobian(lambda v: f(v, y), x, angle_rows=angle_rows), atol=1e-7)
+    np.testing.assert_allclose(J_y, numeric_jacobian(lambda v: f(x, v), y, angle_rows=angle_rows), atol=1e-7)
 
 
 def random_poses(rng, count):
@@ -132,13 +130,6 @@ def simulate_loop(rng=None, *, laps=2, steps_per_lap=60, radius_m=4.0, unknown_e
     return header, steps, np.array(poses), landmarks
 
 
-def run(estimator, steps):
-    for step in steps:
-        estimator.step(step)
-    estimator.finish()
-    return estimator
-
-
 def ate_m(trajectory, truth):
     return float(np.sqrt(np.mean(np.sum((trajectory[:, :2] - truth[:, :2]) ** 2, axis=1))))
 
@@ -168,12 +159,7 @@ def test_motion_jacobians_match_finite_differences():
     for pose in random_poses(rng, 200):
         u = rng.normal(scale=[0.5, 0.2, 0.5])
         F_pose, F_inc = motion_jacobians(pose, u)
-        np.testing.assert_allclose(
-            F_pose, numeric_jacobian(lambda p: predict_pose(p, u), pose, angle_rows=(2,)), atol=1e-7
-        )
-        np.testing.assert_allclose(
-            F_inc, numeric_jacobian(lambda v: predict_pose(pose, v), u, angle_rows=(2,)), atol=1e-7
-        )
+        assert_jacobians_match(predict_pose, pose, u, F_pose, F_inc, angle_rows=(2,))
 
 
 def test_range_bearing_jacobians_match_finite_differences():
@@ -184,12 +170,7 @@ def test_range_bearing_jacobians_match_finite_differences():
         r = rng.uniform(1.0, 15.0)
         landmark = pose[:2] + r * np.array([math.cos(a), math.sin(a)])
         H_pose, H_lm = range_bearing_jacobians(pose, landmark)
-        np.testing.assert_allclose(
-            H_pose, numeric_jacobian(lambda p: range_bearing(p, landmark), pose, angle_rows=(1,)), atol=1e-7
-        )
-        np.testing.assert_allclose(
-            H_lm, numeric_jacobian(lambda m: range_bearing(pose, m), landmark, angle_rows=(1,)), atol=1e-7
-        )
+        assert_jacobians_match(range_bearing, pose, landmark, H_pose, H_lm, angle_rows=(1,))
 
 
 def test_bearing_behind_the_robot_is_wrapped_and_differentiable():
@@ -197,10 +178,8 @@ def test_bearing_behind_the_robot_is_wrapped_and_differentiable():
     for landmark in ([-3.0, 1e-9], [-3.0, -1e-9]):
         _, b = range_bearing(pose, landmark)
         assert abs(abs(b) - math.pi) < 1e-8
-        H_pose, H_lm = range_bearing_jacobians(pose, landmark)
-        np.testing.assert_allclose(
-            H_lm, numeric_jacobian(lambda m: range_bearing(pose, m), landmark, angle_rows=(1,)), atol=1e-7
-        )
+        _, H_lm = range_bearing_jacobians(pose, landmark)
+        assert_jacobians_match(range_bearing, pose, landmark, None, H_lm, angle_rows=(1,))
 
 
 def test_landmark_init_jacobians_match_finite_differences():
@@ -208,12 +187,7 @@ def test_landmark_init_jacobians_match_finite_differences():
     for pose in random_poses(rng, 200):
         z = np.array([rng.uniform(0.3, 15.0), rng.uniform(-math.pi, math.pi)])
         G_pose, G_z = landmark_init_jacobians(pose, *z)
-        np.testing.assert_allclose(
-            G_pose, numeric_jacobian(lambda p: landmark_from_range_bearing(p, *z), pose), atol=1e-7
-        )
-        np.testing.assert_allclose(
-            G_z, numeric_jacobian(lambda m: landmark_from_range_bearing(pose, *m), z), atol=1e-7
-        )
+        assert_jacobians_match(lambda p, m: landmark_from_range_bearing(p, *m), pose, z, G_pose, G_z)
 
 
 def test_inverse_observation_inverts_observation():
@@ -647,12 +621,7 @@ def test_observation_jacobians_with_height_match_finite_differences():
         landmark = np.r_[pose[:2] + r * np.array([math.cos(a), math.sin(a)]), rng.uniform(0.1, 2.0)]
         H_pose, H_lm = observation_jacobians(pose, landmark)
         assert H_pose.shape == (3, 3) and H_lm.shape == (3, 3)
-        np.testing.assert_allclose(
-            H_pose, numeric_jacobian(lambda p: observation_model(p, landmark), pose, angle_rows=(1,)), atol=1e-7
-        )
-        np.testing.assert_allclose(
-            H_lm, numeric_jacobian(lambda m: observation_model(pose, m), landmark, angle_rows=(1,)), atol=1e-7
-        )
+        assert_jacobians_match(observation_model, pose, landmark, H_pose, H_lm, angle_rows=(1,))
         # without a height: exactly the 2-D model
         H2_pose, H2_lm = observation_jacobians(pose, landmark[:2])
         np.testing.assert_array_equal(H2_pose, H_pose[:2])
@@ -664,12 +633,7 @@ def test_landmark_initialisation_with_height_jacobians_match_finite_differences(
     for pose in random_poses(rng, 100):
         z = np.array([rng.uniform(0.5, 8.0), rng.uniform(-math.pi, math.pi), rng.uniform(0.1, 2.0)])
         G_pose, G_z = landmark_from_observation_jacobians(pose, z[0], z[1], with_height=True)
-        np.testing.assert_allclose(
-            G_pose, numeric_jacobian(lambda p: landmark_from_observation(p, *z), pose), atol=1e-7
-        )
-        np.testing.assert_allclose(
-            G_z, numeric_jacobian(lambda v: landmark_from_observation(pose, *v), z), atol=1e-7
-        )
+        assert_jacobians_match(lambda p, v: landmark_from_observation(p, *v), pose, z, G_pose, G_z)
         assert np.all(G_pose[2] == 0.0)
 
 

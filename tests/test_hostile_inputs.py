@@ -23,8 +23,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from fgslam.cli import main
-from slamio.errors import InputFileError
-from slamio.safe_input import MAX_NESTING, parse_json, parse_toml, parse_yaml, read_bytes
+from slamio.errors import InputFileError, read_bytes
+from slamio.safe_input import MAX_NESTING, parse_json, parse_toml, parse_yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 ARENA = ROOT / "data" / "arena_octagon.jsonl"
@@ -395,31 +395,30 @@ def test_a_hostile_number_anywhere_in_json_names_its_line_and_field(value, liter
     assert message.startswith(f"f.json:{line}: field '") and "\n" not in message, message
 
 
+def assert_parsed_or_one_line_error(parse, name: str, text: str) -> None:
+    """``parse(name, text)`` returns, or raises an :class:`InputFileError` of one line naming ``name``."""
+    try:
+        parse(name, text)
+    except InputFileError as err:
+        assert str(err).startswith(name) and "\n" not in str(err)
+
+
 @settings(max_examples=300, deadline=None)
 @given(text=st.text(alphabet=st.sampled_from(list('[]{}:,"0123456789.eE-+ \nabtrufalsn\\')), max_size=200))
 def test_random_json_text_is_parsed_or_one_input_file_error(text):
-    try:
-        parse_json("f.json", text)
-    except InputFileError as err:
-        assert str(err).startswith("f.json") and "\n" not in str(err)
+    assert_parsed_or_one_line_error(parse_json, "f.json", text)
 
 
 @settings(max_examples=200, deadline=None)
 @given(text=st.text(alphabet=st.sampled_from(list("[]{}:,-&*!|>'\"0123456789.eE+ \nabinfx_#")), max_size=200))
 def test_random_yaml_text_is_parsed_or_one_input_file_error(text):
-    try:
-        parse_yaml("f.yaml", text)
-    except InputFileError as err:
-        assert str(err).startswith("f.yaml") and "\n" not in str(err)
+    assert_parsed_or_one_line_error(parse_yaml, "f.yaml", text)
 
 
 @settings(max_examples=200, deadline=None)
 @given(text=st.text(alphabet=st.sampled_from(list("[]{}=,.\"'0123456789eE+-_ \nabinfx#")), max_size=200))
 def test_random_toml_text_is_parsed_or_one_input_file_error(text):
-    try:
-        parse_toml("f.toml", text)
-    except InputFileError as err:
-        assert str(err).startswith("f.toml") and "\n" not in str(err)
+    assert_parsed_or_one_line_error(parse_toml, "f.toml", text)
 
 
 @pytest.mark.parametrize("depth, refused_", [(MAX_NESTING, False), (MAX_NESTING + 1, True), (100_000, True)])

@@ -9,6 +9,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from builders import assert_log_round_trips
 from slamio.errors import FgslamError
 from slamio.log import (
     COORDINATE_M,
@@ -133,12 +134,7 @@ def records_in_time_order(draw, start_stamp_s):
 def test_write_then_read_round_trips_exactly(tmp_path, data):
     header = data.draw(headers())
     records = data.draw(records_in_time_order(header.stamp_s))
-    path = tmp_path / "run.jsonl"
-    write_log(path, header, records)
-    log = read_log(path)
-    assert log.header == header
-    assert log.records == tuple(records)
-    assert log.truncated is None
+    assert_log_round_trips(tmp_path / "run.jsonl", header, records)
 
 
 # ------------------------------------------------------------------ a small valid log

@@ -12,16 +12,8 @@ from hypothesis import strategies as st
 
 from slamio.datasets.seed003_log import drive_to_log, log_to_drive
 from slamio.log import Header, LogFormatError, format_line, read_log, write_log
-from slamio.log import (
-    SIGMA_PIXEL_PX,
-    StereoObservation,
-    TruthLandmark3,
-    TruthPose3,
-    VelocityOdometry,
-    pose3_from_matrix,
-    pose3_matrix,
-    stereo_sensor,
-)
+from slamio.log import SIGMA_PIXEL_PX, StereoObservation, TruthLandmark3, TruthPose3, VelocityOdometry
+from slamio.log import pose3_from_matrix, pose3_matrix, stereo_sensor
 from slamio.se3 import exp_se3
 from slamio.sim3d import DriveScenario, simulate_drive
 

@@ -19,24 +19,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from fgslam.cli import main
-from slamio.log import (
-    COORDINATE_M,
-    INCREMENT_M,
-    INCREMENT_RAD,
-    WORLD_ANGLE_RAD,
-    MAX_ID,
-    RANGE_M,
-    SIGMA_ANGLE_RAD,
-    SIGMA_LENGTH_M,
-    Header,
-    LogFormatError,
-    Observation,
-    Odometry,
-    TruthPose,
-    as_matrix3,
-    format_line,
-    read_log,
-)
+from slamio.log import COORDINATE_M, INCREMENT_M, INCREMENT_RAD, MAX_ID, RANGE_M, WORLD_ANGLE_RAD
+from slamio.log import SIGMA_ANGLE_RAD, SIGMA_LENGTH_M
+from slamio.log import Header, LogFormatError, Observation, Odometry, TruthPose, as_matrix3, format_line, read_log
 
 HEADER = Header(
     stamp_s=0.0,

@@ -21,7 +21,8 @@ from slamio.datasets.mrclam_motion import CommandOdometryNoise, integrate_comman
 from slamio.datasets.victoria_park import DatasetFormatError
 from slamio.errors import FgslamError
 from slamio.geometry import arc_increment, compose_pose, wrap_angle
-from slamio.log import Observation, Odometry, TruthLandmark, TruthPose, group_steps, read_log, write_log
+from builders import assert_log_round_trips
+from slamio.log import Observation, Odometry, TruthLandmark, TruthPose, group_steps
 
 FIXTURE = os.path.join(os.path.dirname(__file__), "fixtures", "mrclam")
 
@@ -292,12 +293,7 @@ def test_interpolate_pose_takes_the_short_way_round():
 
 def test_the_log_passes_validation_and_round_trips(imported, tmp_path):
     header, records = imported
-    path = tmp_path / "mrclam.jsonl"
-    write_log(path, header, records)
-    log = read_log(path)
-    assert log.header == header
-    assert log.records == tuple(records)
-    assert log.truncated is None
+    log = assert_log_round_trips(tmp_path / "mrclam.jsonl", header, records)
     assert log.has_full_truth() is False  # the dropout
 
 

@@ -4,7 +4,6 @@ the shipped MRCLAM excerpt (three real robots)."""
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import replace
@@ -12,6 +11,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from builders import run_main_with_json
 from scripts import mrclam_camera_tried
 
 from slamio.log import Observation, RunLog, read_log
@@ -79,10 +79,8 @@ def test_a_picture_error_put_into_a_simulated_log_is_found_and_taken_out(script)
 
 def test_the_script_runs_on_the_excerpt_and_writes_its_figures(script, tmp_path, capsys):
     out = tmp_path / "camera.json"
-    assert script.main([EXCERPT, "--json", str(out)]) == 0
-    printed = capsys.readouterr().out
+    printed, result = run_main_with_json(script.main, [EXCERPT], out, capsys)
     assert "by |Δ bearing|" in printed and "median isam2" in printed
-    result = json.loads(out.read_text())
     assert sorted(result["oracle"]) == ["1", "2", "3", "median"]
     first = result["pairs"]["by_time"][0]
     assert 0.0 < first["range"] < 1.0 and first["low"] == 0.0

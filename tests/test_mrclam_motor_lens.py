@@ -3,13 +3,13 @@ whole script on the shipped MRCLAM excerpt (three real robots)."""
 
 from __future__ import annotations
 
-import json
 import math
 import os
 
 import numpy as np
 import pytest
 
+from builders import run_main_with_json
 from scripts import mrclam_motor_lens_tried
 
 HERE = os.path.dirname(__file__)
@@ -57,10 +57,8 @@ def test_a_short_turn_pulse_is_executed_only_in_part(script):
 
 def test_the_script_runs_on_the_excerpt_and_writes_its_figures(script, tmp_path, capsys):
     out = tmp_path / "motor_lens.json"
-    assert script.main([EXCERPT, "--json", str(out)]) == 0
-    printed = capsys.readouterr().out
+    printed, result = run_main_with_json(script.main, [EXCERPT], out, capsys)
     assert "## motor" in printed and "## lens" in printed
-    result = json.loads(out.read_text())
     assert sorted(result["motor"]["robots"]) == sorted(result["lens"]) == ["1", "2", "3"]
     best, pure = result["motor"]["best"], result["motor"]["pure"]
     assert best["rms_rad"] <= pure["rms_rad"]  # the grid holds the pure delay

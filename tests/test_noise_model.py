@@ -63,6 +63,11 @@ def write_json_text(path, text: str) -> str:
     return str(path)
 
 
+def write_valid_with(tmp_path, **fields) -> str:
+    """A valid file body with the top-level ``fields`` set, written to ``noise.json``; its path."""
+    return write_json_text(tmp_path / "noise.json", json.dumps({**valid_dict(), **fields}))
+
+
 # ----------------------------------------------------------------------------- the file
 
 
@@ -243,26 +248,20 @@ def test_json_that_is_not_an_object_is_refused(tmp_path, body):
 
 @pytest.mark.parametrize("version", [0, 2, "1", None])
 def test_a_wrong_version_is_refused(tmp_path, version):
-    data = valid_dict()
-    data["version"] = version
-    path = write_json_text(tmp_path / "noise.json", json.dumps(data))
+    path = write_valid_with(tmp_path, version=version)
     with pytest.raises(NoiseModelError, match="version"):
         load_noise_model(path)
 
 
 @pytest.mark.parametrize("fitted_on", ["run.jsonl", [1, 2], {"a": 1}])
 def test_fitted_on_must_be_a_list_of_strings(tmp_path, fitted_on):
-    data = valid_dict()
-    data["fitted_on"] = fitted_on
-    path = write_json_text(tmp_path / "noise.json", json.dumps(data))
+    path = write_valid_with(tmp_path, fitted_on=fitted_on)
     with pytest.raises(NoiseModelError, match="fitted_on"):
         load_noise_model(path)
 
 
 def test_fit_report_must_be_an_object(tmp_path):
-    data = valid_dict()
-    data["fit_report"] = [1]
-    path = write_json_text(tmp_path / "noise.json", json.dumps(data))
+    path = write_valid_with(tmp_path, fit_report=[1])
     with pytest.raises(NoiseModelError, match="fit_report"):
         load_noise_model(path)
 

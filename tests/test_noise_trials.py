@@ -12,13 +12,7 @@ import pytest
 
 from fgslam.record_cli import add_calibrate_parser, add_record_parser, main
 from slamio.noise.errors import NoiseModelError, NoiseModelFileError
-from slamio.noise.trials import (
-    calibrate_from_trials,
-    load_calibration,
-    motion_errors,
-    read_trials,
-    simulated_trials,
-)
+from slamio.noise.trials import calibrate_from_trials, load_calibration, motion_errors, read_trials, simulated_trials
 from slamio.log import read_log
 
 ROOT = Path(__file__).resolve().parents[1]

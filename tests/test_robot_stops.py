@@ -61,6 +61,21 @@ def _wait_driving(sim: SimulatedCreate, proc: subprocess.Popen) -> None:
     assert builders.wait_for(driving, 120.0)
 
 
+def _signal_while_driving(sim: SimulatedCreate, verb: str, out: Path, signum: int, *, ignored: str = "-",
+                          before_signal=None) -> tuple[subprocess.Popen, str]:
+    """``fgslam VERB`` on the robot, waited for until it drives, then (after ``before_signal()``,
+    if given) sent ``signum`` — sent even when the wait fails; the ended process and its stderr."""
+    proc = _verb(verb, sim.port, out, ignored=ignored)
+    try:
+        _wait_driving(sim, proc)
+    finally:
+        if before_signal is not None:
+            before_signal()
+        proc.send_signal(signum)
+        _, stderr = proc.communicate(timeout=120)
+    return proc, stderr
+
+
 def _stopped(sim: SimulatedCreate) -> bool:
     return sim.commanded_mm_s == (0.0, 0.0) and sim.mode == OiMode.PASSIVE
 
@@ -77,12 +92,7 @@ SIGNALS = [signal.SIGHUP, signal.SIGINT, signal.SIGQUIT, signal.SIGTERM]
 def test_every_terminating_signal_stops_the_robot_and_says_which(tmp_path, verb, signum):
     out = tmp_path / "run.jsonl"
     with _robot() as sim:
-        proc = _verb(verb, sim.port, out)
-        try:
-            _wait_driving(sim, proc)
-        finally:
-            proc.send_signal(signum)
-            _, stderr = proc.communicate(timeout=120)
+        proc, stderr = _signal_while_driving(sim, verb, out, signum)
         assert _stopped(sim)
     name = signal.Signals(signum).name
     assert proc.returncode == 128 + signum, stderr
@@ -105,12 +115,7 @@ def test_signals_inherited_as_ignored_still_stop_the_robot(tmp_path, ignored):
     out = tmp_path / "run.jsonl"
     signum = getattr(signal, ignored.split(",")[-1])
     with _robot() as sim:
-        proc = _verb("record", sim.port, out, ignored=ignored)
-        try:
-            _wait_driving(sim, proc)
-        finally:
-            proc.send_signal(signum)
-            _, stderr = proc.communicate(timeout=120)
+        proc, stderr = _signal_while_driving(sim, "record", out, signum, ignored=ignored)
         assert _stopped(sim)
     assert proc.returncode == 128 + signum, stderr
 
@@ -151,13 +156,8 @@ def test_the_guardian_writes_nothing_while_the_program_lives(tmp_path):
 def test_a_robot_that_stops_answering_is_not_reported_stopped(tmp_path, verb):
     out = tmp_path / "run.jsonl"
     with _robot() as sim:
-        proc = _verb(verb, sim.port, out)
-        try:
-            _wait_driving(sim, proc)
-        finally:
-            sim.freeze()  # the robot's firmware hangs: it takes the stop without a word
-            proc.send_signal(signal.SIGTERM)
-            _, stderr = proc.communicate(timeout=120)
+        # the robot's firmware hangs: it takes the stop without a word
+        proc, stderr = _signal_while_driving(sim, verb, out, signal.SIGTERM, before_signal=sim.freeze)
     assert proc.returncode == 3, stderr
     assert "NOT confirmed" in stderr and "CHECK THE ROBOT" in stderr
     assert "robot stopped (confirmed)" not in stderr

@@ -39,7 +39,7 @@ from ekf.linear_kf_kinect import (
     world_xy_from_paper,
 )
 from slamio.geometry import arc_increment, wrap_angle
-from builders import minimal_header
+from builders import assert_arena_run_is_sane, minimal_header, run_estimator as run
 from slamio.log import Header, Observation, Odometry, Step, as_matrix3, group_steps
 from slamio.sim import simulate
 
@@ -59,13 +59,6 @@ def odo(t, distance_m, angle_rad):
 
 def obs(t, lid, range_m, bearing_rad):
     return Observation(t, lid, range_m, bearing_rad, 0.01, 0.01)
-
-
-def run(estimator, steps):
-    for step in steps:
-        estimator.step(step)
-    estimator.finish()
-    return estimator
 
 
 def R_ccw(a):
@@ -482,9 +475,4 @@ def arena(scenario, n_steps=None):
 def test_runs_on_simulated_arena_logs(scenario, kwargs):
     header, steps = arena(scenario)
     f = run(EkfS000(header, **kwargs), steps)
-    t = f.trajectory()
-    assert t.shape == (len(steps), 3)
-    assert np.isfinite(t).all()
-    assert np.isfinite(f.current_covariance()).all()
-    assert set(f.landmarks()) == set(range(8))
-    assert len(f.step_associations()) == len(steps[-1].observations)
+    assert_arena_run_is_sane(f, steps)

@@ -34,15 +34,11 @@ from ekf.signature_ekf import (
     rotate_in_place_jacobian,
 )
 from slamio.geometry import arc_increment, wrap_angle
-from builders import minimal_header
-from slamio.log import Header, Observation, Odometry, Step, group_steps
+from builders import minimal_header as make_header
+from slamio.log import Observation, Odometry, Step, group_steps
 from slamio.sim import simulate
 
 # --------------------------------------------------------------------------- helpers
-
-
-def make_header(start_pose=(0.0, 0.0, 0.0), start_sigma=(1e-3, 1e-3, 1e-3)) -> Header:
-    return minimal_header(start_pose=start_pose, start_sigma=start_sigma)
 
 
 def obs(range_m, bearing_rad, sigma_r=0.05, sigma_b=0.02, height=None, sigma_h=None, landmark_id=None):
@@ -476,7 +472,7 @@ def test_trial_calibration_in_the_header_gives_the_filter_its_R_and_Q(tmp_path):
     from slamio.noise.trials import calibrate_from_trials, read_trials
 
     calibration = calibrate_from_trials(*read_trials("data/calibration_trials_s001.csv"), source="trials")
-    header = minimal_header()
+    header = make_header()
     assert trial_calibration(header) == (None, None)
     header = dataclasses.replace(header, noise={**header.noise, "calibration": calibration.to_dict()})
     R, q = trial_calibration(header)

@@ -37,17 +37,10 @@ HEIGHTS, DISTANCES = np.meshgrid(np.linspace(0.2, 1.0, 33), np.linspace(0.8, 4.0
 
 @pytest.fixture(scope="module")
 def rendered():
-    v_top, v_bottom, z_top, z_bottom, ray_top, ray_bottom = render_vertical_segment(HEIGHTS, DISTANCES)
-    return dict(
-        v_top=v_top,
-        v_bottom=v_bottom,
-        z_top=z_top,
-        z_bottom=z_bottom,
-        ray_top=ray_top,
-        ray_bottom=ray_bottom,
-        pd=np.abs(v_bottom - v_top),
-        in_frame=rows_in_frame(v_top, v_bottom),
-    )
+    names = ("v_top", "v_bottom", "z_top", "z_bottom", "ray_top", "ray_bottom")
+    arrays = dict(zip(names, render_vertical_segment(HEIGHTS, DISTANCES), strict=True))
+    v_top, v_bottom = arrays["v_top"], arrays["v_bottom"]
+    return dict(arrays, pd=np.abs(v_bottom - v_top), in_frame=rows_in_frame(v_top, v_bottom))
 
 
 # --------------------------------------------------------------------------- gHeight itself

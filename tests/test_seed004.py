@@ -26,7 +26,7 @@ from ekf.apriltag_kf import (
     predict_robot,
     tag_pose_in_robot,
 )
-from builders import minimal_header
+from builders import assert_arena_run_is_sane, minimal_header, run_estimator as run
 from slamio.log import Header, Observation, Odometry, Step, as_matrix3, group_steps
 from slamio.sim import simulate
 
@@ -41,13 +41,6 @@ def odo(t, dx, dy, dth, cov=(1e-4, 1e-4, 1e-4)):
 
 def tag(t, lid, range_m, bearing_rad, yaw_rad, sigmas=(0.01, 0.01, 0.05)):
     return Observation(t, lid, range_m, bearing_rad, sigmas[0], sigmas[1], tag_yaw_rad=yaw_rad, sigma_tag_yaw_rad=sigmas[2])
-
-
-def run(estimator, steps):
-    for step in steps:
-        estimator.step(step)
-    estimator.finish()
-    return estimator
 
 
 def R(a):
@@ -284,9 +277,4 @@ def test_runs_on_simulated_arena_logs(scenario, kwargs):
     header, records = simulate(scenario, 1)
     steps = group_steps(header, records)
     f = run(EkfS004(header, **kwargs), steps)
-    t = f.trajectory()
-    assert t.shape == (len(steps), 3)
-    assert np.isfinite(t).all()
-    assert np.isfinite(f.current_covariance()).all()
-    assert set(f.landmarks()) == set(range(8))
-    assert len(f.step_associations()) == len(steps[-1].observations)
+    assert_arena_run_is_sane(f, steps)

@@ -18,7 +18,8 @@ from scipy import stats
 
 from slamio.errors import FgslamError
 from slamio.geometry import arc_increment, arc_increment_jacobian, between_pose, compose_pose, wrap_angle
-from slamio.log import Observation, Odometry, TruthLandmark, TruthPose, group_steps, read_log, write_log
+from builders import assert_log_round_trips
+from slamio.log import Observation, Odometry, TruthLandmark, TruthPose, group_steps, write_log
 from slamio.sim import (
     MAX_WHEEL_SPEED_M_S,
     SCENARIOS,
@@ -169,12 +170,7 @@ def test_record_order_and_stamps(scenario, kwargs):
 def test_round_trip_through_the_log_file(tmp_path):
     for scenario, kwargs in SMALL:
         header, records = sim(scenario, 5, **kwargs)
-        path = tmp_path / f"{scenario}.jsonl"
-        write_log(path, header, records)
-        log = read_log(path)
-        assert log.truncated is None
-        assert log.header == header
-        assert log.records == tuple(records)
+        log = assert_log_round_trips(tmp_path / f"{scenario}.jsonl", header, records)
         assert log.has_full_truth()
 
 

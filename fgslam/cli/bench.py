@@ -8,7 +8,7 @@ import json
 from pathlib import Path
 
 from fgslam.atomic import write_text_whole
-from fgslam.cli.common import add_overwrite_option, command_line, holds_outputs
+from fgslam.cli.common import add_overwrite_option, add_verb, command_line, holds_outputs
 from fgslam.cli.progress import Progress
 from fgslam.cli.results import ResultsFolder
 
@@ -20,8 +20,8 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     from slamio.sim3d import STEREO_LOOP
 
     scenarios = (*SCENARIOS, STEREO_LOOP)
-    bench = verbs.add_parser(
-        "bench",
+    bench = add_verb(
+        verbs, "bench",
         help="Monte Carlo: many seeded simulations, average NEES per step against its chi-square band",
         description=(
             "Simulate SCENARIO with seeds SEED..SEED+RUNS-1, run the estimators on each (in a process\n"
@@ -33,7 +33,6 @@ def add_parser(verbs) -> argparse.ArgumentParser:
             "(default ekf-vio,ekf-vio-fej,isam2-3d); the NEES is on SE(3), 6 DoF (N = 10: [4.05, 8.33]),\n"
             "the ATE in 3-D."
         ),
-        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     bench.add_argument("scenario", choices=scenarios, metavar="SCENARIO", help=", ".join(scenarios))
     bench.add_argument("--runs", type=int, default=50, help="number of runs (default 50)")

@@ -15,7 +15,7 @@ import argparse
 import json
 from pathlib import Path
 
-from fgslam.cli.common import add_overwrite_option, check_new_file, holds_outputs, read, write_new_file
+from fgslam.cli.common import add_overwrite_option, add_verb, check_new_file, holds_outputs, read, write_new_file
 from slamio.noise.errors import NoiseModelError
 
 #: The two modes of ``fgslam calibrate`` (``--from``).
@@ -55,13 +55,12 @@ data/calibration_trials_s001.csv is a (simulated) example.
 
 def add_parser(verbs) -> argparse.ArgumentParser:
     """Add ``fgslam calibrate`` to the sub-parsers ``verbs``; returns its parser."""
-    p = verbs.add_parser(
-        "calibrate",
+    p = add_verb(
+        verbs, "calibrate",
         help="learn the odometry and reading noise: a noise model fitted to logs with ground truth "
         "(LOG.jsonl...), or seed 001's covariances from measured trials (TRIALS.csv); "
         "not the camera (calibrate-camera)",
         description=CALIBRATE_DESCRIPTION,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("trials", nargs="+", metavar="LOG.jsonl|TRIALS.csv",
                    help="run logs with ground truth (.jsonl, one or more: from truth), or the measured trials "

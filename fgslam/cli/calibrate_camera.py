@@ -10,7 +10,9 @@ from __future__ import annotations
 import argparse
 import glob
 
-from fgslam.cli.common import add_overwrite_option, check_new_file, check_number, holds_outputs, write_new_file
+from fgslam.cli.common import (
+    add_overwrite_option, add_verb, check_new_file, check_number, holds_outputs, write_new_file,
+)
 
 DESCRIPTION = """\
 Calibrate a camera from pictures of a printed chessboard: intrinsics (fx, fy, cx, cy) and
@@ -57,11 +59,10 @@ def _mount(text: str):
 def add_parser(verbs) -> argparse.ArgumentParser:
     from slamio.camera.chessboard import MODELS
 
-    p = verbs.add_parser(
-        "calibrate-camera",
+    p = add_verb(
+        verbs, "calibrate-camera",
         help="camera intrinsics and lens distortion from chessboard pictures -> camera_info YAML",
         description=DESCRIPTION,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="example:\n  fgslam calibrate-camera 'calib/*.png' --board 9x6 --square 0.025 "
                "--mount 0.10,0,0.30,0,0,0 --out kinect.yaml",
     )
@@ -78,6 +79,23 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     return p
 
 
+def _image_paths(patterns: list[str]) -> list[str]:
+    """The files the arguments name (a quoted glob pattern expanded), each a regular file,
+    else one :class:`InputFileError` line naming what matched nothing (before OpenCV is asked)."""
+    from slamio.errors import InputFileError, check_regular
+
+    paths = set()
+    for pattern in patterns:
+        matched = glob.glob(pattern) if glob.has_magic(pattern) else [pattern]
+        if not matched:
+            raise InputFileError(f"{pattern}: no file matches this pattern; give the chessboard pictures' paths "
+                                 "(e.g. 'calib/*.png', quoted)")
+        for path in matched:
+            check_regular(path, "chessboard picture")
+            paths.add(path)
+    return sorted(paths)
+
+
 @holds_outputs(out="--out")
 def cmd_calibrate_camera(args: argparse.Namespace) -> int:
     import numpy as np
@@ -87,7 +105,7 @@ def cmd_calibrate_camera(args: argparse.Namespace) -> int:
 
     check_number("--square", args.square, above=0, what="the side of one square in metres")
     out = check_new_file(args.out, overwrite=args.overwrite, example="camera.yaml")
-    paths = sorted({p for pattern in args.images for p in (glob.glob(pattern) or [pattern])})
+    paths = _image_paths(args.images)
     result = calibrate(paths, args.board, args.square, model=args.model, mount=args.mount, name=args.name)
     cam = result.camera
     for path in result.board_not_found:

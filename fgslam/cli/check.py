@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from fgslam.cli.common import add_verb
 from fgslam.cli.estimators import ESTIMATOR_HELP, ESTIMATOR_HELP_3D
 
 
@@ -26,10 +27,9 @@ def _tolerance(key: str):
 
 
 def add_parser(verbs) -> argparse.ArgumentParser:
-    check = verbs.add_parser(
-        "check",
+    check = add_verb(
+        verbs, "check",
         help="regression check: one estimator against the smoothed solution or the truth (exit 0/1)",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
         description=(
             "Run one estimator on LOG and compare it with the smoothed solution (batch LM from\n"
             "iSAM2) or with the log's ground truth. Prints one line, PASS or FAIL, and exits 0 or 1.\n"

@@ -129,6 +129,13 @@ def command_line(args: argparse.Namespace, default: str = "") -> str:
     return f"{PROG} " + " ".join(shlex.quote(a) for a in argv if a != "--overwrite")
 
 
+def add_verb(verbs, name: str, **options) -> argparse.ArgumentParser:
+    """Add the sub-command ``name`` to ``fgslam``'s sub-parsers ``verbs`` and return its parser;
+    its ``description`` and ``epilog`` are printed as written, line breaks kept. ``options``
+    are ``add_parser``'s (``help``, ``description``, ``epilog``, ``usage``)."""
+    return verbs.add_parser(name, formatter_class=argparse.RawDescriptionHelpFormatter, **options)
+
+
 def add_overwrite_option(parser: argparse.ArgumentParser, what: str = "an existing --out file") -> None:
     parser.add_argument("--overwrite", action="store_true", help=f"replace {what} (default: refuse, keep it)")
 

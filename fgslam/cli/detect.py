@@ -52,7 +52,7 @@ from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
-from fgslam.cli.common import check_number, command_line, holds_outputs, probe_writable, write_new_file
+from fgslam.cli.common import add_verb, check_number, command_line, holds_outputs, probe_writable, write_new_file
 from fgslam.cli.detect_checks import DetectError, FrameProblems, check_show, parse_tag_ids, summary_with_details
 from fgslam.cli.progress import Progress
 from slamio.log import Header, Observation, Odometry, read_log, write_log
@@ -413,10 +413,9 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     """Add the ``detect`` verb to ``fgslam``'s sub-parsers; returns its parser."""
     from slamio.camera.sources import TUM_DEPTH_SCALE_PER_M
 
-    detect = verbs.add_parser(
-        "detect",
+    detect = add_verb(
+        verbs, "detect",
         help="camera frames -> landmark observations (AprilTags or Kinect colour cylinders) in a run log",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
         description=(
             "Detect landmarks in camera frames and add them to a run log as observations in the robot\n"
             "frame (range, bearing, and tag yaw or cylinder height). FRAMES is a TUM RGB-D folder\n"

@@ -7,6 +7,7 @@ import sys
 
 from fgslam.cli.common import (
     add_overwrite_option,
+    add_verb,
     check_new_file,
     check_number,
     command_line,
@@ -19,11 +20,10 @@ DATASETS = ["victoria-park", "plaza1", "plaza2", "mrclam", "rosbag", "seed003"]
 
 
 def add_parser(verbs) -> argparse.ArgumentParser:
-    imp = verbs.add_parser(
-        "import",
+    imp = add_verb(
+        verbs, "import",
         usage="%(prog)s DATASET [SOURCE] OUT [options]",
         help="convert a dataset from elsewhere into a run log",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
         description=(
             "Convert a public dataset into a run log, so every estimator can run on it.\n\n"
             "datasets:\n"

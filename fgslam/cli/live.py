@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fgslam.cli.common import add_overwrite_option, check_new_file, check_number
+from fgslam.cli.common import add_overwrite_option, add_verb, check_new_file, check_number
 from fgslam.cli.progress import Progress
 from fgslam.cli.robot_end import EXIT_STOP_NOT_CONFIRMED, EXIT_STOPPED_EARLY, report_end, robot_session, say  # noqa: F401
 from slamio.errors import FgslamError
@@ -65,8 +65,8 @@ def _floats(count: int):
 def add_parser(verbs) -> argparse.ArgumentParser:
     from slamio.sim import ARENA_PATH_WIDTH_M, ARENA_SIDE_M
 
-    live = verbs.add_parser("live", help="drive the Create on the iSAM2 pose with the camera in the loop; record it all",
-                            description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    live = add_verb(verbs, "live", description=DESCRIPTION,
+                    help="drive the Create on the iSAM2 pose with the camera in the loop; record it all")
     live.add_argument("--port", required=True, help="serial port (e.g. /dev/ttyUSB0) or 'sim'")
     live.add_argument("--model", choices=("create1", "create2"), default="create2")
     live.add_argument("--path", default="octagon", help="square, octagon or a waypoint file (default octagon)")

@@ -15,7 +15,7 @@ import math
 import sys
 from pathlib import Path
 
-from fgslam.cli.common import add_overwrite_option, check_new_file, command_line, status_path
+from fgslam.cli.common import add_overwrite_option, add_verb, check_new_file, command_line, status_path
 from fgslam.cli.robot_end import EXIT_STOP_NOT_CONFIRMED, EXIT_STOPPED_EARLY, report_end, robot_session, say  # noqa: F401
 from slamio.errors import FgslamError
 
@@ -73,11 +73,10 @@ def _fraction(text: str) -> float:
 
 def add_parser(verbs) -> argparse.ArgumentParser:
     """Add ``fgslam record`` to the sub-parsers ``verbs``; returns its parser."""
-    p = verbs.add_parser(
-        "record",
+    p = add_verb(
+        verbs, "record",
         help="drive an iRobot Create (or the simulated one) and record its odometry to a run log",
         description=RECORD_DESCRIPTION,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--port", required=True, metavar="PORT",
                    help="serial port (/dev/ttyUSB0, /dev/serial/by-id/..., COM3, a pyserial URL), "
@@ -158,7 +157,7 @@ def _frame_saver(args, sim, settings):
 
 def cmd_record(args: argparse.Namespace) -> int:
     from slamio.noise.trials import load_calibration
-    from slamio.create.record import RecorderSettings
+    from slamio.create.record_settings import RecorderSettings
 
     # Before the port is opened and the recorder starts the log: an existing recording is never
     # emptied unless --overwrite, and a place that cannot be written is one line, not a traceback.
@@ -197,12 +196,14 @@ def _record_run(args, out: Path, settings, noise, observation, trials, source, s
     """Start the simulator (--port sim), open the link, record, write the status file and
     say how it ended (:mod:`fgslam.cli.robot_end`)."""
     from slamio.create.link import CreateLink
-    from slamio.create.record import TELEOP_HELP, PathController, TeleopController, TerminalKeys, path_moves, record
+    from slamio.create.controllers import TELEOP_HELP, PathController, TeleopController, TerminalKeys, path_moves
+    from slamio.create.record import record
 
     sim = None
     port, clock = args.port, None
     if args.port == "sim":
-        from slamio.create.sim import SimulatedCreate, without_sideways
+        from slamio.create.sim import SimulatedCreate
+        from slamio.create.sim_model import without_sideways
 
         # The simulated encoders err as the log's header says (a calibration's model when given).
         sim = SimulatedCreate(args.model, seed=args.sim_seed, time_scale=args.sim_time_scale,
@@ -249,7 +250,7 @@ def _record_run(args, out: Path, settings, noise, observation, trials, source, s
 
 
 def _report(args, out: Path, result, sim, saver, status: Path) -> int:
-    from slamio.create.record import write_status
+    from slamio.create.record_settings import write_status
 
     if result.log_placed:
         try:

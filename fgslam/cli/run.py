@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 
 from fgslam.atomic import write_text_whole
-from fgslam.cli.common import add_overwrite_option, command_line, holds_outputs, read, summary
+from fgslam.cli.common import add_overwrite_option, add_verb, command_line, holds_outputs, read, summary
 from fgslam.cli.estimators import ESTIMATOR_HELP, ESTIMATOR_HELP_3D
 from fgslam.cli.progress import Progress
 from fgslam.cli.results import ResultsFolder
@@ -32,10 +32,9 @@ def own_names() -> list[str]:
 
 
 def add_parser(verbs) -> argparse.ArgumentParser:
-    run = verbs.add_parser(
-        "run",
+    run = add_verb(
+        verbs, "run",
         help="run the estimators on a log and write the comparison",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="estimators:\n" + "\n".join(f"  {name:<15} {text}" for name, text in ESTIMATOR_HELP.items())
         + "\n\nestimators of a 3-D log (seed 003: stereo camera + IMU):\n"
         + "\n".join(f"  {name:<16} {text}" for name, text in ESTIMATOR_HELP_3D.items())
@@ -185,6 +184,18 @@ def _with_side_inputs(args: argparse.Namespace, log):
     return log
 
 
+def _write_metrics_and_tum(out: Path, metrics: dict, result, has_pose, write, online: list) -> None:
+    """metrics.json; with ``write`` (a TUM writer) reference.tum, NAME.tum of each run's final
+    trajectory and NAME_online.tum of each run in ``online``."""
+    write_text_whole(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
+    # TUM files are stamped: leave the poses without truth (not in has_pose) out
+    write(out / "reference.tum", result.stamps_s[has_pose], result.reference.trajectory[has_pose])
+    for run in result.runs:
+        write(out / f"{run.name}.tum", result.stamps_s, run.final)
+    for run in online:
+        write(out / f"{run.name}_online.tum", result.stamps_s, run.online)
+
+
 def _write_results(args: argparse.Namespace, metrics: dict, result) -> list[str]:
     """metrics.json, the TUM files, graph.g2o and the report of a planar run into --out; each
     file whole or not at all. Returns what to say was written."""
@@ -192,13 +203,8 @@ def _write_results(args: argparse.Namespace, metrics: dict, result) -> list[str]
     from fgslam.export import write_g2o
 
     out = Path(args.out)
-    write_text_whole(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
-    has_pose = result.reference.has_pose  # TUM files are stamped: leave the poses without truth out
-    write_tum(out / "reference.tum", result.stamps_s[has_pose], result.reference.trajectory[has_pose])
-    for run in result.runs:
-        write_tum(out / f"{run.name}.tum", result.stamps_s, run.final)
-        if run.online is not None:
-            write_tum(out / f"{run.name}_online.tum", result.stamps_s, run.online)
+    online = [run for run in result.runs if run.online is not None]
+    _write_metrics_and_tum(out, metrics, result, result.reference.has_pose, write_tum, online)
     written = ["metrics.json", "*.tum"]
     smoother = result.smoother  # its graph, vertices at iSAM2's final estimate (none: no iSAM2 ran)
     if smoother is not None:
@@ -248,13 +254,8 @@ def _write_results_3d(args: argparse.Namespace, metrics: dict, result) -> list[s
     from fgslam.runner3d import reference_line_3d, table_rows_3d, write_tum3
 
     out = Path(args.out)
-    write_text_whole(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
-    has_pose = result.reference.mask  # TUM files are stamped: leave the poses without truth out
-    write_tum3(out / "reference.tum", result.stamps_s[has_pose], result.reference.trajectory[has_pose])
-    for run in result.runs:
-        write_tum3(out / f"{run.name}.tum", result.stamps_s, run.final)
-        if run.online is not None and run.online is not run.final:
-            write_tum3(out / f"{run.name}_online.tum", result.stamps_s, run.online)
+    online = [run for run in result.runs if run.online is not None and run.online is not run.final]
+    _write_metrics_and_tum(out, metrics, result, result.reference.mask, write_tum3, online)
     written = ["metrics.json", "*.tum"]
     if not args.no_report:
         from fgslam.report import write_report_3d

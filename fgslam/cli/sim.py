@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from fgslam.cli.common import add_overwrite_option, check_new_file, command_line, holds_outputs, write_run_log
+from fgslam.cli.common import add_overwrite_option, add_verb, check_new_file, command_line, holds_outputs, write_run_log
 from slamio.errors import FgslamError
 from slamio.sim3d import STEREO_LOOP  # the 3-D scenario: a stereo + IMU car, written as a 3-D log
 
@@ -12,8 +12,8 @@ from slamio.sim3d import STEREO_LOOP  # the 3-D scenario: a stereo + IMU car, wr
 def add_parser(verbs) -> argparse.ArgumentParser:
     from slamio.sim import SCENARIOS
 
-    sim = verbs.add_parser(
-        "sim",
+    sim = add_verb(
+        verbs, "sim",
         help="simulate a run and write its log (with ground truth)",
         description=(
             "Simulate a differential-drive robot with noisy wheel odometry and a range-bearing "
@@ -27,7 +27,6 @@ def add_parser(verbs) -> argparse.ArgumentParser:
             "                 velocities; writes a 3-D log (--outliers moves that share of the\n"
             "                 stereo measurements by up to 30 px)"
         ),
-        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     scenarios = (*SCENARIOS, STEREO_LOOP)
     sim.add_argument("scenario", choices=scenarios, metavar="SCENARIO", help="one of: " + ", ".join(scenarios))

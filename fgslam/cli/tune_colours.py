@@ -18,6 +18,7 @@ from pathlib import Path
 
 from fgslam.cli.common import (
     add_overwrite_option,
+    add_verb,
     check_new_file,
     check_number,
     holds_outputs,
@@ -40,11 +41,10 @@ keeps its ranges; the summary says so.
 def add_parser(verbs) -> argparse.ArgumentParser:
     from slamio.camera.sources import TUM_DEPTH_SCALE_PER_M
 
-    p = verbs.add_parser(
-        "tune-colours",
+    p = add_verb(
+        verbs, "tune-colours",
         help="fit the colour-landmark file's HSV ranges to your frames; write masks and detections to look at",
         description=DESCRIPTION,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="example:\n  fgslam tune-colours run/frames --camera kinect.yaml --out landmarks.yaml --show run/tuning",
     )
     p.add_argument("frames", metavar="FRAMES", help="RGB-D frames: a TUM RGB-D folder (rgb/, depth/)")

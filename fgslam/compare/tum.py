@@ -13,6 +13,7 @@ import numpy as np
 
 from fgslam.atomic import write_text_whole
 from fgslam.compare.runs import ComparisonError, _as_poses
+from slamio.errors import content_lines
 
 
 def format_tum(stamps_s, poses) -> str:
@@ -50,24 +51,20 @@ def read_tum(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray]:
     ``file:line`` for a malformed line.
     """
     stamps, poses = [], []
-    with open(path, encoding="utf-8") as f:
-        for line_no, raw in enumerate(f, start=1):
-            text = raw.strip()
-            if not text or text.startswith("#"):
-                continue
-            fields = text.split()
-            if len(fields) != 8:
-                raise ComparisonError(
-                    f"{path}:{line_no}: expected 8 numbers 't x y z qx qy qz qw', got {len(fields)}"
-                )
-            try:
-                t, x, y, _z, qx, qy, qz, qw = (float(v) for v in fields)
-            except ValueError:
-                raise ComparisonError(
-                    f"{path}:{line_no}: not a number in {text!r}; a TUM line is 8 numbers "
-                    "'t x y z qx qy qz qw'"
-                ) from None
-            yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
-            stamps.append(t)
-            poses.append((x, y, yaw))
+    for line_no, text in content_lines(path):
+        fields = text.split()
+        if len(fields) != 8:
+            raise ComparisonError(
+                f"{path}:{line_no}: expected 8 numbers 't x y z qx qy qz qw', got {len(fields)}"
+            )
+        try:
+            t, x, y, _z, qx, qy, qz, qw = (float(v) for v in fields)
+        except ValueError:
+            raise ComparisonError(
+                f"{path}:{line_no}: not a number in {text!r}; a TUM line is 8 numbers "
+                "'t x y z qx qy qz qw'"
+            ) from None
+        yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+        stamps.append(t)
+        poses.append((x, y, yaw))
     return np.asarray(stamps, dtype=float), np.asarray(poses, dtype=float).reshape(-1, 3)

@@ -13,7 +13,7 @@ import numpy as np
 
 from fgslam.live.steering import LiveSettings, PoseTracker
 from fgslam.live.workers import CameraWorker, ControlHold, Lockstep, SmootherWorker
-from slamio.create.record import SAME_TIME_S
+from slamio.create.record_settings import SAME_TIME_S
 from slamio.errors import FgslamError
 from slamio.log import LiveStep, LogWriter, Observation, Odometry, Step, TruthLandmark, TruthPose
 
@@ -22,7 +22,7 @@ from slamio.log import LiveStep, LogWriter, Observation, Odometry, Step, TruthLa
 class LiveResult:
     """What a live run did (the recorder's result plus the live loop's counts)."""
 
-    record: object  # slamio.create.record.RecordResult
+    record: object  # slamio.create.record_settings.RecordResult
     final_pose: tuple[float, float, float]  # iSAM2's estimate of the last pose, after finish()
     poses: int
     frames_requested: int

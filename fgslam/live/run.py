@@ -161,7 +161,8 @@ def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front
     ``overwrite`` and ``signals`` go to :func:`slamio.create.record.record`: the log replaces
     an existing ``out_path`` only once the robot has answered, and the terminating signals
     stop the robot (the caller installs ``signals``; None: the recording installs its own)."""
-    from slamio.create.record import RecorderSettings, record
+    from slamio.create.record import record
+    from slamio.create.record_settings import RecorderSettings
 
     start_pose = tuple(float(v) for v in start_pose)
     if lockstep is not None and not lockstep.frame_s < settings.frame_timeout_s:

@@ -245,12 +245,9 @@ def plot_nis(path, runs: list[EstimatorRun], stamps_s, *, baseline: str = "fade"
         ax.axhline(low, color="k", ls=style, lw=0.8, label=f"95 % band, {dof} DoF [{low:.3f}, {high:.2f}]")
         ax.axhline(high, color="k", ls=style, lw=0.8)
         ax.axhline(dof, color="0.5", ls=":", lw=0.8, label=f"expected mean {dof}")
-    ax.set_yscale("log")
-    ax.set_xlabel("time since start [s]")
-    ax.set_ylabel("NIS of the observation (range, bearing: 2 DoF; range only: 1)")
-    ax.set_title("Consistency: NIS of each observation against the prediction before its step", fontsize=11)
-    ax.grid(True, which="both", lw=0.5, alpha=0.5)
-    return _legend_and_save(fig, ax, path, markerscale=4)
+    return _save_log_scatter(fig, ax, path, "time since start [s]",
+                             "NIS of the observation (range, bearing: 2 DoF; range only: 1)",
+                             "Consistency: NIS of each observation against the prediction before its step", 4)
 
 
 def plot_nees(path, runs: list[EstimatorRun], reference: Reference, stamps_s, *, baseline: str = "fade",
@@ -316,9 +313,15 @@ def plot_step_times(path, runs: list[EstimatorRun], *, baseline: str = "fade",
         drawn = True
     if not drawn:
         return None
+    return _save_log_scatter(fig, ax, path, "step", "time per step [ms]", "Cost: wall-clock time of every step", 6)
+
+
+def _save_log_scatter(fig, ax, path, xlabel: str, ylabel: str, title: str, markerscale: float) -> Path:
+    """Finish a scatter of many small dots on a log y axis (labels, title, grid, a legend whose
+    dots are ``markerscale`` times larger) and save it."""
     ax.set_yscale("log")
-    ax.set_xlabel("step")
-    ax.set_ylabel("time per step [ms]")
-    ax.set_title("Cost: wall-clock time of every step", fontsize=11)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=11)
     ax.grid(True, which="both", lw=0.5, alpha=0.5)
-    return _legend_and_save(fig, ax, path, markerscale=6)
+    return _legend_and_save(fig, ax, path, markerscale=markerscale)

@@ -287,17 +287,11 @@ def trajectory_figure(
     return fig
 
 
-def plot_trajectories(
-    path: str | os.PathLike[str],
-    runs: list[EstimatorRun],
-    reference: Reference,
-    *,
-    truth_landmarks: dict | None = None,
-    title: str = "Trajectories and maps",
-    baseline: str = "fade",
-    baselines=BASELINE_ESTIMATORS,
-) -> Path:
+def plot_trajectories(path: str | os.PathLike[str], runs: list[EstimatorRun], reference: Reference,
+                      **options) -> Path:
     """Draw every estimator's final trajectory and map over the reference; save a PNG.
+    ``options`` are :func:`trajectory_figure`'s: ``truth_landmarks``, ``title``,
+    ``baseline`` and ``baselines``.
 
     Two panels, equal axis scale in metres:
 
@@ -319,6 +313,5 @@ def plot_trajectories(
     ``truth_landmarks`` (e.g. the simulator's true map while the reference is the smoothed
     solution) are drawn as grey ``+`` when given and different from the reference's landmarks.
     """
-    fig = trajectory_figure(runs, reference, truth_landmarks=truth_landmarks, title=title, baseline=baseline,
-                            baselines=baselines)
+    fig = trajectory_figure(runs, reference, **options)
     return save_figure(fig, path, dpi=_DPI, metadata={"Software": None}, pil_kwargs={"optimize": True})

@@ -90,7 +90,6 @@ from slamio.camera.colour_checks import (
 )
 from slamio.camera.kinect import (
     KINECT_HFOV_RAD,
-    depth_from_mm,  # noqa: F401  (scripts/bench_colour_real.py imports it from here)
     gheight_seed002,
     linear_bearing_rad,
 )

@@ -37,6 +37,7 @@ from slamio.camera.sources import Frame
 from slamio.camera.tag_passes import front_end_detector
 from slamio.errors import FgslamError
 from slamio.log import Observation
+from slamio.sim_models import observation_sigmas
 
 KINDS = ("apriltag", "colour")
 
@@ -100,15 +101,9 @@ class NoiseModel:
     def describe(self) -> dict:
         out = {
             "model": "sigma_range = a + b*r + c*r^2; constant sigmas for bearing, height, tag yaw",
-            "sigma_range_m": self.sigma_range_m,
-            "sigma_range_per_m": self.sigma_range_per_m,
-            "sigma_range_per_m2": self.sigma_range_per_m2,
-            "sigma_bearing_rad": self.sigma_bearing_rad,
+            **observation_sigmas(self),
         }
-        if self.sigma_height_m is not None:
-            out["sigma_height_m"] = self.sigma_height_m
         if self.sigma_tag_yaw_rad is not None:
-            out["sigma_tag_yaw_rad"] = self.sigma_tag_yaw_rad
             out["ambiguous_yaw_factor"] = self.ambiguous_yaw_factor
         return out
 

@@ -34,9 +34,8 @@ from typing import Iterator
 import numpy as np
 
 from slamio.camera.kinect import depth_from_mm, depth_from_scaled
-from slamio.errors import FgslamError
+from slamio.errors import FgslamError, check_regular, content_lines
 from slamio.log.fields import STAMP_S
-from slamio.safe_input import check_regular
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".pgm", ".ppm", ".tif", ".tiff")
 TUM_DEPTH_SCALE_PER_M = 5000.0
@@ -113,25 +112,31 @@ def _image_files(folder: Path) -> list[Path]:
     return sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
 
 
+def _tum_listing(root: Path, name: str) -> list[tuple[float, str]] | None:
+    """A TUM folder's ``NAME.txt`` list, else the stamp-named images of its ``NAME/`` folder,
+    as (stamp, path relative to ``root``); None when it has neither."""
+    if (root / f"{name}.txt").is_file():
+        return read_stamp_list(root / f"{name}.txt")
+    if (root / name).is_dir():
+        return [(s, f"{name}/{p.name}") for p in _image_files(root / name) if (s := _stamp_from_name(p)) is not None]
+    return None
+
+
 def read_stamp_list(path: Path) -> list[tuple[float, str]]:
     """A TUM ``rgb.txt``/``depth.txt``: (stamp, relative path) per line; ``#`` comments."""
     out = []
-    with open(path, encoding="utf-8") as f:
-        for number, line in enumerate(f, start=1):
-            text = line.strip()
-            if not text or text.startswith("#"):
-                continue
-            parts = text.split()
-            try:
-                stamp = float(parts[0])
-                if len(parts) < 2 or not abs(stamp) <= STAMP_S:  # finite, and a run log's stamp
-                    raise ValueError
-            except ValueError:
-                raise FrameSourceError(
-                    f"{path}:{number}: expected 'STAMP_S PATH' (e.g. '1305031102.175304 rgb/1305031102.175304.png'), "
-                    f"got {text!r}"
-                ) from None
-            out.append((stamp, parts[1]))
+    for number, text in content_lines(path):
+        parts = text.split()
+        try:
+            stamp = float(parts[0])
+            if len(parts) < 2 or not abs(stamp) <= STAMP_S:  # finite, and a run log's stamp
+                raise ValueError
+        except ValueError:
+            raise FrameSourceError(
+                f"{path}:{number}: expected 'STAMP_S PATH' (e.g. '1305031102.175304 rgb/1305031102.175304.png'), "
+                f"got {text!r}"
+            ) from None
+        out.append((stamp, parts[1]))
     return out
 
 
@@ -174,18 +179,10 @@ def tum_frames(folder: str | os.PathLike[str], *, max_dt_s: float = 0.02,
     root = Path(folder)
     if not root.is_dir():
         raise FrameSourceError(f"{root}: no such folder")
-    if (root / "rgb.txt").is_file():
-        rgb = read_stamp_list(root / "rgb.txt")
-    elif (root / "rgb").is_dir():
-        rgb = [(s, f"rgb/{p.name}") for p in _image_files(root / "rgb") if (s := _stamp_from_name(p)) is not None]
-    else:
+    rgb = _tum_listing(root, "rgb")
+    if rgb is None:
         raise FrameSourceError(f"{root}: not a TUM RGB-D folder (no rgb.txt and no rgb/ folder)")
-    if (root / "depth.txt").is_file():
-        depth = read_stamp_list(root / "depth.txt")
-    elif (root / "depth").is_dir():
-        depth = [(s, f"depth/{p.name}") for p in _image_files(root / "depth") if (s := _stamp_from_name(p)) is not None]
-    else:
-        depth = []
+    depth = _tum_listing(root, "depth") or []
     rgb.sort(key=lambda x: x[0])
     pairs = associate([s for s, _ in rgb], [s for s, _ in depth], max_dt_s)
     for index, (stamp, rel) in enumerate(rgb):

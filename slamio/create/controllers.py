@@ -95,7 +95,16 @@ class WheelRamp:
         return self.wheels
 
 
-class PathController:
+class _Controller:
+    """What both drivers keep: the recorder's settings, the wheel base, the wheel-speed ramp."""
+
+    def __init__(self, settings: RecorderSettings, wheel_base_m: float):
+        self.s = settings
+        self.wheel_base_m = wheel_base_m
+        self._ramp = WheelRamp(settings.accel_m_s2)
+
+
+class PathController(_Controller):
     """Open-loop-on-odometry driver of a list of :class:`Move` (forward/rotate in place).
 
     :meth:`advance` adds each reading's (distance, angle); :meth:`command` returns the
@@ -105,13 +114,11 @@ class PathController:
     """
 
     def __init__(self, moves: Sequence[Move], settings: RecorderSettings, wheel_base_m: float = WHEEL_BASE_M):
+        super().__init__(settings, wheel_base_m)
         self.moves = list(moves)
-        self.s = settings
-        self.wheel_base_m = wheel_base_m
         self.index = 0
         self._progress = 0.0
         self._settle_until: float | None = None
-        self._ramp = WheelRamp(settings.accel_m_s2)
 
     def advance(self, distance_m: float, angle_rad: float) -> None:
         if self.index < len(self.moves):
@@ -199,7 +206,7 @@ class TerminalKeys:
 TELEOP_HELP = "teleop keys: w/↑ faster, s/↓ slower (back), a/← left, d/→ right, space stop, q quit"
 
 
-class TeleopController:
+class TeleopController(_Controller):
     """Keyboard driving: speed and turn rate change in steps and stay until changed.
 
     w/up +0.05 m/s, s/down −0.05 m/s, a/left +0.2 rad/s, d/right −0.2 rad/s, space stops,
@@ -208,13 +215,11 @@ class TeleopController:
     """
 
     def __init__(self, keys: KeySource, settings: RecorderSettings, wheel_base_m: float = WHEEL_BASE_M):
+        super().__init__(settings, wheel_base_m)
         self.keys = keys
-        self.s = settings
-        self.wheel_base_m = wheel_base_m
         self.speed_m_s = 0.0
         self.turn_rad_s = 0.0
         self._quit_at: float | None = None
-        self._ramp = WheelRamp(settings.accel_m_s2)
 
     def advance(self, distance_m: float, angle_rad: float) -> None:
         pass

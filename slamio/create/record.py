@@ -34,14 +34,7 @@ import time
 from typing import Any, Callable, Protocol, Sequence
 
 from slamio.create import protocol
-from slamio.create.controllers import (
-    TELEOP_HELP,
-    PathController,
-    TeleopController,
-    TerminalKeys,
-    WheelRamp,
-    path_moves,
-)
+from slamio.create.controllers import PathController, TeleopController
 from slamio.create.link import CreateLink, LinkError
 from slamio.create.odometry import Create1Odometry, Create2Odometry, OdometryNoise, default_noise
 from slamio.create.protocol import OiMode
@@ -51,7 +44,6 @@ from slamio.create.record_settings import (
     RecorderSettings,
     RecordResult,
     make_header,
-    write_status,
 )
 from slamio.create.safety import SafetyMonitor, StopReason
 from slamio.create.signals import Interrupted, TerminationSignals, describe_signal, guarded
@@ -59,13 +51,7 @@ from slamio.geometry import compose_pose
 from slamio.log import LogWriter
 from slamio.log.pending import LogWriteError, PendingLogWriter
 
-__all__ = [
-    "RecordHooks",
-    "record",
-    # defined in slamio.create.controllers and slamio.create.record_settings; imported from here by fgslam
-    "SAME_TIME_S", "TELEOP_HELP", "PathController", "RecorderSettings", "RecordResult", "TeleopController",
-    "TerminalKeys", "WheelRamp", "path_moves", "write_status",
-]
+__all__ = ["RecordHooks", "record"]
 
 
 # --------------------------------------------------------------------------- recording

@@ -98,16 +98,11 @@ from slamio.create.sim_model import (
     truncate,
     wheel_odometry_noise,
     wheel_speeds_from_drive,
-    without_sideways,
 )
 from slamio.errors import FgslamError
 from slamio.geometry import arc_increment, compose_pose
 
-__all__ = [
-    "SimulatedCreate", "STEP_S", "ROBOT_RADIUS_M", "ARENA_M", "DEFAULT_START_POSE",
-    # defined in slamio.create.sim_model; fgslam imports them from here
-    "wheel_odometry_noise", "without_sideways",
-]
+__all__ = ["SimulatedCreate", "STEP_S", "ROBOT_RADIUS_M", "ARENA_M", "DEFAULT_START_POSE"]
 
 STEP_S = 0.015  # the OI updates its sensors and streams every 15 ms
 ROBOT_RADIUS_M = 0.17  # the Create is a disc 339 mm across

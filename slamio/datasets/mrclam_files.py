@@ -12,12 +12,12 @@ import os
 
 import numpy as np
 
-from slamio.datasets.victoria_park import DatasetFormatError
-from slamio.errors import InputFileError
+from slamio.datasets.victoria_park import DatasetFormatError, _BadLine, ascii_text
+from slamio.errors import InputFileError, read_bytes
 from slamio.log import TruthLandmark
 from slamio.log.fields import MAX_ID, STAMP_S
 from slamio.log.read import MAX_LOG_BYTES
-from slamio.safe_input import read_bytes, shown
+from slamio.safe_input import shown
 
 __all__ = [
     "LANDMARK_SUBJECTS", "MRCLAM_URL", "ROBOT_SUBJECTS", "check_time_order", "layout", "read_barcodes",
@@ -96,10 +96,6 @@ _LIMITS["barcodes"] = {0: _NUMBER, 1: _NUMBER}
 # --------------------------------------------------------------------------- parsing
 
 
-class _BadLine(Exception):
-    """Internal: what is wrong with one line."""
-
-
 def layout(kind: str) -> str:
     return "'" + "  ".join(_LAYOUT[kind]) + "'"
 
@@ -118,11 +114,7 @@ def read_table(path: str, kind: str, *, integer_columns: tuple[int, ...] = ()) -
     rows: list[tuple[int, list[float]]] = []
     for number, raw in enumerate(raw_lines, start=1):
         try:
-            try:
-                text = raw.decode("ascii")
-            except UnicodeDecodeError:
-                raise _BadLine("not plain ASCII text; is this an MRCLAM .dat file?") from None
-            stripped = text.strip()
+            stripped = ascii_text(raw, "is this an MRCLAM .dat file?").strip()
             if not stripped or stripped.startswith("#"):
                 continue
             tokens = stripped.split()

@@ -66,14 +66,14 @@ import numpy as np
 
 from slamio.datasets.mrclam_motion import interpolate_pose
 from slamio.datasets.victoria_park import DatasetFormatError
-from slamio.errors import FgslamError, InputFileError
+from slamio.errors import FgslamError, InputFileError, check_regular
 from slamio.geometry import arc_increment, arc_increment_jacobian, wrap_angle
 from slamio.log import Header, Observation, Odometry, Record, TruthLandmark, TruthPose
 from slamio.log.read import MAX_LOG_BYTES, check_records
 from slamio.noise.apply import correct_range
 from slamio.noise.errors import NoiseModelError
 from slamio.noise.model import NoiseModel
-from slamio.safe_input import check_regular, shown
+from slamio.safe_input import shown
 
 __all__ = ["import_plaza", "plaza_files", "PLAZA_RUNS", "odometry_covariance", "PlazaOdometryNoise", "gps_start_heading_rad"]
 

@@ -80,18 +80,8 @@ import numpy as np
 from slamio.datasets.mrclam_motion import CommandOdometryNoise, interpolate_pose
 from slamio.datasets.rosbag_export import export_rosbag
 from slamio.datasets.rosbag_messages import (
-    APRILTAG_DETECTION_ARRAY_MSG,
-    APRILTAG_DETECTION_MSG,
-    DETECTIONS_TOPIC,
-    LANDMARKS_TOPIC,
-    ODOMETRY_TOPIC,
-    RUN_LOG_TOPIC,
-    T_ROBOT_OPTICAL,
-    TRUTH_TOPIC,
-    MessageFactory,
-    _rosbags,
-    apriltag_typestore,
-    compose_jacobians,
+    APRILTAG_DETECTION_ARRAY_MSG, APRILTAG_DETECTION_MSG, DETECTIONS_TOPIC, LANDMARKS_TOPIC, ODOMETRY_TOPIC,
+    RUN_LOG_TOPIC, T_ROBOT_OPTICAL, TRUTH_TOPIC, MessageFactory, _rosbags, apriltag_typestore, compose_jacobians,
     tag_observation_geometry,
 )
 from slamio.datasets.rosbag_read import BagFormatError, Messages, bag_paths, read_bag

@@ -37,19 +37,8 @@ from pathlib import Path
 import numpy as np
 
 from slamio.datasets.rosbag_messages import (
-    _DETECTION_ARRAY_TYPE,
-    _STRING_TYPE,
-    DETECTIONS_TOPIC,
-    LANDMARKS_TOPIC,
-    ODOMETRY_TOPIC,
-    RUN_LOG_TOPIC,
-    T_ROBOT_OPTICAL,
-    TRUTH_TOPIC,
-    MessageFactory,
-    _rosbags,
-    apriltag_typestore,
-    compose_jacobians,
-    tag_pose_in_camera,
+    _DETECTION_ARRAY_TYPE, _STRING_TYPE, DETECTIONS_TOPIC, LANDMARKS_TOPIC, ODOMETRY_TOPIC, RUN_LOG_TOPIC,
+    T_ROBOT_OPTICAL, TRUTH_TOPIC, MessageFactory, _rosbags, apriltag_typestore, compose_jacobians, tag_pose_in_camera,
 )
 from slamio.errors import FgslamError
 from slamio.geometry import compose_pose

@@ -19,9 +19,8 @@ import numpy as np
 
 from slamio.datasets.rosbag_messages import _DETECTION_ARRAY_TYPE, _STRING_TYPE, RUN_LOG_TOPIC, apriltag_typestore
 from slamio.datasets.victoria_park import DatasetFormatError
-from slamio.errors import FgslamError, InputFileError
+from slamio.errors import MAX_TEXT_BYTES, FgslamError, InputFileError, check_regular
 from slamio.log import Header, LogFormatError, Record, read_log
-from slamio.safe_input import MAX_TEXT_BYTES, check_regular
 from slamio.se3 import yaw_from_quaternion
 
 __all__ = ["BagFormatError", "Messages", "bag_paths", "read_bag"]

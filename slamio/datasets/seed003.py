@@ -30,10 +30,9 @@ from pathlib import Path
 
 import numpy as np
 
-from slamio.errors import InputFileError
+from slamio.errors import InputFileError, check_regular
 from slamio.log.fields import COORDINATE_M, STAMP_S
 from slamio.log.records3d import MAX_MOUNT_M, MAX_PIXEL_PX, MAX_SPEED_MPS, MAX_TURN_RATE_RADPS
-from slamio.safe_input import check_regular
 
 __all__ = ["DriveFormatError", "StereoImuDrive", "StereoImuNoise", "load_drive", "save_drive"]
 

@@ -68,10 +68,10 @@ from typing import Any
 
 import numpy as np
 
-from slamio.errors import FgslamError, InputFileError
+from slamio.errors import FgslamError, InputFileError, read_bytes
 from slamio.log import Header, Matrix3, Observation, Odometry, Record
 from slamio.log.read import MAX_LOG_BYTES, check_records
-from slamio.safe_input import read_bytes, shown
+from slamio.safe_input import shown
 
 __all__ = [
     "DatasetFormatError",
@@ -105,7 +105,16 @@ class DatasetFormatError(InputFileError):
 
 
 class _BadLine(Exception):
-    """Internal: what is wrong with one line."""
+    """Internal: what is wrong with one line (of this file or of an MRCLAM file)."""
+
+
+def ascii_text(raw: bytes, hint: str) -> str:
+    """One line of a dataset's text file, decoded; a line that is not plain ASCII is a
+    :class:`_BadLine` (``hint`` asks whether the file is the one expected)."""
+    try:
+        return raw.decode("ascii")
+    except UnicodeDecodeError:
+        raise _BadLine(f"not plain ASCII text; {hint}") from None
 
 
 def default_victoria_park_path() -> str:
@@ -230,11 +239,7 @@ def import_victoria_park(
     chain = _Chain(nominal_period_s)
     for number, raw in enumerate(raw_lines, start=1):
         try:
-            try:
-                text = raw.decode("ascii")
-            except UnicodeDecodeError:
-                raise _BadLine("not plain ASCII text; is this the Victoria Park .txt file?") from None
-            tokens = text.split()
+            tokens = ascii_text(raw, "is this the Victoria Park .txt file?").split()
             if not tokens:
                 continue  # gtsam's parser skips blank lines too
             tag = tokens[0]

@@ -14,7 +14,7 @@ import os
 import sys
 from typing import Any
 
-from slamio.errors import FgslamError, InputFileError
+from slamio.errors import FgslamError, InputFileError, read_bytes
 from slamio.log.fields import (
     _WHY_COORDINATE, _WHY_INCREMENT, _WHY_WORLD_ANGLE, COORDINATE_M, INCREMENT_M, INCREMENT_RAD, WORLD_ANGLE_RAD,
     _magnitude, _WHY_RANGE, MAX_POSE_INDEX, RANGE_M, STAMP_S, SENSOR_LIMIT_SIGMAS, SIGMA_ANGLE_RAD, SIGMA_LENGTH_M,
@@ -27,7 +27,6 @@ from slamio.log.records import (
     Record, Rejected, RunLog, TruthLandmark, TruthPose,
 )
 import slamio.log.records3d as log3d
-from slamio.safe_input import read_bytes
 
 #: The largest run log read (it is read whole): 1 GiB, about five million records — more
 #: than a day of a robot's odometry at 50 Hz. Split a longer recording.

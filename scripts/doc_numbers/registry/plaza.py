@@ -61,23 +61,22 @@ def _table(run: str, kind: str, first_label: str, label: str, rows: dict[str, st
         QUOTES.extend(row(D, text, S, f"{name} {kind} {estimator}", readers))
 
 
-#: docs/datasets.md's table: (run, import, first row's label, the others') → estimator → the row after them.
+#: The estimators of docs/datasets.md's table, in the order of its rows.
+TABLE_ESTIMATORS = ("ekf", "isam2-fast", "batch")
+#: docs/datasets.md's table: (run, import, first row's label, the others') → the rows after them,
+#: one an estimator of TABLE_ESTIMATORS.
 TABLE = {
-    ("plaza1", "default", "default (σ 1.5 m)", "default"): {
-        "ekf": "2.66 | 0.83 | −4.1° | 0.29 | 95.5 %", "isam2-fast": "3.50 | 1.10 | −5.0° | 0.32 | 95.2 %",
-        "batch": "3.51 | 1.10 | −5.0° | – | –"},
-    ("plaza1", "fitted", "Plaza2's model", "Plaza2's model"): {
-        "ekf": "0.36 | 0.30 | 0.5° | 0.96 | 94.5 %", "isam2-fast": "0.24 | 0.21 | 0.2° | 0.96 | 94.8 %",
-        "batch": "0.24 | 0.21 | 0.2° | – | –"},
-    ("plaza2", "default", "default (σ 1.5 m)", "default"): {
-        "ekf": "4.07 | 2.10 | −6.7° | 1.07 | 97.5 %", "isam2-fast": "1.79 | 0.78 | −2.4° | 1.45 | 96.4 %",
-        "batch": "1.79 | 0.78 | −2.4° | – | –"},
-    ("plaza2", "fitted", "Plaza1's model", "Plaza1's model"): {
-        "ekf": "0.76 | 0.46 | 1.2° | 1.32 | 92.5 %", "isam2-fast": "0.34 | 0.24 | 0.4° | 1.57 | 89.5 %",
-        "batch": "0.34 | 0.24 | 0.4° | – | –"},
+    ("plaza1", "default", "default (σ 1.5 m)", "default"):
+        ("2.66 | 0.83 | −4.1° | 0.29 | 95.5 %", "3.50 | 1.10 | −5.0° | 0.32 | 95.2 %", "3.51 | 1.10 | −5.0° | – | –"),
+    ("plaza1", "fitted", "Plaza2's model", "Plaza2's model"):
+        ("0.36 | 0.30 | 0.5° | 0.96 | 94.5 %", "0.24 | 0.21 | 0.2° | 0.96 | 94.8 %", "0.24 | 0.21 | 0.2° | – | –"),
+    ("plaza2", "default", "default (σ 1.5 m)", "default"):
+        ("4.07 | 2.10 | −6.7° | 1.07 | 97.5 %", "1.79 | 0.78 | −2.4° | 1.45 | 96.4 %", "1.79 | 0.78 | −2.4° | – | –"),
+    ("plaza2", "fitted", "Plaza1's model", "Plaza1's model"):
+        ("0.76 | 0.46 | 1.2° | 1.32 | 92.5 %", "0.34 | 0.24 | 0.4° | 1.57 | 89.5 %", "0.34 | 0.24 | 0.4° | – | –"),
 }
 for (run_, kind_, first_, label_), rows_ in TABLE.items():
-    _table(run_, kind_, first_, label_, rows_)
+    _table(run_, kind_, first_, label_, dict(zip(TABLE_ESTIMATORS, rows_, strict=True)))
 
 QUOTES += [
     # the radios' errors (docs/datasets.md)
