@@ -80,7 +80,7 @@ EKF_VARIANTS = {
 
 def normalised_errors(raw: dict[int, RunLog]) -> dict[str, np.ndarray]:
     """Every reading with truth: its run, landmark, time, true bearing and (range, bearing)
-    error over σ, about its run's own scale and bias (``slamio.noise_fit``'s residuals)."""
+    error over σ, about its run's own scale and bias (``slamio.noise.fit_truth``'s residuals)."""
     model = fit_noise_model(list(raw.values()))
     obs, odo = model.observation, model.odometry
     datas = [truth_data(log) for log in raw.values()]

@@ -2,7 +2,7 @@
 """Plaza1 and Plaza2 with the ranging radios' fitted model, against the default import.
 
 For each run the range model (``fgslam calibrate``: scale, bias, σ, outliers, correlation in
-time; slamio/range_fit.py) is fitted on the *other* run and applied at import
+time; slamio/noise/range.py) is fitted on the *other* run and applied at import
 (``fgslam import plazaN OUT --noise OTHER.json``). Then the EKF, ``isam2`` and ``isam2-fast`` run and
 the batch optimum is solved, as ``fgslam run`` does. Printed per run and import:
 

@@ -1,4 +1,4 @@
-"""Readings with errors correlated in time (ekf.reading_error, slamio.noise_fit).
+"""Readings with errors correlated in time (ekf.reading_error, slamio.noise.fit_truth).
 
 References:
 

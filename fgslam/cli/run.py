@@ -74,7 +74,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     )
     run.add_argument("--noise", default=None, metavar="FILE",
                      help="a noise model from `fgslam calibrate LOG... --out FILE`, applied to this log's "
-                          "odometry and readings before the run (slamio.noise_apply; an importer that has the "
+                          "odometry and readings before the run (slamio.noise.apply; an importer that has the "
                           "raw data applies it exactly: prefer `fgslam import ... --noise FILE`)")
     run.add_argument("--calibration", default=None, metavar="CAL.json",
                      help="seed 001's trial calibration from `fgslam calibrate TRIALS.csv --out CAL.json`: "

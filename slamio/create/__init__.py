@@ -16,8 +16,12 @@ Modules, from the wire up:
   :mod:`slamio.create.controllers` (scripted paths, teleop), :mod:`slamio.create.readers`
   (stream and poll readers) and :mod:`slamio.create.record_settings` (settings, header,
   result) are its parts;
-* :mod:`slamio.create.calibrate` — noise covariances from measured trials
-  (``fgslam calibrate``).
+* the stop: :mod:`slamio.create.stopping` (the stop sequence and its read-back),
+  :mod:`slamio.create.signals` (every terminating signal) and :mod:`slamio.create.guardian`
+  (a process that stops the robot when the program dies).
+
+Noise covariances from measured trials (``fgslam calibrate --from trials``) live with the
+other noise models, in :mod:`slamio.noise.trials`.
 
 The user's guide is ``docs/create.md``.
 """

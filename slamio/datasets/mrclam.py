@@ -200,7 +200,7 @@ def _noise_description(noise: CommandOdometryNoise | OdometryNoiseRates, model: 
             "model": (
                 "commands (v, w) held until the next command, delayed by lag_s and scaled "
                 "by forward_scale/turn_scale, integrated as exact arcs; per-stretch variance "
-                "rates as in slamio.noise_model.OdometryNoiseRates; fitted by fgslam calibrate"
+                "rates as in slamio.noise.model.OdometryNoiseRates; fitted by fgslam calibrate"
             ),
             "lag_s": model.odometry.lag_s,
             "forward_scale": model.odometry.forward_scale,
@@ -210,7 +210,7 @@ def _noise_description(noise: CommandOdometryNoise | OdometryNoiseRates, model: 
         },
         "observation": {
             "model": (
-                "readings corrected by slamio.noise_model.correct_observation (depth to range, "
+                "readings corrected by slamio.noise.apply.correct_observation (depth to range, "
                 "scale, bias); per-reading sigmas from range and turn rate; fitted by fgslam calibrate"
             ),
             **asdict(model.observation),
@@ -279,12 +279,12 @@ def import_mrclam(
     module docstring). Write them with ``slamio.log.write_log``. Counts of everything
     dropped are in ``header.source["dropped"]``.
 
-    ``model`` (a :class:`~slamio.noise_model.NoiseModel`, from ``fgslam calibrate``)
+    ``model`` (a :class:`~slamio.noise.model.NoiseModel`, from ``fgslam calibrate``)
     replaces the round default noise with a fitted one: its odometry lag and scales are
     applied to the commands (command ``k`` then acts from ``times_s[k] + lag_s`` at
     ``forward_scale·v``, ``turn_scale·ω``), its variance rates replace ``odometry_noise``,
     and every reading is corrected by
-    :func:`~slamio.noise_model.correct_observation` (depth to range, scale, bias; σ from
+    :func:`~slamio.noise.apply.correct_observation` (depth to range, scale, bias; σ from
     the range and from the turn rate at the reading) and placed at its picture's time
     (``stamp − camera_latency_s``). ``sigma_range_m``/``sigma_bearing_rad`` are then
     unused.

@@ -21,7 +21,7 @@ __all__ = [
 ]
 
 #: The odometry noise model of integrated commands (module docstring); one class with
-#: :class:`slamio.noise_model.OdometryNoiseRates`, which ``fgslam calibrate`` fits.
+#: :class:`slamio.noise.model.OdometryNoiseRates`, which ``fgslam calibrate`` fits.
 CommandOdometryNoise = OdometryNoiseRates
 
 

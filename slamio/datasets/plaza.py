@@ -32,7 +32,7 @@ The conversion
 * **Ranges** (sorted by time: the shipped TD files have blocks out of order): range-only observations (no bearing) of landmark ``receiver_id``, with
   ``range_m − range_bias_m`` and ``sigma_range_m`` (defaults 0 and 1.5 m), or, with
   ``range_model`` (``fgslam calibrate`` on the other run), corrected by that model
-  (:func:`slamio.noise_model.correct_range`). Measured against GPS truth (GT interpolated
+  (:func:`slamio.noise.apply.correct_range`). Measured against GPS truth (GT interpolated
   at each range time): ``measured = 1.069·distance + 0.03 m`` with white noise σ 0.54 m
   (Plaza1; Plaza2 1.070, 0.01 m, 0.56 m): a 7 % scale, which at the plaza's typical 40 m
   reads as a median offset of 2.84 m (2.80 m). The defaults do not use the truth.
@@ -217,7 +217,7 @@ def _observation_noise(range_sigma_m: float, range_bias_m: float, range_model: N
                 "measured_against_gps": "measured = 1.069 x distance + 0.03 m, white sigma 0.54 m (Plaza1; Plaza2 "
                                         "1.070, 0.01 m, 0.56 m): fgslam calibrate, then import --noise (docs/datasets.md)"}
     o = range_model.observation
-    return {"model": "range-only readings corrected by slamio.noise_model.correct_range (fitted model)",
+    return {"model": "range-only readings corrected by slamio.noise.apply.correct_range (fitted model)",
             "range_scale": o.range_scale, "range_bias_m": o.range_bias_m, "range_sigma_m": o.range_sigma_m,
             "range_sigma_per_m": o.range_sigma_per_m, "outlier_rate": o.outlier_rate,
             "correlated_share": o.correlated_share, "correlation_time_s": o.correlation_time_s,
@@ -271,7 +271,7 @@ def import_plaza(
     """Convert Plaza1 or Plaza2 into ``(header, records)`` (see the module docstring).
 
     With ``range_model`` (``fgslam calibrate`` on the *other* run) every range is corrected
-    by its observation model (:func:`slamio.noise_model.correct_range`: scale, bias and σ),
+    by its observation model (:func:`slamio.noise.apply.correct_range`: scale, bias and σ),
     instead of ``range_bias_m`` and ``range_sigma_m``; its odometry part is not used."""
     if not (range_sigma_m > 0 and math.isfinite(range_sigma_m)):
         raise FgslamError(f"range sigma must be > 0 m, got {range_sigma_m}")
