@@ -62,7 +62,7 @@ from ekf.slam import EkfSlam  # noqa: E402
 from slamio.geometry import wrap_angle  # noqa: E402
 from slamio.log import RunLog, Step, read_log  # noqa: E402
 from slamio.noise.dead_reckoning import turn_rate_radps  # noqa: E402
-from slamio.noise.fit_truth import _true_range_bearing  # noqa: E402
+from slamio.noise.fit_truth import true_range_bearing  # noqa: E402
 from slamio.noise.fitting import line_fit, truth_data  # noqa: E402
 from scripts.common import DATA  # noqa: E402
 
@@ -245,7 +245,7 @@ def reading_z(raw: RunLog, model) -> np.ndarray:
     the run's own scale and bias (a line fitted to the run), over ``model``'s σ."""
     obs, odometry = model.observation, model.odometry
     data = truth_data(raw)
-    rm, bm, r, b, t, _ = _true_range_bearing(data, obs.camera_latency_s)
+    rm, bm, r, b, t, _ = true_range_bearing(data, obs.camera_latency_s)
     omega = odometry.turn_scale * turn_rate_radps(data.chain, t - odometry.lag_s)
     along = r * np.cos(b) if obs.range_is_depth else r
     sigma_r = np.array([obs.sigma_range_m(float(v)) for v in r])

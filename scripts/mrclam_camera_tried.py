@@ -53,7 +53,7 @@ from ekf.reading_error import reading_sigmas  # noqa: E402
 from slamio.geometry import wrap_angle  # noqa: E402
 from slamio.log import Observation, RunLog  # noqa: E402
 from slamio.noise.dead_reckoning import turn_rate_radps  # noqa: E402
-from slamio.noise.fit_truth import _true_range_bearing, fit_noise_model  # noqa: E402
+from slamio.noise.fit_truth import fit_noise_model, true_range_bearing  # noqa: E402
 from slamio.noise.fitting import GATE_SIGMAS, mad_sigma, residuals_about_own_lines, truth_data  # noqa: E402
 
 #: Bins of the time between two readings of one landmark (s).
@@ -84,7 +84,7 @@ def normalised_errors(raw: dict[int, RunLog]) -> dict[str, np.ndarray]:
     model = fit_noise_model(list(raw.values()))
     obs, odo = model.observation, model.odometry
     datas = [truth_data(log) for log in raw.values()]
-    parts = [_true_range_bearing(d, obs.camera_latency_s) for d in datas]
+    parts = [true_range_bearing(d, obs.camera_latency_s) for d in datas]
     rm, bm, r, b, t = (np.concatenate([p[j] for p in parts]) for j in range(5))
     landmark = np.unique(np.vstack([p[5] for p in parts]), axis=0, return_inverse=True)[1].ravel()
     run = np.concatenate([np.full(len(p[0]), j) for j, p in enumerate(parts)])

@@ -64,7 +64,7 @@ from slamio.noise.fitting import (GATE_SIGMAS, TruthData, fit_reading_correlatio
 from slamio.noise.model import NoiseModel, ObservationModel, OdometryModel, OdometryNoiseRates
 from slamio.noise.range import fit_range_only
 
-__all__ = ["fit_noise_model"]
+__all__ = ["fit_noise_model", "true_range_bearing"]
 
 #: Floor of the per-second variance rates (they must be > 0): 1 mm, 1 mrad per √s.
 MIN_RATE_PER_S = 1e-6
@@ -184,7 +184,7 @@ def _fit_odometry(datas: Sequence[TruthData], window_s: float, lag_grid_s: np.nd
 # --------------------------------------------------------------------------- observation fit
 
 
-def _true_range_bearing(data: TruthData, latency_s: float) -> tuple[np.ndarray, ...]:
+def true_range_bearing(data: TruthData, latency_s: float) -> tuple[np.ndarray, ...]:
     """(measured range, measured bearing, true range, true bearing, picture times, landmark
     positions (n, 2)) of the readings with truth."""
     if not data.observations:
@@ -205,7 +205,7 @@ def _true_range_bearing(data: TruthData, latency_s: float) -> tuple[np.ndarray, 
 def _fit_observations(datas: Sequence[TruthData], odometry: OdometryModel, latency_grid_s: np.ndarray) -> tuple[ObservationModel, dict]:
     best = None
     for latency in latency_grid_s:
-        parts = [_true_range_bearing(d, float(latency)) for d in datas]
+        parts = [true_range_bearing(d, float(latency)) for d in datas]
         bm = np.concatenate([p[1] for p in parts])
         b = np.concatenate([p[3] for p in parts])
         if len(b) < 20:
@@ -218,7 +218,7 @@ def _fit_observations(datas: Sequence[TruthData], odometry: OdometryModel, laten
         if best is None or spread < best[0]:
             best = (spread, float(latency))
     latency = best[1]
-    parts = [_true_range_bearing(d, latency) for d in datas]
+    parts = [true_range_bearing(d, latency) for d in datas]
     rm, bm, r, b, t = (np.concatenate([p[j] for p in parts]) for j in range(5))
     landmark = np.unique(np.vstack([p[5] for p in parts]), axis=0, return_inverse=True)[1].ravel()
     omega = np.concatenate([
