@@ -20,10 +20,9 @@ import numpy as np
 
 from fgslam.cli.common import add_overwrite_option, add_verb, check_new_file, check_number
 from fgslam.cli.progress import Progress
-from fgslam.cli.robot_end import EXIT_STOP_NOT_CONFIRMED, EXIT_STOPPED_EARLY, report_end, robot_session, say  # noqa: F401
+from fgslam.cli.robot_end import report_end, robot_session, say
 from slamio.errors import FgslamError
 
-EXIT_INTERRUPTED = 130  # SIGINT; any signal N exits 128 + N
 
 DESCRIPTION = """\
 Drive an iRobot Create along waypoints, closing the loop on the iSAM2 pose, while the camera

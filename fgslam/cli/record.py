@@ -11,12 +11,12 @@ port that does not open, an existing --out without --overwrite, another fgslam w
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from pathlib import Path
 
-from fgslam.cli.common import add_overwrite_option, add_verb, check_new_file, command_line, status_path
-from fgslam.cli.robot_end import EXIT_STOP_NOT_CONFIRMED, EXIT_STOPPED_EARLY, report_end, robot_session, say  # noqa: F401
+from fgslam.cli.common import (add_overwrite_option, add_verb, check_new_file, check_number, command_line,
+                               stale_status_files, status_path)
+from fgslam.cli.robot_end import EXIT_STOPPED_EARLY, report_end, robot_session, say  # noqa: F401 (fgslam.record_cli)
 from slamio.errors import FgslamError
 
 EXIT_INTERRUPTED = 130  # SIGINT; any signal N exits 128 + N
@@ -167,8 +167,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     if args.frames is not None and args.save_frames is None:
         raise FgslamError(f"--frames {args.frames} is the camera of --save-frames FOLDER, which is not given: add "
                           "--save-frames FOLDER to save its frames, or leave --frames out")
-    if not math.isfinite(args.watchdog):
-        raise FgslamError(f"--watchdog must be a finite number of seconds, e.g. 0.5; got {args.watchdog}")
+    check_number("--watchdog", args.watchdog, above=0, what="seconds of wall time, e.g. 0.5")
     settings = RecorderSettings(speed_m_s=args.speed, turn_rate_rad_s=args.turn_rate, mode=args.mode,
                                 max_duration_s=args.max_duration, command_timeout_s=args.watchdog,
                                 data_timeout_s=args.watchdog)
@@ -217,8 +216,8 @@ def _record_run(args, out: Path, settings, noise, observation, trials, source, s
     status = status_path(out)
 
     def placed():  # the new log is in place: a status file of the log it replaced no longer fits
-        if status.is_file():
-            status.unlink()
+        for stale in stale_status_files(out):
+            stale.unlink()
 
     try:
         if args.save_frames:

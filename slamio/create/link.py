@@ -269,7 +269,7 @@ class CreateLink:
     def confirm_stopped(self) -> StopCheck:
         """Ask the robot whether it is stopped (:func:`slamio.create.stopping.confirm_stop`)."""
         try:
-            return confirm_stop(self.write, lambda size, timeout: self.read_exactly(size, timeout), self.drain)
+            return confirm_stop(self.write, self.read_exactly, self.drain)
         except LinkError as exc:
             return StopCheck(False, f"the read-back failed: {exc}")
 

@@ -11,15 +11,17 @@
 3. drives a scripted path — a square or an octagon, turning left in place at each corner,
    open loop on the odometry, wheel speeds rising at most at ``accel_m_s2`` and falling along
    the stopping curve ``sqrt(2·a·remaining)`` — or follows the keyboard (teleop);
-4. writes one odometry record every ``record_period_s`` (0.1 s) to the log, **flushed to
-   the operating system after each record**, so a recorder killed at any moment (even by
-   SIGKILL) leaves every record but possibly the one being written; ``read_log`` drops a
-   cut-off last line and says so;
+4. writes one odometry record every ``record_period_s`` (0.1 s) to the log, each line
+   **handed to the operating system as it is written** (:class:`slamio.log.pending.PendingLogWriter`,
+   which also puts the log in place only once the robot has answered), so a recorder killed
+   at any moment (even by SIGKILL) leaves every record but possibly the one being written;
+   ``read_log`` drops a cut-off last line and says so;
 5. stops on the first hazard (:mod:`slamio.create.safety`: bump, wheel drop, mode change,
-   watchdog, no data, Ctrl-C/SIGINT/SIGTERM, serial error), keeps the log, and returns the
-   :class:`~slamio.create.safety.StopReason` in a :class:`RecordResult`. SIGINT stops the
-   robot even in a recorder started with ``&`` from a script, which inherits SIGINT ignored
-   (:func:`interrupt_guard`).
+   watchdog, no data, a terminating signal, serial error, a full disk), keeps the log, and
+   returns the :class:`~slamio.create.safety.StopReason` in a :class:`RecordResult`. SIGHUP,
+   SIGINT, SIGQUIT and SIGTERM stop the robot even when the recorder inherited them ignored
+   (:class:`slamio.create.signals.TerminationSignals`), and the stop is read back from the
+   robot (:mod:`slamio.create.stopping`).
 
 The scripted paths stop (``settle_s``) between a straight and a turn: a Create 2 encoder
 counts in the commanded direction, so a wheel reversed while still rolling would count the

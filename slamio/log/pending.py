@@ -97,7 +97,8 @@ class PendingLogWriter:
 
     def _write_line(self, line: str) -> None:
         """One line, handed to the operating system at once (no buffer a dying process loses)."""
-        data = memoryview(line.encode("utf-8") + b"\n")
+        encoded = line.encode("utf-8") + b"\n"
+        data = memoryview(encoded)
         try:
             while data:
                 data = data[os.write(self._fd, data):]
@@ -108,7 +109,7 @@ class PendingLogWriter:
                 pass
             raise LogWriteError(f"cannot write the log {self._where()}: {exc.strerror or exc} (it keeps the "
                                 f"{max(0, self._lines - 1)} complete records before)") from None
-        self.complete_bytes += len(line.encode("utf-8")) + 1
+        self.complete_bytes += len(encoded)
         self._lines += 1
 
     def write(self, record: Record) -> None:
