@@ -218,7 +218,7 @@ def cmd_live(args: argparse.Namespace) -> int:
             last_map[0] = time.monotonic()
             plot_live_map(args.map_png, smoother.trajectory(), smoother.landmarks(), waypoints)
 
-    with robot_session(args.out) as signals:  # one writer per log; every terminating signal stops the robot
+    with robot_session((args.out, "--out"), (args.map_png, "--map-png")) as signals:  # one writer per log; every terminating signal stops the robot
         check_new_file(args.out, overwrite=args.overwrite)  # again, under the lock
         result, sim_truth = _drive(args, waypoints, start_pose, settings, status, on_step, sensor, window_poses,
                                    signals)

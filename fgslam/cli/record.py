@@ -186,7 +186,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     }
 
     out.parent.mkdir(parents=True, exist_ok=True)
-    with robot_session(out) as signals:  # one writer per log; every terminating signal stops the robot
+    with robot_session((out, "--out")) as signals:  # one writer per log; every terminating signal stops the robot
         check_new_file(out, overwrite=args.overwrite)  # again, under the lock: another recorder may have made it
         return _record_run(args, out, settings, noise, observation, trials, source, signals)
 

@@ -17,11 +17,12 @@ Exit status (both verbs):
 from __future__ import annotations
 
 import contextlib
+import os
 import sys
 from typing import Iterator
 
+from fgslam.cli.common import hold_outputs
 from slamio.create.signals import TerminationSignals, describe_signal
-from slamio.filelock import OutputLock
 
 EXIT_STOPPED_EARLY = 2
 EXIT_STOP_NOT_CONFIRMED = 3
@@ -78,9 +79,10 @@ def report_end(verb: str, result, out) -> int:
 
 
 @contextlib.contextmanager
-def robot_session(out) -> Iterator[TerminationSignals]:
-    """What a verb that drives the robot holds from its checks to its last line: the lock on
-    its log (one writer per output) and the terminating signals (SIGHUP, SIGINT, SIGQUIT,
-    SIGTERM run the stop sequence, whatever the process inherited)."""
-    with OutputLock(out), TerminationSignals() as signals:
+def robot_session(*outputs: tuple[str | os.PathLike | None, str]) -> Iterator[TerminationSignals]:
+    """What a verb that drives the robot holds from its checks to its last line: the locks on
+    its outputs, ``(path, option)`` pairs as :func:`fgslam.cli.common.hold_outputs` takes them
+    (one writer per output), and the terminating signals (SIGHUP, SIGINT, SIGQUIT, SIGTERM
+    run the stop sequence, whatever the process inherited)."""
+    with hold_outputs(*outputs), TerminationSignals() as signals:
         yield signals
