@@ -11,6 +11,7 @@ port that does not open, an existing --out without --overwrite, another fgslam w
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -249,11 +250,13 @@ def _record_run(args, out: Path, settings, noise, observation, trials, source, s
 
 
 def _report(args, out: Path, result, sim, saver, status: Path) -> int:
-    from slamio.create.record_settings import write_status
+    from fgslam.atomic import write_text_whole
+    from slamio.create.record_settings import status_of
 
     if result.log_placed:
         try:
-            write_status(result, status, _simulator_status(sim) if sim is not None else None)
+            extra = _simulator_status(sim) if sim is not None else {}
+            write_text_whole(status, json.dumps({**status_of(result), **extra}, indent=2) + "\n")
         except OSError as exc:  # a full disk: the log and the robot's outcome still get said
             say(f"fgslam record: warning: cannot write {status}: {exc.strerror or exc}")
     stats = result.link_stats

@@ -1,13 +1,11 @@
 """What a recording is set to and what it gives back: the :class:`RecorderSettings`, the
 run-log header of a recording (:func:`make_header`), the :class:`RecordResult` and its
-status file (:func:`write_status`). :func:`slamio.create.record.record` uses them all.
+status file (:func:`status_of`). :func:`slamio.create.record.record` uses them all.
 """
 
 from __future__ import annotations
 
-import json
 import math
-import os
 from dataclasses import asdict, dataclass, field
 from typing import Any, Sequence
 
@@ -17,7 +15,7 @@ from slamio.create.safety import StopReason
 from slamio.errors import FgslamError
 from slamio.log import Header
 
-__all__ = ["RECORDER_VERSION", "SAME_TIME_S", "RecorderSettings", "RecordResult", "make_header", "write_status"]
+__all__ = ["RECORDER_VERSION", "SAME_TIME_S", "RecorderSettings", "RecordResult", "make_header", "status_of"]
 
 RECORDER_VERSION = 1
 
@@ -82,15 +80,11 @@ class RecordResult:
     def completed(self) -> bool:
         return not self.reason.is_fault
 
-    @property
-    def robot_confirmed_stopped(self) -> bool:
-        return self.shutdown is not None and self.shutdown.confirmed
 
-
-def write_status(result: RecordResult, path: str | os.PathLike[str], extra: dict[str, Any] | None = None) -> None:
-    """Write the result (the stop reason first) as JSON next to the log, through a temporary
-    file and a rename (an interrupted write never leaves half a status)."""
-    d = {
+def status_of(result: RecordResult) -> dict[str, Any]:
+    """The recording's result (the stop reason first) as the JSON object of its status file
+    (``fgslam record`` writes it next to the log)."""
+    return {
         "reason": {"kind": result.reason.kind, "message": result.reason.message},
         "log": result.out_path,
         "records": result.records,
@@ -102,17 +96,7 @@ def write_status(result: RecordResult, path: str | os.PathLike[str], extra: dict
         "shutdown": None if result.shutdown is None else {**asdict(result.shutdown),
                                                            "summary": result.shutdown.summary},
         **({"signal": result.signum} if result.signum is not None else {}),
-        **(extra or {}),
     }
-    tmp = f"{os.fspath(path)}.{os.getpid()}.tmp"
-    try:
-        with open(tmp, "w", encoding="utf-8") as f:
-            json.dump(d, f, indent=2)
-            f.write("\n")
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
 
 
 def make_header(model: str, port: str, baud: int, noise: OdometryNoise, settings: RecorderSettings,
