@@ -11,14 +11,47 @@ Every estimator of seed 003's drives (``ekf.stereo_imu_ekf.EkfS003``, ``ekf.vio.
     landmarks()    -> {id: (3,)}     # world points
 
 The world frame is the IMU frame at the first step (pose 0 = identity), as in the seed.
-:func:`run_drive` feeds a whole drive; it never prints or reads files.
+
+A run log's typed steps become these inputs through :func:`step_inputs` (what ``fgslam run``,
+``check`` and ``bench`` feed); a drive's arrays (seed 003's npz, the 3-D simulator) through
+:func:`steps_of`, and :func:`run_drive` feeds a whole drive. Nothing here prints or reads files.
 """
 
 from __future__ import annotations
 
+from typing import Iterable, Iterator, NamedTuple
+
 import numpy as np
 
-__all__ = ["position_errors_m", "run_drive", "steps_of"]
+__all__ = ["StepInput", "position_errors_m", "run_drive", "step_inputs", "steps_of"]
+
+
+class StepInput(NamedTuple):
+    """The arguments of one ``step``: ``dt_s`` and ``twist`` are None at the first step."""
+
+    dt_s: float | None
+    twist: np.ndarray | None  # (6,) the IMU's (v, ω) over dt_s, translation first
+    ids: np.ndarray  # (n,) int64, ascending
+    pixels: np.ndarray  # (n, 4) u_L, v_L, u_R, v_R
+
+
+def step_inputs(steps: Iterable) -> Iterator[StepInput]:
+    """One :class:`StepInput` per step of a 3-D run log (``slamio.log.Step`` whose odometry
+    is a ``VelocityOdometry`` and whose observations are ``StereoObservation``).
+
+    The observations of a step are fed in ascending track id; a track seen twice in one
+    step keeps its last reading.
+    """
+    for step in steps:
+        seen = {o.track_id: o for o in step.observations}
+        ids = np.array(sorted(seen), dtype=np.int64)
+        pixels = np.array([seen[j].pixels() for j in ids], dtype=float).reshape(len(ids), 4)
+        odometry = step.odometry
+        if odometry is None:
+            yield StepInput(None, None, ids, pixels)
+        else:
+            twist = np.array([*odometry.v_mps, *odometry.w_radps], dtype=float)
+            yield StepInput(float(odometry.dt_s), twist, ids, pixels)
 
 
 def steps_of(drive):

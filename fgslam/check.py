@@ -265,37 +265,34 @@ def _score_planar(log, log_path, estimator: str, against: str) -> Score:
 def score_3d(log, log_path, estimator: str, against: str) -> Score:
     """The :class:`Score` of the 3-D ``estimator`` on the 3-D ``log`` against ``against``."""
     from fgslam.runner3d import (
-        POSE_DOF, make_estimator_3d, noise_of, pose_nees_series, position_rmse_m, run_estimator_3d,
-        truth_reference_3d,
+        POSE_DOF, pose_nees_series, position_rmse_m, prepare_log3d, run_estimator_3d, truth_reference_3d,
     )
     from fgslam.smoother3d import batch_solve as batch_solve_3d
-    from slamio.datasets.seed003_log import log_to_drive
 
-    steps = log.steps()  # grouped once: the drive, its noise and the truth come from them
-    drive = log_to_drive(log, steps)
-    noise = noise_of(log, steps)
+    ready = prepare_log3d(log)  # read once: the inputs, the rig, the noise and the truth come from it
+    n_steps = len(ready.steps)
     run = None
     if against == "truth":
-        reference = truth_reference_3d(log, steps)
-        require_enough_truth(log_path, 0 if reference is None else reference.poses_with_truth, drive.n_steps)
+        reference = truth_reference_3d(log, ready.steps)
+        require_enough_truth(log_path, 0 if reference is None else reference.poses_with_truth, n_steps)
         reference_poses, has_pose = reference.trajectory, reference.mask
     else:
-        graph = make_estimator_3d("isam2-3d", drive, noise)
+        graph = ready.estimator("isam2-3d")
         # checking isam2-3d itself: its one run (with covariances) also gives the graph
-        graph_run = run_estimator_3d(graph, drive, covariances=estimator == "isam2-3d")
+        graph_run = run_estimator_3d(graph, ready.inputs, covariances=estimator == "isam2-3d")
         require_landmarks_seen_twice(graph, log_path)
         if estimator == "isam2-3d":
             run = graph_run
         reference_poses = batch_solve_3d(graph).trajectory()
-        has_pose = np.ones(drive.n_steps, dtype=bool)
+        has_pose = np.ones(n_steps, dtype=bool)
     if run is None:
-        run = run_estimator_3d(make_estimator_3d(estimator, drive, noise), drive)
+        run = run_estimator_3d(ready.estimator(estimator), ready.inputs)
     ate = position_rmse_m(run.final, reference_poses, 3, has_pose)
     values = None
     if run.covariances is not None and np.any(np.isfinite(run.covariances)):
         values = pose_nees_series(run.online, run.covariances, reference_poses)[has_pose]
     dofs = None if values is None else np.full(len(values), POSE_DOF)
-    return Score(ate, values, dofs, int(np.count_nonzero(has_pose)), drive.n_steps)
+    return Score(ate, values, dofs, int(np.count_nonzero(has_pose)), n_steps)
 
 
 def require_landmarks_seen_twice(graph, log_path) -> None:

@@ -117,16 +117,19 @@ def run_one_3d(seed: int, estimators: tuple[str, ...], scenario=None) -> RunResu
     run`` runs them on the drive's log: per step the pose NEES on SE(3) (right perturbation,
     6 DoF) of the online pose against the truth; the ATE is the 3-D position RMSE without
     alignment (every estimator starts at the IMU's first pose). A picklable task."""
-    from fgslam.runner3d import make_estimator_3d, pose_nees_series, position_rmse_m, run_estimator_3d
-    from slamio.datasets.seed003 import StereoImuNoise
+    from fgslam.runner3d import pose_nees_series, position_rmse_m, prepare_log3d, run_estimator_3d
+    from slamio.datasets.seed003_log import drive_to_log
+    from slamio.log import RunLog
     from slamio.sim3d import DriveScenario, simulate_drive
 
     drive = simulate_drive(seed, scenario or DriveScenario())
-    noise = StereoImuNoise()  # the simulator's noise, what `fgslam sim stereo-loop` writes in the log
+    # the drive's log, with the simulator's noise on every record: what `fgslam sim stereo-loop` writes
+    header, records = drive_to_log(drive)
+    ready = prepare_log3d(RunLog(f"stereo-loop seed {seed}", header, tuple(records)))
     truth = drive.truth_world_T_imu
     out_nees, final, online, times = {}, {}, {}, {}
     for name in estimators:
-        run = run_estimator_3d(make_estimator_3d(name, drive, noise), drive)
+        run = run_estimator_3d(ready.estimator(name), ready.inputs)
         out_nees[name] = pose_nees_series(run.online, run.covariances, truth)
         final[name] = position_rmse_m(run.final, truth)
         online[name] = position_rmse_m(run.online, truth)

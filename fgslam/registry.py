@@ -7,9 +7,10 @@ help texts (:mod:`fgslam.cli.estimators`), :mod:`fgslam.runner` and :mod:`fgslam
 all read it. No estimator code is imported here: a factory imports its estimator when it is
 called, so ``fgslam --help`` stays fast.
 
-A planar factory takes the log's :class:`slamio.log.Header`; a 3-D factory takes seed 003's
-drive and its noise (:class:`slamio.datasets.seed003.StereoImuDrive`, ``StereoImuNoise``),
-what :func:`slamio.datasets.seed003_log.log_to_drive` turns a 3-D log into.
+A planar factory takes the log's :class:`slamio.log.Header`; a 3-D factory takes the stereo
+rig of the log's header (:class:`slamio.log.StereoCalibration`: ``K``, ``baseline_m``,
+``cam_T_imu``) and the noise its records state (``slamio.datasets.seed003.StereoImuNoise``),
+as :func:`fgslam.runner3d.prepare_log3d` reads them.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ class EstimatorEntry:
     name: str
     dimension: int  # 2 (planar logs) or 3 (stereo + IMU logs)
     help: str
-    factory: Callable[..., object]  # 2-D: factory(header); 3-D: factory(drive, noise)
+    factory: Callable[..., object]  # 2-D: factory(header); 3-D: factory(rig, noise)
     isam2: bool = False  # a factor-graph smoother the batch solve can start from
 
 
@@ -99,27 +100,27 @@ def _dead_reckoning(header):
 
 
 def _ekf_s003(figures: bool = False):
-    def factory(d, n):
+    def factory(rig, noise):
         from ekf.stereo_imu_ekf import AS_THE_FIGURES_SHOW, EkfS003
 
-        return EkfS003(d.K, d.baseline_m, d.cam_T_imu, n, **(AS_THE_FIGURES_SHOW if figures else {}))
+        return EkfS003(rig.K, rig.baseline_m, rig.cam_T_imu, noise, **(AS_THE_FIGURES_SHOW if figures else {}))
     return factory
 
 
 def _vio(first_estimates: bool = False):
-    def factory(d, n):
+    def factory(rig, noise):
         from ekf.vio import VioEkf
 
         if first_estimates:
-            return VioEkf(d.K, d.baseline_m, d.cam_T_imu, n, first_estimates=True)
-        return VioEkf(d.K, d.baseline_m, d.cam_T_imu, n)
+            return VioEkf(rig.K, rig.baseline_m, rig.cam_T_imu, noise, first_estimates=True)
+        return VioEkf(rig.K, rig.baseline_m, rig.cam_T_imu, noise)
     return factory
 
 
-def _isam2_3d(d, n):
+def _isam2_3d(rig, noise):
     from fgslam.smoother3d import StereoIsam2  # imports gtsam
 
-    return StereoIsam2(d.K, d.baseline_m, d.cam_T_imu, n)
+    return StereoIsam2(rig.K, rig.baseline_m, rig.cam_T_imu, noise)
 
 
 _ENTRIES = (
@@ -199,7 +200,7 @@ def entry(name: str, dimension: int) -> EstimatorEntry:
 
 
 def build(name: str, dimension: int, *args):
-    """A fresh estimator ``name`` (2-D: ``build(name, 2, header)``; 3-D: ``build(name, 3, drive, noise)``).
+    """A fresh estimator ``name`` (2-D: ``build(name, 2, header)``; 3-D: ``build(name, 3, rig, noise)``).
     A 3-D estimator is always named ``name``."""
     estimator = entry(name, dimension).factory(*args)
     return _named(estimator, name) if dimension == 3 else estimator

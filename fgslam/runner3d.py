@@ -1,10 +1,12 @@
 """Drive the 3-D estimators (seed 003: stereo camera + IMU) over one 3-D run log and score them.
 
 The 3-D counterpart of :mod:`fgslam.runner` and :mod:`fgslam.compare` for logs with SE(3)
-poses (docs/log-format.md, "3-D logs"). The log becomes the drive arrays every 3-D
-estimator consumes (:func:`slamio.datasets.seed003_log.log_to_drive`, the step protocol of
-:mod:`ekf.drive3d`); each estimator's ``step`` is timed with BLAS pinned to one thread, and
-the consistency work (the pose covariance for NEES) runs outside the timed region.
+poses (docs/log-format.md, "3-D logs"). The log is read once (:func:`prepare_log3d`): its
+typed steps become the inputs of the step protocol of :mod:`ekf.drive3d`
+(:func:`ekf.drive3d.step_inputs`), its header the stereo rig, its records the noise. ``fgslam
+run``, ``check`` and ``bench`` all go through it. Each estimator's ``step`` is timed with BLAS
+pinned to one thread, and the consistency work (the pose covariance for NEES) runs outside
+the timed region.
 
 The world frame is the IMU at pose 0 and every estimator starts there, so trajectories are
 compared without alignment. The reference is the log's truth wherever it has some
@@ -23,19 +25,20 @@ from typing import Callable
 
 import numpy as np
 
-from ekf.drive3d import steps_of
+from ekf.drive3d import StepInput, step_inputs
 from ekf.vio import pose_nees
 from fgslam.compare import TOP_LEVEL_KEYS, nees_band
 from fgslam.registry import DEFAULTS, REGISTRY, build, names_for, parse_names
 from fgslam.runner import pinned_threads
-from slamio.datasets.seed003 import StereoImuDrive, StereoImuNoise
-from slamio.datasets.seed003_log import log_to_drive
+from slamio.datasets.seed003 import StereoImuNoise
 from slamio.errors import FgslamError
-from slamio.log import RunLog, TruthLandmark3, group_steps, pose3_from_matrix
+from slamio.log import (
+    RunLog, StereoCalibration, TruthLandmark3, group_steps, pose3_from_matrix, pose3_matrix, stereo_calibration,
+)
 
-#: name → factory(drive, noise): the 3-D estimators of :mod:`fgslam.registry` (what ``fgslam run
+#: name → factory(rig, noise): the 3-D estimators of :mod:`fgslam.registry` (what ``fgslam run
 #: --estimators`` accepts on a 3-D log).
-ESTIMATORS_3D: dict[str, Callable[[StereoImuDrive, StereoImuNoise], object]] = {
+ESTIMATORS_3D: dict[str, Callable[[StereoCalibration, StereoImuNoise], object]] = {
     name: REGISTRY[name].factory for name in names_for(3)
 }
 DEFAULT_ESTIMATORS_3D = DEFAULTS[3]
@@ -43,9 +46,10 @@ POSE_DOF = 6
 STEREO_DOF = 4
 
 
-def make_estimator_3d(name: str, drive: StereoImuDrive, noise: StereoImuNoise):
-    """A fresh estimator ``name`` of :data:`ESTIMATORS_3D` for ``drive``, named ``name``."""
-    return build(name, 3, drive, noise)
+def make_estimator_3d(name: str, rig: StereoCalibration, noise: StereoImuNoise):
+    """A fresh estimator ``name`` of :data:`ESTIMATORS_3D` for the stereo ``rig`` (the log
+    header's calibration), named ``name``."""
+    return build(name, 3, rig, noise)
 
 
 def parse_estimator_names_3d(text: str | None) -> list[str]:
@@ -146,14 +150,15 @@ class Comparison3d:
         return None
 
 
-def run_estimator_3d(estimator, drive: StereoImuDrive, *, covariances: bool = True, progress=None) -> Run3d:
-    """Feed every step of ``drive``; time each ``step`` (BLAS pinned to one thread)."""
-    n = drive.n_steps
+def run_estimator_3d(estimator, inputs: list[StepInput], *, covariances: bool = True, progress=None) -> Run3d:
+    """Feed every step's input (:func:`ekf.drive3d.step_inputs`); time each ``step`` (BLAS
+    pinned to one thread)."""
+    n = len(inputs)
     times = np.empty(n)
     covs = np.full((n, POSE_DOF, POSE_DOF), np.nan) if covariances else None
     every = max(1, n // 200)
     with pinned_threads():
-        for t, args in enumerate(steps_of(drive)):
+        for t, args in enumerate(inputs):
             start = time.perf_counter()
             estimator.step(*args)
             times[t] = time.perf_counter() - start
@@ -177,26 +182,62 @@ def run_estimator_3d(estimator, drive: StereoImuDrive, *, covariances: bool = Tr
                  covs, nis)
 
 
+@dataclass(frozen=True)
+class Log3d:
+    """A 3-D log made ready for the estimators, once: its steps, the stereo rig of its
+    header, the one noise level its records state, and every step's input."""
+
+    steps: list
+    rig: StereoCalibration
+    noise: StereoImuNoise
+    inputs: list[StepInput]
+
+    @property
+    def stamps_s(self) -> np.ndarray:
+        return np.array([s.stamp_s for s in self.steps])
+
+    def estimator(self, name: str):
+        """A fresh estimator ``name`` for this log."""
+        return make_estimator_3d(name, self.rig, self.noise)
+
+
+def prepare_log3d(log: RunLog, steps=None) -> Log3d:
+    """The :class:`Log3d` of a 3-D ``log`` (``steps``: its steps when already grouped).
+
+    Errors (one line, naming the file): a planar log; a log without truth whose start.pose3
+    is not the identity (the estimators put the world frame at the IMU's first pose); records
+    with more than one noise level (:func:`noise_of`).
+    """
+    if not log.header.is_3d:
+        raise FgslamError(f"{log.path}: a planar log; the 3-D estimators need a 3-D log (start.pose3, stereo observations)")
+    steps = log.steps() if steps is None else steps
+    if not all(s.truth is not None for s in steps) and not np.allclose(
+            pose3_matrix(log.header.start_pose3), np.eye(4), atol=1e-9):
+        raise FgslamError(
+            f"{log.path}: start.pose3 is not the identity; the 3-D estimators put the world frame at the IMU's "
+            "first pose (write start.pose3 as [0, 0, 0, 0, 0, 0, 1])"
+        )
+    return Log3d(steps, stereo_calibration(log.header), noise_of(log, steps), list(step_inputs(steps)))
+
+
 def run_log3d(log: RunLog, names: list[str], *, consistency: bool = True, progress=None) -> Comparison3d:
     """Every named estimator on ``log``, then the batch solve from isam2-3d's graph."""
     from fgslam.smoother3d import batch_solve
 
-    steps = log.steps()  # grouped once: the drive, its noise and the truth come from them
-    drive = log_to_drive(log, steps)
-    noise = noise_of(log, steps)
+    ready = prepare_log3d(log)
     runs = []
     smoother = None
     for name in names:
-        estimator = make_estimator_3d(name, drive, noise)
+        estimator = ready.estimator(name)
         if name == "isam2-3d":
             smoother = estimator
-        runs.append(run_estimator_3d(estimator, drive, covariances=consistency, progress=progress))
+        runs.append(run_estimator_3d(estimator, ready.inputs, covariances=consistency, progress=progress))
     assert smoother is not None  # parse_estimator_names_3d keeps it
     with pinned_threads():
         batch = batch_solve(smoother)
     runs.append(Run3d("batch", None, batch.trajectory(), batch.landmarks(), None, batch.seconds))
-    reference = truth_reference_3d(log, steps) or Reference3d("batch", batch.trajectory(), batch.landmarks())
-    return Comparison3d(runs, reference, drive.stamps_s, smoother, float(batch.error), smoother.error())
+    reference = truth_reference_3d(log, ready.steps) or Reference3d("batch", batch.trajectory(), batch.landmarks())
+    return Comparison3d(runs, reference, ready.stamps_s, smoother, float(batch.error), smoother.error())
 
 
 # --------------------------------------------------------------------------- metrics

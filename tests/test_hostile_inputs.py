@@ -246,11 +246,9 @@ def test_a_5000_digit_integer_and_deep_nesting_in_a_log(tmp_path, capsys):
 
 
 def test_3d_estimators_map_ids_to_dense_columns(tmp_path):
-    """Track ids up to 2^31 - 1: the drive has one column per track, never one per id."""
-    from ekf.drive3d import run_drive, steps_of
+    """Track ids up to 2^31 - 1: the estimators key landmarks by id, never one slot per possible id."""
     from ekf.vio import VioEkf
-    from slamio.datasets.seed003 import StereoImuNoise
-    from slamio.datasets.seed003_log import log_to_drive
+    from fgslam.runner3d import prepare_log3d
     from slamio.log import read_log
 
     log_path = tmp_path / "stereo.jsonl"
@@ -265,15 +263,18 @@ def test_3d_estimators_map_ids_to_dense_columns(tmp_path):
         renumbered.append(json.dumps(d))
     big = tmp_path / "big_ids.jsonl"
     big.write_text("\n".join(renumbered) + "\n")
-    small_drive, drive = log_to_drive(read_log(log_path)), log_to_drive(read_log(big))
-    assert drive.features_px.shape == small_drive.features_px.shape  # (T, tracks, 4): dense
-    assert drive.landmark_ids.max() == 2**31 - 1 and drive.truth_landmarks_m is not None
-    _, _, ids, pixels = next(iter(steps_of(drive)))
+    small, large = prepare_log3d(read_log(log_path)), prepare_log3d(read_log(big))
+    ids, pixels = large.inputs[0].ids, large.inputs[0].pixels
     assert len(ids) and min(ids) > 2**30 and pixels.shape == (len(ids), 4)
-    vio = run_drive(VioEkf(drive.K, drive.baseline_m, drive.cam_T_imu, StereoImuNoise()), drive, n_steps=20)
-    small = run_drive(VioEkf(drive.K, drive.baseline_m, drive.cam_T_imu, StereoImuNoise()), small_drive, n_steps=20)
-    assert min(vio.landmarks()) > 2**30
-    assert np.allclose(vio.current_pose(), small.current_pose())
+    estimates = []
+    for ready in (small, large):
+        vio = ready.estimator("ekf-vio")
+        assert isinstance(vio, VioEkf)
+        for args in ready.inputs[:20]:
+            vio.step(*args)
+        estimates.append(vio)
+    assert min(estimates[1].landmarks()) > 2**30
+    assert np.allclose(estimates[0].current_pose(), estimates[1].current_pose())
 
 
 # --------------------------------------------------------------------------- side files: numbers and nesting

@@ -10,7 +10,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from slamio.datasets.seed003_log import drive_to_log, log_to_drive
+from ekf.drive3d import step_inputs, steps_of
+from slamio.datasets.seed003_log import drive_to_log
 from slamio.log import Header, LogFormatError, format_line, read_log, write_log
 from slamio.log import SIGMA_PIXEL_PX, StereoObservation, TruthLandmark3, TruthPose3, VelocityOdometry
 from slamio.log import pose3_from_matrix, pose3_matrix, stereo_sensor
@@ -236,30 +237,43 @@ def test_random_field_values_never_raise_anything_but_log_format_error(tmp_path,
 # ------------------------------------------------------------------ drives ↔ logs
 
 
+def assert_same_inputs(log, drive):
+    """The estimators' inputs from the log's typed steps equal those from the drive's arrays
+    (every twist but the drive's last, which acts after its last stamp)."""
+    from_log, from_drive = list(step_inputs(log.steps())), list(steps_of(drive))
+    assert len(from_log) == len(from_drive) == drive.n_steps
+    for a, b in zip(from_log, from_drive):
+        assert a.dt_s == b[0] and np.array_equal(a.ids, b[2]) and np.array_equal(a.pixels, b[3])
+        assert (a.twist is None and b[1] is None) or np.array_equal(a.twist, b[1])
+
+
 def test_a_simulated_drive_survives_the_log_exactly(tmp_path):
+    from fgslam.runner3d import prepare_log3d, truth_reference_3d
+
     drive = simulate_drive(3, DriveScenario(straight_m=30.0, side_m=20.0))
     header, records = drive_to_log(drive, source={"generator": "test"})
     write_log(tmp_path / "d.jsonl", header, records)
-    back = log_to_drive(read_log(tmp_path / "d.jsonl"))
-    assert np.array_equal(back.stamps_s, drive.stamps_s)
-    n = drive.n_landmarks
-    assert np.array_equal(back.features_px, drive.features_px[:, :n], equal_nan=True)
-    assert np.array_equal(back.linear_velocity_mps[:-1], drive.linear_velocity_mps[:-1])
-    assert np.array_equal(back.angular_velocity_radps[:-1], drive.angular_velocity_radps[:-1])
-    assert np.allclose(back.K, drive.K) and back.baseline_m == drive.baseline_m
-    assert np.array_equal(back.cam_T_imu, drive.cam_T_imu)
-    assert np.allclose(back.truth_world_T_imu, drive.truth_world_T_imu, atol=1e-12)
-    assert np.array_equal(back.truth_landmarks_m, drive.truth_landmarks_m)
+    log = read_log(tmp_path / "d.jsonl")
+    assert_same_inputs(log, drive)
+    ready = prepare_log3d(log)
+    assert np.array_equal(ready.stamps_s, drive.stamps_s)
+    assert np.allclose(ready.rig.K, drive.K) and ready.rig.baseline_m == drive.baseline_m
+    assert np.array_equal(ready.rig.cam_T_imu, drive.cam_T_imu)
+    truth = truth_reference_3d(log)
+    assert np.allclose(truth.trajectory, drive.truth_world_T_imu, atol=1e-12)
+    ids = drive.ids(np.arange(drive.n_landmarks))
+    assert np.array_equal(np.array([truth.landmarks[j] for j in ids]), drive.truth_landmarks_m)
 
 
 def test_a_planar_log_is_not_a_drive(tmp_path):
+    from fgslam.runner3d import prepare_log3d
     from slamio.errors import FgslamError
     from slamio.sim import simulate
 
     header, records = simulate("arena-square", 1)
     write_log(tmp_path / "p.jsonl", header, records[:3])
     with pytest.raises(FgslamError, match="planar log"):
-        log_to_drive(read_log(tmp_path / "p.jsonl"))
+        prepare_log3d(read_log(tmp_path / "p.jsonl"))
 
 
 # ------------------------------------------------------------------ the verbs that write 3-D logs
@@ -272,9 +286,8 @@ def test_fgslam_sim_stereo_loop_writes_a_valid_3d_log_with_truth(tmp_path, capsy
     assert main(["sim", "stereo-loop", "--seed", "2", "--out", str(out)]) == 0
     log = read_log(out)
     assert log.header.is_3d and log.header.source["seed"] == 2
-    drive = log_to_drive(log)
-    again = simulate_drive(2)
-    assert drive.truth_world_T_imu is not None and np.allclose(drive.truth_world_T_imu, again.truth_world_T_imu, atol=1e-12)
+    truth = np.array([s.truth.matrix() for s in log.steps()])
+    assert np.allclose(truth, simulate_drive(2).truth_world_T_imu, atol=1e-12)
     assert main(["validate", str(out)]) == 0
     assert "valid fgslam 3-D stereo + IMU run log v2" in capsys.readouterr().out
     assert main(["sim", "stereo-loop", "--seed", "2", "--out", str(out)]) == 1  # kept without --overwrite
@@ -293,7 +306,7 @@ def test_fgslam_import_seed003_reads_the_npz_layout(tmp_path, capsys):
     assert main(["import", "seed003", str(npz), str(out), "--pixel-sigma", "0.5"]) == 0
     log = read_log(out)
     assert {o.sigma_px for s in log.steps() for o in s.observations} == {0.5}
-    assert np.array_equal(log_to_drive(log).features_px, drive.features_px, equal_nan=True)
+    assert_same_inputs(log, drive)
     assert main(["import", "seed003", str(tmp_path / "none.npz"), str(tmp_path / "x.jsonl")]) == 2  # an input file: status 2
     assert "none.npz: no such file" in capsys.readouterr().err
     assert main(["import", "seed003", str(npz), str(tmp_path / "y.jsonl"), "--speed-sigma", "-1"]) == 1

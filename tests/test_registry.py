@@ -46,6 +46,8 @@ def test_a_wrong_dimension_name_lists_the_valid_ones_for_that_log():
 def test_build_names_a_3d_estimator_by_its_registry_name():
     from slamio.sim3d import DriveScenario, simulate_drive
     from slamio.datasets.seed003 import StereoImuNoise
+    from slamio.log import StereoCalibration
 
     drive = simulate_drive(0, DriveScenario())
-    assert build("ekf-s003-figures", 3, drive, StereoImuNoise()).name == "ekf-s003-figures"
+    rig = StereoCalibration(drive.K, drive.baseline_m, drive.cam_T_imu)
+    assert build("ekf-s003-figures", 3, rig, StereoImuNoise()).name == "ekf-s003-figures"

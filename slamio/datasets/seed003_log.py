@@ -1,4 +1,4 @@
-"""A seed-003 drive (:class:`StereoImuDrive`) as a 3-D run log, and back.
+"""A seed-003 drive (:class:`StereoImuDrive`) as a 3-D run log.
 
 ``drive_to_log`` writes step 0 at the header's start (the world frame is the IMU at step
 0, so ``start.pose3`` is the identity, or the truth's first pose for a simulated drive) and
@@ -7,8 +7,9 @@ over ``dt_s = stamp_t − stamp_{t−1}``, exactly what the seed's prediction us
 observations and truth of step t follow it. The drive's last twist acts after its last
 stamp and is not written.
 
-``log_to_drive`` rebuilds the arrays every 3-D estimator consumes (``ekf.drive3d``). The
-round trip is exact except for that unused last twist (zero after it).
+The estimators never see the drive's arrays: ``fgslam run`` reads the log and feeds its typed
+steps (``fgslam.runner3d.prepare_log3d``); a test checks that those inputs equal the drive's
+own (``ekf.drive3d.steps_of``) except for that unused last twist.
 """
 
 from __future__ import annotations
@@ -16,22 +17,17 @@ from __future__ import annotations
 import numpy as np
 
 from slamio.datasets.seed003 import StereoImuDrive, StereoImuNoise
-from slamio.errors import FgslamError
 from slamio.log import (
     Header,
-    RunLog,
     StereoObservation,
     TruthLandmark3,
     TruthPose3,
     VelocityOdometry,
-    group_steps,
     pose3_from_matrix,
-    pose3_matrix,
-    stereo_calibration,
     stereo_sensor,
 )
 
-__all__ = ["drive_to_log", "log_to_drive"]
+__all__ = ["drive_to_log"]
 
 #: σ of the start pose: pinned (the world frame is defined by pose 0).
 START_SIGMA3 = (1e-6,) * 6
@@ -78,52 +74,3 @@ def drive_to_log(drive: StereoImuDrive, noise: StereoImuNoise = StereoImuNoise()
         if drive.truth_world_T_imu is not None:
             records.append(TruthPose3(stamp, *pose3_from_matrix(drive.truth_world_T_imu[t])))
     return header, records
-
-
-def log_to_drive(log: RunLog, steps=None) -> StereoImuDrive:
-    """The drive arrays of a 3-D run log (truth when every pose and landmark has one);
-    ``steps``: the log's steps when the caller has grouped them already."""
-    header = log.header
-    if not header.is_3d:
-        raise FgslamError(f"{log.path}: a planar log; the 3-D estimators need a 3-D log (start.pose3, stereo observations)")
-    calibration = stereo_calibration(header)
-    steps = group_steps(header, log.records) if steps is None else steps
-    truth_landmarks = {r.landmark_id: r for r in log.records if isinstance(r, TruthLandmark3)}
-    # one column per landmark the log names, in id order: never one per possible id (an id
-    # may be up to 2^31 - 1)
-    ids = sorted({o.track_id for s in steps for o in s.observations} | set(truth_landmarks))
-    column = {landmark_id: j for j, landmark_id in enumerate(ids)}
-    T = len(steps)
-    features = np.full((T, len(ids), 4), np.nan)
-    linear, angular = np.zeros((T, 3)), np.zeros((T, 3))
-    stamps = np.array([s.stamp_s for s in steps])
-    for t, step in enumerate(steps):
-        for o in step.observations:
-            features[t, column[o.track_id]] = o.pixels()
-        if t > 0:
-            linear[t - 1], angular[t - 1] = step.odometry.v_mps, step.odometry.w_radps
-    truth_poses = None
-    if all(s.truth is not None for s in steps):
-        truth_poses = np.array([s.truth.matrix() for s in steps])
-    truth_points = None
-    if truth_landmarks and all(j in truth_landmarks for j in ids):
-        truth_points = np.array([[truth_landmarks[j].x_m, truth_landmarks[j].y_m, truth_landmarks[j].z_m]
-                                 for j in ids])
-    if truth_poses is None and not np.allclose(pose3_matrix(header.start_pose3), np.eye(4), atol=1e-9):
-        raise FgslamError(
-            f"{log.path}: start.pose3 is not the identity; the 3-D estimators put the world frame at the IMU's "
-            "first pose (write start.pose3 as [0, 0, 0, 0, 0, 0, 1])"
-        )
-    return StereoImuDrive(
-        stamps_s=stamps,
-        features_px=features,
-        linear_velocity_mps=linear,
-        angular_velocity_radps=angular,
-        K=calibration.K,
-        baseline_m=calibration.baseline_m,
-        cam_T_imu=calibration.cam_T_imu,
-        truth_world_T_imu=truth_poses,
-        truth_landmarks_m=truth_points,
-        source=log.path,
-        landmark_ids=np.array(ids, dtype=np.int64),
-    )
