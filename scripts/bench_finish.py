@@ -59,7 +59,9 @@ def main(argv=None) -> int:
                      "χ²/2 × batch LM: batch / iSAM2")
     for spec in args.logs:
         for name, header, records in logs(spec):
-            smoother = Isam2Smoother(header, robust=expected_outlier_kernel(header), final_iterations=0)
+            built = []  # every ISAM2 the smoother builds; the last is the one it ends with
+            smoother = Isam2Smoother(header, robust=expected_outlier_kernel(header), final_iterations=0,
+                                     isam_wrapper=lambda isam: built.append(isam) or isam)
             run_estimator(smoother, group_steps(header, records), covariances=False)
             graph, start = smoother.graph(), smoother.estimate()
             iterations, tolerance = 10, 1e-4  # the defaults
@@ -67,7 +69,7 @@ def main(argv=None) -> int:
             polished = gauss_newton_steps(graph, start, iterations, tolerance)
             batch_s = time.perf_counter() - t0
             t0 = time.perf_counter()
-            steps, isam_error = isam2_steps(smoother._isam, graph, iterations, tolerance)
+            steps, isam_error = isam2_steps(built[-1], graph, iterations, tolerance)
             isam_s = time.perf_counter() - t0
             optimum = batch_solve(smoother).final_error
             taken = max(polished.iterations, 1)

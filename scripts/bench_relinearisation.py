@@ -92,8 +92,14 @@ class TimedIsam2:
 
 
 def one_run(header, steps, kwargs, truth):
-    smoother = Isam2Smoother(header, **kwargs)
-    timed = smoother._isam = TimedIsam2(smoother._isam)
+    timers: list[TimedIsam2] = []
+
+    def timed_isam(isam):
+        timers.append(TimedIsam2(isam))
+        return timers[-1]
+
+    smoother = Isam2Smoother(header, isam_wrapper=timed_isam, **kwargs)
+    timed = timers[0]  # the ISAM2 built at the start (a rebuild or a slide would add one)
     cpu = time.process_time()
     run, smoother = run_estimator(smoother, steps, covariances=False)
     cpu = time.process_time() - cpu

@@ -38,6 +38,8 @@ holds (:mod:`~fgslam.smoother.variables`).
 
 from __future__ import annotations
 
+from typing import Callable
+
 import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import H, L, X
@@ -120,6 +122,10 @@ class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
         relative-pose factors (:mod:`fgslam.smoother`), so its facing direction is estimated
         too (:meth:`landmark_yaws`), and the yaw also constrains the robot's heading.
         ``name`` becomes ``"isam2-tags"``.
+    isam_wrapper:
+        None (default), or a callable applied to every ``gtsam.ISAM2`` the smoother builds
+        (at the start, after a failed update, when a window slides) whose result it uses in
+        its place: the benchmarks wrap it to time its calls (``scripts/profile_isam2.py``).
 
     Attributes
     ----------
@@ -164,9 +170,12 @@ class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
         robust_k: float | None = None,
         tags: bool = False,
         associate: bool = True,
+        isam_wrapper: Callable[[gtsam.ISAM2], object] | None = None,
         **settings,
     ):
         self.settings = Isam2Settings(**settings)
+        # applied to every ISAM2 this smoother builds (a benchmark's timer of its calls)
+        self._isam_wrapper = isam_wrapper
         self.updates = 0  # iSAM2 updates run by step()/flushes (not counting finish or rebuilds)
         self.final_iterations_run = 0  # Gauss–Newton steps finish() took and kept
         if robust is None:
@@ -186,7 +195,7 @@ class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
         self.last_failure: str | None = None
 
         self._factors = FactorBuilder(self._robust)
-        self._isam = gtsam.ISAM2(self.settings.isam2_params())
+        self._isam = self._new_isam()
         self._isam_updates = 0  # updates given to this ISAM2 (GTSAM counts them for relinearize_skip)
         self._unlabelled = False  # observations without an id seen: the smoother associates them
         self._graph = gtsam.NonlinearFactorGraph()  # every factor accepted into iSAM2
@@ -213,6 +222,11 @@ class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
         self._association = SmootherAssociation()
         # poses older than the newest window_poses leave iSAM2 (fgslam/smoother/window.py)
         self._window = None if self.settings.window_poses is None else SlidingWindow(self.settings.window_poses)
+
+    def _new_isam(self, isam: gtsam.ISAM2 | None = None):
+        """``isam`` (default: a new ``ISAM2`` from the settings) as the smoother will use it."""
+        isam = gtsam.ISAM2(self.settings.isam2_params()) if isam is None else isam
+        return isam if self._isam_wrapper is None else self._isam_wrapper(isam)
 
     # ------------------------------------------------------------------ Estimator protocol
 

@@ -96,7 +96,7 @@ class IdlessPairings:
         except RuntimeError as exc:  # leave the pairings as they were
             self.update_failures += 1
             self.last_failure = str(exc)
-            self._isam = gtsam.ISAM2(self.settings.isam2_params())
+            self._isam = self._new_isam()
             self._isam_updates = 0
             self._isam_update(self._graph, before)
             return False

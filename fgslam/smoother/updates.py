@@ -98,7 +98,7 @@ class Isam2Updates:
         iSAM2 holding the rest (:class:`~fgslam.smoother.window.SlidingWindow`)."""
         estimate = self._isam.calculateBestEstimate()
         kept = self._window.slide(estimate)
-        fresh = gtsam.ISAM2(self.settings.isam2_params())
+        fresh = self._new_isam()
         try:
             fresh.update(kept.factors, kept.values)
         except RuntimeError as exc:  # an indeterminate system: go on with every pose, as without a window
@@ -155,7 +155,7 @@ class Isam2Updates:
                 f"(pose {self._num_poses}); check the odometry covariance and the start sigmas. "
                 f"GTSAM said: {' '.join(self.last_failure.split('Thrown when')[0].split())}"
             )
-        self._isam = rebuilt.isam
+        self._isam = self._new_isam(rebuilt.isam)
         self._isam_updates = 0  # counted from the rebuild on (its own updates are not)
         self._accept(rebuilt.factors, rebuilt.values)
         self._pending.withhold(rebuilt.withheld)
