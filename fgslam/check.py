@@ -265,7 +265,7 @@ def _score_planar(log, log_path, estimator: str, against: str) -> Score:
 def score_3d(log, log_path, estimator: str, against: str) -> Score:
     """The :class:`Score` of the 3-D ``estimator`` on the 3-D ``log`` against ``against``."""
     from fgslam.runner3d import (
-        POSE_DOF, pose_nees_series, position_rmse_m, prepare_log3d, run_estimator_3d, truth_reference_3d,
+        POSE_DOF, in_world, pose_nees_series, position_rmse_m, prepare_log3d, run_estimator_3d, truth_reference_3d,
     )
     from fgslam.smoother3d import batch_solve as batch_solve_3d
 
@@ -287,6 +287,8 @@ def score_3d(log, log_path, estimator: str, against: str) -> Score:
         has_pose = np.ones(n_steps, dtype=bool)
     if run is None:
         run = run_estimator_3d(ready.estimator(estimator), ready.inputs)
+    if against == "truth":  # the truth is in the log's world frame, where the first pose is start.pose3
+        run = in_world(run, ready.world_T_start)
     ate = position_rmse_m(run.final, reference_poses, 3, has_pose)
     values = None
     if run.covariances is not None and np.any(np.isfinite(run.covariances)):

@@ -18,9 +18,10 @@ of the factor graph (LM started from iSAM2's estimate), as in 2-D.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
@@ -61,8 +62,9 @@ def noise_of(log: RunLog, steps=None) -> StereoImuNoise:
     """The one noise level the 3-D estimators assume, read from the log's records.
 
     Every ``stereo_observation`` must carry the same ``sigma_px`` and every
-    ``velocity_odometry`` the same diagonal covariance, equal on the three linear and on the
-    three angular axes (what ``fgslam import seed003`` and ``fgslam sim stereo-loop`` write).
+    ``velocity_odometry`` the same covariance: any symmetric positive-definite 6×6, per axis
+    or correlated, as the dataset states it (``fgslam import seed003`` and ``fgslam sim
+    stereo-loop`` write one σ for the three linear and one for the three angular axes).
     ``steps``: the log's steps when the caller has grouped them already.
     """
     steps = group_steps(log.header, log.records) if steps is None else steps
@@ -71,19 +73,18 @@ def noise_of(log: RunLog, steps=None) -> StereoImuNoise:
     if len(sigmas) > 1 or len(covs) > 1:
         raise FgslamError(
             f"{log.path}: the 3-D estimators assume one noise level, but the records carry {len(sigmas)} pixel σ "
-            f"and {len(covs)} velocity covariances; write the same σ on every record"
+            f"and {len(covs)} velocity covariances; write the same σ and covariance on every record"
         )
     sigma_px = sigmas.pop() if sigmas else StereoImuNoise().sigma_px
     if not covs:
         return StereoImuNoise(sigma_px=sigma_px)
     cov = np.array(covs.pop())
     diag = np.diag(cov)
-    if np.any(cov != np.diag(diag)) or np.ptp(diag[:3]) > 0 or np.ptp(diag[3:]) > 0:
-        raise FgslamError(
-            f"{log.path}: the 3-D estimators assume a diagonal velocity covariance with one variance for v and one "
-            f"for ω; this log's is {cov.tolist()}"
-        )
-    return StereoImuNoise(sigma_px=sigma_px, sigma_v_mps=math.sqrt(diag[0]), sigma_w_radps=math.sqrt(diag[3]))
+    if np.all(cov == np.diag(diag)) and np.ptp(diag[:3]) == 0 and np.ptp(diag[3:]) == 0:
+        return StereoImuNoise(sigma_px=sigma_px, sigma_v_mps=math.sqrt(diag[0]), sigma_w_radps=math.sqrt(diag[3]))
+    if not np.allclose(cov, cov.T) or np.any(np.linalg.eigvalsh(0.5 * (cov + cov.T)) <= 0.0):
+        raise FgslamError(f"{log.path}: the velocity covariance {cov.tolist()} is not symmetric positive definite")
+    return StereoImuNoise(sigma_px=sigma_px, velocity_covariance=tuple(tuple(float(v) for v in row) for row in cov))
 
 
 @dataclass(frozen=True)
@@ -191,6 +192,9 @@ class Log3d:
     rig: StereoCalibration
     noise: StereoImuNoise
     inputs: list[StepInput]
+    #: the header's start.pose3: where the IMU's first pose is in the log's world frame (the
+    #: estimators start at the identity; their results are moved by it, :func:`in_world`)
+    world_T_start: np.ndarray = field(default_factory=lambda: np.eye(4))
 
     @property
     def stamps_s(self) -> np.ndarray:
@@ -204,20 +208,31 @@ class Log3d:
 def prepare_log3d(log: RunLog, steps=None) -> Log3d:
     """The :class:`Log3d` of a 3-D ``log`` (``steps``: its steps when already grouped).
 
-    Errors (one line, naming the file): a planar log; a log without truth whose start.pose3
-    is not the identity (the estimators put the world frame at the IMU's first pose); records
-    with more than one noise level (:func:`noise_of`).
+    Errors (one line, naming the file): a planar log; records with more than one noise level
+    (:func:`noise_of`).
     """
     if not log.header.is_3d:
         raise FgslamError(f"{log.path}: a planar log; the 3-D estimators need a 3-D log (start.pose3, stereo observations)")
     steps = log.steps() if steps is None else steps
-    if not all(s.truth is not None for s in steps) and not np.allclose(
-            pose3_matrix(log.header.start_pose3), np.eye(4), atol=1e-9):
-        raise FgslamError(
-            f"{log.path}: start.pose3 is not the identity; the 3-D estimators put the world frame at the IMU's "
-            "first pose (write start.pose3 as [0, 0, 0, 0, 0, 0, 1])"
-        )
-    return Log3d(steps, stereo_calibration(log.header), noise_of(log, steps), list(step_inputs(steps)))
+    return Log3d(steps, stereo_calibration(log.header), noise_of(log, steps), list(step_inputs(steps)),
+                 pose3_matrix(log.header.start_pose3))
+
+
+def in_world(run: Run3d, world_T_start: np.ndarray) -> Run3d:
+    """``run`` (estimated with the IMU's first pose at the identity) in the log's world frame,
+    where the first pose is ``world_T_start``: every pose and landmark moved by it. The pose
+    covariances are of the right perturbation, which a move on the left leaves as they are."""
+    if np.allclose(world_T_start, np.eye(4), atol=1e-12):
+        return run
+    T = np.asarray(world_T_start, dtype=float)
+
+    def moved(poses):
+        return None if poses is None else np.einsum("ij,tjk->tik", T, poses)
+
+    landmarks = {j: T[:3, :3] @ np.asarray(p, dtype=float) + T[:3, 3] for j, p in run.landmarks.items()}
+    final = moved(run.final)
+    online = final if run.online is run.final else moved(run.online)
+    return dataclasses.replace(run, online=online, final=final, landmarks=landmarks)
 
 
 def run_log3d(log: RunLog, names: list[str], *, consistency: bool = True, progress=None) -> Comparison3d:
@@ -231,12 +246,14 @@ def run_log3d(log: RunLog, names: list[str], *, consistency: bool = True, progre
         estimator = ready.estimator(name)
         if name == "isam2-3d":
             smoother = estimator
-        runs.append(run_estimator_3d(estimator, ready.inputs, covariances=consistency, progress=progress))
+        runs.append(in_world(run_estimator_3d(estimator, ready.inputs, covariances=consistency, progress=progress),
+                             ready.world_T_start))
     assert smoother is not None  # parse_estimator_names_3d keeps it
     with pinned_threads():
         batch = batch_solve(smoother)
-    runs.append(Run3d("batch", None, batch.trajectory(), batch.landmarks(), None, batch.seconds))
-    reference = truth_reference_3d(log, ready.steps) or Reference3d("batch", batch.trajectory(), batch.landmarks())
+    runs.append(in_world(Run3d("batch", None, batch.trajectory(), batch.landmarks(), None, batch.seconds),
+                         ready.world_T_start))
+    reference = truth_reference_3d(log, ready.steps) or Reference3d("batch", runs[-1].final, runs[-1].landmarks)
     return Comparison3d(runs, reference, ready.stamps_s, smoother, float(batch.error), smoother.error())
 
 

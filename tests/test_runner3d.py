@@ -176,3 +176,63 @@ def test_user_errors_on_a_3d_log_are_one_line(small_log, tmp_path, capsys):
     assert "unknown estimator(s) for a 3-D log: ekf, isam2" in capsys.readouterr().err
     assert main(["run", str(small_log), "--out", str(tmp_path / "b"), "--noise", "n.json"]) == 1
     assert "--noise applies to planar logs" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ 3-D logs as real datasets state them
+
+
+def _moved_world(log, world_T_start):
+    """``log`` with its world frame moved: the first pose at ``world_T_start``, the truth with it."""
+    import dataclasses
+
+    from slamio.log import TruthLandmark3, TruthPose3, pose3_from_matrix
+
+    T = np.asarray(world_T_start)
+    records = []
+    for r in log.records:
+        if isinstance(r, TruthPose3):
+            r = TruthPose3(r.stamp_s, *pose3_from_matrix(T @ r.matrix()))
+        elif isinstance(r, TruthLandmark3):
+            p = T[:3, :3] @ np.array([r.x_m, r.y_m, r.z_m]) + T[:3, 3]
+            r = TruthLandmark3(r.landmark_id, *(float(v) for v in p))
+        records.append(r)
+    header = dataclasses.replace(log.header, start_pose3=pose3_from_matrix(T))
+    return dataclasses.replace(log, header=header, records=tuple(records))
+
+
+def test_a_start_pose_other_than_the_identity_is_respected(tmp_path):
+    """The same drive in a world frame where the IMU starts 5 m away, turned and tilted:
+    every estimator's ATE and NEES are those of the drive in the IMU's own frame."""
+    from fgslam.cli import main
+    from fgslam.runner3d import compute_metrics_3d, run_log3d
+    from slamio.log import read_log
+    from slamio.se3 import exp_se3
+
+    path = tmp_path / "s.jsonl"
+    assert main(["sim", "stereo-loop", "--seed", "3", "--out", str(path)]) == 0
+    log = read_log(path)
+    world_T_start = exp_se3(np.array([5.0, -2.0, 1.0, 0.1, -0.2, 1.2]))
+    names = ["ekf-vio", "isam2-3d"]
+    plain = compute_metrics_3d(run_log3d(log, names), log_path="plain")
+    moved = compute_metrics_3d(run_log3d(_moved_world(log, world_T_start), names), log_path="moved")
+    for name in names + ["batch"]:
+        assert moved[name]["ate_rmse_m"] == pytest.approx(plain[name]["ate_rmse_m"], rel=1e-6)
+    for name in names:
+        assert moved[name]["nees_mean"] == pytest.approx(plain[name]["nees_mean"], rel=1e-6)
+
+
+def test_a_per_axis_velocity_covariance_is_taken_as_stated():
+    import dataclasses
+
+    from fgslam.runner3d import noise_of
+    from slamio.datasets.seed003_log import drive_to_log
+    from slamio.log import RunLog, VelocityOdometry
+    from slamio.sim3d import DriveScenario, simulate_drive
+
+    header, records = drive_to_log(simulate_drive(1, DriveScenario(straight_m=20.0, side_m=10.0)))
+    cov = np.diag([0.04, 0.01, 0.0025, 1e-4, 4e-5, 2.5e-5])
+    cov[0, 5] = cov[5, 0] = 1e-5
+    stated = tuple(tuple(float(v) for v in row) for row in cov)
+    records = tuple(dataclasses.replace(r, covariance=stated) if isinstance(r, VelocityOdometry) else r for r in records)
+    noise = noise_of(RunLog("per-axis", header, records))
+    assert np.array_equal(noise.velocity_cov(), cov)

@@ -62,9 +62,14 @@ class StereoImuNoise:
     sigma_px: float = 1.0
     sigma_v_mps: float = 0.05
     sigma_w_radps: float = 0.005
+    #: a full 6×6 covariance of the twist (per-axis or correlated, as a dataset states it);
+    #: when given it replaces the two σ above
+    velocity_covariance: tuple[tuple[float, ...], ...] | None = None
 
     def velocity_cov(self) -> np.ndarray:
         """6×6 covariance of the twist u = (v, ω)."""
+        if self.velocity_covariance is not None:
+            return np.array(self.velocity_covariance, dtype=float)
         return np.diag([self.sigma_v_mps**2] * 3 + [self.sigma_w_radps**2] * 3)
 
 
