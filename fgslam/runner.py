@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable, Iterator, Sequence
 
 import gtsam
@@ -85,6 +85,8 @@ class Comparison:
     smoother: Isam2Smoother | None = None  # the iSAM2 run the batch solve started from (its graph)
     #: χ²/2 of that iSAM2's final estimate and of the batch optimum started from it.
     batch_errors: tuple[float, float] | None = None
+    #: noise group → :class:`fgslam.verdict.GroupVerdict` at the batch optimum (empty: none)
+    verdict: dict = field(default_factory=dict)
 
     def smoother_short_of_optimum(self) -> str | None:
         """A note when iSAM2's final estimate is not the batch optimum (its χ²/2 more than
@@ -431,4 +433,17 @@ def compare_log(
     )
     stamps_s = np.array([s.stamp_s for s in steps])
     reference = choose_reference(log, batch.trajectory, batch_landmarks, batch_heights)
-    return Comparison(runs, reference, stamps_s, smoother, (batch.initial_error, batch.final_error))
+    return Comparison(runs, reference, stamps_s, smoother, (batch.initial_error, batch.final_error),
+                      noise_verdict(smoother, batch))
+
+
+def noise_verdict(smoother: Isam2Smoother, batch) -> dict:
+    """:func:`fgslam.verdict.graph_verdict` of the smoother's graph at the batch optimum
+    (empty when the graph cannot be judged: a singular system)."""
+    from fgslam.verdict import graph_verdict
+    from slamio.noise.errors import NoiseModelError
+
+    try:
+        return graph_verdict(smoother.graph(), batch.values)
+    except NoiseModelError:
+        return {}

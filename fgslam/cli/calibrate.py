@@ -1,7 +1,10 @@
-"""``fgslam calibrate``: the noise of the odometry and the landmark readings, two ways.
+"""``fgslam calibrate``: the noise of the odometry and the landmark readings, three ways.
 
 * **from truth** (``fgslam calibrate LOG.jsonl... --out noise.json``): fit a noise model
   against the logs' ground truth (:mod:`slamio.noise.fit_truth`);
+* **without truth** (``fgslam calibrate LOG.jsonl... --without-truth --out noise.json``):
+  learn the noise from how the logs' own measurements agree once smoothed
+  (:mod:`fgslam.self_calibration`);
 * **from trials** (``fgslam calibrate TRIALS.csv [--out cal.json]``): seed 001's trial
   calibration, covariances of tape-measured trials (:mod:`slamio.noise.trials`).
 
@@ -18,15 +21,24 @@ from pathlib import Path
 from fgslam.cli.common import add_overwrite_option, add_verb, check_new_file, holds_outputs, read, write_new_file
 from slamio.noise.errors import NoiseModelError
 
-#: The two modes of ``fgslam calibrate`` (``--from``).
-MODES = ("truth", "trials")
+#: The modes of ``fgslam calibrate`` (``--from``; ``self`` is ``--without-truth``).
+MODES = ("truth", "self", "trials")
 
 CALIBRATE_DESCRIPTION = """\
-Learn the noise of the odometry and of the landmark readings, one of two ways. The files
+Learn the noise of the odometry and of the landmark readings, one of three ways. The files
 given choose the way (run logs end in .jsonl; anything else is one trials CSV), or --from
-names it: --from truth reads every file as a run log, whatever its name; --from trials
-takes one CSV. (A camera's intrinsics and lens distortion are not this: use fgslam
-calibrate-camera.)
+names it: --from truth reads every file as a run log, whatever its name; --without-truth
+(= --from self) learns from logs without truth; --from trials takes one CSV. (A camera's
+intrinsics and lens distortion are not this: use fgslam calibrate-camera.)
+
+without truth: fgslam calibrate LOG.jsonl [LOG.jsonl ...] --without-truth --out noise.json
+  What a robot without motion capture can learn from its own runs: the variance rates of
+  the odometry (per metre, per radian, per second) and the sigmas of range (growing with
+  range) and bearing (growing with turn rate), and the outlier rate, by variance-component
+  estimation on the batch solution (fgslam.self_calibration). It cannot see scales, biases
+  or lags (they shift every measurement alike): those stay 1 and 0, and the summary lists
+  them, and any rate the data cannot separate from another. fgslam run LOG --noise self
+  fits on the log itself first. Planar logs only for now.
 
 from truth:   fgslam calibrate LOG.jsonl [LOG.jsonl ...] --out noise.json [--from truth]
   Fit a noise model against the ground truth in run logs (motion capture, a simulator):
@@ -69,6 +81,9 @@ def add_parser(verbs) -> argparse.ArgumentParser:
                    help="name the way instead of reading it from the files: truth (fit a noise model on the "
                    "logs' ground truth; every file is read as a run log) or trials (seed 001's trial "
                    "calibration of one TRIALS.csv)")
+    p.add_argument("--without-truth", dest="mode", action="store_const", const="self",
+                   help="learn the noise from the logs alone (no ground truth needed): variance-component "
+                   "estimation on the smoothed solution; the same as --from self")
     p.add_argument("--out", default=None, metavar="FILE",
                    help="write the noise model (from truth) or the trial calibration (from trials) JSON here; "
                    "an existing file is kept")
@@ -93,6 +108,8 @@ def calibration_mode(paths: list[str], mode: str | None) -> str:
                 "or one TRIALS.csv (from trials)"
             )
         mode = "truth" if logs else "trials"
+    if mode == "self" and others and not logs:
+        raise NoiseModelError(f"calibrate --without-truth takes run logs (.jsonl), got {' '.join(paths)}")
     if mode == "trials" and (logs or len(paths) != 1):  # --from truth takes logs of any name
         raise NoiseModelError(
             f"calibrate from trials takes one TRIALS.csv, got {' '.join(paths)}; run logs with ground truth "
@@ -106,6 +123,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     mode = calibration_mode(args.trials, getattr(args, "mode", None))
     if mode == "truth":
         return _calibrate_from_logs(args, args.trials)
+    if mode == "self":
+        return _calibrate_without_truth(args, args.trials)
     from slamio.noise.trials import calibrate_from_trials, read_trials
 
     trials = args.trials[0]
@@ -136,6 +155,42 @@ def _calibrate_from_logs(args: argparse.Namespace, paths: list[str]) -> int:
                        overwrite=args.overwrite)
         print(f"wrote {args.out}")
     return 0
+
+
+def _calibrate_without_truth(args: argparse.Namespace, paths: list[str]) -> int:
+    """``fgslam calibrate LOG.jsonl... --without-truth``: learn the noise from the logs alone."""
+    from fgslam.cli.progress import Progress
+    from fgslam.self_calibration import fit_without_truth
+    from slamio.noise.model import save_noise_model
+
+    if args.out:
+        check_new_file(args.out, overwrite=args.overwrite, example="noise.json")
+    logs = [read(p) for p in paths]
+    with Progress(unit="") as progress:
+        fit = fit_without_truth(logs, progress=progress)
+    print(noise_model_summary(fit.model))
+    print(self_fit_notes(fit))
+    if args.out:
+        write_new_file(Path(args.out), lambda tmp: save_noise_model(tmp, fit.model, overwrite=True),
+                       overwrite=args.overwrite)
+        print(f"wrote {args.out}")
+    return 0
+
+
+def self_fit_notes(fit) -> str:
+    """What a fit without truth could not learn, in lines a person reads."""
+    report = fit.report
+    lines = [f"learned without truth in {fit.iterations} iterations"
+             + ("" if fit.converged else " (NOT converged: the values are the last iteration's)")
+             + f"; {fit.readings} readings paired with landmarks"
+             + (f", {fit.unpaired} never paired (left out)" if fit.unpaired else "")]
+    if report["not_separated_by_this_data"]:
+        lines.append("  not separated by this data (kept near their start; drive at other speeds and turn more "
+                     "to learn them): " + ", ".join(report["not_separated_by_this_data"]))
+    lines.append("  not learnable without truth (kept at scale 1, bias 0, lag 0; pin them with "
+                 "`fgslam calibrate TRIALS.csv` or a log with truth): scales, biases, lags, the camera's latency "
+                 "and the readings' correlation in time")
+    return "\n".join(lines)
 
 
 def noise_model_summary(model) -> str:

@@ -75,7 +75,9 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     run.add_argument("--noise", default=None, metavar="FILE",
                      help="a noise model from `fgslam calibrate LOG... --out FILE`, applied to this log's "
                           "odometry and readings before the run (slamio.noise.apply; an importer that has the "
-                          "raw data applies it exactly: prefer `fgslam import ... --noise FILE`)")
+                          "raw data applies it exactly: prefer `fgslam import ... --noise FILE`); "
+                          "`--noise self`: learn it from this log first, without truth "
+                          "(`fgslam calibrate LOG --without-truth`)")
     run.add_argument("--calibration", default=None, metavar="CAL.json",
                      help="seed 001's trial calibration from `fgslam calibrate TRIALS.csv --out CAL.json`: "
                           "ekf-s001 takes its R and Q from it (as `fgslam record --calibration` does)")
@@ -139,6 +141,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     short = result.smoother_short_of_optimum()
     if short is not None:
         metrics["smoother_short_of_optimum"] = short
+    verdict = getattr(result, "verdict", None) or {}
+    if verdict:
+        metrics["noise_verdict"] = {group: v.as_dict() for group, v in verdict.items()}
+        metrics["noise_source"] = noise_source(log.header)
     metrics["provenance"] = provenance(args.log, [r.name for r in result.runs], command=command_line(args, "run"))
 
     replaced = results.clear()
@@ -147,7 +153,30 @@ def cmd_run(args: argparse.Namespace) -> int:
         results.finish(**run_provenance(args))
     slowed = dimension == 2 and not args.no_consistency and any(name.startswith("isam2") for name in names)
     return finish_run(args, results, log, written, replaced, format_table(metrics), notes=[short] if short else [],
-                      timing_note=TIMING["consistency_note"] if slowed else None)
+                      timing_note=TIMING["consistency_note"] if slowed else None,
+                      verdict=verdict_lines(verdict, metrics.get("noise_source")) if verdict else [])
+
+
+def noise_source(header) -> str:
+    """Where the log's noise came from, in a few words (its header's ``noise`` and ``source``)."""
+    noise = header.noise if isinstance(header.noise, dict) else {}
+    if header.source.get("generator") in ("slamio.sim", "slamio.sim3d"):
+        return "the simulator's own (drawn exactly as stated)"
+    if "fitted_on" in noise:
+        fitted = noise.get("fitted_on") or []
+        return "a fitted noise model" + (f" (fitted on {', '.join(map(str, fitted))})" if fitted else "")
+    texts = [str(part.get("model", "")) for part in noise.values() if isinstance(part, dict)]
+    if any("not fitted" in t for t in texts):
+        return "round numbers, not fitted to this robot (the importer's or recorder's defaults)"
+    text = "; ".join(t for t in texts if t) or "not stated in the log's header"
+    return text if len(text) <= 160 else text[:157] + "..."
+
+
+def verdict_lines(verdict: dict, source: str | None) -> list[str]:
+    """The noise verdict's lines (:func:`fgslam.verdict.verdict_lines`)."""
+    from fgslam.verdict import verdict_lines as lines
+
+    return lines(verdict, source)
 
 
 def _pipeline(dimension: int):
@@ -176,12 +205,29 @@ def _with_side_inputs(args: argparse.Namespace, log):
             raise FgslamError(f"{args.log} was simulated (fgslam sim): its noise is the simulator's own and its "
                               "covariances are exact, so a fitted noise model does not apply; --noise is for a log "
                               "recorded or imported without one")
-        log, dropped = apply_noise_model(log, load_noise_model(args.noise))
-        print(f"applied the noise model {args.noise}" + (f" ({dropped} readings could not be corrected and were dropped)" if dropped else ""))
+        model = _self_fitted_model(log) if args.noise == "self" else load_noise_model(args.noise)
+        log, dropped = apply_noise_model(log, model)
+        what = "the noise model learned from this log (without truth)" if args.noise == "self" else \
+            f"the noise model {args.noise}"
+        print(f"applied {what}" + (f" ({dropped} readings could not be corrected and were dropped)" if dropped else ""))
     if args.calibration is not None:
         log = with_trial_calibration(log, args.calibration)
         print(f"seed 001's R and Q from the trial calibration {args.calibration}")
     return log
+
+
+def _self_fitted_model(log):
+    """``--noise self``: the noise model :func:`fgslam.self_calibration.fit_without_truth`
+    learns from ``log`` alone, its summary printed."""
+    from fgslam.cli.calibrate import noise_model_summary, self_fit_notes
+    from fgslam.cli.progress import Progress
+    from fgslam.self_calibration import fit_without_truth
+
+    with Progress(unit="") as progress:
+        fit = fit_without_truth([log], progress=progress)
+    print(noise_model_summary(fit.model))
+    print(self_fit_notes(fit))
+    return fit.model
 
 
 def _write_metrics_and_tum(out: Path, metrics: dict, result, has_pose, write, online: list) -> None:
@@ -226,7 +272,7 @@ def run_provenance(args: argparse.Namespace) -> dict:
 
 
 def finish_run(args: argparse.Namespace, results, log, written: list[str], replaced, table: str,
-               notes: list[str] = (), timing_note: str | None = None) -> int:
+               notes: list[str] = (), timing_note: str | None = None, verdict: list[str] = ()) -> int:
     """Print the table and say what was written (the folder is sealed: its manifest is written)."""
     from fgslam.runner import TIMING
 
@@ -236,6 +282,9 @@ def finish_run(args: argparse.Namespace, results, log, written: list[str], repla
     print(f"time: {TIMING['what']}")
     if timing_note:
         print(f"      {timing_note}")
+    if verdict:
+        print()
+        print("\n".join(verdict))
     stale = sorted(set(replaced) - set(results.finish_names) - {"manifest.json"})
     note = f" (replacing the earlier results; {len(stale)} of its files not written again were removed: " \
            f"{', '.join(stale[:4])}{', ...' if len(stale) > 4 else ''})" if stale else \

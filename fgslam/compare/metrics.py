@@ -48,6 +48,8 @@ The shape of :func:`compute_metrics`'s dictionary (a 3-D log's run has the same 
          "nis_inside_95": float|None,    # share of them inside their χ²(dof) band: χ²(2)
                                          # [0.0506, 7.38], χ²(1) [0.000982, 5.02]
          "nis_count": int|None,          # how many observations have a NIS
+         "nis_dof": float|None,          # their mean degrees of freedom: what nis_mean
+                                         # is when consistent (2; 1 for range-only)
          "map_rmse_m": float|None,       # None when no landmark id in common
          "map_height_rmse_m": float|None,# 3-D maps against true heights, else None
          "landmarks_estimated": int,
@@ -66,8 +68,13 @@ The shape of :func:`compute_metrics`'s dictionary (a 3-D log's run has the same 
          "time_step_max_s": float|None,  # slowest step; None for batch
          "peak_memory_mb": float|None,   # resident memory the run added at its peak, MB
                                          # (10⁶ bytes; fgslam.memory); None if unmeasured
-         "steps": int},                  # poses this estimator estimated
+         "steps": int,                   # poses this estimator estimated
+         "failure": str|None},           # why its estimate cannot be scored (NaN poses)
      ...}
+
+A run whose batch solve ran also has ``"noise_verdict"`` (per noise group: ``chi2``, ``dof``,
+``chi2_per_dof``, ``band95``, ``fits``, ``sigma_factor``; :mod:`fgslam.verdict`) and
+``"noise_source"`` (where the log's noise came from).
 """
 
 from __future__ import annotations
@@ -104,6 +111,8 @@ TOP_LEVEL_KEYS = (
     "reference_landmarks",
     "dimension",
     "provenance",
+    "noise_verdict",
+    "noise_source",
 )
 METRIC_KEYS = (
     "ate_rmse_m",
@@ -120,6 +129,7 @@ METRIC_KEYS = (
     "nis_mean",
     "nis_inside_95",
     "nis_count",
+    "nis_dof",
     "map_rmse_m",
     "map_height_rmse_m",
     "landmarks_estimated",
@@ -134,6 +144,7 @@ METRIC_KEYS = (
     "time_step_max_s",
     "peak_memory_mb",
     "steps",
+    "failure",
 )
 
 
@@ -263,7 +274,17 @@ def _run_metrics(run: EstimatorRun, reference: Reference, ref: np.ndarray, delta
         "aligned": bool(aligned),
         **_time_metrics(run),
         "steps": int(m),
+        "failure": _failure(final),
     }
+
+
+def _failure(final: np.ndarray) -> str | None:
+    """Why an estimate cannot be scored (its first non-finite pose), or None."""
+    bad = ~np.all(np.isfinite(final), axis=1) if len(final) else np.zeros(0, dtype=bool)
+    if not bad.any():
+        return None
+    first = int(np.flatnonzero(bad)[0])
+    return f"its estimate is not a number from pose {first} on ({int(bad.sum())} of {len(final)} poses)"
 
 
 def _online_ate_m(run: EstimatorRun, ref: np.ndarray, valid: np.ndarray, rot, trans) -> float | None:
@@ -292,6 +313,11 @@ def _consistency_metrics(run: EstimatorRun, reference: Reference, ref: np.ndarra
         finite_dofs = set(dofs[np.isfinite(values)].tolist())
         nees_dof = finite_dofs.pop() if len(finite_dofs) == 1 else None
     nis_mean, nis_inside, nis_count = nis_summary(run.nis, run.nis_dofs)
+    nis_dof = None
+    if nis_count:  # the mean a consistent estimator's NIS would have (2, or 1 for range-only readings)
+        values = np.asarray(run.nis, dtype=float).reshape(-1)
+        dofs = np.full(len(values), 2.0) if run.nis_dofs is None else np.asarray(run.nis_dofs, dtype=float)
+        nis_dof = float(np.mean(dofs[np.isfinite(values)]))
     return {
         "nees_mean": _json_float(nees_mean),
         "nees_inside_95": _json_float(nees_inside),
@@ -300,6 +326,7 @@ def _consistency_metrics(run: EstimatorRun, reference: Reference, ref: np.ndarra
         "nis_mean": _json_float(nis_mean),
         "nis_inside_95": _json_float(nis_inside),
         "nis_count": nis_count,
+        "nis_dof": _json_float(nis_dof),
     }
 
 

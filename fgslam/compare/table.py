@@ -16,6 +16,7 @@ TABLE_HEADERS = (
     "estimator",
     "ATE final m",
     "ATE online m",
+    "ATE aligned m",
     "final err m",
     "map RMSE m",
     "landmarks",
@@ -57,6 +58,9 @@ COLUMN_MEANINGS = {
     "estimated after the last step",
     "ATE online m": "RMS position error, metres, of each pose as estimated at its own step "
     "(what the robot knew live); - for a one-shot batch solve",
+    "ATE aligned m": "ATE final after the least-squares SE(2) alignment to the reference (what evo's -a "
+    "and the TUM benchmark report): a map's frame is fixed only by its start pose, and a heading error "
+    "made before the first landmark is seen turns the whole map; the gap to ATE final is that turn",
     "final err m": "position error of the last pose (the last pose with ground truth when the "
     "truth has gaps), metres",
     "map RMSE m": "RMS landmark position error, metres, over the landmark ids both maps contain "
@@ -90,6 +94,30 @@ COLUMN_MEANINGS = {
 
 def _fmt(value, scale: float = 1.0, digits: int = 4) -> str:
     return "-" if value is None else f"{value * scale:.{digits}f}"
+
+
+def _consistency_notes(name: str, m: dict) -> list[str]:
+    """A line when an estimator's mean NIS or NEES is outside its χ² band: which way it is off."""
+    from scipy.stats import chi2
+
+    out = []
+    for what, mean_key, count_key, dof_key in (("NIS", "nis_mean", "nis_count", "nis_dof"),
+                                               ("NEES", "nees_mean", "nees_count", "nees_dof")):
+        mean, count, dof = m.get(mean_key), m.get(count_key), m.get(dof_key)
+        if mean is None or not count or not dof:
+            continue
+        total = dof * count  # the sum of the values is χ²(dof·count) when consistent
+        low, high = chi2.ppf(0.025, total) / count, chi2.ppf(0.975, total) / count
+        if low <= mean <= high:
+            continue
+        factor = (mean / dof) ** 0.5
+        if mean > high:
+            way = (f"its errors are ~{factor:.2f}x what it predicts: over-confident (stated noise too small, "
+                   "or a model error)")
+        else:
+            way = f"its errors are ~{1 / factor:.2f}x smaller than it predicts: under-confident (stated noise too large)"
+        out.append(f"{name}: mean {what} {mean:.2f} for {dof:g} expected (95 % band {low:.2f}-{high:.2f}): {way}")
+    return out
 
 
 def reference_description(metrics: dict) -> str:
@@ -139,15 +167,26 @@ def table_rows(metrics: dict) -> tuple[tuple[str, ...], list[tuple[str, ...]], l
     rows = []
     notes = []
     any_aligned = False
+    batch_is_reference = metrics.get("reference") == "smoothed"
     for name in names:
         m = metrics[name]
         star = "*" if m.get("aligned") else ""
         any_aligned |= bool(m.get("aligned"))
+        if name == "batch" and batch_is_reference:  # the reference itself: nothing to score
+            rows.append((
+                "batch (reference)", "ref", "-", "ref", "ref", "ref" if not metrics.get("reference_landmarks") or
+                metrics.get("landmark_reference") == "smoothed" else _fmt(m.get("map_rmse_m")),
+                str(m.get("landmarks_estimated")), _fmt(m.get("time_total_s"), 1e3, 1), "-", "-",
+                *(cell(m) for _, cell in optional),
+            ))
+            continue
+        failed = m.get("failure")
         rows.append(
             (
                 name,
-                _fmt(m.get("ate_rmse_m")) + star,
+                ("failed" if failed else _fmt(m.get("ate_rmse_m"))) + star,
                 _fmt(m.get("ate_online_rmse_m")) + (star if m.get("ate_online_rmse_m") is not None else ""),
+                _fmt(m.get("ate_aligned_rmse_m")),
                 _fmt(m.get("final_pose_error_m")),
                 _fmt(m.get("map_rmse_m")),
                 str(m.get("landmarks_estimated")),
@@ -157,10 +196,18 @@ def table_rows(metrics: dict) -> tuple[tuple[str, ...], list[tuple[str, ...]], l
                 *(cell(m) for _, cell in optional),
             )
         )
+        if failed:
+            notes.append(f"{name} failed: {failed}")
         if m.get("steps") != metrics.get("poses"):
             notes.append(f"{name} estimated {m.get('steps')} of {metrics.get('poses')} poses")
+        if m.get("landmarks_estimated") == 0 and name not in ("dead_reckoning",) and metrics.get("reference_landmarks"):
+            notes.append(f"{name} mapped no landmark (its map error is -): no observation it could use")
+        notes += _consistency_notes(name, m)
     if any_aligned:
         notes.insert(0, "* aligned to the reference in SE(2) (first poses differ)")
+    if batch_is_reference:
+        notes.insert(0, "no ground truth: every error above is the distance to the smoothed solution (batch, the "
+                        "reference) - agreement with it, not accuracy")
     return TABLE_HEADERS + tuple(header for header, _ in optional), rows, notes
 
 

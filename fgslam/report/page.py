@@ -213,6 +213,7 @@ def _page_html(title: str, metrics: dict, prov: dict, figures: list[_Figure], ba
 
 <h2>Metrics</h2>
 {_html_table(metrics)}
+{_verdict_html(metrics)}
 
 <h2>What the columns mean</h2>
 <dl>
@@ -296,3 +297,33 @@ def write_report(
                        baseline=baseline, baselines=baselines)
     page = _page_html(title, metrics, prov, figures, _baseline_note(runs, baseline, baselines))
     return write_text_whole(out / REPORT_HTML, page)
+
+
+def _verdict_html(metrics: dict) -> str:
+    """The noise verdict of ``metrics["noise_verdict"]`` (:mod:`fgslam.verdict`) as a short
+    list; empty when the run has none (a 3-D run, or no batch solve)."""
+    verdict = metrics.get("noise_verdict")
+    if not isinstance(verdict, dict) or not verdict:
+        return ""
+    from fgslam.verdict import FITS
+
+    e = html.escape
+    items = []
+    for group, v in verdict.items():
+        ratio, factor = v.get("chi2_per_dof"), v.get("sigma_factor")
+        if not isinstance(ratio, (int, float)) or not isinstance(factor, (int, float)) or factor <= 0:
+            continue
+        low, high = v.get("band95", [float("nan")] * 2)
+        what = ("the stated noise fits" if v.get("fits") else
+                f"the stated {group} sigma is ~{factor:.1f}x too small" if factor > 1 else
+                f"the stated {group} sigma is ~{1 / factor:.1f}x too large")
+        items.append(f"<li><strong>{e(group)}</strong>: chi2/dof {ratio:.2f} over {v.get('dof', 0):.0f} dof "
+                     f"(95 % band {low:.2f}-{high:.2f}): {e(what)}</li>")
+    source = metrics.get("noise_source")
+    return (f"<h2>Noise verdict</h2>\n<p>Does the noise the log states fit its measurements? Per group, chi2/dof "
+            f"of the batch solution: 1 when it fits; between {FITS[0]} and {FITS[1]} (sigma within a factor "
+            f"1.4) is called a fit." + (f" The log's noise: {e(str(source))}." if source else "") + "</p>\n<ul>\n"
+            + "\n".join(items) + "\n</ul>\n"
+            + ("" if all(v.get("fits") for v in verdict.values()) else
+               "<p class=\"note\">To fix it: <code>fgslam run LOG --noise self</code> (learn the noise from this "
+               "log), or <code>fgslam calibrate LOG... --without-truth --out noise.json</code>.</p>\n"))

@@ -8,7 +8,7 @@ minimum on real data; started from iSAM2 it converges (docs/datasets.md, Victori
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import gtsam
@@ -50,6 +50,8 @@ class BatchResult:
     iterations: int
     landmark_heights: dict[int, float] | None = None
     landmark_yaws: dict[int, float] | None = None
+    #: every variable at the optimum (what :mod:`fgslam.verdict` evaluates the graph at)
+    values: gtsam.Values | None = field(default=None, repr=False, compare=False)
 
 
 @dataclass(frozen=True, eq=False)
@@ -166,4 +168,5 @@ def batch_solve(smoother: WholeGraphSmoother, *, max_iterations: int = 100) -> B
         initial_error=float(graph.error(initial)),
         final_error=float(graph.error(result)),
         iterations=int(optimizer.iterations()),
+        values=result,
     )

@@ -27,6 +27,7 @@ from slamio.log.records import (
     Record, Rejected, RunLog, TruthLandmark, TruthPose,
 )
 import slamio.log.records3d as log3d
+from slamio.log.mount import pose_on_robot
 
 #: The largest run log read (it is read whole): 1 GiB, about five million records — more
 #: than a day of a robot's odometry at 50 Hz. Split a longer recording.
@@ -105,6 +106,10 @@ def parse_header(d: dict) -> Header:
                 "a larger σ says how well it is known"
             )
     sensor = _object(d, "sensor", ("kind",))
+    try:
+        pose_on_robot(sensor)
+    except ValueError as bad:
+        raise _BadLine(str(bad)) from None
     low, high = _sensor_limit(sensor, "min_range_m"), _sensor_limit(sensor, "max_range_m")
     if low is not None and high is not None and not low < high:
         raise _BadLine(f"header field 'sensor.min_range_m' ({low!r}) must be below 'sensor.max_range_m' ({high!r})")

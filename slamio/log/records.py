@@ -77,7 +77,8 @@ class Odometry:
 
 @dataclass(frozen=True)
 class Observation:
-    """One landmark seen from the current pose, in the robot frame.
+    """One landmark seen from the current pose, in the robot frame (in the sensor's frame when
+    the header states ``sensor.pose_on_robot``; :func:`group_steps` moves it to the robot's centre).
 
     ``landmark_id`` is ``None`` when the front-end cannot tell which landmark it is.
     ``bearing_rad`` is counter-clockwise from the robot's x (forward) axis. ``height_m`` is
@@ -249,19 +250,27 @@ class RunLog:
         return bool(steps) and all(s.truth is not None for s in steps)
 
 
-def group_steps(header: Header, records: Iterable[Record]) -> list[Step]:
+def group_steps(header: Header, records: Iterable[Record], *, at_robot_centre: bool = True) -> list[Step]:
     """Group records into steps: pose 0 at the header's start, one new pose per odometry.
 
     In a 3-D log ``velocity_odometry`` starts a pose, ``stereo_observation`` records are
-    its observations and ``truth_pose3`` its truth.
+    its observations and ``truth_pose3`` its truth. In a planar log whose header says where
+    the sensor sits (``sensor.pose_on_robot``), each observation is moved to the robot's
+    centre (:mod:`slamio.log.mount`), what every estimator expects; ``at_robot_centre=False``
+    keeps them as the sensor took them (a fit against truth that models the sensor itself).
     """
+    from slamio.log.mount import moved_to_robot_centre, pose_on_robot
+
+    mount = pose_on_robot(header.sensor) if at_robot_centre and not header.is_3d else None
     steps: list[Step] = []
     stamp, odometry, observations, truth = header.stamp_s, None, [], None
     for record in records:
         if isinstance(record, (Odometry, VelocityOdometry)):
             steps.append(Step(len(steps), stamp, odometry, tuple(observations), truth))
             stamp, odometry, observations, truth = record.stamp_s, record, [], None
-        elif isinstance(record, (Observation, StereoObservation)):
+        elif isinstance(record, Observation):
+            observations.append(record if mount is None else moved_to_robot_centre(record, mount))
+        elif isinstance(record, StereoObservation):
             observations.append(record)
         elif isinstance(record, (TruthPose, TruthPose3)):
             truth = record

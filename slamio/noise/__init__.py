@@ -23,15 +23,17 @@ Modules, from the model out (nothing is re-exported here: import from the module
   tape-measured forward/rotate/sensor trials (``fgslam calibrate TRIALS.csv``), the
   calibration file ``fgslam record`` and ``fgslam run --calibration`` read.
 
-Fitting without ground truth (from the log alone) is not here yet: the next issue adds it
-as ``slamio/noise/fit_self.py`` beside ``fit_truth.py``, producing the same
-:class:`~slamio.noise.model.NoiseModel`, with what it shares with ``fit_truth`` in
-``fitting.py``.
+* :mod:`slamio.noise.fit_self`  — fitting without ground truth, from the log alone: the
+  variance-component estimation (Förstner's update, a Fisher-scoring step, Hutchinson traces
+  of the hat matrix) on the whitened system of a smoothed solution. The factor graph that
+  supplies that system needs GTSAM, so it lives in :mod:`fgslam.self_calibration`
+  (``fgslam calibrate LOG... --without-truth``, ``fgslam run LOG --noise self``), which turns
+  the components into the same :class:`~slamio.noise.model.NoiseModel`.
 
 Camera intrinsics are not noise: ``fgslam calibrate-camera`` (``slamio.camera``).
 
 Imports point one way: ``errors`` ← ``model`` ← ``dead_reckoning``/``apply`` ←
-``fitting`` ← ``range`` ← ``fit_truth``; ``trials`` stands apart (it uses
+``fitting`` ← ``range`` ← ``fit_truth``; ``fit_self`` needs only ``errors``; ``trials`` stands apart (it uses
 :class:`slamio.create.odometry.OdometryNoise`, the Create's per-metre/per-radian
 covariances).
 """

@@ -194,6 +194,10 @@ def true_range_bearing(data: TruthData, latency_s: float) -> tuple[np.ndarray, .
     t = np.array([o[0] for o in obs]) - latency_s
     poses, ok = truth_at(data, t)
     lm = np.array([o[3] for o in obs])
+    if data.mount is not None:  # the truth as the sensor sees it: from the sensor's pose on the robot
+        mx, my, myaw = data.mount
+        c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+        poses = np.column_stack([poses[:, 0] + c * mx - s * my, poses[:, 1] + s * mx + c * my, poses[:, 2] + myaw])
     dx, dy = lm[:, 0] - poses[:, 0], lm[:, 1] - poses[:, 1]
     r = np.hypot(dx, dy)
     b = wrap_angle(np.arctan2(dy, dx) - poses[:, 2])

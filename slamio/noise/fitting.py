@@ -18,7 +18,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import curve_fit, nnls
 
-from slamio.log import RunLog
+from slamio.log import RunLog, group_steps
+from slamio.log.mount import pose_on_robot
 from slamio.noise.dead_reckoning import DeadReckoning
 from slamio.noise.errors import NoiseModelError
 from slamio.noise.model import carries_fitted_model
@@ -92,12 +93,15 @@ class TruthData:
     truth_poses: np.ndarray  # (n, 3), heading unwrapped (NaN: the truth has no heading)
     observations: list[tuple[float, float, float, tuple[float, float]]]  # (stamp, range, bearing, landmark xy)
     ranges: list[tuple[float, float, int, tuple[float, float]]] = field(default_factory=list)  # range-only: (stamp, range, id, landmark xy)
+    #: the header's ``sensor.pose_on_robot`` (x, y, yaw): the readings are the sensor's own,
+    #: and the truth they are fitted against is seen from there (None: the robot's centre)
+    mount: tuple[float, float, float] | None = None
 
 
 def truth_data(log: RunLog) -> TruthData:
     """``log``'s :class:`TruthData`; :class:`NoiseModelError` when it carries a fitted model
     already or has fewer than 10 poses with truth."""
-    steps = log.steps()
+    steps = group_steps(log.header, log.records, at_robot_centre=False)  # the readings as the sensor took them
     if carries_fitted_model(log.header.noise):
         raise NoiseModelError(
             f"{log.path}: this log was imported with a fitted noise model already; calibrate on "
@@ -128,7 +132,8 @@ def truth_data(log: RunLog) -> TruthData:
         for o in s.observations
         if o.range_only and o.landmark_id in landmarks
     ]
-    return TruthData(log.path, DeadReckoning(stamps, increments), tr[:, 0], tr[:, 1:], observations, ranges)
+    return TruthData(log.path, DeadReckoning(stamps, increments), tr[:, 0], tr[:, 1:], observations, ranges,
+                     pose_on_robot(log.header.sensor))
 
 
 def truth_at(data: TruthData, t_s: np.ndarray, max_gap_s: float = 0.5) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,304 @@
+"""Noise learned from the run itself (``fgslam calibrate LOG... --without-truth``, ``fgslam run
+LOG --noise self``): variance-component estimation on the batch solution.
+
+For each planar log: one run of the default ``isam2`` gives the initial estimate and the
+landmark each reading was paired with (the log's ids, or the smoother's association for
+readings without one). Then, with the components θ of :data:`COMPONENTS` (the variance terms
+of :class:`~slamio.noise.model.NoiseModel`):
+
+1. build the factor graph with every row's σ² = q·θ (:class:`RunGraph`): a prior on the start
+   pose, one ``BetweenFactorPose2`` per odometry record (rows dx, dy, dθ; ``q`` its distance,
+   turn and duration), one ``BearingRangeFactor2D`` per reading (rows bearing, range; ``q``
+   1 and ω² for the bearing, 1 and r² for the range; a ``RangeFactor2D`` for a range-only
+   reading);
+2. solve it (Levenberg–Marquardt from the last solution), readings beyond the 5σ gate left
+   out (they are the outliers: their share is ``outlier_rate``);
+3. update θ with Förstner's VCE (:mod:`slamio.noise.fit_self`), pooled over the logs;
+
+until every determined component moves by less than 1 % (at most :data:`MAX_ITERATIONS`).
+
+What it cannot learn: anything that moves every measurement the same way — the odometry's
+scale and turn scale against the readings' range scale (only their ratio shows), biases,
+lags, the camera's latency — keeps the model's default (scale 1, bias 0) and is listed in
+the fit report as ``not determined without truth``, with the components the data could not
+separate (relative standard deviation ≥ 0.5).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import gtsam
+import numpy as np
+import scipy.sparse as sp
+from gtsam.symbol_shorthand import L, X
+
+from fgslam.registry import build
+from fgslam.runner import run_estimator
+from slamio.log import Observation, RunLog
+from slamio.noise.dead_reckoning import DeadReckoning, turn_rate_radps
+from slamio.noise.errors import NoiseModelError
+from slamio.noise.fit_self import component_shares, hat_traces, pair_weights, relative_std, scoring_step
+from slamio.noise.model import NoiseModel, ObservationModel, OdometryModel, OdometryNoiseRates
+
+__all__ = ["COMPONENTS", "RunGraph", "SelfCalibration", "fit_without_truth"]
+
+#: The variance components, in the order of θ: the odometry's variance rates (as in
+#: :class:`OdometryNoiseRates`) and the readings' variances (σ² of ``range_sigma_m``,
+#: ``range_sigma_per_m``, ``bearing_sigma_rad``, ``bearing_sigma_s``).
+COMPONENTS = (
+    "forward_m2_per_m", "forward_m2_per_s", "lateral_m2_per_m", "lateral_m2_per_s",
+    "heading_rad2_per_rad", "heading_rad2_per_m", "heading_rad2_per_s",
+    "range_sigma_m", "range_sigma_per_m", "bearing_sigma_rad", "bearing_sigma_s",
+)
+ODOMETRY_COMPONENTS = 7
+#: The noise group of each component (what the verdict of a run reports on).
+GROUP = ("odometry",) * ODOMETRY_COMPONENTS + ("range", "range", "bearing", "bearing")
+#: Where the iterations start: the default model's round numbers, with the range and bearing
+#: growth terms at small non-zero values (a multiplicative update cannot leave zero).
+START = np.array([0.01, 1e-6, 0.0025, 1e-6, 0.01, 0.0025, 1e-6, 0.1**2, 0.01**2, 0.05**2, 0.01**2])
+MAX_ITERATIONS = 30
+TOLERANCE = 0.01
+#: A reading is an outlier when either of its whitened residuals exceeds this (the 5σ gate
+#: ``outlier_rate`` is defined by).
+GATE_SIGMA = 5.0
+#: A component with a relative standard deviation at least this large is reported as not
+#: separable from the others by this data.
+UNDETERMINED_RELATIVE_STD = 0.5
+NOT_DETERMINED_WITHOUT_TRUTH = (
+    "odometry.lag_s", "odometry.forward_scale", "odometry.turn_scale", "odometry.turn_per_m_rad",
+    "observation.range_is_depth", "observation.range_scale", "observation.range_bias_m",
+    "observation.bearing_scale", "observation.bearing_bias_rad", "observation.camera_latency_s",
+    "observation.correlated_share", "observation.correlation_time_s",
+)
+
+
+@dataclass(frozen=True)
+class Reading:
+    pose: int
+    landmark: int
+    bearing_rad: float | None  # None: a range-only reading
+    range_m: float
+    turn_rate_radps: float
+
+
+class RunGraph:
+    """One planar log's measurements, with the landmark each reading was paired with; builds
+    its factor graph for any θ (the measurements never change, only their σ)."""
+
+    def __init__(self, log: RunLog):
+        self.path = log.path
+        steps = log.steps()
+        if log.header.is_3d:
+            raise NoiseModelError(f"{log.path}: a 3-D log; --without-truth fits planar logs (odometry and range-bearing "
+                                  "readings) for now")
+        smoother = build("isam2", 2, log.header)
+        run_estimator(smoother, steps, covariances=False)
+        trajectory = np.asarray(smoother.trajectory(), dtype=float)
+        if len(trajectory) != len(steps):
+            raise NoiseModelError(f"{log.path}: the smoother kept {len(trajectory)} of {len(steps)} poses; "
+                                  "fit without truth needs one pose per step")
+        self.header = log.header
+        self.stamps_s = np.array([s.stamp_s for s in steps])
+        self.increments = np.array([[s.odometry.dx_m, s.odometry.dy_m, s.odometry.dtheta_rad] for s in steps[1:]],
+                                   dtype=float).reshape(-1, 3)
+        dt = np.maximum(np.diff(self.stamps_s), 0.0)
+        distance = np.hypot(self.increments[:, 0], self.increments[:, 1])
+        turn = np.abs(self.increments[:, 2])
+        self.odometry_q = np.zeros((len(dt), 3, len(COMPONENTS)))
+        self.odometry_q[:, 0, 0], self.odometry_q[:, 0, 1] = distance, dt
+        self.odometry_q[:, 1, 2], self.odometry_q[:, 1, 3] = distance, dt
+        self.odometry_q[:, 2, 4], self.odometry_q[:, 2, 5], self.odometry_q[:, 2, 6] = turn, distance, dt
+        chain = DeadReckoning(self.stamps_s, self.increments) if len(steps) > 1 else None
+        paired = smoother.associations()
+        self.readings: list[Reading] = []
+        self.unpaired = 0
+        k = 0
+        for t, step in enumerate(steps):
+            for o in step.observations:
+                landmark = paired[k] if k < len(paired) else o.landmark_id
+                k += 1
+                if landmark is None:
+                    self.unpaired += 1
+                    continue
+                rate = 0.0 if chain is None else float(turn_rate_radps(chain, np.array([o.stamp_s]))[0])
+                self.readings.append(Reading(t, int(landmark), o.bearing_rad, float(o.range_m), rate))
+        self.values = gtsam.Values()
+        for t, pose in enumerate(trajectory):
+            self.values.insert(X(t), gtsam.Pose2(*pose))
+        for landmark, xy in smoother.landmarks().items():
+            if any(r.landmark == landmark for r in self.readings):
+                self.values.insert(L(int(landmark)), gtsam.Point2(*np.asarray(xy, dtype=float)[:2]))
+        self.readings = [r for r in self.readings if self.values.exists(L(r.landmark))]
+        self.inlier = np.ones(len(self.readings), dtype=bool)
+
+    def reading_q(self, reading: Reading) -> list[np.ndarray]:
+        rows = []
+        if reading.bearing_rad is not None:
+            q = np.zeros(len(COMPONENTS))
+            q[9], q[10] = 1.0, reading.turn_rate_radps**2
+            rows.append(q)
+        q = np.zeros(len(COMPONENTS))
+        q[7], q[8] = 1.0, reading.range_m**2
+        rows.append(q)
+        return rows
+
+    def reading_factor(self, reading: Reading, theta: np.ndarray):
+        q_rows = self.reading_q(reading)
+        sigmas = np.sqrt([q @ theta for q in q_rows])
+        model = gtsam.noiseModel.Diagonal.Sigmas(sigmas)
+        if reading.bearing_rad is None:
+            return gtsam.RangeFactor2D(X(reading.pose), L(reading.landmark), reading.range_m, model)
+        return gtsam.BearingRangeFactor2D(X(reading.pose), L(reading.landmark), gtsam.Rot2(reading.bearing_rad),
+                                          reading.range_m, model)
+
+    def graph(self, theta: np.ndarray) -> tuple[gtsam.NonlinearFactorGraph, np.ndarray, np.ndarray]:
+        """(graph, q (rows, C), group of each row) for θ, the inlier readings only."""
+        graph = gtsam.NonlinearFactorGraph()
+        start_sigma = np.asarray(self.header.start_sigma, dtype=float)
+        graph.add(gtsam.PriorFactorPose2(X(0), gtsam.Pose2(*self.header.start_pose),
+                                         gtsam.noiseModel.Diagonal.Sigmas(start_sigma)))
+        q_rows = [np.zeros((3, len(COMPONENTS)))]
+        groups = [np.array(["", "", ""])]
+        for k, (inc, q) in enumerate(zip(self.increments, self.odometry_q)):
+            variances = np.maximum(q @ theta, 1e-18)
+            graph.add(gtsam.BetweenFactorPose2(X(k), X(k + 1), gtsam.Pose2(*inc),
+                                               gtsam.noiseModel.Diagonal.Variances(variances)))
+            q_rows.append(q)
+            groups.append(np.array(["odometry"] * 3))
+        for reading, inlier in zip(self.readings, self.inlier):
+            if not inlier:
+                continue
+            graph.add(self.reading_factor(reading, theta))
+            rows = self.reading_q(reading)
+            q_rows.append(np.array(rows))
+            groups.append(np.array((["bearing"] if len(rows) == 2 else []) + ["range"]))
+        return graph, np.concatenate(q_rows), np.concatenate(groups)
+
+    def solve(self, theta: np.ndarray) -> tuple[gtsam.NonlinearFactorGraph, np.ndarray, np.ndarray]:
+        graph, q, groups = self.graph(theta)
+        params = gtsam.LevenbergMarquardtParams()
+        params.setMaxIterations(50)
+        params.setRelativeErrorTol(1e-6)
+        self.values = gtsam.LevenbergMarquardtOptimizer(graph, self.values, params).optimize()
+        return graph, q, groups
+
+    def regate(self, theta: np.ndarray) -> None:
+        """Mark the readings beyond the 5σ gate at the current solution (every reading, those
+        left out before too: one that fits again comes back)."""
+        for i, reading in enumerate(self.readings):
+            e = np.asarray(self.reading_factor(reading, theta).whitenedError(self.values))
+            self.inlier[i] = bool(np.all(np.abs(e) <= GATE_SIGMA))
+
+
+def whitened_system(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> tuple[sp.csr_matrix, np.ndarray]:
+    """The whitened Jacobian A (rows in factor order) and the whitened residuals at ``values``."""
+    triplets = graph.linearize(values).sparseJacobian_()
+    rows, cols, vals = triplets[0].astype(int) - 1, triplets[1].astype(int) - 1, triplets[2]
+    n = int(cols.max())  # the last column is the right-hand side b = −(whitened error)
+    m = int(rows.max()) + 1
+    in_a = cols < n
+    A = sp.csr_matrix((vals[in_a], (rows[in_a], cols[in_a])), shape=(m, n))
+    b = np.zeros(m)
+    b[rows[~in_a]] = vals[~in_a]
+    return A, b
+
+
+@dataclass
+class SelfCalibration:
+    """The result of :func:`fit_without_truth`."""
+
+    model: NoiseModel
+    theta: np.ndarray
+    ratio: np.ndarray  # (C,) of the last iteration (1 at convergence)
+    redundancy: np.ndarray
+    relative_std: np.ndarray
+    iterations: int
+    converged: bool
+    outlier_rate: float
+    readings: int
+    unpaired: int
+    report: dict = field(default_factory=dict)
+
+
+def _iteration(graphs: list[RunGraph], theta: np.ndarray):
+    """Solve every log's graph at θ, then one step of θ from the sums pooled over the logs."""
+    C = len(COMPONENTS)
+    shown, redundancy = np.zeros(C), np.zeros(C)
+    pair_sums, pair_hat = np.zeros(C * C), np.zeros(C * C)
+    weights_all = []
+    for run in graphs:
+        graph, q, _ = run.solve(theta)
+        A, b = whitened_system(graph, run.values)
+        _, w = component_shares(theta, q)
+        pairs = pair_weights(w)
+        hat = hat_traces(A, np.hstack([w, pairs]))
+        shown += w.T @ (b * b)
+        redundancy += w.sum(axis=0) - hat[:C]
+        pair_sums += pairs.sum(axis=0)
+        pair_hat += hat[C:]
+        weights_all.append(w)
+        run.regate(theta)
+    return scoring_step(theta, shown, redundancy, pair_sums, pair_hat), np.concatenate(weights_all)
+
+
+def fit_without_truth(logs: list[RunLog], progress=None) -> SelfCalibration:
+    """Fit the variance terms of a :class:`NoiseModel` on ``logs`` alone (module docstring);
+    ``progress(done, total, label)`` (:class:`fgslam.cli.progress.Progress`) after each log's
+    first smoothing and each iteration."""
+    graphs = []
+    for i, log in enumerate(logs):
+        graphs.append(RunGraph(log))
+        if progress is not None:
+            progress(i + 1, len(logs), "noise fit: first smoothing")
+    if not any(run.readings for run in graphs):
+        raise NoiseModelError("no reading could be paired with a landmark: nothing to learn the noise from")
+    theta = START.copy()
+    converged = False
+    step = None
+    iteration = 0
+    for iteration in range(1, MAX_ITERATIONS + 1):
+        step, weights = _iteration(graphs, theta)
+        theta = step.theta
+        # converged when every component the data determine has stopped moving (those they
+        # cannot separate drift slowly along the ridge and would never settle)
+        separable = step.determined & (relative_std(theta, weights) < UNDETERMINED_RELATIVE_STD)
+        change = float(np.max(np.abs(np.log(np.where(separable, step.ratio, 1.0)))))
+        converged = change < math.log1p(TOLERANCE)
+        if progress is not None:
+            progress(MAX_ITERATIONS if converged else iteration, MAX_ITERATIONS, "noise fit: iterations")
+        if converged:
+            break
+    assert step is not None
+    rel = relative_std(theta, weights)
+    readings = sum(len(g.readings) for g in graphs)
+    outliers = sum(int(np.count_nonzero(~g.inlier)) for g in graphs)
+    return _result(logs, theta, step, rel, iteration, converged, outliers / max(readings, 1), readings,
+                   sum(g.unpaired for g in graphs))
+
+
+def _result(logs, theta, step, rel, iterations, converged, outlier_rate, readings, unpaired) -> SelfCalibration:
+    rates = OdometryNoiseRates(**{name: float(v) for name, v in zip(COMPONENTS[:ODOMETRY_COMPONENTS], theta)})
+    sigma = np.sqrt(theta[ODOMETRY_COMPONENTS:])
+    observation = ObservationModel(range_sigma_m=float(sigma[0]), range_sigma_per_m=float(sigma[1]),
+                                   bearing_sigma_rad=float(sigma[2]), bearing_sigma_s=float(sigma[3]),
+                                   outlier_rate=float(outlier_rate))
+    undetermined = [name for name, d, r in zip(COMPONENTS, step.determined, rel)
+                    if not d or r >= UNDETERMINED_RELATIVE_STD]
+    report = {
+        "method": "without truth: variance-component estimation on the batch solution "
+                  "(fgslam.self_calibration, slamio.noise.fit_self)",
+        "iterations": iterations, "converged": converged,
+        "components": {name: {"value": float(v), "relative_std": float(r) if math.isfinite(r) else None,
+                              "redundancy": float(red)}
+                       for name, v, r, red in zip(COMPONENTS, theta, rel, step.redundancy)},
+        "not_separated_by_this_data": undetermined,
+        "not_determined_without_truth": list(NOT_DETERMINED_WITHOUT_TRUTH),
+        "readings": readings, "readings_unpaired": unpaired,
+    }
+    model = NoiseModel(OdometryModel(noise=rates), observation, tuple(log.path for log in logs), report)
+    return SelfCalibration(model, theta, step.ratio, step.redundancy, rel, iterations, converged, outlier_rate,
+                           readings, unpaired, report)
+
+

@@ -1,0 +1,134 @@
+"""The verdict of a run: does the noise the log states fit what its measurements show?
+
+Without ground truth a run can still tell whether its noise is right. At the batch optimum,
+each noise group's whitened χ² (odometry, range, bearing) over its redundancy — its rows
+minus what the solution absorbed, ``Σ (1 − h_jj)`` over the hat matrix's diagonal
+(:mod:`slamio.noise.fit_self`) — is 1 when the stated σ fit the data and ``k²`` when they are
+``k``× too small. The groups are read from the smoother's own graph by factor type:
+``BetweenFactorPose2`` between two poses is odometry, ``BearingRangeFactor2D`` a bearing and
+a range row, ``RangeFactor2D`` a range row (a robust kernel's weights are in the whitened
+rows, so outliers count as much as the kernel lets them).
+
+:data:`FITS` is the band called "fits": σ off by less than √2 either way. The 95 % band of
+χ²/r is also given, but with thousands of rows it is a few per cent wide and no real robot's
+noise model is that exact; outside :data:`FITS`, the run says what to do.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import gtsam
+import numpy as np
+from scipy.stats import chi2
+
+from fgslam.self_calibration import whitened_system
+from slamio.noise.fit_self import hat_traces
+
+__all__ = ["FITS", "GroupVerdict", "graph_verdict", "verdict_lines"]
+
+#: χ²/redundancy inside this band: the stated σ are within a factor √2 of what the data show.
+FITS = (0.5, 2.0)
+GROUPS = ("odometry", "range", "bearing")
+
+
+@dataclass(frozen=True)
+class GroupVerdict:
+    group: str
+    chi2: float
+    redundancy: float
+    rows: int
+
+    @property
+    def ratio(self) -> float:
+        return self.chi2 / self.redundancy if self.redundancy > 0 else math.nan
+
+    @property
+    def band95(self) -> tuple[float, float]:
+        r = max(self.redundancy, 1e-9)
+        return float(chi2.ppf(0.025, r) / r), float(chi2.ppf(0.975, r) / r)
+
+    @property
+    def sigma_factor(self) -> float:
+        """How many times larger the σ should be (√ratio): > 1 when the stated σ are too small."""
+        return math.sqrt(self.ratio) if self.ratio >= 0 else math.nan
+
+    @property
+    def fits(self) -> bool:
+        return FITS[0] <= self.ratio <= FITS[1]
+
+    def sentence(self) -> str:
+        head = (f"{self.group}: chi2/dof {self.ratio:.2f} over {self.redundancy:.0f} dof "
+                f"(95 % band {self.band95[0]:.2f}-{self.band95[1]:.2f})")
+        if not math.isfinite(self.ratio):
+            return f"{self.group}: no redundancy (nothing checks it)"
+        if self.fits:
+            return head + ": the stated noise fits"
+        k = self.sigma_factor
+        if k > 1.0:
+            return head + f": the stated {self.group} sigma is ~{k:.1f}x too small"
+        return head + f": the stated {self.group} sigma is ~{1.0 / k:.1f}x too large"
+
+    def as_dict(self) -> dict:
+        return {"chi2": self.chi2, "dof": self.redundancy, "rows": self.rows, "chi2_per_dof": self.ratio,
+                "band95": list(self.band95), "fits": self.fits, "sigma_factor": self.sigma_factor}
+
+
+def _row_groups(graph: gtsam.NonlinearFactorGraph) -> np.ndarray:
+    """The noise group of every row of ``graph``'s whitened Jacobian ("" for rows of none)."""
+    groups: list[str] = []
+    for i in range(graph.size()):
+        factor = graph.at(i)
+        if factor is None:
+            continue
+        dim = int(factor.dim())
+        if isinstance(factor, gtsam.BetweenFactorPose2) and all(
+                gtsam.Symbol(k).chr() == ord("x") for k in factor.keys()):
+            groups += ["odometry"] * dim
+        elif isinstance(factor, gtsam.BearingRangeFactor2D):
+            groups += ["bearing", "range"]
+        elif isinstance(factor, gtsam.RangeFactor2D):
+            groups += ["range"]
+        else:
+            groups += [""] * dim
+    return np.array(groups)
+
+
+def graph_verdict(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> dict[str, GroupVerdict]:
+    """Per noise group present in ``graph``, its :class:`GroupVerdict` at ``values`` (the batch
+    optimum)."""
+    A, b = whitened_system(graph, values)
+    groups = _row_groups(graph)
+    if len(groups) != A.shape[0]:  # a factor type of unexpected rows: no verdict rather than a wrong one
+        return {}
+    present = [g for g in GROUPS if np.any(groups == g)]
+    if not present:
+        return {}
+    onehot = np.stack([(groups == g).astype(float) for g in present], axis=1)
+    hat = hat_traces(A, onehot)
+    out = {}
+    for g, h in zip(present, hat):
+        rows = groups == g
+        out[g] = GroupVerdict(g, float(np.sum(b[rows] ** 2)), float(np.count_nonzero(rows) - h),
+                              int(np.count_nonzero(rows)))
+    return out
+
+
+def verdict_lines(verdict: dict, noise_source: str | None) -> list[str]:
+    """The lines ``fgslam run`` prints after its table (``verdict``: group → GroupVerdict or its
+    dict)."""
+    lines = ["noise verdict (batch solution; 1 = the stated noise fits):"]
+    if noise_source:
+        lines.append(f"  the log's noise: {noise_source}")
+    bad = False
+    for v in verdict.values():
+        lines.append("  " + v.sentence())
+        bad |= not v.fits
+    if bad:
+        lines.append("  to fix it: fgslam run LOG --noise self (learn the noise from this log), or fgslam calibrate "
+                     "LOG... --without-truth --out noise.json and --noise noise.json")
+    if sum(1 for v in verdict.values() if v.ratio > FITS[1]) >= 2:
+        lines.append("  every group too small at once: is the sensor off the robot's centre? State where it sits "
+                     "in the log header (sensor.pose_on_robot: [x_m, y_m, yaw_rad], docs/log-format.md)")
+    return lines

@@ -1,0 +1,199 @@
+"""Noise learned from a run itself: variance-component estimation (VCE) on a smoothed solution.
+
+Without ground truth, the only evidence about the noise is how well the measurements agree
+with each other once the whole run is smoothed. Each measurement row ``j`` (one component of
+an odometry increment, one bearing, one range) has a variance that is a non-negative
+combination of a few *variance components* θ_c with known coefficients,
+
+    σ_j² = Σ_c θ_c · q_jc,
+
+e.g. a forward increment's ``q`` is (distance, duration) for the components
+(``forward_m2_per_m``, ``forward_m2_per_s``) and a range's is (1, r²) for
+(``range_sigma_m²``, ``range_sigma_per_m²``): the terms of :class:`~slamio.noise.model.NoiseModel`.
+
+At the least-squares solution the whitened residuals ``ẽ`` are smaller than the whitened
+errors, because the solution absorbs part of each error: ``E[ẽ_j²] = 1 − h_jj`` where
+``h_jj`` is the diagonal of the hat matrix ``H = A (AᵀA)⁻¹ Aᵀ`` of the whitened Jacobian
+``A`` (``1 − h_jj`` is row j's *redundancy number*; they sum to rows − unknowns). Förstner's
+iterative VCE (the Helmert / LS-VCE family) updates every component by the ratio of what its
+rows show to what they should show:
+
+    θ_c ← θ_c · Σ_j w_jc ẽ_j² / Σ_j w_jc (1 − h_jj),      w_jc = θ_c q_jc / σ_j²,
+
+``w_jc`` being the share of row j's variance that component c explains. The update is
+multiplicative, so components stay positive; at its fixed point every component's rows show
+exactly their redundancy. ``Σ_j w_jc h_jj`` is a weighted trace of ``H``, estimated with
+Hutchinson's method (Rademacher probes ``z``: ``E[z ⊙ Hz] = diag H``), one sparse
+factorisation of ``AᵀA`` and one solve per block of probes.
+
+The same ratio is the verdict of a run (:func:`group_ratios`): per noise group, the whitened
+χ² of the smoothed solution over its redundancy; 1 when the stated noise fits the data,
+``k²`` when the stated σ are ``k``× too small.
+
+All pure (numpy, scipy); the factor graph that supplies ``A`` and ``ẽ`` is built by
+:mod:`fgslam.self_calibration`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from slamio.noise.errors import NoiseModelError
+
+__all__ = ["VceStep", "component_shares", "group_ratios", "hat_traces", "pair_weights", "relative_std", "scoring_step",
+           "vce_from_sums", "vce_step"]
+
+#: Hutchinson probes for the traces: the weighted traces are sums over thousands of rows, and
+#: 96 probes put their relative error at about a per cent on a 2 000-pose run.
+PROBES = 96
+#: A component whose rows hold less redundancy than this is not updated (the data say
+#: nothing about it): it keeps its value and is reported as not determined.
+MIN_REDUNDANCY = 3.0
+#: At most this factor of change per iteration (the first iterations from a round guess can
+#: be far off; the cap keeps the re-solved graph near its last solution).
+MAX_STEP_FACTOR = 30.0
+
+
+def component_shares(theta: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(σ², w)`` of every row: its variance ``q @ θ`` (m,) and the share ``w`` (m, C) of it
+    each component explains (rows of ``w`` sum to 1, or 0 where ``q`` is all zero: rows that
+    belong to no component, such as a prior)."""
+    theta = np.asarray(theta, dtype=float)
+    q = np.asarray(q, dtype=float)
+    var = q @ theta
+    with np.errstate(invalid="ignore", divide="ignore"):
+        w = np.where(var[:, None] > 0.0, q * theta[None, :] / var[:, None], 0.0)
+    return var, w
+
+
+def hat_traces(A: sp.spmatrix, weights: np.ndarray, probes: int = PROBES, seed: int = 0) -> np.ndarray:
+    """``Σ_j weights[j, c] · h_jj`` for every column c of ``weights`` (m, C), ``h`` the diagonal
+    of the hat matrix of the whitened Jacobian ``A`` (m × n, full column rank).
+
+    Hutchinson's estimator with ``probes`` Rademacher vectors (seeded: the same answer every
+    run). Raises :class:`NoiseModelError` when ``AᵀA`` is singular (a variable no
+    measurement fixes)."""
+    A = sp.csr_matrix(A)
+    m, n = A.shape
+    normal = (A.T @ A).tocsc()
+    try:
+        lu = spla.splu(normal, permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
+    except RuntimeError as exc:  # "Factor is exactly singular"
+        raise NoiseModelError(f"the smoothing problem is singular ({exc}): a pose or landmark no "
+                              "measurement fixes") from None
+    rng = np.random.default_rng(seed)
+    out = np.zeros(weights.shape[1])
+    done = 0
+    while done < probes:
+        block = min(32, probes - done)
+        z = rng.choice((-1.0, 1.0), size=(m, block))
+        hz = A @ lu.solve(np.asarray(A.T @ z))
+        out += weights.T @ np.sum(z * hz, axis=1)
+        done += block
+    return out / probes
+
+
+@dataclass(frozen=True)
+class VceStep:
+    """One VCE iteration: the new components and what each one's rows showed."""
+
+    theta: np.ndarray  # (C,) the updated components
+    ratio: np.ndarray  # (C,) Σ w ẽ² / redundancy: 1 at the fixed point; NaN where not determined
+    redundancy: np.ndarray  # (C,) Σ_j w_jc (1 − h_jj)
+    determined: np.ndarray  # (C,) bool: enough redundancy to update
+
+
+def vce_step(theta: np.ndarray, whitened_sq: np.ndarray, weights: np.ndarray, hat: np.ndarray,
+             min_redundancy: float = MIN_REDUNDANCY, max_factor: float = MAX_STEP_FACTOR) -> VceStep:
+    """The Förstner update of every component (module docstring) from the squared whitened
+    residuals ``whitened_sq`` (m,), the shares ``weights`` (m, C) and ``hat`` = the weighted
+    traces of :func:`hat_traces` (summed over several runs' graphs when they share the
+    components)."""
+    theta = np.asarray(theta, dtype=float)
+    shown = np.asarray(weights).T @ np.asarray(whitened_sq, dtype=float)
+    return vce_from_sums(theta, shown, np.asarray(weights).sum(axis=0) - np.asarray(hat), min_redundancy, max_factor)
+
+
+def vce_from_sums(theta: np.ndarray, shown: np.ndarray, redundancy: np.ndarray,
+                  min_redundancy: float = MIN_REDUNDANCY, max_factor: float = MAX_STEP_FACTOR) -> VceStep:
+    """:func:`vce_step` from its sums (``shown`` = Σ w ẽ², ``redundancy`` = Σ w (1 − h)) per
+    component, e.g. pooled over several runs."""
+    determined = redundancy >= min_redundancy
+    ratio = np.full(len(theta), np.nan)
+    ratio[determined] = shown[determined] / redundancy[determined]
+    factor = np.where(determined, np.clip(np.nan_to_num(ratio, nan=1.0), 1.0 / max_factor, max_factor), 1.0)
+    return VceStep(theta * factor, ratio, redundancy, determined)
+
+
+def pair_weights(weights: np.ndarray) -> np.ndarray:
+    """(m, C·C) the products ``w_jc · w_jd`` of every pair of components (for the traces of
+    the information matrix of :func:`scoring_step`)."""
+    w = np.asarray(weights, dtype=float)
+    return (w[:, :, None] * w[:, None, :]).reshape(len(w), -1)
+
+
+def scoring_step(theta: np.ndarray, shown: np.ndarray, redundancy: np.ndarray, pair_sums: np.ndarray,
+                 pair_hat: np.ndarray, min_redundancy: float = MIN_REDUNDANCY,
+                 max_factor: float = MAX_STEP_FACTOR) -> VceStep:
+    """A Fisher-scoring step on log θ with the same fixed point as :func:`vce_from_sums`.
+
+    The log-likelihood's gradient in log θ_c is ``½ (Σ w ẽ² − Σ w (1 − h))`` and its
+    information ``F_cd ≈ ½ Σ_j w_jc w_jd (1 − h_jj)`` (``pair_sums`` = Σ w_c w_d, ``pair_hat``
+    = Σ w_c w_d h, both (C·C,)). Where two components are nearly interchangeable (a robot
+    that always drove at one speed cannot tell per metre from per second), Förstner's
+    multiplicative update crawls along the ridge; this step crosses it at once, and the
+    pseudo-inverse leaves the direction the data do not see where it was."""
+    theta = np.asarray(theta, dtype=float)
+    C = len(theta)
+    determined = redundancy >= min_redundancy
+    ratio = np.full(C, np.nan)
+    ratio[determined] = shown[determined] / redundancy[determined]
+    gradient = 0.5 * (shown - redundancy)
+    info = 0.5 * (np.asarray(pair_sums) - np.asarray(pair_hat)).reshape(C, C)
+    delta = np.zeros(C)
+    idx = np.flatnonzero(determined)
+    if len(idx):
+        sub = info[np.ix_(idx, idx)]
+        sub = 0.5 * (sub + sub.T)
+        delta[idx] = np.linalg.pinv(sub, rcond=1e-6, hermitian=True) @ gradient[idx]
+    bound = np.log(max_factor)
+    return VceStep(theta * np.exp(np.clip(delta, -bound, bound)), ratio, redundancy, determined)
+
+
+def relative_std(theta: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """(C,) the standard deviation of each component relative to its value, from the
+    Fisher information of Gaussian rows (``F_cd = ½ Σ_j w_jc w_jd`` for log θ): large (≥ 0.5)
+    when the data cannot tell that component from the others (e.g. per-metre and per-second
+    terms of a robot that always drove at one speed); inf where the information is singular."""
+    weights = np.asarray(weights, dtype=float)
+    info = 0.5 * weights.T @ weights
+    out = np.full(len(theta), np.inf)
+    used = np.diag(info) > 1e-9
+    if not used.any():
+        return out
+    sub = info[np.ix_(used, used)]
+    try:
+        cov = np.linalg.inv(sub)
+    except np.linalg.LinAlgError:
+        return out
+    d = np.diag(cov)
+    out[used] = np.where(d > 0.0, np.sqrt(np.abs(d)), np.inf)
+    if np.linalg.cond(sub) > 1e12:
+        out[used] = np.maximum(out[used], 1.0)
+    return out
+
+
+def group_ratios(whitened_sq: np.ndarray, groups: np.ndarray, hat_diag_sums: dict[str, float]) -> dict[str, tuple[float, float]]:
+    """Per noise group: ``(χ², redundancy)`` of the smoothed solution, from the squared
+    whitened residuals, each row's group name (``groups``, (m,) strings; "" for rows of no
+    group) and ``hat_diag_sums[g]`` = Σ h_jj over the group's rows (:func:`hat_traces` with
+    one-hot weights). ``χ² / redundancy`` is 1 when the stated noise fits."""
+    out = {}
+    for g, h in hat_diag_sums.items():
+        rows = groups == g
+        out[g] = (float(np.sum(np.asarray(whitened_sq)[rows])), float(np.count_nonzero(rows) - h))
+    return out

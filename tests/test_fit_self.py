@@ -1,0 +1,100 @@
+"""slamio.noise.fit_self: the hat-matrix traces against the exact diagonal, and variance-
+component estimation against a linear model whose variances are known."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from slamio.noise.fit_self import (
+    component_shares, hat_traces, pair_weights, relative_std, scoring_step, vce_from_sums, vce_step,
+)
+
+
+def exact_hat_diagonal(A) -> np.ndarray:
+    dense = A.toarray()
+    return np.einsum("ij,ji->i", dense, np.linalg.solve(dense.T @ dense, dense.T))
+
+
+def random_design(m=600, n=40, seed=1):
+    rng = np.random.default_rng(seed)
+    A = sp.random(m, n, density=0.08, random_state=seed, format="csr") + sp.eye(m, n, format="csr")
+    return sp.csr_matrix(A), rng
+
+
+def test_hat_traces_match_the_exact_hat_diagonal():
+    A, rng = random_design()
+    weights = rng.uniform(0.0, 1.0, size=(A.shape[0], 3))
+    exact = weights.T @ exact_hat_diagonal(A)
+    estimate = hat_traces(A, weights, probes=2000)
+    assert estimate == pytest.approx(exact, rel=0.04)
+    # the hat matrix is a projection on the n columns: its trace is n
+    assert hat_traces(A, np.ones((A.shape[0], 1)), probes=2000)[0] == pytest.approx(A.shape[1], rel=0.03)
+
+
+def test_shares_of_a_row_sum_to_one():
+    var, w = component_shares(np.array([2.0, 3.0]), np.array([[1.0, 0.0], [1.0, 1.0], [0.0, 0.0]]))
+    assert var.tolist() == [2.0, 5.0, 0.0]
+    assert w.sum(axis=1).tolist() == pytest.approx([1.0, 1.0, 0.0])
+
+
+def _linear_vce(step_kind: str, true_theta, q, seed=3, iterations=40):
+    """Least squares on y = A x + e with Var(e_j) = q_j·θ, θ re-estimated by VCE."""
+    m = len(q)
+    A, rng = random_design(m=m, n=30, seed=seed)
+    x_true = rng.normal(size=A.shape[1])
+    y = A @ x_true + rng.normal(size=m) * np.sqrt(q @ true_theta)
+    theta = np.ones(len(true_theta))
+    for _ in range(iterations):
+        var, w = component_shares(theta, q)
+        s = 1.0 / np.sqrt(var)
+        Aw = sp.diags(s) @ A
+        x = sp.linalg.lsqr(Aw, s * y, atol=1e-12, btol=1e-12)[0]
+        e2 = (s * (y - A @ x)) ** 2
+        if step_kind == "forstner":
+            step = vce_step(theta, e2, w, hat_traces(Aw, w, probes=400))
+        else:
+            pairs = pair_weights(w)
+            hat = hat_traces(Aw, np.hstack([w, pairs]), probes=400)
+            C = len(theta)
+            step = scoring_step(theta, w.T @ e2, w.sum(axis=0) - hat[:C], pairs.sum(axis=0), hat[C:])
+        theta = step.theta
+    return theta, step
+
+
+@pytest.mark.parametrize("kind", ["forstner", "scoring"])
+def test_vce_recovers_the_variances_of_two_groups(kind):
+    m = 4000
+    q = np.zeros((m, 2))
+    q[: m // 2, 0] = 1.0
+    q[m // 2:, 1] = 1.0
+    theta, step = _linear_vce(kind, np.array([0.01, 0.25]), q)
+    assert np.sqrt(theta) == pytest.approx([0.1, 0.5], rel=0.06)
+    assert step.ratio == pytest.approx([1.0, 1.0], abs=0.02)
+
+
+def test_scoring_separates_a_constant_and_a_growing_variance():
+    """σ² = θ₀ + θ₁ r² (a range σ that grows with range), both terms recovered."""
+    rng = np.random.default_rng(5)
+    m = 6000
+    r = rng.uniform(0.5, 5.0, size=m)
+    q = np.stack([np.ones(m), r**2], axis=1)
+    theta, _ = _linear_vce("scoring", np.array([0.02**2, 0.03**2]), q, seed=5)
+    assert np.sqrt(theta) == pytest.approx([0.02, 0.03], rel=0.15)
+
+
+def test_a_component_without_redundancy_is_not_updated():
+    step = vce_from_sums(np.array([1.0, 2.0]), np.array([10.0, 0.5]), np.array([5.0, 1.0]))
+    assert step.determined.tolist() == [True, False]
+    assert step.theta[1] == 2.0 and step.theta[0] == pytest.approx(2.0)
+    assert np.isnan(step.ratio[1])
+
+
+def test_relative_std_flags_components_the_data_cannot_tell_apart():
+    m = 1000
+    w_apart = np.zeros((m, 2))
+    w_apart[: m // 2, 0] = w_apart[m // 2:, 1] = 1.0
+    assert np.all(relative_std(np.ones(2), w_apart) < 0.1)
+    w_same = np.full((m, 2), 0.5)  # every row explained half by each: only their sum is seen
+    assert np.all(relative_std(np.ones(2), w_same) >= 1.0)

@@ -1,0 +1,108 @@
+"""Noise learned without truth (fgslam.self_calibration) and the verdict of a run
+(fgslam.verdict), on simulated logs whose noise is known exactly."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fgslam.runner import compare_log
+from fgslam.self_calibration import fit_without_truth
+from slamio.log import Odometry, RunLog, read_log
+from slamio.noise.apply import apply_noise_model
+
+DATA = Path(__file__).resolve().parent.parent / "data"
+
+
+@pytest.fixture(scope="module")
+def arena():
+    return read_log(DATA / "arena_square.jsonl")
+
+
+def with_odometry_covariance_scaled(log: RunLog, factor: float) -> RunLog:
+    records = tuple(
+        dataclasses.replace(r, covariance=tuple(tuple(factor * v for v in row) for row in r.covariance))
+        if isinstance(r, Odometry) else r for r in log.records)
+    return dataclasses.replace(log, records=records)
+
+
+def test_the_verdict_of_a_log_whose_noise_is_exact_is_one(arena):
+    """The simulator draws exactly the noise the log states: every group's χ²/dof ≈ 1."""
+    verdict = compare_log(arena, ["isam2"]).verdict
+    assert set(verdict) == {"odometry", "range", "bearing"}
+    for v in verdict.values():
+        assert v.fits and v.ratio == pytest.approx(1.0, abs=0.15), v.sentence()
+        assert "fits" in v.sentence()
+    # the redundancy is the rows minus what the solution absorbed: below the rows, above 0
+    assert 0 < verdict["odometry"].redundancy < verdict["odometry"].rows
+
+
+def test_the_verdict_says_how_far_a_misstated_odometry_noise_is_off(arena):
+    """Odometry σ stated 3× too small (variances / 9): the run says the odometry σ is too small.
+    The factor it gives is one step of the estimation, not its end: the solution bends to the
+    over-trusted odometry, which hides part of its error (here ~2× of the true 3×; the fit of
+    ``--noise self`` iterates to the end)."""
+    verdict = compare_log(with_odometry_covariance_scaled(arena, 1.0 / 9.0), ["isam2"]).verdict
+    odometry = verdict["odometry"]
+    assert not odometry.fits and 1.6 < odometry.sigma_factor <= 3.3
+    assert "too small" in odometry.sentence()
+
+
+def test_noise_learned_without_truth_fits_the_log(arena):
+    """Fitted on the log alone (the stated noise is never read), the model's bearing σ is the
+    simulator's 0.01 rad, and the log with the model applied passes its own verdict."""
+    fit = fit_without_truth([arena])
+    assert fit.converged
+    assert fit.model.observation.bearing_sigma_rad == pytest.approx(0.01, rel=0.1)
+    assert fit.outlier_rate < 0.01
+    assert "observation.range_scale" in fit.report["not_determined_without_truth"]
+    applied, dropped = apply_noise_model(arena, fit.model)
+    assert dropped == 0
+    for v in compare_log(applied, ["isam2"]).verdict.values():
+        assert v.fits, v.sentence()
+
+
+def _unsimulated_copy(tmp_path) -> Path:
+    """The bundled log as if recorded (`run --noise` refuses a simulated log)."""
+    lines = (DATA / "arena_square.jsonl").read_text().splitlines()
+    header = json.loads(lines[0])
+    header["source"] = {"generator": "a test, standing in for a recording"}
+    out = tmp_path / "recorded.jsonl"
+    out.write_text("\n".join([json.dumps(header)] + lines[1:]) + "\n")
+    return out
+
+
+def test_calibrate_without_truth_and_run_noise_self(tmp_path, capsys):
+    from fgslam.cli import main
+    from slamio.noise.model import load_noise_model
+
+    log = _unsimulated_copy(tmp_path)
+    model_path = tmp_path / "noise.json"
+    assert main(["calibrate", str(log), "--without-truth", "--out", str(model_path)]) == 0
+    out = capsys.readouterr().out
+    assert "learned without truth" in out and "not learnable without truth" in out
+    model = load_noise_model(model_path)
+    assert model.observation.bearing_sigma_rad == pytest.approx(0.01, rel=0.1)
+    assert model.fit_report["method"].startswith("without truth")
+
+    assert main(["run", str(log), "--noise", "self", "--estimators", "ekf,isam2", "--out", str(tmp_path / "r")]) == 0
+    out = capsys.readouterr().out
+    assert "applied the noise model learned from this log (without truth)" in out
+    assert "noise verdict" in out and "odometry: chi2/dof" in out
+    metrics = json.loads((tmp_path / "r" / "metrics.json").read_text())
+    assert set(metrics["noise_verdict"]) == {"odometry", "range", "bearing"}
+    assert all(v["fits"] for v in metrics["noise_verdict"].values())
+    assert "ekf" in metrics and "noise_verdict" not in metrics.get("ekf", {})
+    page = (tmp_path / "r" / "report.html").read_text()
+    assert "<h2>Noise verdict</h2>" in page and "the stated noise fits" in page
+
+
+def test_calibrate_without_truth_refuses_a_trials_csv(capsys):
+    from fgslam.cli import main
+
+    assert main(["calibrate", str(DATA / "calibration_trials_s001.csv"), "--without-truth"]) in (1, 2)
+    assert "--without-truth takes run logs" in capsys.readouterr().err
