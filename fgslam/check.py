@@ -60,7 +60,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -68,7 +68,8 @@ import numpy as np
 from fgslam.compare import ate_rmse_m, nees_band, nees_over_truth
 from fgslam.registry import CHECK_DEFAULTS, names_for
 from fgslam.runner import (
-    ESTIMATORS, UnusableReferenceError, require_motion, require_usable_reference, run_estimator, truth_reference,
+    ESTIMATORS, UnusableReferenceError, noise_verdict, require_motion, require_usable_reference, run_estimator,
+    truth_reference,
 )
 from fgslam.smoother import Isam2Smoother, batch_solve
 from slamio.errors import FgslamError, InputFileError, read_text
@@ -117,6 +118,9 @@ class CheckResult:
     max_nees_outside: float
     poses_scored: int | None = None  # poses compared (those with truth, against the truth)
     poses: int | None = None  # poses of the log
+    #: noise group → :class:`fgslam.verdict.GroupVerdict` of the smoothed reference (planar
+    #: logs checked against it); empty otherwise
+    noise_verdict: dict = field(default_factory=dict)
 
 
 def tolerance_file_for(log_path: str | os.PathLike[str]) -> Path:
@@ -231,6 +235,7 @@ class Score:
     nees_dofs: np.ndarray | None
     poses_scored: int
     poses: int
+    noise_verdict: dict = field(default_factory=dict)
 
     def bands(self) -> tuple[np.ndarray, np.ndarray]:
         """``(low, high)``: each NEES value's 95 % band."""
@@ -242,6 +247,7 @@ class Score:
 
 def _score_planar(log, log_path, estimator: str, against: str) -> Score:
     steps = log.steps()
+    noise: dict = {}
     if against == "truth":
         reference = truth_reference(log)
         require_enough_truth(log_path, 0 if reference is None else reference.poses_with_truth, len(steps))
@@ -250,7 +256,8 @@ def _score_planar(log, log_path, estimator: str, against: str) -> Score:
         smoother = Isam2Smoother(log.header)
         run_estimator(smoother, steps, covariances=False)  # only its graph is needed
         require_usable_reference(smoother, steps, str(log_path))
-        reference_poses = batch_solve(smoother).trajectory
+        batch = batch_solve(smoother)
+        reference_poses, noise = batch.trajectory, noise_verdict(smoother, batch)
         has_pose = np.ones(len(reference_poses), dtype=bool)
 
     run, _ = run_estimator(ESTIMATORS[estimator](log.header), steps)
@@ -259,7 +266,7 @@ def _score_planar(log, log_path, estimator: str, against: str) -> Score:
     values = dofs = None
     if run.online_covariances is not None:
         values, dofs = nees_over_truth(run.online, run.online_covariances, reference_poses, has_pose)
-    return Score(ate, values, dofs, int(np.count_nonzero(has_pose[:m])), len(steps))
+    return Score(ate, values, dofs, int(np.count_nonzero(has_pose[:m])), len(steps), noise)
 
 
 def score_3d(log, log_path, estimator: str, against: str) -> Score:
@@ -336,7 +343,7 @@ def _judge(score: Score, log_path, estimator: str, against: str, tol: dict[str, 
         f"ATE {ate:.4f} m {'<=' if ate_ok else '>'} {tol['max_ate_m']:g} m, {nees_text}{coverage}"
     )
     return CheckResult(passed, verdict, estimator, against, ate, outside, tol["max_ate_m"], tol["max_nees_outside"],
-                       scored, poses)
+                       scored, poses, score.noise_verdict)
 
 
 def assert_estimator_close(log_path: str | os.PathLike[str], **kwargs) -> CheckResult:

@@ -106,3 +106,15 @@ def test_calibrate_without_truth_refuses_a_trials_csv(capsys):
 
     assert main(["calibrate", str(DATA / "calibration_trials_s001.csv"), "--without-truth"]) in (1, 2)
     assert "--without-truth takes run logs" in capsys.readouterr().err
+
+
+def test_check_against_the_smoothed_solution_gives_the_same_verdict(tmp_path, capsys):
+    from fgslam.check import check_estimator
+    from fgslam.cli import main
+
+    log = _unsimulated_copy(tmp_path)
+    result = check_estimator(log, estimator="ekf", against="smoothed")
+    assert set(result.noise_verdict) == {"odometry", "range", "bearing"}
+    assert main(["check", str(log), "--estimator", "ekf"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("PASS ekf vs smoothed") and "noise verdict" in out and "range: chi2/dof" in out

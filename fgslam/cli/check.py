@@ -78,4 +78,8 @@ def cmd_check(args: argparse.Namespace) -> int:
         tolerances_file=args.tolerances,
     )
     print(result.verdict)
+    if result.noise_verdict:  # does the log's noise fit its measurements (the smoothed reference's verdict)
+        from fgslam.verdict import verdict_lines
+
+        print("\n".join(verdict_lines(result.noise_verdict, None)))
     return 0 if result.passed else 1
