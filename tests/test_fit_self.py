@@ -98,3 +98,49 @@ def test_relative_std_flags_components_the_data_cannot_tell_apart():
     assert np.all(relative_std(np.ones(2), w_apart) < 0.1)
     w_same = np.full((m, 2), 0.5)  # every row explained half by each: only their sum is seen
     assert np.all(relative_std(np.ones(2), w_same) >= 1.0)
+
+
+def test_the_odometry_lag_is_found_from_the_readings_alone():
+    """A robot driving and turning among landmarks whose odometry runs 0.24 s ahead of its
+    motion (the motion at t is what the odometry said at t − 0.24): the lag is found from the
+    readings' bearings, with no truth and no noise model."""
+    from slamio.noise.dead_reckoning import DeadReckoning
+    from slamio.noise.fit_self import lag_from_readings
+
+    rng = np.random.default_rng(2)
+    dt, lag = 0.1, 0.24
+    t = np.arange(0.0, 120.0, dt)
+    v = 0.2 + 0.1 * np.sin(t / 7.0)
+    w = 0.6 * np.sin(t / 3.0) + 0.3 * np.sign(np.sin(t / 11.0))
+
+    def integrate(times):
+        pose = np.zeros((len(times), 3))
+        for k in range(1, len(times)):
+            h = times[k] - times[k - 1]
+            vk, wk = np.interp(times[k - 1], t, v), np.interp(times[k - 1], t, w)
+            x, y, th = pose[k - 1]
+            pose[k] = (x + vk * h * np.cos(th + wk * h / 2), y + vk * h * np.sin(th + wk * h / 2), th + wk * h)
+        return pose
+
+    fine = np.arange(0.0, 120.0, 0.01)
+    truth = integrate(fine)  # the motion, commanded at t and happening at t + lag
+    odometry_poses = truth[::10]  # the odometry at its stamps t_k: where the robot will be at t_k + lag
+    increments = []
+    for a, b in zip(odometry_poses, odometry_poses[1:]):
+        c, s = np.cos(a[2]), np.sin(a[2])
+        d = b[:2] - a[:2]
+        increments.append((c * d[0] + s * d[1], -s * d[0] + c * d[1], b[2] - a[2]))
+    chain = DeadReckoning(t, np.array(increments))
+    landmarks = rng.uniform(-6.0, 6.0, size=(25, 2))
+    readings = []
+    for k in range(0, len(fine), 20):  # a picture every 0.2 s of the motion's own time
+        x, y, th = truth[k]
+        for j, (lx, ly) in enumerate(landmarks):
+            r = np.hypot(lx - x, ly - y)
+            b = np.arctan2(ly - y, lx - x) - th
+            if r < 4.0 and abs(np.angle(np.exp(1j * b))) < 0.6:
+                readings.append((fine[k] + lag, j, r, float(np.angle(np.exp(1j * (b + rng.normal(0, 0.005)))))))
+    found, cost, pairs = lag_from_readings(chain, readings)
+    assert pairs > 100
+    assert found == pytest.approx(lag, abs=0.03)
+    assert cost[0] > 2 * cost.min()

@@ -91,8 +91,8 @@ def test_calibrate_then_import_then_run_from_the_command_line(tmp_path, capsys):
     logs = []
     for robot in (2, 3):  # options before, between and after the paths
         out = tmp_path / f"r{robot}.jsonl"
-        args = ["import", "mrclam", EXCERPT, "--robot", str(robot), str(out)] if robot == 2 else \
-            ["import", "mrclam", "--robot", str(robot), EXCERPT, str(out)]
+        args = ["import", "mrclam", EXCERPT, "--robot", str(robot), str(out), "--noise", "round"] if robot == 2 else \
+            ["import", "mrclam", "--noise", "round", "--robot", str(robot), EXCERPT, str(out)]
         assert main(args) == 0
         logs.append(str(out))
     noise = tmp_path / "noise.json"
@@ -125,6 +125,24 @@ def test_calibrate_then_import_then_run_from_the_command_line(tmp_path, capsys):
     assert metrics["noise_model"] == str(noise) and len(metrics["provenance"]["log_sha256"]) == 64
     assert main(["run", str(r1), "--noise", str(noise), "--out", str(tmp_path / "res3")]) == 1  # twice: refused
     assert "already carries a fitted noise model" in capsys.readouterr().err
+
+
+def test_import_mrclam_applies_the_shipped_model_unless_told_round(tmp_path, capsys):
+    """Without --noise the importer applies the model fitted on MRCLAM Dataset 6 and says so
+    (in the header's source and on the terminal); --noise round gives the round numbers,
+    which calibrate accepts."""
+    from slamio.datasets.mrclam import SHIPPED_NOISE_MODEL
+    from slamio.noise.model import load_noise_model
+
+    shipped, rounded = tmp_path / "shipped.jsonl", tmp_path / "round.jsonl"
+    assert main(["import", "mrclam", EXCERPT, str(shipped), "--robot", "2"]) == 0
+    assert "the model shipped with fgslam, fitted on UTIAS MRCLAM Dataset 6" in capsys.readouterr().out
+    header = read_log(shipped).header
+    assert "MRCLAM Dataset 6" in header.source["noise_model"]
+    model = load_noise_model(SHIPPED_NOISE_MODEL)
+    assert header.noise["fitted_on"] == list(model.fitted_on) and model.odometry.lag_s > 0
+    assert main(["import", "mrclam", EXCERPT, str(rounded), "--robot", "2", "--noise", "round"]) == 0
+    assert "not fitted" in read_log(rounded).header.noise["observation"]["model"]
 
 
 def test_a_missing_noise_file_is_one_clear_line(tmp_path, capsys):

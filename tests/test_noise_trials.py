@@ -174,13 +174,14 @@ def test_record_verb_refuses_a_folder_and_too_much_speed(tmp_path, capsys):
     assert "0.5 m/s" in capsys.readouterr().err
 
 
-def test_calibrate_help_names_both_ways_and_not_the_camera(capsys):
+def test_calibrate_help_names_the_three_ways_and_not_the_camera(capsys):
     parser = argparse.ArgumentParser(prog="fgslam")
     add_calibrate_parser(parser.add_subparsers(dest="verb", required=True))
     with pytest.raises(SystemExit):
         parser.parse_args(["calibrate", "--help"])
     out = capsys.readouterr().out
-    assert "from truth:" in out and "from trials:" in out and "--from {truth,trials}" in out
+    assert "from truth:" in out and "from trials:" in out and "without truth:" in out
+    assert "--from {truth,self,trials}" in out and "--without-truth" in out
     assert "intrinsics" in out and "calibrate-camera" in out and "Seed 001's trial calibration" in out
 
 

@@ -84,7 +84,7 @@ def test_calibrate_without_truth_and_run_noise_self(tmp_path, capsys):
     model_path = tmp_path / "noise.json"
     assert main(["calibrate", str(log), "--without-truth", "--out", str(model_path)]) == 0
     out = capsys.readouterr().out
-    assert "learned without truth" in out and "not learnable without truth" in out
+    assert "learned without truth" in out and "not learnable without truth" in out and "odometry lag 0.0" in out
     model = load_noise_model(model_path)
     assert model.observation.bearing_sigma_rad == pytest.approx(0.01, rel=0.1)
     assert model.fit_report["method"].startswith("without truth")

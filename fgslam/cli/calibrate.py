@@ -187,9 +187,12 @@ def self_fit_notes(fit) -> str:
     if report["not_separated_by_this_data"]:
         lines.append("  not separated by this data (kept near their start; drive at other speeds and turn more "
                      "to learn them): " + ", ".join(report["not_separated_by_this_data"]))
-    lines.append("  not learnable without truth (kept at scale 1, bias 0, lag 0; pin them with "
-                 "`fgslam calibrate TRIALS.csv` or a log with truth): scales, biases, lags, the camera's latency "
-                 "and the readings' correlation in time")
+    search = report.get("lag_search")
+    if search and len(search["lags_s"]) > 1:
+        lines.append(f"  odometry lag {search['chosen_s']:.2f} s: of {', '.join(f'{v:g}' for v in search['lags_s'])} s, "
+                     "the one whose fit explains the readings best")
+    lines.append("  not learnable without truth (kept at scale 1, bias 0; pin them with `fgslam calibrate "
+                 "TRIALS.csv` or a log with truth): scales, biases, the camera's latency")
     return "\n".join(lines)
 
 

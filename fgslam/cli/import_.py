@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import argparse
 import sys
 
@@ -69,7 +71,9 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     imp.add_argument("--robot", type=int, default=None, metavar="N", help="MRCLAM: which robot, 1-5 (default 1)")
     imp.add_argument("--noise", default=None, metavar="FILE",
                      help="MRCLAM: a noise model from `fgslam calibrate LOG... --out FILE` (odometry lag and "
-                          "scale, range/bearing correction and sigmas); default: round, unfitted values. "
+                          "scale, range/bearing correction and sigmas); `round` for round, unfitted values (what "
+                          "`fgslam calibrate` fits on); default: the model shipped with fgslam, fitted on MRCLAM "
+                          "Dataset 6's five robots against Vicon. "
                           "Plaza: the range model (scale, bias, sigma) fitted on the other run")
     imp.add_argument("--hide-ids", action="store_true",
                      help="write observations without landmark ids (the estimators must associate them); "
@@ -155,12 +159,17 @@ def _import(args: argparse.Namespace, source: str | None, out: str) -> int:
     elif args.dataset == "mrclam":
         from slamio.datasets.mrclam import import_mrclam
 
-        model = None
-        if args.noise is not None:
-            from slamio.noise.model import load_noise_model
+        from slamio.datasets.mrclam import SHIPPED_NOISE_MODEL, SHIPPED_NOISE_NOTE
+        from slamio.noise.model import load_noise_model
 
-            model = load_noise_model(args.noise)
+        if args.noise == "round":
+            model = None
+        else:
+            model = load_noise_model(SHIPPED_NOISE_MODEL if args.noise is None else args.noise)
         header, records = import_mrclam(source, args.robot, model=model)
+        if args.noise is None:  # say which model, in the header and here
+            header = dataclasses.replace(header, source={**header.source, "noise_model": SHIPPED_NOISE_NOTE})
+            print(f"noise: {SHIPPED_NOISE_NOTE} (--noise round for the round, unfitted values)")
     elif args.dataset == "seed003":
         header, records = _import_seed003(source, args)
     elif args.dataset == "rosbag":

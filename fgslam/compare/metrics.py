@@ -111,9 +111,10 @@ TOP_LEVEL_KEYS = (
     "reference_landmarks",
     "dimension",
     "provenance",
-    "noise_verdict",
-    "noise_source",
 )
+#: Top-level keys a run has only sometimes: the noise verdict of a planar run's batch solution
+#: (:mod:`fgslam.verdict`) and where the log's noise came from.
+OPTIONAL_TOP_LEVEL_KEYS = ("noise_verdict", "noise_source")
 METRIC_KEYS = (
     "ate_rmse_m",
     "ate_online_rmse_m",
@@ -236,7 +237,7 @@ def compute_metrics(runs: list[EstimatorRun], reference: Reference, *, log_path:
         "dimension": 2,
     }
     for run in runs:
-        if run.name in TOP_LEVEL_KEYS or run.name in metrics:
+        if run.name in TOP_LEVEL_KEYS or run.name in OPTIONAL_TOP_LEVEL_KEYS or run.name in metrics:
             raise ComparisonError(
                 f"estimator name {run.name!r} clashes with another key of the metrics; rename it"
             )
@@ -372,4 +373,5 @@ def _association_dict(score: AssociationScore | None) -> dict | None:
 
 def estimator_names(metrics: dict) -> list[str]:
     """The estimator entries of a metrics dictionary, in insertion order."""
-    return [k for k, v in metrics.items() if k not in TOP_LEVEL_KEYS and isinstance(v, dict)]
+    return [k for k, v in metrics.items()
+            if k not in TOP_LEVEL_KEYS and k not in OPTIONAL_TOP_LEVEL_KEYS and isinstance(v, dict)]

@@ -197,3 +197,58 @@ def group_ratios(whitened_sq: np.ndarray, groups: np.ndarray, hat_diag_sums: dic
         rows = groups == g
         out[g] = (float(np.sum(np.asarray(whitened_sq)[rows])), float(np.count_nonzero(rows) - h))
     return out
+
+
+# --------------------------------------------------------------------------- the odometry's lag
+
+#: The lags tried (s): commands lead the motion by a few tenths of a second.
+LAG_GRID_S = tuple(np.round(np.arange(0.0, 0.501, 0.02), 2))
+#: Two readings of one landmark at most this far apart are a pair.
+PAIR_MAX_DT_S = 1.0
+
+
+def lag_from_readings(chain, readings: list[tuple[float, int, float, float]],
+                      lags_s: tuple[float, ...] = LAG_GRID_S) -> tuple[float, np.ndarray, int]:
+    """The odometry's lag learned from the readings alone: ``(lag, cost per lag, pairs)``.
+
+    For consecutive readings of one landmark ``(stamp, landmark, range, bearing)`` taken
+    less than :data:`PAIR_MAX_DT_S` apart, the first reading's point is carried to the second
+    reading's time by the odometry's motion between the two stamps shifted by the lag (the
+    robot moves ``lag`` after its odometry says so), and the second reading's bearing is
+    predicted. The lag whose predictions miss least (the median squared miss, robust to
+    misread landmarks) is the one the data show: a turn commanded at t is seen by the camera
+    at t + lag. Needs no truth and no noise model; ``chain`` is the odometry as a
+    :class:`~slamio.noise.dead_reckoning.DeadReckoning`."""
+    rows = sorted(readings, key=lambda r: (r[1], r[0]))
+    pairs = [(a, b) for a, b in zip(rows, rows[1:]) if a[1] == b[1] and 0.0 < b[0] - a[0] <= PAIR_MAX_DT_S]
+    cost = np.full(len(lags_s), np.inf)
+    if len(pairs) < 20:
+        return 0.0, cost, len(pairs)
+    t1 = np.array([a[0] for a, _ in pairs])
+    t2 = np.array([b[0] for _, b in pairs])
+    r1, b1 = np.array([a[2] for a, _ in pairs]), np.array([a[3] for a, _ in pairs])
+    b2 = np.array([b[3] for _, b in pairs])
+    point = np.column_stack([r1 * np.cos(b1), r1 * np.sin(b1)])
+    for i, lag in enumerate(lags_s):
+        pa = _poses_at(chain, t1 - lag)
+        pb = _poses_at(chain, t2 - lag)
+        ok = np.isfinite(pa[:, 0]) & np.isfinite(pb[:, 0])
+        # the point in the world of the chain, then in the frame at the second reading
+        c, s = np.cos(pa[:, 2]), np.sin(pa[:, 2])
+        wx = pa[:, 0] + c * point[:, 0] - s * point[:, 1]
+        wy = pa[:, 1] + s * point[:, 0] + c * point[:, 1]
+        predicted = np.arctan2(wy - pb[:, 1], wx - pb[:, 0]) - pb[:, 2]
+        miss = np.angle(np.exp(1j * (b2 - predicted)))
+        cost[i] = float(np.median(miss[ok] ** 2)) if ok.sum() >= 20 else np.inf
+    best = int(np.argmin(cost))
+    return float(lags_s[best]), cost, len(pairs)
+
+
+def _poses_at(chain, t_s: np.ndarray) -> np.ndarray:
+    """(n, 3) chain poses at the times (NaN outside the run)."""
+    out = np.full((len(t_s), 3), np.nan)
+    for k, t in enumerate(t_s):
+        pose = chain.pose_at(float(t))
+        if pose is not None:
+            out[k] = pose
+    return out
