@@ -23,18 +23,21 @@ of :class:`~slamio.noise.model.NoiseModel`):
    (:mod:`slamio.noise.fit_self`), pooled over the logs;
 
 until every determined component moves by less than 1 % (at most :data:`MAX_ITERATIONS`).
-Last, the readings' errors in time (ρ, τ) from the residuals at the solution
-(:func:`reading_correlation`).
+The readings' correlation in time is not learned: estimated from the residuals at the
+solution (which absorb a landmark's lasting error into its position) it came out ρ ≈ 0.5–0.7
+with τ ≈ 3–6 s on MRCLAM (Vicon: 0.56, 16 s) and made the EKF worse on two robots of five
+(docs/results-datasets.md), so the model keeps white readings.
 
 What it cannot learn: anything that moves every measurement the same way — the odometry's
-scale and turn scale against the readings' range scale (only their ratio shows), biases,
-the camera's latency — keeps the model's default (scale 1, bias 0) and is listed in the fit
+scale against the readings' range scale (only their ratio shows), the turn scale (see
+:func:`~slamio.noise.fit_self.lag_from_readings`), biases, the camera's latency — keeps the model's default (scale 1, bias 0) and is listed in the fit
 report as ``not determined without truth``, with the components the data could not separate
 (relative standard deviation ≥ 0.5).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -50,9 +53,9 @@ from slamio.noise.apply import apply_noise_model
 from slamio.noise.dead_reckoning import DeadReckoning, turn_rate_radps
 from slamio.noise.errors import NoiseModelError
 from slamio.noise.fit_self import (
-    LAG_GRID_S, component_shares, hat_traces, lag_from_readings, pair_weights, relative_std, scoring_step,
+    LAG_GRID_S, LagFromReadings, component_shares, hat_traces, lag_from_readings, pair_weights, relative_std,
+    scoring_step,
 )
-from slamio.noise.fitting import fit_reading_correlation
 from slamio.noise.model import NoiseModel, ObservationModel, OdometryModel, OdometryNoiseRates
 
 __all__ = ["COMPONENTS", "RunGraph", "SelfCalibration", "fit_without_truth"]
@@ -83,6 +86,7 @@ NOT_DETERMINED_WITHOUT_TRUTH = (
     "odometry.forward_scale", "odometry.turn_scale", "odometry.turn_per_m_rad",
     "observation.range_is_depth", "observation.range_scale", "observation.range_bias_m",
     "observation.bearing_scale", "observation.bearing_bias_rad", "observation.camera_latency_s",
+    "observation.correlated_share", "observation.correlation_time_s",
 )
 
 
@@ -197,16 +201,6 @@ class RunGraph:
         self.values = gtsam.LevenbergMarquardtOptimizer(graph, self.values, params).optimize()
         return graph, q, groups
 
-    def reading_residuals(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(stamps, landmark ids, whitened (bearing, range) residuals)`` of the inlier
-        range-bearing readings at the current solution."""
-        rows = [(r.stamp_s, r.landmark, np.asarray(self.reading_factor(r, theta).whitenedError(self.values)))
-                for r, inlier in zip(self.readings, self.inlier) if inlier and r.bearing_rad is not None]
-        if not rows:
-            return np.zeros(0), np.zeros(0, dtype=int), np.zeros((0, 2))
-        return (np.array([t for t, _, _ in rows]), np.array([j for _, j, _ in rows]),
-                np.array([e for _, _, e in rows]))
-
     def regate(self, theta: np.ndarray) -> None:
         """Mark the readings beyond the 5σ gate at the current solution (every reading, those
         left out before too: one that fits again comes back)."""
@@ -266,7 +260,7 @@ def _iteration(graphs: list[RunGraph], theta: np.ndarray):
     return scoring_step(theta, shown, redundancy, pair_sums, pair_hat), np.concatenate(weights_all)
 
 
-def fit_without_truth(logs: list[RunLog], progress=None, *, correlated: bool = True,
+def fit_without_truth(logs: list[RunLog], progress=None, *,
                       lags_s: tuple[float, ...] = LAG_GRID_S) -> SelfCalibration:
     """Fit the odometry's lag among ``lags_s`` and the variance terms of a :class:`NoiseModel`
     on ``logs`` alone (module docstring). The lag comes first, from the readings' bearings
@@ -274,41 +268,42 @@ def fit_without_truth(logs: list[RunLog], progress=None, *, correlated: bool = T
     are fitted on the odometry re-read with it. ``progress(done, total, label)``
     (:class:`fgslam.cli.progress.Progress`) after each iteration."""
     range_only = all(o.range_only for log in logs for o in log.records if isinstance(o, Observation))
-    lag, curve, pairs = (0.0, None, 0) if range_only or len(lags_s) < 2 else pooled_lag(logs, lags_s)
-    lagged = [log if lag == 0.0 else apply_noise_model(log, NoiseModel(OdometryModel(lag_s=lag)))[0] for log in logs]
+    motion = None if range_only else pooled_lag(logs, lags_s)
+    lag = 0.0 if motion is None else motion.lag_s
+    odometry = OdometryModel(lag_s=lag)
+    lagged = [log if motion is None else apply_noise_model(log, NoiseModel(odometry))[0] for log in logs]
     graphs, theta, step, weights, iterations, converged = _fit_variances(lagged, progress, "noise fit: iterations")
     rel = relative_std(theta, weights)
-    correlation = reading_correlation(graphs, theta) if correlated else None
     readings = sum(len(g.readings) for g in graphs)
     outliers = sum(int(np.count_nonzero(~g.inlier)) for g in graphs)
     result = _result(logs, theta, step, rel, iterations, converged, outliers / max(readings, 1), readings,
-                     sum(g.unpaired for g in graphs), correlation, lag)
-    result.report["lag_search"] = {"lags_s": [float(v) for v in lags_s], "chosen_s": lag, "pairs": pairs,
-                                   "median_squared_bearing_miss": None if curve is None else
-                                   [float(c) if np.isfinite(c) else None for c in curve]}
+                     sum(g.unpaired for g in graphs), odometry)
+    result.report["lag_from_readings"] = None if motion is None else {
+        "lag_s": lag, "pairs": motion.pairs, "lags_tried_s": [float(v) for v in lags_s],
+        "median_squared_bearing_miss_rad2": [float(c) if np.isfinite(c) else None for c in motion.cost]}
     return result
 
 
-def pooled_lag(logs: list[RunLog], lags_s: tuple[float, ...]) -> tuple[float, np.ndarray | None, int]:
-    """The lag :func:`lag_from_readings` finds on every log, their costs weighted by pairs."""
-    total, pairs = np.zeros(len(lags_s)), 0
+def pooled_lag(logs: list[RunLog], lags_s: tuple[float, ...]) -> LagFromReadings | None:
+    """The lag :func:`lag_from_readings` finds on the logs together (their costs weighted by
+    their pairs); None without 20 pairs of readings."""
+    total, pairs = None, 0
     for log in logs:
         steps = log.steps()
+        if len(steps) < 2:
+            continue
         stamps = np.array([s.stamp_s for s in steps])
         increments = np.array([[s.odometry.dx_m, s.odometry.dy_m, s.odometry.dtheta_rad] for s in steps[1:]],
                               dtype=float).reshape(-1, 3)
-        if len(stamps) < 2:
-            continue
         readings = [(o.stamp_s, o.landmark_id, o.range_m, o.bearing_rad) for s in steps for o in s.observations
                     if o.landmark_id is not None and o.bearing_rad is not None]
-        _, cost, n = lag_from_readings(DeadReckoning(stamps, increments), readings, lags_s)
-        if n >= 20 and np.all(np.isfinite(cost)):
-            total += n * cost
-            pairs += n
-    if not pairs:
-        return 0.0, None, 0
-    curve = total / pairs
-    return float(lags_s[int(np.argmin(curve))]), curve, pairs
+        found = lag_from_readings(DeadReckoning(stamps, increments), readings, lags_s)
+        if found.pairs >= 20 and np.all(np.isfinite(found.cost)):
+            total = found.pairs * found.cost if total is None else total + found.pairs * found.cost
+            pairs += found.pairs
+    if total is None:
+        return None
+    return LagFromReadings(float(lags_s[int(np.argmin(total))]), total / pairs, pairs)
 
 
 def _fit_variances(logs: list[RunLog], progress, label: str):
@@ -335,33 +330,13 @@ def _fit_variances(logs: list[RunLog], progress, label: str):
     return graphs, theta, step, weights, iteration, converged
 
 
-def reading_correlation(graphs: list[RunGraph], theta: np.ndarray):
-    """ρ and τ of the readings' errors in time (:func:`slamio.noise.fitting.fit_reading_correlation`),
-    from the whitened residuals of the readings at the smoothed solution, one series per
-    landmark and log. The solution absorbs a landmark's lasting error into its position, so
-    what is left is the part that varies within the run: an under-estimate of ρ, never an
-    invention."""
-    stamps, series, residuals = [], [], []
-    for k, run in enumerate(graphs):
-        t, landmark, e = run.reading_residuals(theta)
-        stamps.append(t)
-        series.append(landmark.astype(np.int64) * len(graphs) + k)
-        residuals.append(e)
-    t, series, e = np.concatenate(stamps), np.concatenate(series), np.vstack(residuals)
-    if len(t) < 20:
-        return None
-    return fit_reading_correlation(t, series, e)
-
-
 def _result(logs, theta, step, rel, iterations, converged, outlier_rate, readings, unpaired,
-            correlation=None, lag_s: float = 0.0) -> SelfCalibration:
+            odometry: OdometryModel | None = None) -> SelfCalibration:
     rates = OdometryNoiseRates(**{name: float(v) for name, v in zip(COMPONENTS[:ODOMETRY_COMPONENTS], theta)})
     sigma = np.sqrt(theta[ODOMETRY_COMPONENTS:])
     observation = ObservationModel(range_sigma_m=float(sigma[0]), range_sigma_per_m=float(sigma[1]),
                                    bearing_sigma_rad=float(sigma[2]), bearing_sigma_s=float(sigma[3]),
-                                   outlier_rate=float(outlier_rate),
-                                   correlated_share=0.0 if correlation is None else float(correlation.share),
-                                   correlation_time_s=0.0 if correlation is None else float(correlation.time_s))
+                                   outlier_rate=float(outlier_rate))
     undetermined = [name for name, d, r in zip(COMPONENTS, step.determined, rel)
                     if not d or r >= UNDETERMINED_RELATIVE_STD]
     report = {
@@ -374,12 +349,9 @@ def _result(logs, theta, step, rel, iterations, converged, outlier_rate, reading
         "not_separated_by_this_data": undetermined,
         "not_determined_without_truth": list(NOT_DETERMINED_WITHOUT_TRUTH),
         "readings": readings, "readings_unpaired": unpaired,
-        "reading_correlation": None if correlation is None else {
-            "share": correlation.share, "time_s": correlation.time_s, "lags_s": list(correlation.lags_s),
-            "correlations": list(correlation.correlations), "pairs": list(correlation.pairs)},
     }
-    model = NoiseModel(OdometryModel(lag_s=float(lag_s), noise=rates), observation, tuple(log.path for log in logs),
-                       report)
+    odometry = OdometryModel() if odometry is None else odometry
+    model = NoiseModel(dataclasses.replace(odometry, noise=rates), observation, tuple(log.path for log in logs), report)
     return SelfCalibration(model, theta, step.ratio, step.redundancy, rel, iterations, converged, outlier_rate,
                            readings, unpaired, report)
 

@@ -140,7 +140,7 @@ def test_the_odometry_lag_is_found_from_the_readings_alone():
             b = np.arctan2(ly - y, lx - x) - th
             if r < 4.0 and abs(np.angle(np.exp(1j * b))) < 0.6:
                 readings.append((fine[k] + lag, j, r, float(np.angle(np.exp(1j * (b + rng.normal(0, 0.005)))))))
-    found, cost, pairs = lag_from_readings(chain, readings)
-    assert pairs > 100
-    assert found == pytest.approx(lag, abs=0.03)
-    assert cost[0] > 2 * cost.min()
+    found = lag_from_readings(chain, readings)
+    assert found.pairs > 100
+    assert found.lag_s == pytest.approx(lag, abs=0.03)
+    assert found.cost[0] > 2 * found.cost.min()

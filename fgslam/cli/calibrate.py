@@ -187,12 +187,13 @@ def self_fit_notes(fit) -> str:
     if report["not_separated_by_this_data"]:
         lines.append("  not separated by this data (kept near their start; drive at other speeds and turn more "
                      "to learn them): " + ", ".join(report["not_separated_by_this_data"]))
-    search = report.get("lag_search")
-    if search and len(search["lags_s"]) > 1:
-        lines.append(f"  odometry lag {search['chosen_s']:.2f} s: of {', '.join(f'{v:g}' for v in search['lags_s'])} s, "
-                     "the one whose fit explains the readings best")
+    lag = report.get("lag_from_readings")
+    if lag:
+        lines.append(f"  odometry lag {lag['lag_s']:.2f} s: what {lag['pairs']} pairs of readings of the same "
+                     "landmarks show")
     lines.append("  not learnable without truth (kept at scale 1, bias 0; pin them with `fgslam calibrate "
-                 "TRIALS.csv` or a log with truth): scales, biases, the camera's latency")
+                 "TRIALS.csv` or a log with truth): forward and range scale (only their ratio shows), turn "
+                 "scale, biases, the camera's latency and the readings' correlation in time")
     return "\n".join(lines)
 
 
