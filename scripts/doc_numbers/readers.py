@@ -28,6 +28,7 @@ def association(estimator: str, key: str):
 COLUMNS = {
     "ate": lambda e: metric(e, "ate_rmse_m"),
     "online": lambda e: metric(e, "ate_online_rmse_m"),
+    "aligned": lambda e: metric(e, "ate_aligned_rmse_m"),
     "final": lambda e: metric(e, "final_pose_error_m"),
     "map": lambda e: metric(e, "map_rmse_m"),
     "landmarks": lambda e: metric(e, "landmarks_estimated"),
