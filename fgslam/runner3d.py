@@ -29,6 +29,7 @@ import numpy as np
 from ekf.drive3d import StepInput, step_inputs
 from ekf.vio import pose_nees
 from fgslam.compare import TOP_LEVEL_KEYS, nees_band
+from fgslam.compare.metrics import OPTIONAL_TOP_LEVEL_KEYS
 from fgslam.registry import DEFAULTS, REGISTRY, build, names_for, parse_names
 from fgslam.runner import pinned_threads
 from slamio.datasets.seed003 import StereoImuNoise
@@ -144,6 +145,8 @@ class Comparison3d:
     smoother: object  # the StereoIsam2 the batch solve started from
     batch_error: float
     isam2_error: float
+    #: noise group ("imu", "stereo") → :class:`fgslam.verdict.GroupVerdict` at the batch optimum
+    verdict: dict = field(default_factory=dict)
 
     def smoother_short_of_optimum(self) -> None:
         """No note on a 3-D log (a planar :class:`fgslam.runner.Comparison` gives one when
@@ -254,7 +257,20 @@ def run_log3d(log: RunLog, names: list[str], *, consistency: bool = True, progre
     runs.append(in_world(Run3d("batch", None, batch.trajectory(), batch.landmarks(), None, batch.seconds),
                          ready.world_T_start))
     reference = truth_reference_3d(log, ready.steps) or Reference3d("batch", runs[-1].final, runs[-1].landmarks)
-    return Comparison3d(runs, reference, ready.stamps_s, smoother, float(batch.error), smoother.error())
+    return Comparison3d(runs, reference, ready.stamps_s, smoother, float(batch.error), smoother.error(),
+                        _verdict(smoother, batch))
+
+
+def _verdict(smoother, batch) -> dict:
+    """:func:`fgslam.verdict.graph_verdict` of isam2-3d's graph at the batch optimum (empty when
+    the system is singular)."""
+    from fgslam.verdict import graph_verdict
+    from slamio.noise.errors import NoiseModelError
+
+    try:
+        return graph_verdict(smoother.graph, batch.values)
+    except NoiseModelError:
+        return {}
 
 
 # --------------------------------------------------------------------------- metrics
@@ -406,7 +422,7 @@ def estimator_entries_3d(metrics: dict) -> dict[str, dict]:
     under ``"estimators"``, :data:`OLD_KEYS_3D`) is read with the new key names."""
     if isinstance(metrics.get("estimators"), dict):  # an old 3-D metrics.json
         return {name: _upgrade_entry_3d(m) for name, m in metrics["estimators"].items()}
-    skip = {*TOP_LEVEL_KEYS, *TOP_LEVEL_KEYS_3D}
+    skip = {*TOP_LEVEL_KEYS, *OPTIONAL_TOP_LEVEL_KEYS, *TOP_LEVEL_KEYS_3D}
     return {k: v for k, v in metrics.items() if k not in skip and isinstance(v, dict)}
 
 

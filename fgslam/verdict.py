@@ -6,7 +6,8 @@ minus what the solution absorbed, ``Σ (1 − h_jj)`` over the hat matrix's diag
 (:mod:`slamio.noise.fit_self`) — is 1 when the stated σ fit the data and ``k²`` when they are
 ``k``× too small. The groups are read from the smoother's own graph by factor type:
 ``BetweenFactorPose2`` between two poses is odometry, ``BearingRangeFactor2D`` a bearing and
-a range row, ``RangeFactor2D`` a range row (a robust kernel's weights are in the whitened
+a range row, ``RangeFactor2D`` a range row; in a 3-D log ``BetweenFactorPose3`` between two
+poses is the IMU ("imu") and ``GenericStereoFactor3D`` a stereo observation ("stereo") (a robust kernel's weights are in the whitened
 rows, so outliers count as much as the kernel lets them).
 
 :data:`FITS` is the band called "fits": σ off by less than √2 either way. The 95 % band of
@@ -30,7 +31,7 @@ __all__ = ["FITS", "GroupVerdict", "graph_verdict", "verdict_lines"]
 
 #: χ²/redundancy inside this band: the stated σ are within a factor √2 of what the data show.
 FITS = (0.5, 2.0)
-GROUPS = ("odometry", "range", "bearing")
+GROUPS = ("odometry", "range", "bearing", "imu", "stereo")
 
 
 @dataclass(frozen=True)
@@ -90,6 +91,11 @@ def _row_groups(graph: gtsam.NonlinearFactorGraph) -> np.ndarray:
             groups += ["bearing", "range"]
         elif isinstance(factor, gtsam.RangeFactor2D):
             groups += ["range"]
+        elif isinstance(factor, gtsam.BetweenFactorPose3) and all(
+                gtsam.Symbol(k).chr() == ord("x") for k in factor.keys()):
+            groups += ["imu"] * dim  # a 3-D log's IMU increments
+        elif isinstance(factor, gtsam.GenericStereoFactor3D):
+            groups += ["stereo"] * dim  # (u_L, u_R, v) of a stereo observation
         else:
             groups += [""] * dim
     return np.array(groups)

@@ -236,3 +236,28 @@ def test_a_per_axis_velocity_covariance_is_taken_as_stated():
     records = tuple(dataclasses.replace(r, covariance=stated) if isinstance(r, VelocityOdometry) else r for r in records)
     noise = noise_of(RunLog("per-axis", header, records))
     assert np.array_equal(noise.velocity_cov(), cov)
+
+
+def test_the_verdict_of_a_3d_run_finds_an_imu_noise_stated_ten_times_too_small():
+    """The simulator's drive with its own noise stated: both groups fit; with the IMU's σ
+    stated 10× too small (what a seed 003 drive of another year does to the importer's
+    defaults), the IMU group is flagged as too small and the run says what to do."""
+    from fgslam.runner3d import run_log3d
+    from fgslam.verdict import verdict_lines
+    from slamio.datasets.seed003 import StereoImuNoise
+    from slamio.datasets.seed003_log import drive_to_log
+    from slamio.log import RunLog
+    from slamio.sim3d import DriveScenario, simulate_drive
+
+    drive = simulate_drive(2, DriveScenario(straight_m=30.0, side_m=20.0))
+    exact = run_log3d(RunLog("exact", *_as_log(drive_to_log(drive))), ["isam2-3d"]).verdict
+    assert set(exact) == {"imu", "stereo"} and all(v.fits for v in exact.values())
+    wrong = StereoImuNoise(sigma_v_mps=0.005, sigma_w_radps=0.0005)
+    told = run_log3d(RunLog("wrong", *_as_log(drive_to_log(drive, wrong))), ["isam2-3d"]).verdict
+    assert not told["imu"].fits and told["imu"].sigma_factor > 3
+    assert any("imu sigma is" in line and "too small" in line for line in verdict_lines(told, None))
+
+
+def _as_log(header_records):
+    header, records = header_records
+    return header, tuple(records)
