@@ -452,11 +452,16 @@ COLUMNS_3D = (
 def table_rows_3d(metrics: dict) -> tuple[list[str], list[list[str]]]:
     header = ["estimator"] + [c[0] for c in COLUMNS_3D]
     rows = []
+    batch_is_reference = metrics.get("reference") == "smoothed"
+    errors = {"ate_rmse_m", "ate_2d_rmse_m", "final_pose_error_m", "map_median_m"}
     for name, m in estimator_entries_3d(metrics).items():
-        cells = [name]
+        reference_row = name == "batch" and batch_is_reference  # the reference itself: nothing to score
+        cells = ["batch (reference)" if reference_row else name]
         for _, key, scale, digits in COLUMNS_3D:
             v = m.get(key)
-            if v is None:
+            if reference_row and key in errors:
+                cells.append("ref")
+            elif v is None:
                 cells.append("–")
             elif scale is None:
                 cells.append(str(v))
@@ -492,6 +497,9 @@ def format_table_3d(metrics: dict) -> str:
     lines = [reference_line_3d(metrics), ""]
     for r in [header, *rows]:
         lines.append("  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths))))
+    if metrics.get("reference") == "smoothed":
+        lines.append("no ground truth: every error above is the distance to the smoothed solution (batch, the "
+                     "reference) - agreement with it, not accuracy")
     return "\n".join(lines)
 
 

@@ -278,6 +278,7 @@ def fit_without_truth(logs: list[RunLog], progress=None, *,
     outliers = sum(int(np.count_nonzero(~g.inlier)) for g in graphs)
     result = _result(logs, theta, step, rel, iterations, converged, outliers / max(readings, 1), readings,
                      sum(g.unpaired for g in graphs), odometry)
+    result.report["range_only"] = range_only
     result.report["lag_from_readings"] = None if motion is None else {
         "lag_s": lag, "pairs": motion.pairs, "lags_tried_s": [float(v) for v in lags_s],
         "median_squared_bearing_miss_rad2": [float(c) if np.isfinite(c) else None for c in motion.cost]}

@@ -134,7 +134,8 @@ def verdict_lines(verdict: dict, noise_source: str | None) -> list[str]:
     if bad:
         lines.append("  to fix it: fgslam run LOG --noise self (learn the noise from this log), or fgslam calibrate "
                      "LOG... --without-truth --out noise.json and --noise noise.json")
-    if sum(1 for v in verdict.values() if v.ratio > FITS[1]) >= 2:
+    planar = [v for g, v in verdict.items() if g in ("odometry", "range", "bearing")]
+    if sum(1 for v in planar if v.ratio > FITS[1]) >= 2:
         lines.append("  every group too small at once: is the sensor off the robot's centre? State where it sits "
                      "in the log header (sensor.pose_on_robot: [x_m, y_m, yaw_rad], docs/log-format.md)")
     return lines

@@ -187,6 +187,9 @@ def self_fit_notes(fit) -> str:
     if report["not_separated_by_this_data"]:
         lines.append("  not separated by this data (kept near their start; drive at other speeds and turn more "
                      "to learn them): " + ", ".join(report["not_separated_by_this_data"]))
+    if report.get("range_only"):
+        lines.append("  range-only readings (radios): applying the model (--noise) changes the ranges' sigma only and "
+                     "keeps the log's odometry, whose heading a range cannot check")
     lag = report.get("lag_from_readings")
     if lag:
         lines.append(f"  odometry lag {lag['lag_s']:.2f} s: what {lag['pairs']} pairs of readings of the same "
