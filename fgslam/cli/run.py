@@ -117,12 +117,15 @@ def cmd_run(args: argparse.Namespace) -> int:
     dimension = 3 if log.header.is_3d else 2
     if dimension == 3:  # seed 003's stereo + IMU logs: their records carry their noise
         for flag, value in (("--noise", args.noise), ("--calibration", args.calibration)):
-            if value is not None:
+            if value is not None and not (flag == "--noise" and value == "self"):
                 raise FgslamError(f"{flag} applies to planar logs; {args.log} is a 3-D log (its records carry "
-                                  "their noise)")
+                                  "their noise; --noise self learns it from the log)")
+        if args.noise == "self":
+            log = _self_fitted_3d(log)
     # 2-D without iSAM2 has no batch solve: fine where the log's truth is the reference (compare_log says)
     names = parse_names(args.estimators, dimension, need_isam2=dimension == 3)
-    log = _with_side_inputs(args, log)
+    if dimension == 2:
+        log = _with_side_inputs(args, log)
     print(f"{args.log}: {'3-D log, ' if dimension == 3 else ''}{summary(log)}")
     compare, compute_metrics, format_table, write_results = _pipeline(dimension)
     with Progress() as progress:
@@ -228,6 +231,36 @@ def _self_fitted_model(log):
     print(noise_model_summary(fit.model))
     print(self_fit_notes(fit))
     return fit.model
+
+
+def _self_fitted_3d(log):
+    """``--noise self`` on a 3-D log: the stereo and IMU σ learned from it
+    (:func:`fgslam.self_calibration3d.fit_without_truth_3d`) written into its records."""
+    from fgslam.cli.progress import Progress
+    from fgslam.runner3d import prepare_log3d
+    from fgslam.self_calibration3d import fit_without_truth_3d, with_noise
+
+    with Progress(unit="") as progress:
+        fit = fit_without_truth_3d(prepare_log3d(log), progress=progress)
+    n = fit.noise
+    print(f"learned without truth in {fit.iterations} iterations"
+          + ("" if fit.converged else " (NOT converged: the last iteration's values)")
+          + f": stereo sigma {n.sigma_px:.3f} px, IMU speed sigma {n.sigma_v_mps:.4f} m/s, "
+          f"turn-rate sigma {n.sigma_w_radps:.5f} rad/s (the log said {_stated_3d(log)}); "
+          f"{100 * fit.outlier_rate:.1f} % of the stereo observations beyond the fit's gate")
+    print("applied the noise learned from this log (without truth)")
+    return with_noise(log, n)
+
+
+def _stated_3d(log) -> str:
+    import numpy as np
+
+    from fgslam.runner3d import noise_of
+
+    n = noise_of(log)
+    cov = n.velocity_cov()
+    return (f"{n.sigma_px:g} px, {float(np.sqrt(np.mean(np.diag(cov)[:3]))):g} m/s, "
+            f"{float(np.sqrt(np.mean(np.diag(cov)[3:]))):g} rad/s")
 
 
 def _write_metrics_and_tum(out: Path, metrics: dict, result, has_pose, write, online: list) -> None:

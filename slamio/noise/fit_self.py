@@ -44,7 +44,7 @@ import scipy.sparse.linalg as spla
 
 from slamio.noise.errors import NoiseModelError
 
-__all__ = ["LagFromReadings", "VceStep", "lag_from_readings", "component_shares", "group_ratios", "hat_traces", "pair_weights", "relative_std", "scoring_step",
+__all__ = ["LagFromReadings", "VceStep", "hat_traces_blocks", "lag_from_readings", "component_shares", "group_ratios", "hat_traces", "pair_weights", "relative_std", "scoring_step",
            "vce_from_sums", "vce_step"]
 
 #: Hutchinson probes for the traces: the weighted traces are sums over thousands of rows, and
@@ -93,6 +93,30 @@ def hat_traces(A: sp.spmatrix, weights: np.ndarray, probes: int = PROBES, seed: 
         z = rng.choice((-1.0, 1.0), size=(m, block))
         hz = A @ lu.solve(np.asarray(A.T @ z))
         out += weights.T @ np.sum(z * hz, axis=1)
+        done += block
+    return out / probes
+
+
+def hat_traces_blocks(A: sp.spmatrix, blocks: list[sp.spmatrix], probes: int = PROBES, seed: int = 0) -> np.ndarray:
+    """``tr(S_c H)`` for every (m × m, sparse, block-diagonal) ``S_c`` of ``blocks``: the
+    weighted traces of :func:`hat_traces` when a row's variance components are not on the
+    diagonal (a 6×6 IMU increment covariance split into its speed and turn-rate parts, seen
+    in whitened coordinates). Hutchinson's estimator, seeded."""
+    A = sp.csr_matrix(A)
+    m, _ = A.shape
+    try:
+        lu = spla.splu((A.T @ A).tocsc(), permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
+    except RuntimeError as exc:
+        raise NoiseModelError(f"the smoothing problem is singular ({exc}): a pose or landmark no "
+                              "measurement fixes") from None
+    rng = np.random.default_rng(seed)
+    out = np.zeros(len(blocks))
+    done = 0
+    while done < probes:
+        block = min(32, probes - done)
+        z = rng.choice((-1.0, 1.0), size=(m, block))
+        hz = A @ lu.solve(np.asarray(A.T @ z))
+        out += [float(np.sum(z * (S @ hz))) for S in blocks]
         done += block
     return out / probes
 
