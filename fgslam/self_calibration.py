@@ -43,9 +43,9 @@ from dataclasses import dataclass, field
 
 import gtsam
 import numpy as np
-import scipy.sparse as sp
 from gtsam.symbol_shorthand import L, X
 
+from fgslam.linearized import whitened_system
 from fgslam.registry import build
 from fgslam.runner import run_estimator
 from slamio.log import Observation, RunLog
@@ -207,19 +207,6 @@ class RunGraph:
         for i, reading in enumerate(self.readings):
             e = np.asarray(self.reading_factor(reading, theta).whitenedError(self.values))
             self.inlier[i] = bool(np.all(np.abs(e) <= GATE_SIGMA))
-
-
-def whitened_system(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> tuple[sp.csr_matrix, np.ndarray]:
-    """The whitened Jacobian A (rows in factor order) and the whitened residuals at ``values``."""
-    triplets = graph.linearize(values).sparseJacobian_()
-    rows, cols, vals = triplets[0].astype(int) - 1, triplets[1].astype(int) - 1, triplets[2]
-    n = int(cols.max())  # the last column is the right-hand side b = −(whitened error)
-    m = int(rows.max()) + 1
-    in_a = cols < n
-    A = sp.csr_matrix((vals[in_a], (rows[in_a], cols[in_a])), shape=(m, n))
-    b = np.zeros(m)
-    b[rows[~in_a]] = vals[~in_a]
-    return A, b
 
 
 @dataclass

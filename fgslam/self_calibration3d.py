@@ -27,7 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from fgslam.runner3d import Log3d, run_estimator_3d
-from fgslam.self_calibration import whitened_system
+from fgslam.linearized import whitened_system
 from fgslam.smoother3d import batch_solve, gtsam_covariance, imu_increment_covariance
 from slamio.datasets.seed003 import StereoImuNoise
 from slamio.log import RunLog, StereoObservation, VelocityOdometry

@@ -24,7 +24,7 @@ import gtsam
 import numpy as np
 from scipy.stats import chi2
 
-from fgslam.self_calibration import whitened_system
+from fgslam.linearized import whitened_system
 from slamio.noise.fit_self import hat_traces
 
 __all__ = ["FITS", "GroupVerdict", "graph_verdict", "verdict_lines"]
