@@ -131,7 +131,11 @@ def verdict_lines(verdict: dict, noise_source: str | None) -> list[str]:
     for v in verdict.values():
         lines.append("  " + v.sentence())
         bad |= not v.fits
-    if bad:
+    learned = bool(noise_source) and noise_source.startswith("learned from this log")
+    if bad and learned:
+        lines.append("  the noise was learned from this log: what still does not fit is readings the fit left out "
+                     "as outliers, or motion and readings the model does not describe")
+    elif bad:
         lines.append("  to fix it: fgslam run LOG --noise self (learn the noise from this log), or fgslam calibrate "
                      "LOG... --without-truth --out noise.json and --noise noise.json")
     planar = [v for g, v in verdict.items() if g in ("odometry", "range", "bearing")]

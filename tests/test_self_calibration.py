@@ -93,6 +93,7 @@ def test_calibrate_without_truth_and_run_noise_self(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "applied the noise model learned from this log (without truth)" in out
     assert "noise verdict" in out and "odometry: chi2/dof" in out
+    assert "the log's noise: learned from this log without truth (--noise self)" in out
     metrics = json.loads((tmp_path / "r" / "metrics.json").read_text())
     assert set(metrics["noise_verdict"]) == {"odometry", "range", "bearing"}
     assert all(v["fits"] for v in metrics["noise_verdict"].values())

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 from pathlib import Path
 
@@ -163,7 +164,9 @@ def cmd_run(args: argparse.Namespace) -> int:
 def noise_source(header) -> str:
     """Where the log's noise came from, in a few words (its header's ``noise`` and ``source``)."""
     noise = header.noise if isinstance(header.noise, dict) else {}
-    if header.source.get("generator") in ("slamio.sim", "slamio.sim3d"):
+    if "learned_without_truth" in noise:
+        return "learned from this log without truth (--noise self)"
+    if header.source.get("generator") in ("slamio.sim", "slamio.sim3d") and "fitted_on" not in noise:
         return "the simulator's own (drawn exactly as stated)"
     if "fitted_on" in noise:
         fitted = noise.get("fitted_on") or []
@@ -210,6 +213,9 @@ def _with_side_inputs(args: argparse.Namespace, log):
                               "recorded or imported without one")
         model = _self_fitted_model(log) if args.noise == "self" else load_noise_model(args.noise)
         log, dropped = apply_noise_model(log, model)
+        if args.noise == "self":  # the verdict then knows the noise is this log's own
+            noise = {**log.header.noise, "learned_without_truth": True}
+            log = dataclasses.replace(log, header=dataclasses.replace(log.header, noise=noise))
         what = "the noise model learned from this log (without truth)" if args.noise == "self" else \
             f"the noise model {args.noise}"
         print(f"applied {what}" + (f" ({dropped} readings could not be corrected and were dropped)" if dropped else ""))
