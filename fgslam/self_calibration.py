@@ -108,8 +108,8 @@ class RunGraph:
         self.path = log.path
         steps = log.steps()
         if log.header.is_3d:
-            raise NoiseModelError(f"{log.path}: a 3-D log; --without-truth fits planar logs (odometry and range-bearing "
-                                  "readings) for now")
+            raise NoiseModelError(f"{log.path}: a 3-D log; calibrate --without-truth writes a planar noise model. "
+                                  "For a stereo + IMU log, fgslam run LOG --noise self learns its sigma and runs")
         smoother = build("isam2", 2, log.header)
         run_estimator(smoother, steps, covariances=False)
         trajectory = np.asarray(smoother.trajectory(), dtype=float)
