@@ -333,7 +333,10 @@ class ScriptedKeys:
         if self.script is None:
             now = self.sim.clock()
             self.script = [(now + t, key, self.sim.hold(at_s=now + t)) for t, key in self.plan]
-        if self.script and self.sim.clock() >= self.script[0][0]:
+        # the simulator stops its clock at a hold when clock + 1e-9 reaches it (its clock is a
+        # step count × 15 ms, which can land one ulp short of ``now + t``): the same tolerance
+        # here, or a hold reached one ulp early is never released and the robot goes silent
+        if self.script and self.sim.clock() >= self.script[0][0] - 1e-9:
             _, key, token = self.script.pop(0)
             self.sim.release(token)
             return key
