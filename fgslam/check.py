@@ -68,10 +68,10 @@ import numpy as np
 from fgslam.compare import ate_rmse_m, nees_band, nees_over_truth
 from fgslam.registry import CHECK_DEFAULTS, names_for
 from fgslam.runner import (
-    ESTIMATORS, UnusableReferenceError, noise_verdict, require_motion, require_usable_reference, run_estimator,
-    truth_reference,
+    ESTIMATORS, UnusableReferenceError, require_motion, require_usable_reference, run_estimator, truth_reference,
 )
 from fgslam.smoother import Isam2Smoother, batch_solve
+from fgslam.verdict import verdict_or_none
 from slamio.errors import FgslamError, InputFileError, read_text
 from slamio.log import read_log
 from slamio.safe_input import parse_toml
@@ -257,7 +257,7 @@ def _score_planar(log, log_path, estimator: str, against: str) -> Score:
         run_estimator(smoother, steps, covariances=False)  # only its graph is needed
         require_usable_reference(smoother, steps, str(log_path))
         batch = batch_solve(smoother)
-        reference_poses, noise = batch.trajectory, noise_verdict(smoother, batch)
+        reference_poses, noise = batch.trajectory, verdict_or_none(smoother.graph(), batch.values)
         has_pose = np.ones(len(reference_poses), dtype=bool)
 
     run, _ = run_estimator(ESTIMATORS[estimator](log.header), steps)

@@ -34,6 +34,7 @@ from fgslam.memory import PeakMemory
 from fgslam.registry import DEFAULTS, REGISTRY, isam2_names, names_for, parse_names
 from fgslam.registry import expected_outlier_kernel  # noqa: F401  (scripts import it from here)
 from fgslam.smoother import Isam2Smoother, batch_solve
+from fgslam.verdict import verdict_or_none
 from slamio.errors import FgslamError
 from slamio.estimator import Estimator
 from slamio.log import Header, RunLog, Step
@@ -434,16 +435,4 @@ def compare_log(
     stamps_s = np.array([s.stamp_s for s in steps])
     reference = choose_reference(log, batch.trajectory, batch_landmarks, batch_heights)
     return Comparison(runs, reference, stamps_s, smoother, (batch.initial_error, batch.final_error),
-                      noise_verdict(smoother, batch))
-
-
-def noise_verdict(smoother: Isam2Smoother, batch) -> dict:
-    """:func:`fgslam.verdict.graph_verdict` of the smoother's graph at the batch optimum
-    (empty when the graph cannot be judged: a singular system)."""
-    from fgslam.verdict import graph_verdict
-    from slamio.noise.errors import NoiseModelError
-
-    try:
-        return graph_verdict(smoother.graph(), batch.values)
-    except NoiseModelError:
-        return {}
+                      verdict_or_none(smoother.graph(), batch.values))

@@ -241,6 +241,7 @@ def in_world(run: Run3d, world_T_start: np.ndarray) -> Run3d:
 def run_log3d(log: RunLog, names: list[str], *, consistency: bool = True, progress=None) -> Comparison3d:
     """Every named estimator on ``log``, then the batch solve from isam2-3d's graph."""
     from fgslam.smoother3d import batch_solve
+    from fgslam.verdict import verdict_or_none
 
     ready = prepare_log3d(log)
     runs = []
@@ -258,19 +259,7 @@ def run_log3d(log: RunLog, names: list[str], *, consistency: bool = True, progre
                          ready.world_T_start))
     reference = truth_reference_3d(log, ready.steps) or Reference3d("batch", runs[-1].final, runs[-1].landmarks)
     return Comparison3d(runs, reference, ready.stamps_s, smoother, float(batch.error), smoother.error(),
-                        _verdict(smoother, batch))
-
-
-def _verdict(smoother, batch) -> dict:
-    """:func:`fgslam.verdict.graph_verdict` of isam2-3d's graph at the batch optimum (empty when
-    the system is singular)."""
-    from fgslam.verdict import graph_verdict
-    from slamio.noise.errors import NoiseModelError
-
-    try:
-        return graph_verdict(smoother.graph, batch.values)
-    except NoiseModelError:
-        return {}
+                        verdict_or_none(smoother.graph, batch.values))
 
 
 # --------------------------------------------------------------------------- metrics

@@ -50,7 +50,7 @@ from fgslam.registry import build
 from fgslam.runner import run_estimator
 from slamio.log import Observation, RunLog
 from slamio.noise.apply import apply_noise_model
-from slamio.noise.dead_reckoning import DeadReckoning, turn_rate_radps
+from slamio.noise.dead_reckoning import DeadReckoning, odometry_arrays, turn_rate_radps
 from slamio.noise.errors import NoiseModelError
 from slamio.noise.fit_self import (
     LAG_GRID_S, LagFromReadings, component_shares, hat_traces, lag_from_readings, pair_weights, relative_std,
@@ -117,9 +117,7 @@ class RunGraph:
             raise NoiseModelError(f"{log.path}: the smoother kept {len(trajectory)} of {len(steps)} poses; "
                                   "fit without truth needs one pose per step")
         self.header = log.header
-        self.stamps_s = np.array([s.stamp_s for s in steps])
-        self.increments = np.array([[s.odometry.dx_m, s.odometry.dy_m, s.odometry.dtheta_rad] for s in steps[1:]],
-                                   dtype=float).reshape(-1, 3)
+        self.stamps_s, self.increments = odometry_arrays(steps)
         dt = np.maximum(np.diff(self.stamps_s), 0.0)
         distance = np.hypot(self.increments[:, 0], self.increments[:, 1])
         turn = np.abs(self.increments[:, 2])
@@ -280,9 +278,7 @@ def pooled_lag(logs: list[RunLog], lags_s: tuple[float, ...]) -> LagFromReadings
         steps = log.steps()
         if len(steps) < 2:
             continue
-        stamps = np.array([s.stamp_s for s in steps])
-        increments = np.array([[s.odometry.dx_m, s.odometry.dy_m, s.odometry.dtheta_rad] for s in steps[1:]],
-                              dtype=float).reshape(-1, 3)
+        stamps, increments = odometry_arrays(steps)
         readings = [(o.stamp_s, o.landmark_id, o.range_m, o.bearing_rad) for s in steps for o in s.observations
                     if o.landmark_id is not None and o.bearing_rad is not None]
         found = lag_from_readings(DeadReckoning(stamps, increments), readings, lags_s)

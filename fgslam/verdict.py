@@ -27,7 +27,7 @@ from scipy.stats import chi2
 from fgslam.linearized import whitened_system
 from slamio.noise.fit_self import hat_traces
 
-__all__ = ["FITS", "GroupVerdict", "graph_verdict", "verdict_lines"]
+__all__ = ["FITS", "GroupVerdict", "graph_verdict", "verdict_lines", "verdict_or_none"]
 
 #: χ²/redundancy inside this band: the stated σ are within a factor √2 of what the data show.
 FITS = (0.5, 2.0)
@@ -119,6 +119,17 @@ def graph_verdict(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> di
         out[g] = GroupVerdict(g, float(np.sum(b[rows] ** 2)), float(np.count_nonzero(rows) - h),
                               int(np.count_nonzero(rows)))
     return out
+
+
+def verdict_or_none(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> dict[str, GroupVerdict]:
+    """:func:`graph_verdict`, or an empty verdict when the graph cannot be judged (its system is
+    singular): what a run reports after its batch solve, 2-D and 3-D alike."""
+    from slamio.noise.errors import NoiseModelError
+
+    try:
+        return graph_verdict(graph, values)
+    except NoiseModelError:
+        return {}
 
 
 def verdict_lines(verdict: dict, noise_source: str | None) -> list[str]:

@@ -112,6 +112,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from fgslam.provenance import provenance
     from fgslam.registry import parse_names
     from fgslam.runner import TIMING, require_motion
+    from fgslam.verdict import verdict_lines
 
     log = read(args.log)
     require_motion(log, "estimate or score")
@@ -176,13 +177,6 @@ def noise_source(header) -> str:
         return "round numbers, not fitted to this robot (the importer's or recorder's defaults)"
     text = "; ".join(t for t in texts if t) or "not stated in the log's header"
     return text if len(text) <= 160 else text[:157] + "..."
-
-
-def verdict_lines(verdict: dict, source: str | None) -> list[str]:
-    """The noise verdict's lines (:func:`fgslam.verdict.verdict_lines`)."""
-    from fgslam.verdict import verdict_lines as lines
-
-    return lines(verdict, source)
 
 
 def _pipeline(dimension: int):

@@ -43,7 +43,7 @@ from dataclasses import asdict
 import numpy as np
 
 from slamio.log import Observation, Odometry, RunLog, as_matrix3
-from slamio.noise.dead_reckoning import DeadReckoning, turn_rate_radps
+from slamio.noise.dead_reckoning import DeadReckoning, odometry_arrays, turn_rate_radps
 from slamio.noise.errors import NoiseModelError
 from slamio.noise.model import NoiseModel, ObservationModel, carries_fitted_model
 
@@ -110,10 +110,7 @@ def apply_noise_model(log: RunLog, model: NoiseModel) -> tuple[RunLog, int]:
             "heading, such as GPS), so it can correct range-only readings only; fit a model on logs whose truth "
             "has a heading"
         )
-    stamps = np.array([s.stamp_s for s in steps])
-    increments = np.array(
-        [[s.odometry.dx_m, s.odometry.dy_m, s.odometry.dtheta_rad] for s in steps[1:]]  # type: ignore[union-attr]
-    ).reshape(-1, 3)
+    stamps, increments = odometry_arrays(steps)
     odo_model = model.odometry
     chain = DeadReckoning(stamps, increments) if len(stamps) > 1 else None
     dropped = 0

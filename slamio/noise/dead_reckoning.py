@@ -13,10 +13,19 @@ import math
 
 import numpy as np
 
-__all__ = ["DeadReckoning", "TURN_RATE_HALF_WINDOW_S", "turn_rate_radps"]
+__all__ = ["DeadReckoning", "TURN_RATE_HALF_WINDOW_S", "odometry_arrays", "turn_rate_radps"]
 
 #: Half width of the window over which the turn rate at a time is read, seconds.
 TURN_RATE_HALF_WINDOW_S = 0.1
+
+
+def odometry_arrays(steps) -> tuple[np.ndarray, np.ndarray]:
+    """``(stamps (T,), increments (T − 1, 3))`` of a planar log's steps: each step's stamp and
+    the ``(dx, dy, dθ)`` of its odometry record (step 0 has none)."""
+    stamps = np.array([s.stamp_s for s in steps], dtype=float)
+    increments = np.array([[s.odometry.dx_m, s.odometry.dy_m, s.odometry.dtheta_rad] for s in steps[1:]],
+                          dtype=float).reshape(-1, 3)
+    return stamps, increments
 
 
 class DeadReckoning:

@@ -26,9 +26,9 @@ exactly their redundancy. ``Σ_j w_jc h_jj`` is a weighted trace of ``H``, estim
 Hutchinson's method (Rademacher probes ``z``: ``E[z ⊙ Hz] = diag H``), one sparse
 factorisation of ``AᵀA`` and one solve per block of probes.
 
-The same ratio is the verdict of a run (:func:`group_ratios`): per noise group, the whitened
-χ² of the smoothed solution over its redundancy; 1 when the stated noise fits the data,
-``k²`` when the stated σ are ``k``× too small.
+The same ratio is the verdict of a run (:mod:`fgslam.verdict`): per noise group, the
+whitened χ² of the smoothed solution over its redundancy; 1 when the stated noise fits the
+data, ``k²`` when the stated σ are ``k``× too small.
 
 All pure (numpy, scipy); the factor graph that supplies ``A`` and ``ẽ`` is built by
 :mod:`fgslam.self_calibration`.
@@ -44,8 +44,8 @@ import scipy.sparse.linalg as spla
 
 from slamio.noise.errors import NoiseModelError
 
-__all__ = ["LagFromReadings", "VceStep", "hat_traces_blocks", "lag_from_readings", "component_shares", "group_ratios", "hat_traces", "pair_weights", "relative_std", "scoring_step",
-           "vce_from_sums", "vce_step"]
+__all__ = ["LagFromReadings", "VceStep", "component_shares", "hat_traces", "hat_traces_blocks", "lag_from_readings",
+           "pair_weights", "relative_std", "scoring_step", "vce_from_sums", "vce_step"]
 
 #: Hutchinson probes for the traces: the weighted traces are sums over thousands of rows, and
 #: 96 probes put their relative error at about a per cent on a 2 000-pose run.
@@ -70,6 +70,26 @@ def component_shares(theta: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.n
     return var, w
 
 
+def _probed(A: sp.spmatrix, probes: int, seed: int):
+    """Hutchinson's probes of the hat matrix ``H = A (AᵀA)⁻¹ Aᵀ``: yields ``(z, Hz)`` blocks of
+    Rademacher vectors (seeded, at most 32 columns at a time) after one sparse factorisation
+    of ``AᵀA``; :class:`NoiseModelError` when it is singular (a variable no measurement fixes)."""
+    A = sp.csr_matrix(A)
+    m, _ = A.shape
+    try:
+        lu = spla.splu((A.T @ A).tocsc(), permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
+    except RuntimeError as exc:  # "Factor is exactly singular"
+        raise NoiseModelError(f"the smoothing problem is singular ({exc}): a pose or landmark no "
+                              "measurement fixes") from None
+    rng = np.random.default_rng(seed)
+    done = 0
+    while done < probes:
+        block = min(32, probes - done)
+        z = rng.choice((-1.0, 1.0), size=(m, block))
+        yield z, A @ lu.solve(np.asarray(A.T @ z))
+        done += block
+
+
 def hat_traces(A: sp.spmatrix, weights: np.ndarray, probes: int = PROBES, seed: int = 0) -> np.ndarray:
     """``Σ_j weights[j, c] · h_jj`` for every column c of ``weights`` (m, C), ``h`` the diagonal
     of the hat matrix of the whitened Jacobian ``A`` (m × n, full column rank).
@@ -77,23 +97,9 @@ def hat_traces(A: sp.spmatrix, weights: np.ndarray, probes: int = PROBES, seed: 
     Hutchinson's estimator with ``probes`` Rademacher vectors (seeded: the same answer every
     run). Raises :class:`NoiseModelError` when ``AᵀA`` is singular (a variable no
     measurement fixes)."""
-    A = sp.csr_matrix(A)
-    m, n = A.shape
-    normal = (A.T @ A).tocsc()
-    try:
-        lu = spla.splu(normal, permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
-    except RuntimeError as exc:  # "Factor is exactly singular"
-        raise NoiseModelError(f"the smoothing problem is singular ({exc}): a pose or landmark no "
-                              "measurement fixes") from None
-    rng = np.random.default_rng(seed)
     out = np.zeros(weights.shape[1])
-    done = 0
-    while done < probes:
-        block = min(32, probes - done)
-        z = rng.choice((-1.0, 1.0), size=(m, block))
-        hz = A @ lu.solve(np.asarray(A.T @ z))
+    for z, hz in _probed(A, probes, seed):
         out += weights.T @ np.sum(z * hz, axis=1)
-        done += block
     return out / probes
 
 
@@ -102,22 +108,9 @@ def hat_traces_blocks(A: sp.spmatrix, blocks: list[sp.spmatrix], probes: int = P
     weighted traces of :func:`hat_traces` when a row's variance components are not on the
     diagonal (a 6×6 IMU increment covariance split into its speed and turn-rate parts, seen
     in whitened coordinates). Hutchinson's estimator, seeded."""
-    A = sp.csr_matrix(A)
-    m, _ = A.shape
-    try:
-        lu = spla.splu((A.T @ A).tocsc(), permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
-    except RuntimeError as exc:
-        raise NoiseModelError(f"the smoothing problem is singular ({exc}): a pose or landmark no "
-                              "measurement fixes") from None
-    rng = np.random.default_rng(seed)
     out = np.zeros(len(blocks))
-    done = 0
-    while done < probes:
-        block = min(32, probes - done)
-        z = rng.choice((-1.0, 1.0), size=(m, block))
-        hz = A @ lu.solve(np.asarray(A.T @ z))
+    for z, hz in _probed(A, probes, seed):
         out += [float(np.sum(z * (S @ hz))) for S in blocks]
-        done += block
     return out / probes
 
 
@@ -208,18 +201,6 @@ def relative_std(theta: np.ndarray, weights: np.ndarray) -> np.ndarray:
     out[used] = np.where(d > 0.0, np.sqrt(np.abs(d)), np.inf)
     if np.linalg.cond(sub) > 1e12:
         out[used] = np.maximum(out[used], 1.0)
-    return out
-
-
-def group_ratios(whitened_sq: np.ndarray, groups: np.ndarray, hat_diag_sums: dict[str, float]) -> dict[str, tuple[float, float]]:
-    """Per noise group: ``(χ², redundancy)`` of the smoothed solution, from the squared
-    whitened residuals, each row's group name (``groups``, (m,) strings; "" for rows of no
-    group) and ``hat_diag_sums[g]`` = Σ h_jj over the group's rows (:func:`hat_traces` with
-    one-hot weights). ``χ² / redundancy`` is 1 when the stated noise fits."""
-    out = {}
-    for g, h in hat_diag_sums.items():
-        rows = groups == g
-        out[g] = (float(np.sum(np.asarray(whitened_sq)[rows])), float(np.count_nonzero(rows) - h))
     return out
 
 

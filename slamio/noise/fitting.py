@@ -20,7 +20,7 @@ from scipy.optimize import curve_fit, nnls
 
 from slamio.log import RunLog, group_steps
 from slamio.log.mount import pose_on_robot
-from slamio.noise.dead_reckoning import DeadReckoning
+from slamio.noise.dead_reckoning import DeadReckoning, odometry_arrays
 from slamio.noise.errors import NoiseModelError
 from slamio.noise.model import carries_fitted_model
 
@@ -107,8 +107,7 @@ def truth_data(log: RunLog) -> TruthData:
             f"{log.path}: this log was imported with a fitted noise model already; calibrate on "
             "logs imported without --noise (the fit is relative to the raw odometry and readings)"
         )
-    stamps = np.array([s.stamp_s for s in steps])
-    increments = np.array([[s.odometry.dx_m, s.odometry.dy_m, s.odometry.dtheta_rad] for s in steps[1:]])  # type: ignore[union-attr]
+    stamps, increments = odometry_arrays(steps)
     truth = [(s.stamp_s, s.truth.x_m, s.truth.y_m, math.nan if s.truth.theta_rad is None else s.truth.theta_rad)
              for s in steps if s.truth is not None]
     if len(truth) < 10 or len(steps) < 10:
