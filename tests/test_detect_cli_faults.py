@@ -362,3 +362,26 @@ def test_a_missing_file_in_a_tum_list_is_named(tmp_path, capsys):
                                   "--out", tmp_path / "still.jsonl", "--static")
     assert status == 0, err
     assert "first: rgb/gone.png (cannot read" in stdout
+
+
+def test_the_log_states_the_camera_mount_its_detections_were_placed_from(tmp_path, capsys):
+    frames, camera, log = _frames(tmp_path), _camera(tmp_path), _recorded_log(tmp_path)
+    status, _, err = _detect(capsys, frames, "--camera", camera, "--tag-size", "0.065", "--out", log)
+    assert status == 0, err
+    sensor = read_log(log).header.sensor
+    assert len(sensor["T_robot_camera"]) == 4 and "robot's centre" in sensor["readings_at"]
+    assert "pose_on_robot" not in sensor
+
+
+def test_a_log_whose_readings_are_a_sensors_own_is_refused_before_detecting(tmp_path, capsys):
+    from dataclasses import replace
+
+    frames, camera = _frames(tmp_path), _camera(tmp_path)
+    log = tmp_path / "mounted.jsonl"
+    header = minimal_header(stamp_s=0.0)
+    write_log(log, replace(header, sensor={**header.sensor, "pose_on_robot": [0.2, 0.0, 0.0]}),
+              [Odometry(1.0, 0.1, 0.0, 0.0, ((1e-4, 0, 0), (0, 1e-4, 0), (0, 0, 1e-4)))])
+    content = log.read_bytes()
+    status, _, err = _detect(capsys, frames, "--camera", camera, "--tag-size", "0.065", "--out", log)
+    assert status == 1
+    assert "sensor.pose_on_robot [0.2, 0.0, 0.0]" in _one_error(err) and log.read_bytes() == content

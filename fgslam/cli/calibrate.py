@@ -19,6 +19,7 @@ import json
 from pathlib import Path
 
 from fgslam.cli.common import add_overwrite_option, add_verb, check_new_file, holds_outputs, read, write_new_file
+from slamio.errors import FgslamError
 from slamio.noise.errors import NoiseModelError
 
 #: The modes of ``fgslam calibrate`` (``--from``; ``self`` is ``--without-truth``).
@@ -45,7 +46,10 @@ from truth:   fgslam calibrate LOG.jsonl [LOG.jsonl ...] --out noise.json [--fro
   odometry lag, scale, turn per metre and variance rates; the camera's range model (range
   or depth, scale, bias), bearing scale and bias, latency, sigmas that grow with range and
   turn rate, the outlier rate and the readings' correlation in time (slamio.noise.fit_truth;
-  range-only radios: slamio.noise.range). Several logs are pooled. Use the file on *other*
+  range-only radios: slamio.noise.range), and where the sensor sits on the robot (x, y, yaw,
+  from the bearings' parallax: slamio.noise.mount_fit), reported; with --fit-mount the model
+  is fitted from there and carries it, and applying the model states it in the log header's
+  sensor.pose_on_robot. Several logs are pooled. Use the file on *other*
   runs: fgslam import mrclam SOURCE OUT --robot N --noise noise.json, or fgslam run LOG
   --noise noise.json. Fit on logs imported without --noise.
 
@@ -84,6 +88,10 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     p.add_argument("--without-truth", dest="mode", action="store_const", const="self",
                    help="learn the noise from the logs alone (no ground truth needed): variance-component "
                    "estimation on the smoothed solution; the same as --from self")
+    p.add_argument("--fit-mount", action="store_true",
+                   help="(from truth) fit the model from where the bearings place the sensor on the robot and "
+                   "carry it: applying the model states it as the log header's sensor.pose_on_robot (without "
+                   "it the fitted mount is only reported)")
     p.add_argument("--out", default=None, metavar="FILE",
                    help="write the noise model (from truth) or the trial calibration (from trials) JSON here; "
                    "an existing file is kept")
@@ -121,6 +129,9 @@ def calibration_mode(paths: list[str], mode: str | None) -> str:
 @holds_outputs(out="--out")
 def cmd_calibrate(args: argparse.Namespace) -> int:
     mode = calibration_mode(args.trials, getattr(args, "mode", None))
+    if getattr(args, "fit_mount", False) and mode != "truth":
+        raise FgslamError("--fit-mount fits the sensor's mount against ground truth: it works with logs that have "
+                          "truth (--from truth), not " + ("without truth" if mode == "self" else "with trials"))
     if mode == "truth":
         return _calibrate_from_logs(args, args.trials)
     if mode == "self":
@@ -148,7 +159,7 @@ def _calibrate_from_logs(args: argparse.Namespace, paths: list[str]) -> int:
 
     if args.out:  # before the fit, so nothing is computed for nothing
         check_new_file(args.out, overwrite=args.overwrite, example="noise.json")
-    model = fit_noise_model([read(p) for p in paths])
+    model = fit_noise_model([read(p) for p in paths], fit_mount=getattr(args, "fit_mount", False))
     print(noise_model_summary(model))
     if args.out:
         write_new_file(Path(args.out), lambda tmp: save_noise_model(tmp, model, overwrite=True),
@@ -220,11 +231,27 @@ def noise_model_summary(model) -> str:
             f"{z.bearing_bias_rad:+.4f} rad; latency {z.camera_latency_s:.3f} s",
             f"  sigma range = hypot({z.range_sigma_m:.4f} m, {z.range_sigma_per_m:.4f} x range); "
             f"sigma bearing = hypot({z.bearing_sigma_rad:.4f} rad, {z.bearing_sigma_s:.4f} s x turn rate); "
-            f"outliers {100 * z.outlier_rate:.2f} %"]),
+            f"outliers {100 * z.outlier_rate:.2f} %",
+            _mount_line(model)]),
         f"  readings of one landmark: {100 * z.correlated_share:.0f} % of the variance correlated in time, "
         f"correlation time {z.correlation_time_s:.1f} s" if z.correlated_share > 0 else
         "  readings of one landmark: errors independent in time",
     ])
+
+
+def _mount_line(model) -> str:
+    """Where the fit places the sensor on the robot (slamio.noise.mount_fit), and whether it is used."""
+    fit = model.fit_report.get("observation", {}).get("sensor_mount", {})
+    if "pose_on_robot" not in fit:
+        return "  sensor on the robot: not fitted (too few bearings)"
+    (x, y, yaw), (sx, sy, syaw) = fit["pose_on_robot"], fit["sigma"]
+    where = f"x {x:+.3f} ± {sx:.3f} m, y {y:+.3f} ± {sy:.3f} m, yaw {yaw:+.4f} ± {syaw:.4f} rad"
+    if fit.get("adopted"):
+        return f"  sensor on the robot: {where} (applying the model states it as the log's sensor.pose_on_robot)"
+    if not fit.get("determined"):
+        return f"  sensor on the robot: {where}: not determined by these runs, the logs' own header stands"
+    return (f"  sensor on the robot, as the bearings place it: {where}; not used (the logs' header stands): "
+            "pass --fit-mount to fit the model from there and carry it")
 
 
 def _radio_lines(model) -> list[str]:

@@ -56,6 +56,7 @@ from fgslam.cli.common import add_verb, check_number, command_line, holds_output
 from fgslam.cli.detect_checks import DetectError, FrameProblems, check_show, parse_tag_ids, summary_with_details
 from fgslam.cli.progress import Progress
 from slamio.log import Header, Observation, Odometry, read_log, write_log
+from slamio.log.mount import camera_mount_fields, pose_on_robot
 
 DEFAULT_MAX_POSE_GAP_S = 0.05
 #: Stamps closer than this are the same instant (frame files named by their stamp to the microsecond).
@@ -265,6 +266,12 @@ def _existing_log(out: Path, replace_observations: bool):
         print(f"fgslam: warning: {existing.truncated}; the cut-off line is dropped when the log is rewritten")
     removed = 0
     if existing is not None:
+        mount = pose_on_robot(existing.header.sensor)
+        if mount is not None:
+            raise DetectError(
+                f"{out}'s header states sensor.pose_on_robot {list(mount)}: its readings are taken from there, but "
+                "detect places each detection from the camera file's robot_mount (at the robot's centre). Remove "
+                "the field from the header (and state the camera's mount in its camera file), or give another log")
         existing, removed = _without_observations(existing, out, replace_observations)
     return existing, removed
 
@@ -396,7 +403,8 @@ def cmd_detect(args: argparse.Namespace) -> int:
     if removed:
         runs = [{**run, "observations_removed": True} if isinstance(run, dict) else run for run in runs]
         settings["replaced_observations"] = removed
-    header = replace(header, source={**header.source, "detect": runs + [settings]})
+    sensor = {**(header.sensor if isinstance(header.sensor, dict) else {}), **camera_mount_fields(camera.T_robot_camera)}
+    header = replace(header, sensor=sensor, source={**header.source, "detect": runs + [settings]})
     _write_log(out, header, records, new=existing is None)
     kept = sum(isinstance(r, Observation) for r in records) - (
         0 if existing is None else sum(isinstance(r, Observation) for r in existing.records))

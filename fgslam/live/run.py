@@ -13,6 +13,7 @@ from fgslam.live.steering import LiveSettings, PoseTracker, WaypointFollower
 from fgslam.live.workers import CameraWorker, Lockstep, SmootherWorker
 from slamio.errors import FgslamError
 from slamio.log import Odometry, Step, TruthLandmark
+from slamio.log.mount import camera_mount_fields
 
 
 #: What the AprilTag front-end reports from :func:`simulated_camera`'s frames (640×480, the
@@ -186,6 +187,9 @@ def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front
                                 command_timeout_s=settings.command_timeout_s, data_timeout_s=settings.data_timeout_s)
     sensor = sensor or {"kind": "range-bearing", "landmark_kind": "apriltag" if camera else "none",
                         "source": "fgslam live"}
+    mounted = getattr(getattr(front_end, "camera", None), "T_robot_camera", None)
+    if camera is not None and mounted is not None:  # the mount each detection was placed from
+        sensor = {**sensor, **camera_mount_fields(mounted)}
     if observation_noise is None and camera is not None and getattr(front_end, "noise", None) is not None:
         # the header states the σ the front-end gives each observation (each record carries its own)
         observation_noise = {**front_end.noise.describe(), "source": "the camera front-end's noise model"}

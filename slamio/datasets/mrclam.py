@@ -95,7 +95,7 @@ import bisect
 import math
 import os
 from pathlib import Path
-from dataclasses import asdict
+from dataclasses import asdict, replace
 
 import numpy as np
 
@@ -121,7 +121,7 @@ from slamio.datasets.mrclam_motion import (
 )
 from slamio.datasets.victoria_park import DatasetFormatError
 from slamio.errors import FgslamError, InputFileError
-from slamio.noise.apply import correct_observation
+from slamio.noise.apply import correct_observation, sensor_with_mount
 from slamio.noise.errors import NoiseModelError
 from slamio.noise.model import NoiseModel, OdometryNoiseRates
 from slamio.log import Header, Observation, Odometry, Record, TruthPose, as_matrix3
@@ -339,6 +339,8 @@ def import_mrclam(
     }
     header = _header(robot, folder, paths, start, readings.stamp(end), start_pose,
                      _noise_description(noise, model, sigma_range_m, sigma_bearing_rad), counts)
+    if model is not None:  # a model fitted with the sensor's mount states it (slamio.noise.apply.sensor_with_mount)
+        header = replace(header, sensor=sensor_with_mount(header.sensor, model.observation))
     return header, records
 
 
@@ -454,6 +456,8 @@ def _header(robot: int, folder: str, paths: dict[str, str], start: float, durati
             "kind": "range-bearing",
             "landmark_kind": "barcoded cylinder",
             "camera": "monocular, 960x720, aligned with the robot body frame",
+            # the dataset gives range and bearing from the robot and no camera offset
+            "pose_on_robot": [0.0, 0.0, 0.0],
             "landmark_ids": "MRCLAM subject numbers 6-20, mapped from barcodes through Barcodes.dat",
         },
         noise=noise,

@@ -23,7 +23,13 @@ import numpy as np
 
 from slamio.geometry import wrap_angle
 
-__all__ = ["MAX_MOUNT_OFFSET_M", "moved_to_robot_centre", "pose_on_robot", "reading_in_robot_frame"]
+__all__ = ["MAX_MOUNT_OFFSET_M", "camera_mount_fields", "moved_to_robot_centre", "pose_on_robot",
+           "reading_in_robot_frame"]
+
+#: What the header's ``sensor.readings_at`` says of a camera's detections: fgslam's camera
+#: front-end places each one from the camera's 3-D mount, so they are the robot centre's.
+READINGS_AT_ROBOT_CENTRE = ("the robot's centre: each detection is placed through T_robot_camera, the camera's mount "
+                            "on the robot (its camera file's robot_mount), so the header states no pose_on_robot")
 
 #: A sensor on a ground robot sits within this of its centre.
 MAX_MOUNT_OFFSET_M = 10.0
@@ -49,6 +55,13 @@ def pose_on_robot(sensor: dict) -> tuple[float, float, float] | None:
     if x == 0.0 and y == 0.0 and wrap_angle(yaw) == 0.0:
         return None
     return x, y, yaw
+
+
+def camera_mount_fields(T_robot_camera) -> dict:
+    """The header ``sensor`` fields of a camera whose detections the front-end placed from its
+    mount (``T_robot_camera``, 4×4): the mount, and that the readings are the centre's."""
+    T = np.asarray(T_robot_camera, dtype=float)
+    return {"T_robot_camera": [[round(float(v), 9) for v in row] for row in T], "readings_at": READINGS_AT_ROBOT_CENTRE}
 
 
 def reading_in_robot_frame(range_m: float, bearing_rad: float, mount: tuple[float, float, float]

@@ -22,6 +22,8 @@ Here only the log is left, so:
   ``camera_latency_s`` is not applied (the reading stays with its pose; at the fitted
   0.03 s the difference is a few millimetres); a range-only reading (a ranging radio) by
   :func:`correct_range`;
+* the **sensor's mount**: a model fitted with one (``sensor_pose_on_robot``) states it in the
+  header's ``sensor.pose_on_robot`` (the header's own, if any, kept as ``pose_on_robot_stated``);
 * a **range-only log** (every reading a range, e.g. Plaza) gets the range model only and
   keeps its odometry, as ``fgslam import plaza1|plaza2 --noise`` does: the truth such logs
   are calibrated against has no measured heading (Plaza's GPS heading is its dead-reckoned
@@ -47,7 +49,7 @@ from slamio.noise.dead_reckoning import DeadReckoning, odometry_arrays, turn_rat
 from slamio.noise.errors import NoiseModelError
 from slamio.noise.model import NoiseModel, ObservationModel, carries_fitted_model
 
-__all__ = ["apply_noise_model", "correct_observation", "correct_range"]
+__all__ = ["apply_noise_model", "correct_observation", "correct_range", "sensor_with_mount"]
 
 
 def correct_observation(
@@ -154,8 +156,21 @@ def apply_noise_model(log: RunLog, model: NoiseModel) -> tuple[RunLog, int]:
         "fitted_on": list(model.fitted_on),
         "replaced": log.header.noise,
     }
-    header = dataclasses.replace(log.header, noise=noise)
+    header = dataclasses.replace(log.header, noise=noise, sensor=sensor_with_mount(log.header.sensor, model.observation))
     return RunLog(log.path, header, tuple(out), log.truncated), dropped
+
+
+def sensor_with_mount(sensor: dict, model: ObservationModel) -> dict:
+    """A header's ``sensor`` with the model's fitted ``sensor_pose_on_robot`` stated as its
+    ``pose_on_robot`` (the readings stay the sensor's own; :func:`slamio.log.group_steps`
+    moves them to the centre); unchanged when the model has none."""
+    if model.sensor_pose_on_robot is None:
+        return sensor
+    sensor = dict(sensor) if isinstance(sensor, dict) else {}
+    if "pose_on_robot" in sensor:
+        sensor["pose_on_robot_stated"] = sensor["pose_on_robot"]
+    sensor["pose_on_robot"] = [float(v) for v in model.sensor_pose_on_robot]
+    return sensor
 
 
 def _odometry(record: Odometry, chain: DeadReckoning | None, stamps: np.ndarray, k: int, model: NoiseModel) -> Odometry:

@@ -30,7 +30,9 @@ What is fitted, and how (every step is least squares on residuals against the tr
    readings: it moves that run's map rather than its innovations, which is what the
    filter's σ must describe). σ² of range is regressed on ``[1, r²]`` and σ² of bearing on
    ``[1, ω²]`` (ω, the odometry's turn rate at the picture), after a 5σ gate that counts
-   the outliers.
+   the outliers. Where the sensor sits on the robot is fitted from the bearings' parallax
+   (:mod:`slamio.noise.mount_fit`) and reported; with ``fit_mount`` it is used for all of the
+   above and carried by the model.
 4. **Readings' error in time.** Two readings of one landmark taken close together err
    alike. The residuals divided by their σ are paired per landmark and run, binned by the
    time between them, and ``ρ·exp(−Δt/τ)`` is fitted to the bins' correlations
@@ -62,6 +64,8 @@ from slamio.noise.errors import NoiseModelError
 from slamio.noise.fitting import (GATE_SIGMAS, TruthData, fit_reading_correlation, line_fit, mad_sigma, nnls_rates,
                                   residuals_about_own_lines, truth_at, truth_data)
 from slamio.noise.model import NoiseModel, ObservationModel, OdometryModel, OdometryNoiseRates
+from slamio.noise.mount_fit import MountFit, determined
+from slamio.noise.mount_fit import fit_mount as fit_sensor_mount
 from slamio.noise.range import fit_range_only
 
 __all__ = ["fit_noise_model", "true_range_bearing"]
@@ -206,7 +210,34 @@ def true_range_bearing(data: TruthData, latency_s: float) -> tuple[np.ndarray, .
     return rm[ok], bm[ok], r[ok], b[ok], t[ok], lm[ok]
 
 
-def _fit_observations(datas: Sequence[TruthData], odometry: OdometryModel, latency_grid_s: np.ndarray) -> tuple[ObservationModel, dict]:
+def _mount(datas: Sequence[TruthData], latency_s: float, adopt: bool) -> tuple[list[TruthData], MountFit | None]:
+    """The sensor's pose on the robot fitted from the bearings (:mod:`slamio.noise.mount_fit`),
+    and ``datas`` seen from it when ``adopt`` and the data determine it (else as the headers
+    state)."""
+    poses, landmarks, bearings = [], [], []
+    for d in datas:
+        t = np.array([o[0] for o in d.observations]) - latency_s
+        at, ok = truth_at(d, t)
+        poses.append(at[ok])
+        landmarks.append(np.array([o[3] for o in d.observations])[ok])
+        bearings.append(np.array([o[2] for o in d.observations])[ok])
+    start = next((d.mount for d in datas if d.mount is not None), (0.0, 0.0, 0.0))
+    if sum(len(b) for b in bearings) < 20:  # too few to place the sensor: the observation fit says so
+        return list(datas), None
+    fit = fit_sensor_mount(np.vstack(poses), np.vstack(landmarks), np.concatenate(bearings), start)
+    return ([replace(d, mount=fit.pose) for d in datas] if adopt and determined(fit) else list(datas)), fit
+
+
+def _fit_observations(datas: Sequence[TruthData], odometry: OdometryModel, latency_grid_s: np.ndarray,
+                      fit_mount: bool) -> tuple[ObservationModel, dict]:
+    if sum(len(d.observations) for d in datas) < 20:
+        raise NoiseModelError(
+            "fewer than 20 observations of landmarks with truth; the observation fit needs "
+            "truth_landmark records and observations with landmark ids"
+        )
+    stated = [d.mount for d in datas]
+    if fit_mount:  # placed first, so the latency is chosen with the sensor placed
+        datas, _ = _mount(datas, 0.0, True)
     best = None
     for latency in latency_grid_s:
         parts = [true_range_bearing(d, float(latency)) for d in datas]
@@ -222,6 +253,8 @@ def _fit_observations(datas: Sequence[TruthData], odometry: OdometryModel, laten
         if best is None or spread < best[0]:
             best = (spread, float(latency))
     latency = best[1]
+    datas, mount = _mount([replace(d, mount=m) for d, m in zip(datas, stated)], latency, fit_mount)
+    adopted = fit_mount and mount is not None and determined(mount)
     parts = [true_range_bearing(d, latency) for d in datas]
     rm, bm, r, b, t = (np.concatenate([p[j] for p in parts]) for j in range(5))
     landmark = np.unique(np.vstack([p[5] for p in parts]), axis=0, return_inverse=True)[1].ravel()
@@ -256,6 +289,7 @@ def _fit_observations(datas: Sequence[TruthData], odometry: OdometryModel, laten
         bearing_sigma_s=math.sqrt(b_rates[1]),
         camera_latency_s=latency,
         outlier_rate=float(1.0 - inlier.mean()),
+        sensor_pose_on_robot=mount.pose if adopted else None,
     )
     # normalised by the model's own σ (with its floors), as the estimators will see them
     sigma_r = np.array([white.sigma_range_m(float(v)) for v in r])
@@ -269,6 +303,9 @@ def _fit_observations(datas: Sequence[TruthData], odometry: OdometryModel, laten
         "range_residual_mad_m": {"range": round(fits["range"][0], 6), "depth": round(fits["depth"][0], 6)},
         "bearing_residual_mad_rad": round(mad_sigma(res_b), 6),
         "reading_correlation": correlation.report(),
+        "sensor_mount": {**({} if mount is None else mount.report()),
+                         "determined": mount is not None and determined(mount), "adopted": adopted,
+                         "stated_in_logs": [None if m is None else list(m) for m in stated]},
     }
     return model, report
 
@@ -282,12 +319,16 @@ def fit_noise_model(
     window_s: float = 1.0,
     lag_grid_s: np.ndarray | None = None,
     latency_grid_s: np.ndarray | None = None,
+    fit_mount: bool = False,
 ) -> NoiseModel:
     """Fit one :class:`NoiseModel` to all ``logs`` pooled (see the module docstring).
 
     ``window_s`` is the length of the odometry windows (the variance rates are right at
     that scale); ``lag_grid_s`` (default −0.1…0.6 s by 10 ms) and ``latency_grid_s``
     (default 0…0.1 s by 10 ms) are the candidate odometry lags and camera latencies.
+    The sensor's pose on the robot is always fitted and reported (``fit_report["observation"]
+    ["sensor_mount"]``); with ``fit_mount`` the model carries it and the rest of the
+    observation model is fitted from there (else the logs' headers stand).
     Raises :class:`NoiseModelError` when the logs have no truth or too little data.
     """
     if not logs:
@@ -304,7 +345,7 @@ def fit_noise_model(
     else:
         odometry, odo_report = _fit_odometry(datas, window_s, lag_grid)
     if any(d.observations for d in datas):
-        observation, obs_report = _fit_observations(datas, odometry, latency_grid)
+        observation, obs_report = _fit_observations(datas, odometry, latency_grid, fit_mount)
     elif any(d.ranges for d in datas):  # ranging radios: range-only readings (slamio.noise.range)
         observation, obs_report = fit_range_only(datas)
     else:

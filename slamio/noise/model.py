@@ -29,6 +29,9 @@ Observations (:class:`ObservationModel`)
     ``camera_latency_s``: a reading is stamped that long after its picture was taken.
     ``outlier_rate``: the share of readings beyond the fit's 5σ gate (misread barcodes,
     reflections); estimators should down-weight or gate them.
+    ``sensor_pose_on_robot``: ``[x_m, y_m, yaw_rad]``, where the sensor sits on the robot
+    (:mod:`slamio.noise.mount_fit`); applying the model states it in the log header's
+    ``sensor.pose_on_robot`` (absent: the log's own header stands).
     ``correlated_share`` and ``correlation_time_s``: a reading's error is not independent of
     the last reading of the same landmark. Of each reading's variance, the share ρ =
     ``correlated_share`` is a Gauss–Markov error per landmark (normalised by the reading's
@@ -179,8 +182,19 @@ class ObservationModel:
     outlier_rate: float = 0.0
     correlated_share: float = 0.0
     correlation_time_s: float = 0.0
+    sensor_pose_on_robot: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
+        if self.sensor_pose_on_robot is not None:
+            from slamio.log.mount import pose_on_robot
+
+            try:
+                mount = pose_on_robot({"pose_on_robot": list(self.sensor_pose_on_robot)
+                                       if isinstance(self.sensor_pose_on_robot, (list, tuple)) else self.sensor_pose_on_robot})
+            except ValueError as exc:
+                raise NoiseModelError("observation.sensor_pose_on_robot: " + str(exc).replace(
+                    "header field 'sensor.pose_on_robot'", "it"), ("observation", "sensor_pose_on_robot")) from None
+            object.__setattr__(self, "sensor_pose_on_robot", mount or (0.0, 0.0, 0.0))
         if not isinstance(self.range_is_depth, bool):
             raise NoiseModelError(f"observation.range_is_depth must be true or false, got {self.range_is_depth!r}",
                                   ("observation", "range_is_depth"))
