@@ -89,7 +89,7 @@ from ekf.reading_error import reading_error_model
 from ekf.reading_error_states import ReadingErrorStates
 from slamio.geometry import wrap_angle
 from slamio.log import Header, Observation, Step
-from slamio.noise.model import noise_expects_outliers
+from slamio.noise.model import log_expects_outliers
 
 __all__ = [
     "EkfSlam",
@@ -113,14 +113,6 @@ DEFAULT_NEW_LANDMARK_PROBABILITY = 0.999999
 #: state (MRCLAM's misread barcodes: docs/datasets-mrclam-rosbag.md). None: no gate.
 DEFAULT_KNOWN_ID_GATE_PROBABILITY = 0.9999
 
-
-def log_expects_outliers(header: Header) -> bool:
-    """Whether the log says some readings are outliers: a fitted noise model's
-    ``noise.observation.outlier_rate`` > 0 (``fgslam calibrate``), or a simulator's
-    ``source.outliers`` > 0 (``fgslam sim --outliers``)."""
-    source = header.source.get("outliers") if isinstance(header.source, dict) else None
-    simulated = isinstance(source, (int, float)) and not isinstance(source, bool) and source > 0
-    return simulated or noise_expects_outliers(header.noise)
 
 
 class EkfSlam(MapAssociation, RangeOnlyUpdates, ReadingErrorStates, FilterOutputs):

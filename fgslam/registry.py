@@ -38,7 +38,8 @@ class EstimatorEntry:
 
 
 def expected_outlier_kernel(header) -> str | None:
-    """``"dcs"`` when the log's noise model expects outliers, else None (least squares).
+    """``"dcs"`` when the log expects outliers (:func:`slamio.noise.model.log_expects_outliers`:
+    a fitted noise model's outlier rate, or a simulator's), else None (least squares).
 
     A noise model fitted by ``fgslam calibrate`` carries the share of readings beyond its
     5σ gate (``noise.observation.outlier_rate``; MRCLAM: 0.3–1.6 %, misread barcodes).
@@ -47,9 +48,9 @@ def expected_outlier_kernel(header) -> str | None:
     to 0.07 / 0.5 m (docs/datasets-mrclam-rosbag.md). DCS leaves every residual within
     3.7σ at full weight, so it costs nothing on clean readings.
     """
-    from slamio.noise.model import noise_expects_outliers
+    from slamio.noise.model import log_expects_outliers
 
-    return "dcs" if noise_expects_outliers(header.noise) else None
+    return "dcs" if log_expects_outliers(header) else None
 
 
 def _named(estimator, name: str):

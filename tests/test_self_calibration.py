@@ -52,6 +52,23 @@ def test_the_verdict_says_how_far_a_misstated_odometry_noise_is_off(arena):
     assert "too small" in odometry.sentence()
 
 
+def test_gross_outliers_are_counted_apart_and_the_sigma_of_the_rest_still_fits():
+    """10 % of the readings replaced by gross outliers (the simulator's ``outliers``): the
+    verdict leaves them out of χ² (beyond 5σ), counts them, and the σ of the rest still fit."""
+    from slamio.sim import simulate
+
+    header, records = simulate("arena-square", 9, outliers=0.1)
+    log = RunLog("outliers.jsonl", header, tuple(records))
+    verdict = compare_log(log, ["isam2"]).verdict
+    for group in ("range", "bearing"):
+        v = verdict[group]
+        assert v.fits and v.ratio == pytest.approx(1.0, abs=0.2), v.sentence()
+        assert 0.05 < v.outliers / v.measurements < 0.12, v.sentence()
+        assert "beyond 5 sigma, counted apart" in v.sentence()
+    assert verdict["odometry"].outliers == 0
+    assert verdict["range"].as_dict()["outliers"] == verdict["range"].outliers
+
+
 def test_noise_learned_without_truth_fits_the_log(arena):
     """Fitted on the log alone (the stated noise is never read), the model's bearing σ is the
     simulator's 0.01 rad, and the log with the model applied passes its own verdict."""

@@ -269,6 +269,16 @@ def carries_fitted_model(noise: dict) -> bool:
             or (isinstance(observation, dict) and "fitted_on" in observation))  # a range model (Plaza's import)
 
 
+def log_expects_outliers(header: Any) -> bool:
+    """Whether a log says some readings are outliers: a fitted noise model's
+    ``noise.observation.outlier_rate`` > 0 (``fgslam calibrate``), or a simulator's
+    ``source.outliers`` > 0 (``fgslam sim --outliers``). The EKF then gates readings with
+    an id and the default iSAM2 takes a robust kernel."""
+    source = header.source.get("outliers") if isinstance(header.source, dict) else None
+    simulated = isinstance(source, (int, float)) and not isinstance(source, bool) and source > 0
+    return simulated or noise_expects_outliers(header.noise)
+
+
 def noise_expects_outliers(noise: Any) -> bool:
     """Whether a log header's ``noise`` carries a fitted outlier rate above zero
     (``noise.observation.outlier_rate``, from ``fgslam calibrate``)."""
