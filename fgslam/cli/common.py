@@ -145,33 +145,79 @@ def add_overwrite_option(parser: argparse.ArgumentParser, what: str = "an existi
 
 def summary(log) -> str:
     """One line on what a run log holds."""
-    from slamio.log import Observation
-    from slamio.log import StereoObservation, TruthLandmark3
+    tally = LogTally(log.header)
+    for record in log.records:
+        tally.add(record)
+    return tally.text()
 
-    steps = log.steps()
-    observations = [r for r in log.records if isinstance(r, (Observation, StereoObservation))]
-    ids = {getattr(o, "landmark_id", getattr(o, "track_id", None)) for o in observations} - {None}
-    unknown = sum(getattr(o, "landmark_id", 0) is None for o in observations)
-    duration = steps[-1].stamp_s - steps[0].stamp_s
-    with_truth = sum(s.truth is not None for s in steps)
-    surveyed = len(log.truth_landmarks()) + sum(isinstance(r, TruthLandmark3) for r in log.records)
-    if with_truth == len(steps):
-        truth = "ground truth for every pose"
-    elif with_truth:
-        truth = f"ground truth for {with_truth} of {len(steps)} poses"
-    elif surveyed:
-        truth = f"no pose truth, {counted(surveyed, 'surveyed landmark')}"
-    else:
-        truth = "no ground truth"
-    headless = sum(getattr(s.truth, "theta_rad", 0.0) is None for s in steps if s.truth is not None)
-    if headless and headless == with_truth:
-        truth += " (positions only: no heading)"
-    elif headless:
-        truth += f" ({headless} of them a position without heading)"
-    return (
-        f"{counted(len(steps), 'pose')} over {duration:.1f} s, {counted(len(observations), 'observation')} of "
-        f"{counted(len(ids), 'landmark')}" + (f" (+{unknown} with unknown id)" if unknown else "") + f", {truth}"
-    )
+
+class LogTally:
+    """What :func:`summary` says about a log, counted one record at a time in file order (so
+    ``fgslam validate`` can stream a log of any size): poses as :func:`slamio.log.group_steps`
+    makes them, observations and their landmarks, ground truth per pose, surveyed landmarks."""
+
+    def __init__(self, header) -> None:
+        import slamio.log as log
+
+        self._log = log  # the record classes, imported when a log is read (not at start-up)
+        self.start = self.stamp = header.stamp_s
+        self.poses, self.odometry, self.observations, self.unknown = 1, 0, 0, 0
+        self.ids: set[int] = set()
+        self.with_truth = self.headless = 0  # over the poses before the current one
+        self.truth = None  # the current pose's truth (the last truth record since its odometry)
+        self.surveyed: set[int] = set()
+        self.surveyed3 = 0
+
+    def add(self, record) -> None:
+        log = self._log
+        if isinstance(record, log.Observation):
+            self.observations += 1
+            if record.landmark_id is None:
+                self.unknown += 1
+            else:
+                self.ids.add(record.landmark_id)
+        elif isinstance(record, log.StereoObservation):
+            self.observations += 1
+            self.ids.add(record.track_id)
+        elif isinstance(record, (log.Odometry, log.VelocityOdometry)):
+            self.with_truth, self.headless = self._truths()
+            self.truth, self.stamp = None, record.stamp_s
+            self.poses += 1
+            self.odometry += 1
+        elif isinstance(record, (log.TruthPose, log.TruthPose3)):
+            self.truth = record
+        elif isinstance(record, log.TruthLandmark):
+            self.surveyed.add(record.landmark_id)
+        elif isinstance(record, log.TruthLandmark3):
+            self.surveyed3 += 1
+
+    def _truths(self) -> tuple[int, int]:
+        """(poses with a truth, of them with a position alone) up to and with the current pose."""
+        if self.truth is None:
+            return self.with_truth, self.headless
+        return self.with_truth + 1, self.headless + (getattr(self.truth, "theta_rad", 0.0) is None)
+
+    def text(self) -> str:
+        with_truth, headless = self._truths()
+        surveyed = len(self.surveyed) + self.surveyed3
+        if with_truth == self.poses:
+            truth = "ground truth for every pose"
+        elif with_truth:
+            truth = f"ground truth for {with_truth} of {self.poses} poses"
+        elif surveyed:
+            truth = f"no pose truth, {counted(surveyed, 'surveyed landmark')}"
+        else:
+            truth = "no ground truth"
+        if headless and headless == with_truth:
+            truth += " (positions only: no heading)"
+        elif headless:
+            truth += f" ({headless} of them a position without heading)"
+        unknown = self.unknown
+        return (
+            f"{counted(self.poses, 'pose')} over {self.stamp - self.start:.1f} s, "
+            f"{counted(self.observations, 'observation')} of {counted(len(self.ids), 'landmark')}"
+            + (f" (+{unknown} with unknown id)" if unknown else "") + f", {truth}"
+        )
 
 
 def counted(n: int, noun: str) -> str:

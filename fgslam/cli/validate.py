@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import argparse
-
-from fgslam.cli.common import read, summary
+import sys
 
 
 def add_parser(verbs) -> argparse.ArgumentParser:
@@ -19,21 +18,43 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     return validate
 
 
-def cmd_validate(args: argparse.Namespace) -> int:
-    from slamio.log import Odometry
-    from slamio.log import VelocityOdometry
+#: How many rejected observations are shown one per line.
+SHOWN = 5
 
-    log = read(args.log)
-    odometry = sum(isinstance(r, (Odometry, VelocityOdometry)) for r in log.records)
-    kind = "3-D stereo + IMU " if log.header.is_3d else ""
-    what = "velocity odometry" if log.header.is_3d else "odometry"
-    print(f"{args.log}: valid fgslam {kind}run log v{log.header.version}: {summary(log)}; {odometry} {what} records")
-    rejected = log.rejection_summary()
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    """Stream the log (memory does not grow with it), counting what the summary says."""
+    from fgslam.cli.common import PROG, LogTally
+    from slamio.log import Rejected, iter_log
+    from slamio.log.records import rejection_line
+
+    stream = iter_log(args.log)
+    tally = LogTally(stream.header)
+    add = tally.add
+    by_reason: dict[str, tuple[int, int, int]] = {}
+    shown: list[Rejected] = []
+    for item in stream:
+        if type(item) is Rejected:
+            count, first, _ = by_reason.get(item.reason, (0, item.line, item.line))
+            by_reason[item.reason] = (count + 1, first, item.line)
+            if len(shown) < SHOWN:
+                shown.append(item)
+        else:
+            add(item)
+    rejected = rejection_line(stream.path, by_reason)
+    if stream.truncated:
+        print(f"{PROG}: warning: {stream.truncated}", file=sys.stderr)
+    if rejected:
+        print(f"{PROG}: warning: {rejected}", file=sys.stderr)
+    header = stream.header
+    kind = "3-D stereo + IMU " if header.is_3d else ""
+    what = "velocity odometry" if header.is_3d else "odometry"
+    print(f"{args.log}: valid fgslam {kind}run log v{header.version}: {tally.text()}; {tally.odometry} {what} records")
     if rejected:  # usable, but say what the estimators will not see, and where
         print(f"note: {rejected}")
-        shown = 5
-        for r in log.rejected[:shown]:
+        for r in shown:
             print(f"  {r.message}")
-        if len(log.rejected) > shown:
-            print(f"  ... and {len(log.rejected) - shown} more")
+        n = sum(count for count, _, _ in by_reason.values())
+        if n > SHOWN:
+            print(f"  ... and {n - SHOWN} more")
     return 0

@@ -37,7 +37,7 @@ constants in :mod:`slamio.log.fields`, explained in docs/log-format.md "Bounds")
 The package, one responsibility per file: :mod:`~slamio.log.records` (the records, steps and
 :class:`RunLog`), :mod:`~slamio.log.fields` (one field validated against its bounds),
 :mod:`~slamio.log.records3d` (the 3-D records, their parsers and the stereo calibration),
-:mod:`~slamio.log.read` (:func:`read_log`) and :mod:`~slamio.log.write` (:class:`LogWriter`,
+:mod:`~slamio.log.read` (:func:`read_log`, :func:`iter_log`: the file streamed, each line through the fast path :mod:`~slamio.log.fast` and, when that does not accept it, the slow path :mod:`~slamio.log.parse`) and :mod:`~slamio.log.write` (:class:`LogWriter`,
 :func:`write_log`). Import everything from ``slamio.log``.
 """
 
@@ -58,7 +58,9 @@ from slamio.log.fields import (
     STAMP_S,
     WORLD_ANGLE_RAD,
 )
-from slamio.log.read import DT_TOLERANCE_S, LogFormatError, parse_header, parse_record, read_log, sensor_range_limits
+from slamio.log.read import (
+    DT_TOLERANCE_S, LogFormatError, LogStream, iter_log, parse_header, parse_record, read_log, sensor_range_limits,
+)
 from slamio.log.records import (
     FORMAT_NAME,
     FORMAT_VERSION,
@@ -107,7 +109,7 @@ __all__ = [
     "SIGMA_ANGLE_RAD", "SIGMA_LENGTH_M", "UNITS", "VERSIONS",
     "Header", "LiveStep", "LogFormatError", "LogWriter", "Matrix3", "Observation", "Odometry", "Record", "Rejected",
     "RunLog", "Step", "TruthLandmark", "TruthPose",
-    "as_matrix3", "format_line", "group_steps", "header_to_dict", "parse_header", "parse_record", "read_log",
+    "as_matrix3", "format_line", "group_steps", "header_to_dict", "iter_log", "LogStream", "parse_header", "parse_record", "read_log",
     "record_to_dict", "sensor_range_limits", "write_log",
     # the 3-D records (slamio.log.records3d)
     "MAX_MOUNT_M", "MAX_PIXEL_PX", "MAX_SPEED_MPS", "MAX_TURN_RATE_RADPS", "RECORDS_3D", "SIGMA_PIXEL_PX", "TYPE_OF_3D",

@@ -1,6 +1,11 @@
 """Reading a run log: every line validated, the first bad one reported as ``file:line``
 with how to fix it, everything good before it kept (:class:`LogFormatError`'s ``partial``).
 
+The file is streamed (:class:`LogStream`, :func:`iter_log`): each record line goes
+through the fast path (:mod:`slamio.log.fast`, msgspec into typed structs) and, only when
+that does not accept it, through the slow path (:mod:`slamio.log.parse`, ``json.loads`` and
+one check per field with its own message), so a bad line is reported exactly as before.
+
 Two lines that contradict each other (a stamp earlier than the previous one, two different
 truths of one landmark) are reported at the earlier of the two, naming both: either may be
 the wrong one, so only the lines before it are known good.
@@ -8,30 +13,32 @@ the wrong one, so only the lines before it are known good.
 
 from __future__ import annotations
 
+import collections
+import gc
 import json
 import math
 import os
 import sys
-from typing import Any
+from typing import Any, Iterator
 
-from slamio.errors import FgslamError, InputFileError, read_bytes
-from slamio.log.fields import (
-    _WHY_COORDINATE, _WHY_INCREMENT, _WHY_WORLD_ANGLE, COORDINATE_M, INCREMENT_M, INCREMENT_RAD, WORLD_ANGLE_RAD,
-    _magnitude, _WHY_RANGE, MAX_POSE_INDEX, RANGE_M, STAMP_S, SENSOR_LIMIT_SIGMAS, SIGMA_ANGLE_RAD, SIGMA_LENGTH_M,
-    _angle, _BadLine,
-    _check_fields, _covariance, _integer, _NotJson, _number, _object, _paired, _reject_constant, _show,
-    _sigma_angle, _sigma_length, _stamp, _vector3, _within,
+from slamio.errors import InputFileError, _os_error, _too_large, open_regular
+from slamio.log.fast import FastDecoder
+from slamio.log.fields import SENSOR_LIMIT_SIGMAS, _BadLine, _NotJson, _reject_constant, _show
+from slamio.log.parse import (  # noqa: F401  (the slow path, also imported from here)
+    _sensor_limit, check_records, parse_header, parse_record, sensor_range_limits,
 )
 from slamio.log.records import (
-    _CLASS_OF, _PLANAR_TYPES, _TYPES_3D, FORMAT_NAME, UNITS, VERSIONS, Header, LiveStep, Observation, Odometry,
-    Record, Rejected, RunLog, TruthLandmark, TruthPose,
+    _PLANAR_TYPES, _TYPES_3D, Header, Observation, Record, Rejected, RunLog, TruthLandmark,
 )
 import slamio.log.records3d as log3d
-from slamio.log.mount import pose_on_robot
 
-#: The largest run log read (it is read whole): 1 GiB, about five million records — more
-#: than a day of a robot's odometry at 50 Hz. Split a longer recording.
+#: The largest run log :func:`read_log` reads (it keeps every record): 1 GiB, about five
+#: million records — more than a day of a robot's odometry at 50 Hz. Split a longer
+#: recording. :func:`iter_log` (``fgslam validate``) streams a log of any size.
 MAX_LOG_BYTES = 2**30
+#: The longest line read (bytes): a record is a few hundred bytes and a header a few
+#: kilobytes; a longer line is no run log's, and is refused before it is held in memory.
+MAX_LINE_BYTES = 2**24
 
 
 class LogFormatError(InputFileError):
@@ -48,197 +55,6 @@ class LogFormatError(InputFileError):
         self.path = path
         self.line = line
         self.partial = partial
-
-
-def _sensor_limit(sensor: dict, key: str) -> float | None:
-    if key not in sensor or sensor[key] is None:
-        return None
-    value = sensor[key]
-    # a 400-digit integer is a number too, but no float: float() would raise OverflowError
-    metres = float(value) if isinstance(value, float) or (isinstance(value, int) and abs(value) < 1e300) else None
-    if isinstance(value, bool) or metres is None or not math.isfinite(metres) or metres < 0:
-        raise _BadLine(
-            f"header field 'sensor.{key}' must be a number of metres ≥ 0, got {_show(value)}; "
-            "it bounds the ranges the sensor reports (leave it out if there is no limit)"
-        )
-    return metres
-
-
-def sensor_range_limits(header: Header) -> tuple[float | None, float | None]:
-    """The header sensor's ``(min_range_m, max_range_m)``; None where the header has none."""
-    sensor = header.sensor if isinstance(header.sensor, dict) else {}
-    try:
-        return _sensor_limit(sensor, "min_range_m"), _sensor_limit(sensor, "max_range_m")
-    except _BadLine as bad:
-        raise FgslamError(str(bad)) from None
-
-
-def parse_header(d: dict) -> Header:
-    if d.get("type") != "header" or d.get("format") != FORMAT_NAME:
-        raise _BadLine(
-            f"the first line must be the header, {{\"type\": \"header\", \"format\": \"{FORMAT_NAME}\", ...}}; "
-            "is this an fgslam run log?"
-        )
-    version = d.get("version")
-    if isinstance(version, bool) or not isinstance(version, int):
-        raise _BadLine(
-            f"header field 'version' must be the integer 1 or 2, got {_show(version)}"
-        )
-    if version not in VERSIONS:
-        raise _BadLine(
-            f"format version {_show(version)} is not supported; this fgslam reads versions "
-            f"{' and '.join(str(v) for v in VERSIONS)} (upgrade fgslam to read newer logs)"
-        )
-    _check_fields(d, ("format", "version", "units", "start", "robot", "sensor", "noise", "source"), "header")
-    if d.get("units") != UNITS:
-        raise _BadLine(f"header 'units' must be {json.dumps(UNITS)}: convert at the edge, store SI")
-    if isinstance(d.get("start"), dict) and "pose3" in d["start"]:
-        return _parse_header3(d, version)
-    start = _object(d, "start", ("stamp_s", "pose", "sigma"))
-    sigma = _vector3(start["sigma"], "start.sigma")
-    if min(sigma) <= 0.0:
-        raise _BadLine("start.sigma must be > 0 (a tiny value such as 1e-6 pins the start pose)")
-    for value, (lo, hi), unit in zip(sigma, (SIGMA_LENGTH_M, SIGMA_LENGTH_M, SIGMA_ANGLE_RAD), ("m", "m", "rad")):
-        if not lo <= value <= hi:
-            raise _BadLine(
-                f"start.sigma {list(sigma)!r} is outside {SIGMA_LENGTH_M[0]:g}..{SIGMA_LENGTH_M[1]:g} m for x, y "
-                f"and {SIGMA_ANGLE_RAD[0]:g}..{SIGMA_ANGLE_RAD[1]:.4g} rad for theta; 1e-6 pins the start pose, "
-                "a larger σ says how well it is known"
-            )
-    sensor = _object(d, "sensor", ("kind",))
-    try:
-        pose_on_robot(sensor)
-    except ValueError as bad:
-        raise _BadLine(str(bad)) from None
-    low, high = _sensor_limit(sensor, "min_range_m"), _sensor_limit(sensor, "max_range_m")
-    if low is not None and high is not None and not low < high:
-        raise _BadLine(f"header field 'sensor.min_range_m' ({low!r}) must be below 'sensor.max_range_m' ({high!r})")
-    return Header(
-        stamp_s=_stamp(start),  # type: ignore[arg-type]
-        start_pose=_start_pose(start["pose"]),
-        start_sigma=sigma,
-        robot=_object(d, "robot", ("name",)),
-        sensor=sensor,
-        noise=_object(d, "noise", ("odometry", "observation")),
-        source=_object(d, "source") if "source" in d else {},
-        version=version,
-    )
-
-
-def _start_pose(value: Any) -> tuple[float, float, float]:
-    """``start.pose``: x, y within :data:`COORDINATE_M`, theta within :data:`WORLD_ANGLE_RAD`."""
-    pose = _vector3(value, "start.pose")
-    if max(abs(pose[0]), abs(pose[1])) > COORDINATE_M or abs(pose[2]) > WORLD_ANGLE_RAD:
-        raise _BadLine(
-            f"start.pose {list(pose)!r} is beyond ±{COORDINATE_M:g} m for x, y or ±{WORLD_ANGLE_RAD:g} rad for "
-            f"theta: {_WHY_COORDINATE}"
-        )
-    return pose
-
-
-def _parse_header3(d: dict, version: int) -> Header:
-    """The header of a 3-D log: ``start.pose3``/``sigma3`` and a stereo ``sensor``."""
-    if version < 2:
-        raise _BadLine("'start.pose3' (a 3-D log) needs \"version\": 2; version 1 logs are planar")
-    start = _object(d, "start", ("stamp_s", "pose3", "sigma3"))
-    _check_fields(start, ("stamp_s", "pose3", "sigma3"), "header 'start' of a 3-D log")
-    pose3 = log3d.parse_pose3(start["pose3"], "start.pose3")
-    sigma3 = log3d.parse_sigma3(start["sigma3"], "start.sigma3")
-    sensor = _object(d, "sensor", ("kind",))
-    log3d.parse_stereo_sensor(sensor)
-    return Header(
-        stamp_s=_stamp(start),  # type: ignore[arg-type]
-        start_pose=log3d.top_view(pose3),
-        start_sigma=(sigma3[0], sigma3[1], sigma3[5]),
-        robot=_object(d, "robot", ("name",)),
-        sensor=sensor,
-        noise=_object(d, "noise", ("odometry", "observation")),
-        source=_object(d, "source") if "source" in d else {},
-        version=version,
-        start_pose3=pose3,
-        start_sigma3=sigma3,
-    )
-
-
-def parse_record(d: dict) -> Record:
-    kind = d.get("type")
-    if not isinstance(kind, str):
-        raise _BadLine(
-            f"field 'type' must be a string naming the record type, got {_show(kind)}; "
-            f"expected one of {', '.join(sorted(_CLASS_OF))}"
-        )
-    cls = _CLASS_OF.get(kind) or log3d.RECORDS_3D.get(kind)
-    if cls is None:
-        raise _BadLine(
-            f"unknown record type {_show(kind)}; expected one of {', '.join(sorted(_PLANAR_TYPES + _TYPES_3D[:-1]))}"
-        )
-    _check_fields(d, cls.__dataclass_fields__, kind)
-    if kind in log3d.RECORDS_3D:
-        return log3d.parse_record3(kind, d)
-    if cls is Odometry:
-        distance = _magnitude(d, "distance_m", INCREMENT_M, "m", _WHY_INCREMENT, optional=True)
-        angle = _magnitude(d, "angle_rad", INCREMENT_RAD, "rad", _WHY_INCREMENT, optional=True)
-        if (distance is None) != (angle is None):
-            raise _BadLine("'distance_m' and 'angle_rad' (the Create's reading) go together: give both or neither")
-        if "covariance" not in d:
-            raise _BadLine("missing field 'covariance' (3×3 over dx, dy, dtheta)")
-        return Odometry(
-            stamp_s=_stamp(d),
-            dx_m=_magnitude(d, "dx_m", INCREMENT_M, "m", _WHY_INCREMENT),
-            dy_m=_magnitude(d, "dy_m", INCREMENT_M, "m", _WHY_INCREMENT),
-            dtheta_rad=_magnitude(d, "dtheta_rad", INCREMENT_RAD, "rad", _WHY_INCREMENT),
-            covariance=_covariance(d["covariance"]),
-            distance_m=distance,
-            angle_rad=angle,
-        )  # type: ignore[arg-type]
-    if cls is Observation:
-        if "landmark_id" not in d:
-            raise _BadLine("missing field 'landmark_id' (an integer, or null when unknown)")
-        height = _magnitude(d, "height_m", COORDINATE_M, "m", _WHY_COORDINATE, optional=True)
-        sigma_height = _sigma_length(d, "sigma_height_m", optional=True)
-        _paired(height, sigma_height, "height_m", "sigma_height_m")
-        yaw, sigma_yaw = _angle(d, "tag_yaw_rad", optional=True), _sigma_angle(d, "sigma_tag_yaw_rad", optional=True)
-        _paired(yaw, sigma_yaw, "tag_yaw_rad", "sigma_tag_yaw_rad")
-        bearing, sigma_bearing = _angle(d, "bearing_rad", optional=True), _sigma_angle(d, "sigma_bearing_rad", optional=True)
-        _paired(bearing, sigma_bearing, "bearing_rad", "sigma_bearing_rad")
-        if bearing is None and yaw is not None:
-            raise _BadLine("a range-only observation (no 'bearing_rad') cannot have a tag yaw")
-        return Observation(
-            stamp_s=_stamp(d),
-            landmark_id=_integer(d, "landmark_id", optional=True, id_range=True),
-            range_m=_within("range_m", _number(d, "range_m"), RANGE_M, "m", _WHY_RANGE),
-            bearing_rad=bearing,
-            sigma_range_m=_sigma_length(d, "sigma_range_m"),
-            sigma_bearing_rad=sigma_bearing,
-            height_m=height,
-            sigma_height_m=sigma_height,
-            tag_yaw_rad=yaw,
-            sigma_tag_yaw_rad=sigma_yaw,
-            truth_landmark_id=_integer(d, "truth_landmark_id", optional=True, id_range=True),
-        )  # type: ignore[arg-type]
-    if cls is LiveStep:
-        index = _integer(d, "pose_index")
-        latency = _magnitude(d, "latency_s", STAMP_S, "s", "a latency is the seconds one step took")
-        if index < 0 or latency < 0:  # type: ignore[operator]
-            raise _BadLine("'pose_index' and 'latency_s' must be >= 0")
-        if index > MAX_POSE_INDEX:  # type: ignore[operator]
-            raise _BadLine(f"'pose_index' is {_show(index)}, above 2^56-1 (a GTSAM key holds a 56-bit index)")
-        return LiveStep(stamp_s=_stamp(d), pose_index=index, latency_s=latency)  # type: ignore[arg-type]
-    if cls is TruthPose:
-        return TruthPose(
-            stamp_s=_stamp(d),
-            x_m=_magnitude(d, "x_m", COORDINATE_M, "m", _WHY_COORDINATE),
-            y_m=_magnitude(d, "y_m", COORDINATE_M, "m", _WHY_COORDINATE),
-            theta_rad=_magnitude(d, "theta_rad", WORLD_ANGLE_RAD, "rad", _WHY_WORLD_ANGLE, optional=True),
-        )  # type: ignore[arg-type]
-    return TruthLandmark(
-        landmark_id=_integer(d, "landmark_id", id_range=True),
-        x_m=_magnitude(d, "x_m", COORDINATE_M, "m", _WHY_COORDINATE),
-        y_m=_magnitude(d, "y_m", COORDINATE_M, "m", _WHY_COORDINATE),
-        height_m=_magnitude(d, "height_m", COORDINATE_M, "m", _WHY_COORDINATE, optional=True),
-        yaw_rad=_magnitude(d, "yaw_rad", WORLD_ANGLE_RAD, "rad", _WHY_WORLD_ANGLE, optional=True),
-    )  # type: ignore[arg-type]
-
 
 def _outside_sensor(obs: Observation, low: float | None, high: float | None) -> tuple[str, str] | None:
     """(reason, message) when the sensor cannot have measured ``obs.range_m``, else None."""
@@ -315,19 +131,6 @@ def _loads(text: str) -> dict:
     return d
 
 
-def _lines(data: bytes) -> list[tuple[int, bytes, bool]]:
-    """(line number, bytes without the line ending, whether a newline ended it)."""
-    parts = data.split(b"\n")
-    last_ended = parts[-1] == b""
-    if last_ended:
-        parts.pop()
-    count = len(parts)
-    return [
-        (number, raw[:-1] if raw.endswith(b"\r") else raw, number < count or last_ended)
-        for number, raw in enumerate(parts, start=1)
-    ]
-
-
 def _check_dimension(kind: Any, header: Header) -> None:
     """Planar records only in a planar log, 3-D records only in a 3-D log."""
     if header.is_3d and kind in _PLANAR_TYPES and kind not in _TYPES_3D:
@@ -353,7 +156,7 @@ class _Conflict(_BadLine):
 
 
 #: Record types that give the truth of one landmark: one record per ``landmark_id``.
-_TRUTH_LANDMARK_TYPES = ("truth_landmark", "truth_landmark3")
+_TRUTH_LANDMARK_TYPES = {TruthLandmark: "truth_landmark", log3d.TruthLandmark3: "truth_landmark3"}
 
 
 def _landmark_conflict(kind: str, earlier: tuple[int, Record, int, int], number: int, record: Record) -> _BadLine:
@@ -401,24 +204,103 @@ def _check_interval(record: Record, pose_stamp: float) -> float:
         )
     return record.stamp_s
 
+def _raw_lines(path: str, limit: int | None) -> Iterator[bytes]:
+    """The lines of the regular file at ``path`` (:func:`~slamio.errors.open_regular`: never a
+    FIFO or a device), each with its line ending, read a buffer at a time; at most ``limit``
+    bytes in all and :data:`MAX_LINE_BYTES` in one line, else one :class:`InputFileError`."""
+    fd = open_regular(path, "run log")
+    with os.fdopen(fd, "rb", buffering=2**20) as f:
+        size = os.fstat(fd).st_size
+        if limit is not None and size > limit:
+            raise _too_large(path, "run log", size, limit, InputFileError)
+        total, number, readline = 0, 0, f.readline
+        while True:
+            try:
+                raw = readline(MAX_LINE_BYTES + 1)
+            except OSError as exc:
+                raise _os_error(path, "run log", exc, InputFileError) from None
+            if not raw:
+                return
+            number += 1
+            total += len(raw)
+            if limit is not None and total > limit:  # the file grew while it was read
+                raise _too_large(path, "run log", None, limit, InputFileError)
+            if len(raw) > MAX_LINE_BYTES:
+                raise LogFormatError(path, number, f"the line is longer than {MAX_LINE_BYTES // 2**20} MiB; no line "
+                                     "of a run log is that long (a record is a few hundred bytes): is this a run log?")
+            yield raw
 
-def check_records(source: str, header: Header, records) -> tuple[Record, ...]:
-    """``records`` (made by an importer from the file ``source``), each checked by the rules
-    :func:`read_log` applies to its line, so an import never writes a log the reader would
-    refuse (a value beyond a bound, a 1e308 stamp). One :class:`InputFileError` naming the
-    source, the record and the field at the first that fails."""
-    from slamio.log.write import format_line
 
-    records = tuple(records)
-    for number, item in enumerate((header, *records)):
-        d = json.loads(format_line(item))
+def _split(raw: bytes) -> tuple[bytes, bool]:
+    """A line without its ending (``\\n``, and a ``\\r`` before it), and whether a newline ended it."""
+    ended = raw.endswith(b"\n")
+    if ended:
+        raw = raw[:-1]
+    return (raw[:-1] if raw.endswith(b"\r") else raw), ended
+
+
+class LogStream:
+    """A run log read and validated as it is iterated (see :func:`read_log` for the rules).
+
+    The header is read when the stream is made (:attr:`header`); iterating yields each
+    record, or a :class:`Rejected` for an observation the sensor cannot have made, in file
+    order, and then sets :attr:`truncated` when the last line was cut off. The first bad line
+    raises :class:`LogFormatError`; with ``keep`` the stream also keeps what it yielded (the
+    error's ``partial`` then holds it, else only the header). ``limit`` caps the bytes read.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], *, keep: bool = False, limit: int | None = None) -> None:
+        self.path = os.fspath(path)
+        self.truncated: str | None = None
+        self.state = _ReadState(self.path, keep)
+        self._lines = _raw_lines(self.path, limit)
+        raw = next(self._lines, None)
+        if raw is None:
+            raise LogFormatError(self.path, 1, "the file is empty; a run log starts with a header line")
+        text, _ = _split(raw)
         try:
-            parse_header(d) if number == 0 else parse_record(d)
+            self.state.take(1, _loads(_decode(text, 1)))
         except _BadLine as bad:
-            what = "the header it makes" if number == 0 else f"record {number} it makes ({d.get('type')})"
-            raise InputFileError(f"{source}: {what} is not valid: {bad}; the dataset holds a value no run log may "
-                                 "(is the file corrupted?)") from None
-    return records
+            raise self.state.error(1, bad) from None
+
+    @property
+    def header(self) -> Header:
+        assert self.state.header is not None
+        return self.state.header
+
+    def __iter__(self) -> Iterator[Record | Rejected]:
+        state, fast = self.state, FastDecoder(self.header.is_3d).record
+        add, number = state.add, 1
+        for raw in self._lines:
+            number += 1
+            record = fast(raw)
+            try:
+                item = add(number, record) if record is not None else self._slow(number, raw)
+            except _BadLine as bad:
+                raise state.error(number, bad) from None
+            if item is None:
+                return
+            yield item
+
+    def _slow(self, number: int, raw: bytes) -> Record | Rejected | None:
+        """Line ``number`` through the slow path; None for a cut-off last line (noted in :attr:`truncated`)."""
+        text, ended = _split(raw)
+        try:
+            return self.state.take(number, _loads(_decode(text, number)))
+        except _NotJson:
+            if ended:
+                raise
+        self.truncated = (
+            f"{self.path}:{number}: the last line is cut off (recording interrupted?); "
+            f"using the {number - 1} complete lines before it"
+        )
+        return None
+
+
+def iter_log(path: str | os.PathLike[str]) -> LogStream:
+    """A run log streamed: :class:`LogStream` (header, then records as they are validated),
+    in memory that does not grow with the log — for reading logs of any size."""
+    return LogStream(path)
 
 
 def read_log(path: str | os.PathLike[str]) -> RunLog:
@@ -442,91 +324,93 @@ def read_log(path: str | os.PathLike[str]) -> RunLog:
     line and names both, and ``partial`` holds only what precedes it; an exact repeat of a
     truth is an error at the repeat.
     """
-    path = os.fspath(path)
-    data = read_bytes(path, "run log", limit=MAX_LOG_BYTES)  # a regular file (never a FIFO or /dev/zero)
-    lines = _lines(data)
-    del data
-    if not lines:
-        raise LogFormatError(path, 1, "the file is empty; a run log starts with a header line")
-    state = _ReadState(path)
-    truncated: str | None = None
-    for number, raw, ended in lines:
-        try:
-            state.take(number, _loads(_decode(raw, number)))
-        except _BadLine as bad:
-            if isinstance(bad, _NotJson) and number == len(lines) and not ended and state.header is not None:
-                truncated = (
-                    f"{path}:{number}: the last line is cut off (recording interrupted?); "
-                    f"using the {number - 1} complete lines before it"
-                )
-                break
-            raise state.error(number, bad) from None
-    assert state.header is not None
-    return RunLog(path, state.header, tuple(state.records), truncated, tuple(state.rejected))
+    stream = LogStream(path, keep=True, limit=MAX_LOG_BYTES)
+    collecting = gc.isenabled()
+    gc.disable()  # the records hold no cycles; tracing the growing list again and again took ~20 % of the read
+    try:
+        collections.deque(stream, maxlen=0)  # read to the end; the state keeps the records
+    finally:
+        if collecting:
+            gc.enable()
+    state = stream.state
+    return RunLog(stream.path, stream.header, tuple(state.records), stream.truncated, tuple(state.rejected))
 
 
 class _ReadState:
-    """What :func:`read_log` knows after each line: the header, the records and rejections so
-    far, and what the next lines are checked against (the last stamp, the latest pose's
-    stamp, the truths of landmarks seen)."""
+    """What the reader knows after each line: the header, the records and rejections so far
+    (kept only with ``keep``; counted always), and what the next lines are checked against
+    (the last stamp, the latest pose's stamp, the truths of landmarks seen)."""
 
-    def __init__(self, path: str) -> None:
-        self.path = path
+    def __init__(self, path: str, keep: bool) -> None:
+        self.path, self.keep = path, keep
         self.header: Header | None = None
+        self.is_3d = False
         self.records: list[Record] = []
         self.rejected: list[Rejected] = []
+        self.n_records = self.n_rejected = 0
         self.limits: tuple[float | None, float | None] = (None, None)
         self.last_stamp = -math.inf
         self.pose_stamp = -math.inf  # stamp of the latest pose (3-D logs: velocity_odometry.dt_s must span from it)
         self.stamp_at = (1, 0, 0)  # last_stamp's (line, records and rejections before it); line 1: the header's
         self.truth_at: dict[int, tuple[int, Record, int, int]] = {}  # landmark id -> (line, record, records, rejections)
 
-    def take(self, number: int, d: dict) -> None:
-        """Line ``number`` (parsed JSON ``d``): the header, or one record checked against the lines before."""
+    def take(self, number: int, d: dict) -> Record | Rejected | None:
+        """Line ``number`` (parsed JSON ``d``): the header (None), or one record checked against the lines before."""
         if self.header is None:
             self.header = parse_header(d)
+            self.is_3d = self.header.is_3d
             self.limits = sensor_range_limits(self.header)
             self.last_stamp = self.pose_stamp = self.header.stamp_s
-            return
+            return None
         if d.get("type") == "header":
             raise _BadLine("a second header; a log holds one run — split the file")
         _check_dimension(d.get("type"), self.header)
-        record = parse_record(d)
-        self._check_stamp(number, record)
-        if d.get("type") in _TRUTH_LANDMARK_TYPES:
-            lid = record.landmark_id  # type: ignore[union-attr]
+        return self.add(number, parse_record(d))
+
+    def add(self, number: int, record: Record) -> Record | Rejected:
+        """The valid ``record`` of line ``number``, checked against the lines before it."""
+        stamp = getattr(record, "stamp_s", None)
+        if stamp is not None:
+            if stamp < self.last_stamp:
+                raise self._stamp_conflict(number, stamp)
+            self.last_stamp, self.stamp_at = stamp, (number, self.n_records, self.n_rejected)
+        kind = _TRUTH_LANDMARK_TYPES.get(type(record))
+        if kind is not None:
+            lid = record.landmark_id
             if lid in self.truth_at:
-                raise _landmark_conflict(d["type"], self.truth_at[lid], number, record)
-            self.truth_at[lid] = (number, record, len(self.records), len(self.rejected))
-        if self.header.is_3d:
+                raise _landmark_conflict(kind, self.truth_at[lid], number, record)
+            self.truth_at[lid] = (number, record, self.n_records, self.n_rejected)
+        if self.is_3d:
             self.pose_stamp = _check_interval(record, self.pose_stamp)
-        if isinstance(record, Observation):
+        elif type(record) is Observation and self.limits != (None, None):
             outside = _outside_sensor(record, *self.limits)
             if outside is not None:
                 reason, message = outside
-                self.rejected.append(Rejected(number, reason, f"{self.path}:{number}: {message}", record))
-                return
-        self.records.append(record)
+                rejected = Rejected(number, reason, f"{self.path}:{number}: {message}", record)
+                self.n_rejected += 1
+                if self.keep:
+                    self.rejected.append(rejected)
+                return rejected
+        self.n_records += 1
+        if self.keep:
+            self.records.append(record)
+        return record
 
-    def _check_stamp(self, number: int, record: Record) -> None:
-        """Stamps must not decrease: a conflict is reported at the earlier line."""
-        stamp = getattr(record, "stamp_s", None)
-        if stamp is None:
-            return
-        if stamp < self.last_stamp:
-            raise _Conflict(
-                f"line {number}'s stamp_s {stamp!r} is earlier than "
-                + (f"line {self.stamp_at[0]}'s {self.last_stamp!r}" if self.stamp_at[0] > 1
-                   else f"the header's start.stamp_s {self.last_stamp!r} (line 1)")
-                + ": one of them is wrong; records must be written in time order (fix the wrong stamp "
-                "or delete its line)",
-                *self.stamp_at,
-            )
-        self.last_stamp, self.stamp_at = stamp, (number, len(self.records), len(self.rejected))
+    def _stamp_conflict(self, number: int, stamp: float) -> _BadLine:
+        """Stamps must not decrease: the conflict is reported at the earlier line."""
+        return _Conflict(
+            f"line {number}'s stamp_s {stamp!r} is earlier than "
+            + (f"line {self.stamp_at[0]}'s {self.last_stamp!r}" if self.stamp_at[0] > 1
+               else f"the header's start.stamp_s {self.last_stamp!r} (line 1)")
+            + ": one of them is wrong; records must be written in time order (fix the wrong stamp "
+            "or delete its line)",
+            *self.stamp_at,
+        )
 
     def error(self, number: int, bad: _BadLine) -> LogFormatError:
-        """The :class:`LogFormatError` of a bad line, carrying what precedes the line it is reported at."""
-        line, kept, kept_rejected = number, len(self.records), len(self.rejected)
+        """The :class:`LogFormatError` of a bad line, carrying what precedes the line it is reported at
+        (streamed without ``keep``: the header alone)."""
+        line, kept, kept_rejected = number, self.n_records, self.n_rejected
         if isinstance(bad, _Conflict):  # reported at the earlier line: only what precedes it is known good
             line, kept, kept_rejected = bad.line, bad.records, bad.rejected
         partial = (

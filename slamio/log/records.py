@@ -217,20 +217,11 @@ class RunLog:
 
     def rejection_summary(self) -> str | None:
         """One line counting the rejected observations by reason, or None when there are none."""
-        if not self.rejected:
-            return None
-        by_reason: dict[str, list[int]] = {}
+        by_reason: dict[str, tuple[int, int, int]] = {}
         for r in self.rejected:
-            by_reason.setdefault(r.reason, []).append(r.line)
-        parts = []
-        for reason, lines in by_reason.items():
-            where = f"line {lines[0]}" if len(lines) == 1 else f"lines {lines[0]}, ..., {lines[-1]}"
-            parts.append(f"{len(lines)} {reason} ({where})")
-        n = len(self.rejected)
-        return (
-            f"{self.path}: {n} observation{'s' if n != 1 else ''} rejected and kept from the estimators: "
-            + "; ".join(parts)
-        )
+            count, first, _ = by_reason.get(r.reason, (0, r.line, r.line))
+            by_reason[r.reason] = (count + 1, first, r.line)
+        return rejection_line(self.path, by_reason)
 
     def steps(self) -> list[Step]:
         """Group the records into per-pose steps (see :class:`Step`)."""
@@ -248,6 +239,19 @@ class RunLog:
         """True when every pose has a ground-truth pose."""
         steps = self.steps()
         return bool(steps) and all(s.truth is not None for s in steps)
+
+
+def rejection_line(path: str, by_reason: dict[str, tuple[int, int, int]]) -> str | None:
+    """One line counting rejected observations, from ``reason -> (count, first line, last line)``
+    (:meth:`RunLog.rejection_summary`; ``fgslam validate`` counts them as it streams)."""
+    if not by_reason:
+        return None
+    parts = []
+    for reason, (count, first, last) in by_reason.items():
+        where = f"line {first}" if count == 1 else f"lines {first}, ..., {last}"
+        parts.append(f"{count} {reason} ({where})")
+    n = sum(count for count, _, _ in by_reason.values())
+    return f"{path}: {n} observation{'s' if n != 1 else ''} rejected and kept from the estimators: " + "; ".join(parts)
 
 
 def group_steps(header: Header, records: Iterable[Record], *, at_robot_centre: bool = True) -> list[Step]:
