@@ -287,3 +287,24 @@ def test_hidden_barcodes_the_smoother_redecides_its_pairings_against_the_settled
     # the counts still add up: every observation is paired, rejected, unconfirmed or waiting
     c = counts[True]
     assert c["paired"] + c["rejected"] + c["unconfirmed"] + c["waiting"] == score[True].observations
+
+
+def test_the_odometry_window_sets_the_stretch_the_rates_describe(tmp_path, capsys):
+    """Real Creates: --odometry-window 5 fits the variance rates over 5 s stretches (the report
+    says so, and they differ from the 1 s fit: the turn error is correlated over seconds,
+    docs/results-datasets.md); an impossible window is named."""
+    logs = []
+    for robot in (2, 3):
+        out = tmp_path / f"r{robot}.jsonl"
+        assert main(["import", "mrclam", EXCERPT, str(out), "--robot", str(robot), "--noise", "round"]) == 0
+        logs.append(str(out))
+    models = {}
+    for window in ("1", "5"):
+        out = tmp_path / f"w{window}.json"
+        assert main(["calibrate", *logs, "--odometry-window", window, "--out", str(out)]) == 0
+        models[window] = json.loads(out.read_text())
+    assert models["5"]["fit_report"]["odometry"]["window_s"] == 5.0
+    assert models["5"]["odometry"]["noise"] != models["1"]["odometry"]["noise"]
+    capsys.readouterr()
+    assert main(["calibrate", *logs, "--odometry-window", "-1"]) == 1
+    assert "--odometry-window must be seconds" in capsys.readouterr().err

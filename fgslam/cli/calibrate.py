@@ -88,6 +88,10 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     p.add_argument("--without-truth", dest="mode", action="store_const", const="self",
                    help="learn the noise from the logs alone (no ground truth needed): variance-component "
                    "estimation on the smoothed solution; the same as --from self")
+    p.add_argument("--odometry-window", type=float, default=1.0, metavar="S",
+                   help="(from truth) the stretch of driving, in seconds, the odometry's variance rates are fitted "
+                   "over (default 1): a longer one describes the error the estimator carries through long "
+                   "stretches without a reading (more consistent, less accurate; docs/results-datasets.md)")
     p.add_argument("--fit-mount", action="store_true",
                    help="(from truth) fit the model from where the bearings place the sensor on the robot and "
                    "carry it: applying the model states it as the log header's sensor.pose_on_robot (without "
@@ -159,7 +163,10 @@ def _calibrate_from_logs(args: argparse.Namespace, paths: list[str]) -> int:
 
     if args.out:  # before the fit, so nothing is computed for nothing
         check_new_file(args.out, overwrite=args.overwrite, example="noise.json")
-    model = fit_noise_model([read(p) for p in paths], fit_mount=getattr(args, "fit_mount", False))
+    window = getattr(args, "odometry_window", 1.0)
+    if not (window > 0.0 and window <= 600.0):
+        raise FgslamError(f"--odometry-window must be seconds within 0..600, got {window!r}")
+    model = fit_noise_model([read(p) for p in paths], fit_mount=getattr(args, "fit_mount", False), window_s=window)
     print(noise_model_summary(model))
     if args.out:
         write_new_file(Path(args.out), lambda tmp: save_noise_model(tmp, model, overwrite=True),
