@@ -134,7 +134,8 @@ _ENTRIES = (
     EstimatorEntry("ekf-s001", 2, "seed 001's EKF (GoPiGo, forward/rotate moves, nearest neighbour), as written",
                    _seed("EkfS001")),
     EstimatorEntry("ekf-s004", 2, "seed 004's KF over robot and AprilTag poses, as written", _seed("EkfS004")),
-    EstimatorEntry("isam2", 2, "GTSAM iSAM2 factor-graph smoother (the batch solve starts from its result)",
+    EstimatorEntry("isam2", 2, "GTSAM iSAM2 factor-graph smoother (the batch solve starts from its result; DCS "
+                   "on the landmark factors when the log expects outliers)",
                    _isam2("isam2"), isam2=True),
     EstimatorEntry("isam2-fast", 2, "iSAM2 for long runs/large maps: keyframes, one update per 50 steps",
                    _isam2("isam2-fast"), isam2=True),

@@ -179,7 +179,8 @@ def test_outliers_from_sim_and_robust_isam2_from_run(tmp_path, capsys):
     out = tmp_path / "r"
     assert main(["run", str(log), "--out", str(out), "--no-report", "--estimators", "isam2,isam2-cauchy"]) == 0
     metrics = json.loads((out / "metrics.json").read_text())
-    assert metrics["isam2-cauchy"]["ate_rmse_m"] < metrics["isam2"]["ate_rmse_m"] / 3
+    # the log says to expect outliers: the default isam2 takes DCS by itself, as robust as Cauchy
+    assert metrics["isam2"]["ate_rmse_m"] < 2 * metrics["isam2-cauchy"]["ate_rmse_m"] < 0.05
     assert main(["run", str(log), "--out", str(out), "--no-report", "--estimators", "isam2-huber"]) == 0
 
 
