@@ -64,6 +64,37 @@ def test_isam2_reaches_the_batch_optimum(smoothed):
     assert np.allclose(s.smoothed_trajectory()[:, :3, 3], batch.trajectory()[:, :3, 3], atol=0.01)
 
 
+def test_an_update_that_fails_starts_isam2_again_and_ends_at_the_same_optimum(drive, smoothed):
+    """A singular update (here: the next update made to raise, as GTSAM's
+    IndeterminantLinearSystemException does) rebuilds iSAM2 from the whole graph; the run goes
+    on and its final estimate is the same optimum as the unbroken run's."""
+    from ekf.drive3d import steps_of
+
+    class Failing:
+        def __init__(self, isam):
+            self.isam, self.failed = isam, False
+
+        def update(self, *args):
+            if not self.failed:
+                self.failed = True
+                raise RuntimeError("Indeterminant linear system detected")
+            return self.isam.update(*args)
+
+        def __getattr__(self, name):
+            return getattr(self.isam, name)
+
+    s = StereoIsam2(drive.K, drive.baseline_m, drive.cam_T_imu)
+    for t, args in enumerate(steps_of(drive)):
+        if t == 40:
+            s._isam = Failing(s._isam)
+        s.step(*args)
+    assert s.rebuilds == 1
+    s.finish()
+    unbroken, _, batch = smoothed
+    assert s.error() == pytest.approx(batch.error, rel=1e-6)
+    assert np.allclose(s.smoothed_trajectory()[:, :3, 3], unbroken.smoothed_trajectory()[:, :3, 3], atol=1e-4)
+
+
 def test_estimates_against_truth(drive, smoothed):
     s, online, batch = smoothed
     truth = drive.truth_world_T_imu
