@@ -126,3 +126,28 @@ def test_online_pose_close_to_every_step_isam2():
 
     assert gap(corrected) < 0.005
     assert gap(corrected) < gap(uncorrected)
+
+
+def test_the_kept_replay_gives_the_covariance_a_fresh_replay_gives():
+    """current_covariance() of a corrected online pose carries its replay on between calls
+    (each held step once); at every step it equals that of a twin smoother whose replay is
+    started afresh at each call from iSAM2's joint marginal of the landmarks used (the whole
+    replay, as it was computed before the replay was kept); the predicted NIS, which keeps one
+    joint marginal over every landmark asked for until iSAM2 changes, likewise."""
+    header, records = simulate("arena-octagon", 4)
+    steps = group_steps(header, records)[:200]
+    kept, fresh = (Isam2Smoother(header, update_every=10, online_correction=True) for _ in range(2))
+    compared = nis_compared = 0
+    for step in steps:
+        fresh._online._joint = None  # the NIS's joint marginal too: afresh, of this step's landmarks only
+        nis_kept, nis_fresh = kept.predicted_nis(step), fresh.predicted_nis(step)
+        assert [v is None for v in nis_kept] == [v is None for v in nis_fresh]
+        np.testing.assert_allclose([v for v in nis_kept if v is not None], [v for v in nis_fresh if v is not None],
+                                   rtol=1e-9)
+        nis_compared += sum(v is not None for v in nis_kept)
+        kept.step(step)
+        fresh.step(step)
+        fresh._online._replay = None
+        np.testing.assert_allclose(kept.current_covariance(), fresh.current_covariance(), rtol=1e-9, atol=1e-15)
+        compared += kept._online._replay is not None and kept._online._replay.steps > 1
+    assert compared > 50 and nis_compared > 100

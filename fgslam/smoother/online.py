@@ -37,6 +37,13 @@ class OnlinePose:
         # iSAM2 changes, and the held odometry is propagated only once per record
         self._marginal: np.ndarray | None = None
         self._since_chain = OdometryChain(0)
+        # predicted_nis() asks at every step with readings for the joint marginal of the newest
+        # iSAM2 pose and the landmarks read; until iSAM2 changes one joint over every landmark
+        # asked for so far serves them all (a superset's blocks are the subset's joint marginal)
+        self._joint: tuple[set[int], object] | None = None
+        # current_covariance() of a corrected pose replays the correction's steps as an EKF
+        # (_corrected_covariance); the replay is kept and carried on until iSAM2 changes
+        self._replay: _Replay | None = None
 
     def moved(self, increment: gtsam.Pose2, odometry: Odometry, used: tuple = ()) -> None:
         """Note one more step's odometry since the newest pose in iSAM2, and the
@@ -52,10 +59,22 @@ class OnlinePose:
         self._since = self._since[len(self._since) - steps_after :] if steps_after else []
         self._since_chain = OdometryChain(newest_in_isam)
         self._marginal = None
+        self._joint = None
+        self._replay = None
 
     def forget_marginal(self) -> None:
         """iSAM2 changed without new poses (the final updates): recompute the marginal when asked."""
         self._marginal = None
+        self._joint = None
+        self._replay = None
+
+    def _joint_marginal(self, isam: gtsam.ISAM2, x_key: int, ids: list[int]):
+        """iSAM2's joint marginal of ``x_key`` and the landmarks ``ids`` (and of every landmark
+        asked for since iSAM2 last changed: one joint serves later steps that read a subset)."""
+        if self._joint is None or not set(ids) <= self._joint[0]:
+            wanted = list(dict.fromkeys((sorted(self._joint[0]) if self._joint else []) + ids))
+            self._joint = (set(wanted), isam.jointMarginalCovariance(gtsam.KeyVector([x_key] + [L(i) for i in wanted])))
+        return self._joint[1]
 
     def _caught_up_since_chain(self) -> OdometryChain:
         """The odometry since the newest iSAM2 pose, with the records held since the last call."""
@@ -102,43 +121,12 @@ class OnlinePose:
         the replay stays on the prediction from there (the linearisation point's pose ⊕ the
         odometry): moving its mean by the readings would turn the Jacobians again."""
         ids = list(dict.fromkeys(lid for _, _, used in self._since for lid, *_ in used))
-        x_key = X(self._since_chain.start)
-        joint = isam.jointMarginalCovariance(gtsam.KeyVector([x_key] + [L(i) for i in ids]))
-        linearisation = isam.getLinearizationPoint()
-        anchor = linearisation.atPose2(x_key)
-        landmark_at = {lid: np.asarray(linearisation.atPoint2(L(lid)), dtype=float) for lid in ids}
-        n = 3 + 2 * len(ids)
-        J = np.eye(n)
-        J[:3, :3] = body_to_world(anchor.theta())
-        P = np.empty((n, n))
-        keys = [x_key] + [L(i) for i in ids]
-        offsets = [0] + [3 + 2 * j for j in range(len(ids))]
-        for a, ka in zip(offsets, keys):
-            for b, kb in zip(offsets, keys):
-                block = joint.at(ka, kb)
-                P[a : a + block.shape[0], b : b + block.shape[1]] = block
-        P = J @ P @ J.T
-        column = {lid: 3 + 2 * j for j, lid in enumerate(ids)}
-        mean = np.array([anchor.x(), anchor.y(), anchor.theta()])
-        for increment, odo, used in self._since:
-            u = (odo.dx_m, odo.dy_m, odo.dtheta_rad)
-            F, G = motion_jacobians(mean, u)
-            mean = predict_pose(mean, u)
-            P[:3, :] = F @ P[:3, :]
-            P[:, :3] = P[:, :3] @ F.T
-            P[:3, :3] += G @ np.asarray(odo.covariance) @ G.T
-            for lid, _, _, bearing_rad, R in used:  # linearised along the prediction (docstring)
-                H_pose, H_landmark = range_bearing_jacobians(mean, landmark_at[lid])
-                rows = 2 if bearing_rad is not None else 1  # a range-only observation: the range row
-                H = np.zeros((rows, n))
-                H[:, :3] = H_pose[:rows]
-                c = column[lid]
-                H[:, c : c + 2] = H_landmark[:rows]
-                S = H @ P @ H.T + np.atleast_2d(R)
-                K = P @ H.T @ np.linalg.inv(S)
-                P = P - K @ S @ K.T
-                P = 0.5 * (P + P.T)
-        return P[:3, :3]
+        replay = self._replay
+        if replay is None or not set(ids) <= set(replay.column):  # a landmark not in it: start over with all
+            replay = self._replay = _Replay.start(isam, X(self._since_chain.start),
+                                                  list(dict.fromkeys((list(replay.column) if replay else []) + ids)))
+        replay.run(self._since)  # only the steps since the last call: O(k) per step, not O(k²) per update
+        return replay.P[:3, :3]
 
     def predicted_nis(self, isam: gtsam.ISAM2, step: Step, tag_ids: set[int]) -> list[float | None]:
         """NIS of each observation of ``step`` (see :meth:`Isam2Smoother.predicted_nis`)."""
@@ -165,7 +153,7 @@ class OnlinePose:
         x_key = X(chain.start)
         ids = list(dict.fromkeys(o.landmark_id for _, o in wanted))
         try:
-            joint = isam.jointMarginalCovariance(gtsam.KeyVector([x_key] + [L(i) for i in ids]))
+            joint = self._joint_marginal(isam, x_key, ids)
         except RuntimeError:  # gtsam.IndeterminateSystemException: no marginal, so no NIS
             return out
         pose_cov = J @ joint.at(x_key, x_key) @ J.T + to_world @ moved_cov @ to_world.T
@@ -180,6 +168,59 @@ class OnlinePose:
             landmark = isam.calculateEstimatePoint2(key)
             out[j] = observation_nis(mean, landmark, cov, o)
         return out
+
+
+class _Replay:
+    """The full EKF :meth:`OnlinePose._corrected_covariance` replays over the newest iSAM2 pose
+    and the landmarks the correction used, kept between calls: ``P`` and ``mean`` after the
+    first ``steps`` held steps, linearised at iSAM2's linearisation point."""
+
+    def __init__(self, P: np.ndarray, mean: np.ndarray, column: dict[int, int], landmark_at: dict[int, np.ndarray]):
+        self.P, self.mean, self.column, self.landmark_at, self.steps = P, mean, column, landmark_at, 0
+
+    @classmethod
+    def start(cls, isam: gtsam.ISAM2, x_key: int, ids: list[int]) -> "_Replay":
+        """From iSAM2's joint marginal of ``x_key`` and the landmarks ``ids`` (world frame)."""
+        joint = isam.jointMarginalCovariance(gtsam.KeyVector([x_key] + [L(i) for i in ids]))
+        linearisation = isam.getLinearizationPoint()
+        anchor = linearisation.atPose2(x_key)
+        landmark_at = {lid: np.asarray(linearisation.atPoint2(L(lid)), dtype=float) for lid in ids}
+        n = 3 + 2 * len(ids)
+        J = np.eye(n)
+        J[:3, :3] = body_to_world(anchor.theta())
+        P = np.empty((n, n))
+        keys = [x_key] + [L(i) for i in ids]
+        offsets = [0] + [3 + 2 * j for j in range(len(ids))]
+        for a, ka in zip(offsets, keys):
+            for b, kb in zip(offsets, keys):
+                block = joint.at(ka, kb)
+                P[a : a + block.shape[0], b : b + block.shape[1]] = block
+        column = {lid: 3 + 2 * j for j, lid in enumerate(ids)}
+        return cls(J @ P @ J.T, np.array([anchor.x(), anchor.y(), anchor.theta()]), column, landmark_at)
+
+    def run(self, since: list) -> None:
+        """Replay the held steps not replayed yet: predict with each odometry, then update
+        with the readings the correction used there, along the prediction."""
+        P, mean, n = self.P, self.mean, self.P.shape[0]
+        for increment, odo, used in since[self.steps :]:
+            u = (odo.dx_m, odo.dy_m, odo.dtheta_rad)
+            F, G = motion_jacobians(mean, u)
+            mean = predict_pose(mean, u)
+            P[:3, :] = F @ P[:3, :]
+            P[:, :3] = P[:, :3] @ F.T
+            P[:3, :3] += G @ np.asarray(odo.covariance) @ G.T
+            for lid, _, _, bearing_rad, R in used:
+                H_pose, H_landmark = range_bearing_jacobians(mean, self.landmark_at[lid])
+                rows = 2 if bearing_rad is not None else 1  # a range-only observation: the range row
+                H = np.zeros((rows, n))
+                H[:, :3] = H_pose[:rows]
+                c = self.column[lid]
+                H[:, c : c + 2] = H_landmark[:rows]
+                S = H @ P @ H.T + np.atleast_2d(R)
+                K = P @ H.T @ np.linalg.inv(S)
+                P = P - K @ S @ K.T
+                P = 0.5 * (P + P.T)
+        self.P, self.mean, self.steps = P, mean, len(since)
 
 
 def landmark_covariances(marginals, estimate: gtsam.Values, landmark_ids, tag_ids) -> dict[int, np.ndarray]:
