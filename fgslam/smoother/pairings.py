@@ -37,9 +37,10 @@ class IdlessPairings:
         """The step's observations with the id-less ones given the id association chose
         (:mod:`fgslam.smoother.association`); those it did not place are left out. First
         sightings confirmed now are held too, at their own poses."""
-        points = self._point_landmarks()
-        for s, lid in self._association.retry_rejected(k, self._isam, self._marginal_at_pose, points):
-            self._add_observation(s.pose_index, s.seed, replace(s.observation, landmark_id=lid))
+        points = self._point_landmarks() if self._association.retry else None  # O(map): only when needed
+        if points is not None:
+            for s, lid in self._association.retry_rejected(k, self._isam, self._marginal_at_pose, points):
+                self._add_observation(s.pose_index, s.seed, replace(s.observation, landmark_id=lid))
         unknown = [(i, o) for i, o in enumerate(observations) if o.landmark_id is None and not o.range_only]
         self._held.uncorrected |= bool(unknown)
         self._unlabelled |= bool(unknown)
@@ -51,7 +52,8 @@ class IdlessPairings:
                 "pairing such observations reads every pose of the run, so run them with window_poses=None")
         since = self._online._caught_up_since_chain()
         decision = self._association.associate(
-            k, seed, unknown, self._isam, lambda ids: world_joint_marginal(self._isam, since, seed, ids), points)
+            k, seed, unknown, self._isam, lambda ids: world_joint_marginal(self._isam, since, seed, ids),
+            self._point_landmarks() if points is None else points)
         for lid, sightings in decision.confirmed.items():
             self._landmarks.is_tag(lid, False)
             for s in sightings:
