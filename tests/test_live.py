@@ -231,6 +231,8 @@ def test_hil_log_replays_with_every_estimator_against_its_truth(octagon_run, tmp
     assert len(steps) == result.poses and all(s.truth is not None for s in steps)
     latencies = [r for r in log.records if isinstance(r, LiveStep)]
     assert len(latencies) >= result.poses - 3 and all(r.latency_s > 0 for r in latencies)
+    # the camera's mount each detection was placed from is stated; the readings are the centre's
+    assert len(log.header.sensor["T_robot_camera"]) == 4 and "pose_on_robot" not in log.header.sensor
     assert main(["run", str(out), "--out", str(tmp_path / "r"), "--no-report"]) == 0
     metrics = json.loads((tmp_path / "r" / "metrics.json").read_text())
     assert metrics["reference"] == "ground_truth"

@@ -135,6 +135,20 @@ def _default_smoother(start_pose: tuple, front_end, window_poses: int | None):
     return Isam2Smoother(header, window_poses=window_poses)
 
 
+def _sensor_header(sensor: dict | None, observation_noise: dict | None, front_end) -> tuple[dict, dict | None]:
+    """The log header's ``sensor`` and ``noise.observation`` of a live run: the caller's, or
+    what the camera front-end (None: no camera) says — the mount each detection was placed
+    from, and the σ it gives each observation (each record carries its own)."""
+    sensor = sensor or {"kind": "range-bearing", "landmark_kind": "apriltag" if front_end is not None else "none",
+                        "source": "fgslam live"}
+    mounted = getattr(getattr(front_end, "camera", None), "T_robot_camera", None)
+    if mounted is not None:
+        sensor = {**sensor, **camera_mount_fields(mounted)}
+    if observation_noise is None and getattr(front_end, "noise", None) is not None:
+        observation_noise = {**front_end.noise.describe(), "source": "the camera front-end's noise model"}
+    return sensor, observation_noise
+
+
 def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front_end=None,
              settings: LiveSettings = LiveSettings(), smoother=None, truth=None, truth_landmarks=(),
              clock: Callable[[], float] = time.monotonic, sensor: dict | None = None,
@@ -185,14 +199,7 @@ def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front
     recorder = RecorderSettings(speed_m_s=settings.speed_m_s, turn_rate_rad_s=settings.turn_rate_rad_s,
                                 accel_m_s2=settings.accel_m_s2, record_period_s=settings.record_period_s,
                                 command_timeout_s=settings.command_timeout_s, data_timeout_s=settings.data_timeout_s)
-    sensor = sensor or {"kind": "range-bearing", "landmark_kind": "apriltag" if camera else "none",
-                        "source": "fgslam live"}
-    mounted = getattr(getattr(front_end, "camera", None), "T_robot_camera", None)
-    if camera is not None and mounted is not None:  # the mount each detection was placed from
-        sensor = {**sensor, **camera_mount_fields(mounted)}
-    if observation_noise is None and camera is not None and getattr(front_end, "noise", None) is not None:
-        # the header states the σ the front-end gives each observation (each record carries its own)
-        observation_noise = {**front_end.noise.describe(), "source": "the camera front-end's noise model"}
+    sensor, observation_noise = _sensor_header(sensor, observation_noise, front_end if camera is not None else None)
     try:
         result = record(link, out_path, follower, settings=recorder, clock=clock, hooks=loop,
                         start_pose=start_pose, sensor=sensor, observation_noise=observation_noise,
