@@ -88,6 +88,7 @@ from slamio.datasets.rosbag_read import BagFormatError, Messages, bag_paths, rea
 from slamio.errors import FgslamError
 from slamio.geometry import between_pose, wrap_angle
 from slamio.log import Header, Observation, Odometry, Record, TruthPose, as_matrix3
+from slamio.log.mount import camera_mount_fields
 from slamio.log.read import check_records
 from slamio.se3 import quaternion_from_rotation, rotation_from_quaternion, yaw_from_quaternion
 
@@ -390,7 +391,7 @@ def _header(o: _Options, messages: Messages, start_pose, t0: int, n_odometry_mes
             "landmark_kind": "apriltag",
             "detections_topic": o.detections_topic,
             "tag_pose_topics": sorted(messages.tag_topics),
-            "T_robot_camera": [[float(v) for v in row] for row in o.T_rc],
+            **camera_mount_fields(o.T_rc),  # each tag placed through the camera's mount: at the robot's centre
             "tag_normal_axis": o.tag_normal_axis,
         },
         noise={
