@@ -44,6 +44,22 @@ different estimate, and then gains information along it (the NEES grows). With F
   pitch and roll from height more sharply than the data allow (measured in docs/seed003.md).
 
 Residuals always use the current estimates; only the Jacobians change.
+
+**A bounded state** (``marginalise_after``, ``max_landmarks``). Keeping every landmark ever
+seen makes the state grow with the drive and each update cost O(n²): a 1 100-step drive
+with 2 000 features took minutes and gigabytes. A landmark whose id has not been in a step's
+observations for ``marginalise_after`` steps (default :data:`MARGINALISE_AFTER`) is
+*marginalised* at the end of the step: its three rows and columns leave the state and the
+covariance. For a Gaussian that is the exact marginal (the remaining block of Σ is the
+covariance of the remaining variables; nothing else changes), so as long as the landmark is
+never observed again the filter's pose and every other landmark are exactly those of the
+filter that keeps it (the update reads only the pose's and the seen landmarks' columns).
+A landmark seen again after it was marginalised starts afresh as a new landmark (its old
+information about the pose is kept in the pose; the link to its old estimate — a loop
+closure — is what is given up). ``max_landmarks`` (default :data:`MAX_LANDMARKS`) caps the
+state even when many features are in view: beyond it, the least recently seen landmarks go
+first. ``landmarks()`` still reports every landmark: a marginalised one with its estimate
+at the moment it left. ``None`` for either keeps every landmark (the unbounded filter).
 """
 
 from __future__ import annotations
@@ -71,6 +87,10 @@ __all__ = [
 ]
 
 POSE_DIM = 6
+#: steps a landmark may go unseen before it is marginalised (seed 003's real tracks have no gaps)
+MARGINALISE_AFTER = 10
+#: the most landmarks kept in the state (the least recently seen are marginalised first)
+MAX_LANDMARKS = 300
 CHI2_4_999 = 18.4668  # χ²₄ quantile at 0.999
 
 
@@ -115,10 +135,12 @@ class VioEkf:
     """Joint pose + landmark EKF (implements the ``ekf.drive3d`` step protocol).
 
     ``VioEkf(K, baseline_m, cam_T_imu, noise=StereoImuNoise(), min_disparity_px=4.0,
-    gate=CHI2_4_999)`` (``gate=None``: no gating). ``first_estimates=True`` is ``ekf-vio-fej``
-    (module docstring), with its observation Jacobians projected unless
-    ``projected_jacobians=False``. Counters: ``updates``, ``landmarks_added``,
-    ``rejected`` (gated out), ``skipped_small_disparity``, ``skipped_behind``.
+    gate=CHI2_4_999, marginalise_after=MARGINALISE_AFTER, max_landmarks=MAX_LANDMARKS)``
+    (``gate=None``: no gating; ``marginalise_after=None, max_landmarks=None``: every landmark
+    stays in the state). ``first_estimates=True`` is ``ekf-vio-fej`` (module docstring), with
+    its observation Jacobians projected unless ``projected_jacobians=False``. Counters:
+    ``updates``, ``landmarks_added``, ``marginalised``, ``rejected`` (gated out),
+    ``skipped_small_disparity``, ``skipped_behind``.
     """
 
     name = "ekf-vio"
@@ -135,7 +157,17 @@ class VioEkf:
         start_sigma: float = 1e-6,
         first_estimates: bool = False,
         projected_jacobians: bool = True,
+        marginalise_after: int | None = MARGINALISE_AFTER,
+        max_landmarks: int | None = MAX_LANDMARKS,
     ):
+        for value, what in ((marginalise_after, "marginalise_after"), (max_landmarks, "max_landmarks")):
+            if value is not None and int(value) < 1:
+                raise ValueError(f"{what} must be at least 1 (or None: keep every landmark), got {value!r}")
+        self.marginalise_after = None if marginalise_after is None else int(marginalise_after)
+        self.max_landmarks = None if max_landmarks is None else int(max_landmarks)
+        self._k = -1  # index of the current step
+        self._last_seen: dict[int, int] = {}  # landmark in the state → last step its id was observed
+        self._left: dict[int, np.ndarray] = {}  # marginalised landmark → its estimate when it left
         self.first_estimates = bool(first_estimates)
         self.projected_jacobians = bool(projected_jacobians)  # with first_estimates (module docstring)
         if self.first_estimates:
@@ -159,6 +191,7 @@ class VioEkf:
         self._nis: list[float] = []
         self.updates = 0
         self.landmarks_added = 0
+        self.marginalised = 0
         self.rejected = 0
         self.skipped_small_disparity = 0
         self.skipped_behind = 0
@@ -168,6 +201,7 @@ class VioEkf:
     def step(self, dt_s, twist, ids, pixels) -> None:
         if dt_s is not None:
             self._predict(float(dt_s), np.asarray(twist, dtype=float))
+        self._k += 1
         ids = [int(i) for i in ids]
         pixels = np.asarray(pixels, dtype=float).reshape(-1, 4)
         known = [(lid, z) for lid, z in zip(ids, pixels) if lid in self._slot]
@@ -176,6 +210,10 @@ class VioEkf:
         for lid, z in zip(ids, pixels):
             if lid not in self._slot:
                 self._add(lid, z)
+        for lid in ids:
+            if lid in self._slot:
+                self._last_seen[lid] = self._k
+        self.marginalise(self._stale())
         self._trajectory.append(self._T.copy())
 
     def current_pose(self) -> np.ndarray:
@@ -189,7 +227,50 @@ class VioEkf:
         return np.array(self._trajectory).reshape(-1, 4, 4)
 
     def landmarks(self) -> dict[int, np.ndarray]:
-        return {lid: self._x[3 * s : 3 * s + 3].copy() for lid, s in self._slot.items()}
+        """Every landmark's estimate: those in the state now, and the marginalised ones as they
+        were when they left (a landmark re-initialised since then: its new estimate)."""
+        live = {lid: self._x[3 * s : 3 * s + 3].copy() for lid, s in self._slot.items()}
+        return {**{lid: m.copy() for lid, m in self._left.items() if lid not in live}, **live}
+
+    def state_landmark_ids(self) -> list[int]:
+        """The landmarks in the state now, in slot order."""
+        return sorted(self._slot, key=self._slot.__getitem__)
+
+    def state_covariance(self) -> np.ndarray:
+        """The whole covariance over (δ, m_1, …, m_n), slots in :meth:`state_landmark_ids` order."""
+        return self._P.copy()
+
+    def marginalise(self, lids) -> None:
+        """Marginalise the landmarks ``lids`` (those in the state): drop their rows and columns
+        of the mean and the covariance — the exact Gaussian marginal of the rest."""
+        drop = {int(lid) for lid in lids if int(lid) in self._slot}
+        if not drop:
+            return
+        kept = [lid for lid in self.state_landmark_ids() if lid not in drop]
+        slots = np.array([self._slot[lid] for lid in kept], dtype=int)
+        idx = np.concatenate([np.arange(POSE_DIM), (POSE_DIM + 3 * slots[:, None] + np.arange(3)).ravel()])
+        for lid in drop:
+            self._left[lid] = self._landmark(lid).copy()
+            self._m_fe.pop(lid, None)
+            self._last_seen.pop(lid, None)
+        self._x = self._x[(3 * slots[:, None] + np.arange(3)).ravel()]
+        self._P = self._P[np.ix_(idx, idx)]
+        self._slot = {lid: i for i, lid in enumerate(kept)}
+        self.marginalised += len(drop)
+
+    def _stale(self) -> list[int]:
+        """The landmarks to marginalise after this step: unseen for ``marginalise_after`` steps,
+        then the least recently seen beyond ``max_landmarks``."""
+        last = self._last_seen
+        stale = []
+        if self.marginalise_after is not None:
+            stale = [lid for lid, k in last.items() if self._k - k >= self.marginalise_after]
+        excess = len(self._slot) - len(stale) - (self.max_landmarks if self.max_landmarks is not None else len(self._slot))
+        if excess > 0:
+            gone = set(stale)
+            rest = sorted((lid for lid in self._slot if lid not in gone), key=lambda lid: (last[lid], self._slot[lid]))
+            stale += rest[:excess]
+        return stale
 
     def nis(self) -> np.ndarray:
         """NIS of every accepted single-landmark innovation (χ²₄ if consistent)."""

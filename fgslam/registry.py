@@ -154,8 +154,8 @@ _ENTRIES = (
                    "as written", _ekf_s003()),
     EstimatorEntry("ekf-s003-figures", 3, "the same with eq. 16's and eq. 1's typos read as its figures require",
                    _ekf_s003(figures=True)),
-    EstimatorEntry("ekf-vio", 3, "textbook visual-inertial EKF-SLAM on SE(3): pose and landmarks updated jointly",
-                   _vio()),
+    EstimatorEntry("ekf-vio", 3, "textbook visual-inertial EKF-SLAM on SE(3): pose and landmarks updated jointly; "
+                   "landmarks out of view for 10 steps are marginalised (at most 300 kept)", _vio()),
     EstimatorEntry("ekf-vio-fej", 3, "the same keeping the unobservable directions of its first estimates (FEJ, "
                    "projected Jacobians): NEES in band on most drives", _vio(first_estimates=True)),
     EstimatorEntry("isam2-3d", 3, "GTSAM iSAM2 on Pose3 + stereo factors + IMU between factors (the batch solve "

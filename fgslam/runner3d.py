@@ -30,6 +30,7 @@ from ekf.drive3d import StepInput, step_inputs
 from ekf.vio import pose_nees
 from fgslam.compare import TOP_LEVEL_KEYS, nees_band
 from fgslam.compare.metrics import OPTIONAL_TOP_LEVEL_KEYS
+from fgslam.memory import PeakMemory
 from fgslam.registry import DEFAULTS, REGISTRY, build, names_for, parse_names
 from fgslam.runner import pinned_threads
 from slamio.datasets.seed003 import StereoImuNoise
@@ -100,6 +101,7 @@ class Run3d:
     total_time_s: float
     covariances: np.ndarray | None = None  # (T, 6, 6) of the online pose, (ρ, φ), when taken
     nis: np.ndarray | None = None  # per accepted stereo observation (χ²₄ when consistent)
+    peak_memory_bytes: int | None = None  # how far the resident memory rose during the run
 
 
 @dataclass(frozen=True)
@@ -156,12 +158,13 @@ class Comparison3d:
 
 def run_estimator_3d(estimator, inputs: list[StepInput], *, covariances: bool = True, progress=None) -> Run3d:
     """Feed every step's input (:func:`ekf.drive3d.step_inputs`); time each ``step`` (BLAS
-    pinned to one thread)."""
+    pinned to one thread) and measure the run's peak memory (:class:`fgslam.memory.PeakMemory`,
+    the consistency work included)."""
     n = len(inputs)
     times = np.empty(n)
     covs = np.full((n, POSE_DOF, POSE_DOF), np.nan) if covariances else None
     every = max(1, n // 200)
-    with pinned_threads():
+    with pinned_threads(), PeakMemory() as memory:
         for t, args in enumerate(inputs):
             start = time.perf_counter()
             estimator.step(*args)
@@ -183,7 +186,7 @@ def run_estimator_3d(estimator, inputs: list[StepInput], *, covariances: bool = 
             finish_s = time.perf_counter() - start
     nis = estimator.nis() if hasattr(estimator, "nis") else None
     return Run3d(estimator.name, online, final, dict(estimator.landmarks()), times, float(times.sum() + finish_s),
-                 covs, nis)
+                 covs, nis, memory.peak_bytes)
 
 
 @dataclass(frozen=True)
@@ -253,10 +256,10 @@ def run_log3d(log: RunLog, names: list[str], *, consistency: bool = True, progre
         runs.append(in_world(run_estimator_3d(estimator, ready.inputs, covariances=consistency, progress=progress),
                              ready.world_T_start))
     assert smoother is not None  # parse_estimator_names_3d keeps it
-    with pinned_threads():
+    with pinned_threads(), PeakMemory() as memory:
         batch = batch_solve(smoother)
-    runs.append(in_world(Run3d("batch", None, batch.trajectory(), batch.landmarks(), None, batch.seconds),
-                         ready.world_T_start))
+    runs.append(in_world(Run3d("batch", None, batch.trajectory(), batch.landmarks(), None, batch.seconds,
+                               peak_memory_bytes=memory.peak_bytes), ready.world_T_start))
     reference = truth_reference_3d(log, ready.steps) or Reference3d("batch", runs[-1].final, runs[-1].landmarks)
     return Comparison3d(runs, reference, ready.stamps_s, smoother, float(batch.error), smoother.error(),
                         verdict_or_none(smoother.graph, batch.values))
@@ -318,7 +321,7 @@ def _finite_or_none(value) -> float | None:
 METRIC_KEYS_3D = (
     "ate_rmse_m", "ate_2d_rmse_m", "ate_online_rmse_m", "final_pose_error_m", "landmarks_estimated",
     "map_median_m", "map_rmse_m", "time_step_mean_s", "time_step_p50_s", "time_step_p99_s", "time_step_max_s",
-    "time_total_s", "steps", "nees_mean", "nees_inside_95", "nees_dof", "nis_mean", "nis_inside_95",
+    "time_total_s", "peak_memory_mb", "steps", "nees_mean", "nees_inside_95", "nees_dof", "nis_mean", "nis_inside_95",
 )
 #: Top-level keys only a 3-D run's metrics.json has (with :data:`fgslam.compare.TOP_LEVEL_KEYS`).
 TOP_LEVEL_KEYS_3D = ("dimension", "nees_band_95", "nis_band_95", "isam2_graph_error", "batch_graph_error")
@@ -378,7 +381,8 @@ def _pose_metrics_3d(run: Run3d, reference: Reference3d) -> dict:
 
 
 def _time_metrics_3d(run: Run3d) -> dict:
-    """Step times (mean, median, 99th percentile, slowest; None for batch) and the total, seconds."""
+    """Step times (mean, median, 99th percentile, slowest; None for batch) and the total, seconds;
+    the peak memory the run added, MB (10⁶ bytes)."""
     times = None if run.step_times_s is None or not len(run.step_times_s) else np.asarray(run.step_times_s, float)
     p50, p99 = (None, None) if times is None else (float(v) for v in np.percentile(times, [50.0, 99.0]))
     return {
@@ -387,6 +391,7 @@ def _time_metrics_3d(run: Run3d) -> dict:
         "time_step_p99_s": p99,
         "time_step_max_s": None if times is None else float(np.max(times)),
         "time_total_s": run.total_time_s,
+        "peak_memory_mb": None if run.peak_memory_bytes is None else round(run.peak_memory_bytes / 1e6, 3),
         "steps": int(len(run.final)),
     }
 
@@ -435,6 +440,7 @@ COLUMNS_3D = (
     ("NIS", "nis_mean", 1.0, 2),
     ("ms/step", "time_step_mean_s", 1e3, 2),
     ("total s", "time_total_s", 1.0, 2),
+    ("peak MB", "peak_memory_mb", 1.0, 0),
 )
 
 

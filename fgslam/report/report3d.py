@@ -90,7 +90,8 @@ def write_report_3d(out_dir, metrics: dict, runs, reference, *, title: str = "fg
 the last pose's position error; "map med m" the median error of the landmarks an estimator placed;
 NEES is the online pose's on SE(3) (right perturbation, χ²₆) and "in band" the share of steps inside
 its 95 % band; NIS is per accepted stereo observation (χ²₄); ms/step is the wall time of one step
-with BLAS on one thread; - means not applicable.</p>
+with BLAS on one thread; "peak MB" how far the process's resident memory rose during the run
+(megabytes, GTSAM's allocations included); - means not applicable.</p>
 
 <h2 id="top-view">Top view</h2>
 <img src="{_data_uri(png)}"
