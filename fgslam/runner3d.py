@@ -257,7 +257,11 @@ def run_log3d(log: RunLog, names: list[str], *, consistency: bool = True, progre
                              ready.world_T_start))
     assert smoother is not None  # parse_estimator_names_3d keeps it
     with pinned_threads(), PeakMemory() as memory:
+        if progress is not None:
+            progress(0, 1, "batch")
         batch = batch_solve(smoother)
+        if progress is not None:
+            progress(1, 1, "batch")
     runs.append(in_world(Run3d("batch", None, batch.trajectory(), batch.landmarks(), None, batch.seconds,
                                peak_memory_bytes=memory.peak_bytes), ready.world_T_start))
     reference = truth_reference_3d(log, ready.steps) or Reference3d("batch", runs[-1].final, runs[-1].landmarks)

@@ -288,3 +288,30 @@ def test_every_verb_goes_through_the_one_error_path(tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.startswith("fgslam: error: ") and "Traceback" not in err, (argv, err)
     assert not (tmp_path / "r").exists()  # a failed run leaves no empty results folder behind
+
+
+def test_every_phase_of_a_run_reports_progress(tmp_path, monkeypatch):
+    """The estimators, the batch solve, the metrics and the writing of the results each report
+    their stage (what a long run's status line shows, rather than seconds of silence)."""
+    import fgslam.cli.run as run_module
+
+    stages = []
+
+    class Recorder:
+        def __init__(self, *args, **kwargs):
+            pass
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+        def __call__(self, done, total, label):
+            if not stages or stages[-1] != label:
+                stages.append(label)
+
+    monkeypatch.setattr(run_module, "Progress", Recorder)
+    log = Path(__file__).resolve().parent.parent / "data" / "arena_octagon.jsonl"
+    assert main(["run", str(log), "--out", str(tmp_path / "r"), "--estimators", "ekf,isam2"]) == 0
+    assert stages == ["ekf", "isam2", "batch", "metrics", "writing the results"]

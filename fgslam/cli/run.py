@@ -132,7 +132,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     compare, compute_metrics, format_table, write_results = _pipeline(dimension)
     with Progress() as progress:
         result = compare(log, names, progress=progress, consistency=not args.no_consistency)
-    metrics = compute_metrics(result, log_path=str(args.log))
+        progress(0, 1, "metrics")  # errors against the reference, NEES/NIS over every step: seconds on long runs
+        metrics = compute_metrics(result, log_path=str(args.log))
+        progress(1, 1, "metrics")
     metrics["timing"] = TIMING["what"]  # strings: not mistaken for an estimator
     metrics["blas_threads"] = TIMING["blas_threads"]
     if log.truncated:
@@ -153,9 +155,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     metrics["provenance"] = provenance(args.log, [r.name for r in result.runs], command=command_line(args, "run"))
 
     replaced = results.clear()
-    with results.filling(**run_provenance(args)):
+    with results.filling(**run_provenance(args)), Progress() as progress:
+        progress(0, 1, "writing the results")  # the figures and report.html take seconds on long runs
         written = write_results(args, metrics, result)
         results.finish(**run_provenance(args))
+        progress(1, 1, "writing the results")
     slowed = dimension == 2 and not args.no_consistency and any(name.startswith("isam2") for name in names)
     return finish_run(args, results, log, written, replaced, format_table(metrics), notes=[short] if short else [],
                       timing_note=TIMING["consistency_note"] if slowed else None,
