@@ -136,3 +136,14 @@ def test_check_against_the_smoothed_solution_gives_the_same_verdict(tmp_path, ca
     assert main(["check", str(log), "--estimator", "ekf"]) == 0
     out = capsys.readouterr().out
     assert out.startswith("PASS ekf vs smoothed") and "noise verdict" in out and "range: chi2/dof" in out
+
+
+def test_the_verdict_names_a_recorders_nominal_noise_as_round_numbers():
+    """A Create recording states its nominal odometry noise (source "nominal (uncalibrated)"):
+    the run's verdict says the noise is round numbers, not fitted, as for an importer's."""
+    from fgslam.cli.run import noise_source
+    from slamio.create.odometry import default_noise
+    from slamio.create.record_settings import RecorderSettings, make_header
+
+    header = make_header("create1", "sim", 57600, default_noise("create1"), RecorderSettings())
+    assert noise_source(header).startswith("round numbers, not fitted")

@@ -177,7 +177,8 @@ def noise_source(header) -> str:
         fitted = noise.get("fitted_on") or []
         return "a fitted noise model" + (f" (fitted on {', '.join(map(str, fitted))})" if fitted else "")
     texts = [str(part.get("model", "")) for part in noise.values() if isinstance(part, dict)]
-    if any("not fitted" in t for t in texts):
+    sources = [str(part.get("source", "")) for part in noise.values() if isinstance(part, dict)]
+    if any("not fitted" in t for t in texts) or any("uncalibrated" in t for t in sources):
         return "round numbers, not fitted to this robot (the importer's or recorder's defaults)"
     text = "; ".join(t for t in texts if t) or "not stated in the log's header"
     return text if len(text) <= 160 else text[:157] + "..."
