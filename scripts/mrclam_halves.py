@@ -18,6 +18,7 @@ band, round guess → fitted with truth → fitted without truth, and the median
 Usage::
 
     .venv/bin/python -m scripts.mrclam_halves ../shared/data/mrclam/MRCLAM_Dataset6 --work /tmp/halves
+    .venv/bin/python -m scripts.mrclam_halves FOLDER --work DIR --odometry-window 5 --estimators ekf,ekf-fej,isam2
 """
 
 from __future__ import annotations
@@ -58,27 +59,30 @@ def _quiet(*argv: str) -> None:
         raise SystemExit(f"fgslam {' '.join(argv)} failed ({status})")
 
 
-def measure_robot(folder: str, robot: int, work: Path) -> dict[str, dict]:
-    """``{model: metrics.json}`` of robot's second half."""
+def measure_robot(folder: str, robot: int, work: Path, window_s: float = 1.0,
+                  estimators: str = "ekf,isam2") -> dict[str, dict]:
+    """``{model: metrics.json}`` of robot's second half (the model with truth fitted over
+    ``window_s`` stretches of odometry: ``fgslam calibrate --odometry-window``)."""
     whole, first, second = (work / f"r{robot}{part}.jsonl" for part in ("", "a", "b"))
     _quiet("import", "mrclam", folder, str(whole), "--robot", str(robot), "--noise", "round", "--overwrite")
     split_at_middle(whole, first, second)
-    _quiet("calibrate", str(first), "--out", str(work / f"truth{robot}.json"), "--overwrite")
+    _quiet("calibrate", str(first), "--out", str(work / f"truth{robot}.json"), "--overwrite",
+           "--odometry-window", str(window_s))
     _quiet("calibrate", str(first), "--without-truth", "--out", str(work / f"self{robot}.json"), "--overwrite")
     metrics = {}
     for model in MODELS:
         out = work / f"out_{model}_{robot}"
         noise = [] if model == "round" else ["--noise", str(work / f"{model}{robot}.json")]
-        _quiet("run", str(second), "--estimators", "ekf,isam2", "--out", str(out), "--overwrite", *noise)
+        _quiet("run", str(second), "--estimators", estimators, "--out", str(out), "--overwrite", *noise)
         metrics[model] = json.loads((out / "metrics.json").read_text())
     return metrics
 
 
-def print_tables(results: dict[int, dict[str, dict]]) -> None:
+def print_tables(results: dict[int, dict[str, dict]], names: list[str]) -> None:
     def cell(values) -> str:
         return " → ".join("-" if v is None else f"{v:.3f}" for v in values)
 
-    for name in ("ekf", "isam2"):
+    for name in names:
         print(f"\n{name}: round guess → fitted with truth → fitted without truth (second half of each run)\n")
         print("| robot | " + " | ".join(label for _, label in COLUMNS) + " |")
         print("|---" * (len(COLUMNS) + 1) + "|")
@@ -95,13 +99,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("folder", help="an MRCLAM dataset folder (e.g. ../shared/data/mrclam/MRCLAM_Dataset6)")
     parser.add_argument("--work", type=Path, required=True, help="a folder for the logs, models and runs")
     parser.add_argument("--robots", default="1,2,3,4,5")
+    parser.add_argument("--odometry-window", type=float, default=1.0, metavar="S",
+                        help="the model with truth fits the odometry over S-second stretches (default 1)")
+    parser.add_argument("--estimators", default="ekf,isam2")
     args = parser.parse_args(argv)
     args.work.mkdir(parents=True, exist_ok=True)
     results = {}
     for robot in (int(r) for r in args.robots.split(",")):
-        results[robot] = measure_robot(args.folder, robot, args.work)
+        results[robot] = measure_robot(args.folder, robot, args.work, args.odometry_window, args.estimators)
         print(f"robot {robot}: done", flush=True)
-    print_tables(results)
+    print_tables(results, args.estimators.split(","))
     return 0
 
 
