@@ -62,8 +62,7 @@ from ekf.association import (DEFAULT_AMBIGUITY_MARGIN, DEFAULT_GATE_PROBABILITY,
                              settle_pairing)
 from ekf.models import range_bearing, range_bearing_jacobians
 from ekf.slam import DEFAULT_NEW_LANDMARK_PROBABILITY
-from fgslam.smoother.chain import OdometryChain
-from fgslam.smoother.online import body_to_world
+from fgslam.smoother.online import world_joint_marginal
 from fgslam.smoother.pending import PENDING_GATE
 from slamio.geometry import wrap_angle
 from slamio.log import Observation
@@ -557,40 +556,6 @@ class SmootherAssociation:
         """The run is over: first sightings still waiting are dropped."""
         self.unconfirmed += sum(len(g) for g in self.waiting)
         self.waiting = []
-
-
-def world_joint_marginal(isam: gtsam.ISAM2, since: OdometryChain, pose: gtsam.Pose2,
-                         landmark_ids: list[int]) -> np.ndarray | None:
-    """Covariance of [pose (world x, y, θ), landmark 0 (x, y), …] for the new pose ``pose``,
-    which the odometry ``since`` links to the newest pose iSAM2 holds: iSAM2's joint marginal
-    of that pose and ``L(id)`` for ``landmark_ids``, the pose carried through the odometry
-    (Σ ← A Σ Aᵀ + Σ_z, cross-covariance ← A Σ_pl, A = Ad(z⁻¹)) and rotated into world
-    (x, y, θ), as :meth:`fgslam.smoother.online.OnlinePose.predicted_nis` does. None when
-    iSAM2 cannot form it."""
-    x_key = X(since.start)
-    if not isam.valueExists(x_key):
-        return None
-    to_world = body_to_world(pose.theta())
-    J = to_world @ since.compound.inverse().AdjointMap()
-    moved_world = to_world @ since.covariance() @ to_world.T
-    keys = [x_key] + [L(i) for i in landmark_ids]
-    try:
-        if landmark_ids:
-            joint = isam.jointMarginalCovariance(gtsam.KeyVector(keys))
-            pose = np.asarray(joint.at(x_key, x_key), dtype=float)
-        else:
-            joint, pose = None, np.asarray(isam.marginalCovariance(x_key), dtype=float)
-    except RuntimeError:  # gtsam.IndeterminateSystemException
-        return None
-    d = 3 + 2 * len(landmark_ids)
-    P = np.zeros((d, d))
-    P[:3, :3] = J @ pose @ J.T + moved_world
-    for a, ka in enumerate(keys[1:]):
-        P[:3, 3 + 2 * a : 5 + 2 * a] = J @ np.asarray(joint.at(x_key, ka), dtype=float)
-        P[3 + 2 * a : 5 + 2 * a, :3] = P[:3, 3 + 2 * a : 5 + 2 * a].T
-        for b, kb in enumerate(keys[1:]):
-            P[3 + 2 * a : 5 + 2 * a, 3 + 2 * b : 5 + 2 * b] = np.asarray(joint.at(ka, kb), dtype=float)
-    return 0.5 * (P + P.T)
 
 
 __all__ = ["SmootherAssociation", "Change", "FIRST_ASSOCIATED_ID", "association_problem", "world_joint_marginal",

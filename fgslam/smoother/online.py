@@ -72,7 +72,7 @@ class OnlinePose:
         """iSAM2's joint marginal of ``x_key`` and the landmarks ``ids`` (and of every landmark
         asked for since iSAM2 last changed: one joint serves later steps that read a subset)."""
         if self._joint is None or not set(ids) <= self._joint[0]:
-            wanted = list(dict.fromkeys((sorted(self._joint[0]) if self._joint else []) + ids))
+            wanted = _union(sorted(self._joint[0]) if self._joint else (), ids)
             self._joint = (set(wanted), isam.jointMarginalCovariance(gtsam.KeyVector([x_key] + [L(i) for i in wanted])))
         return self._joint[1]
 
@@ -120,11 +120,11 @@ class OnlinePose:
         heading σ 0.003 rad against a 0.04 rad error, NEES up to 4 000). For the same reason
         the replay stays on the prediction from there (the linearisation point's pose ⊕ the
         odometry): moving its mean by the readings would turn the Jacobians again."""
-        ids = list(dict.fromkeys(lid for _, _, used in self._since for lid, *_ in used))
+        ids = [lid for _, _, used in self._since for lid, *_ in used]
         replay = self._replay
         if replay is None or not set(ids) <= set(replay.column):  # a landmark not in it: start over with all
-            replay = self._replay = _Replay.start(isam, X(self._since_chain.start),
-                                                  list(dict.fromkeys((list(replay.column) if replay else []) + ids)))
+            replay = self._replay = _Replay.start(isam, self._since_chain.start,
+                                                  _union(replay.column if replay else (), ids))
         replay.run(self._since)  # only the steps since the last call: O(k) per step, not O(k²) per update
         return replay.P[:3, :3]
 
@@ -170,6 +170,45 @@ class OnlinePose:
         return out
 
 
+def world_joint_marginal(isam: gtsam.ISAM2, since: OdometryChain, pose: gtsam.Pose2,
+                         landmark_ids: list[int]) -> np.ndarray | None:
+    """Covariance of [pose (world x, y, θ), landmark 0 (x, y), …] for the new pose ``pose``,
+    which the odometry ``since`` links to the newest pose iSAM2 holds: iSAM2's joint marginal
+    of that pose and ``L(id)`` for ``landmark_ids``, the pose carried through the odometry
+    (Σ ← A Σ Aᵀ + Σ_z, cross-covariance ← A Σ_pl, A = Ad(z⁻¹)) and rotated into world
+    (x, y, θ), as :meth:`fgslam.smoother.online.OnlinePose.predicted_nis` does. None when
+    iSAM2 cannot form it."""
+    x_key = X(since.start)
+    if not isam.valueExists(x_key):
+        return None
+    to_world = body_to_world(pose.theta())
+    J = to_world @ since.compound.inverse().AdjointMap()
+    moved_world = to_world @ since.covariance() @ to_world.T
+    keys = [x_key] + [L(i) for i in landmark_ids]
+    try:
+        if landmark_ids:
+            joint = isam.jointMarginalCovariance(gtsam.KeyVector(keys))
+            pose = np.asarray(joint.at(x_key, x_key), dtype=float)
+        else:
+            joint, pose = None, np.asarray(isam.marginalCovariance(x_key), dtype=float)
+    except RuntimeError:  # gtsam.IndeterminateSystemException
+        return None
+    d = 3 + 2 * len(landmark_ids)
+    P = np.zeros((d, d))
+    P[:3, :3] = J @ pose @ J.T + moved_world
+    for a, ka in enumerate(keys[1:]):
+        P[:3, 3 + 2 * a : 5 + 2 * a] = J @ np.asarray(joint.at(x_key, ka), dtype=float)
+        P[3 + 2 * a : 5 + 2 * a, :3] = P[:3, 3 + 2 * a : 5 + 2 * a].T
+        for b, kb in enumerate(keys[1:]):
+            P[3 + 2 * a : 5 + 2 * a, 3 + 2 * b : 5 + 2 * b] = np.asarray(joint.at(ka, kb), dtype=float)
+    return 0.5 * (P + P.T)
+
+
+def _union(kept, ids) -> list[int]:
+    """The landmarks of ``kept`` and then of ``ids``, each once, in that order."""
+    return list(dict.fromkeys([*kept, *ids]))
+
+
 class _Replay:
     """The full EKF :meth:`OnlinePose._corrected_covariance` replays over the newest iSAM2 pose
     and the landmarks the correction used, kept between calls: ``P`` and ``mean`` after the
@@ -179,24 +218,17 @@ class _Replay:
         self.P, self.mean, self.column, self.landmark_at, self.steps = P, mean, column, landmark_at, 0
 
     @classmethod
-    def start(cls, isam: gtsam.ISAM2, x_key: int, ids: list[int]) -> "_Replay":
-        """From iSAM2's joint marginal of ``x_key`` and the landmarks ``ids`` (world frame)."""
-        joint = isam.jointMarginalCovariance(gtsam.KeyVector([x_key] + [L(i) for i in ids]))
+    def start(cls, isam: gtsam.ISAM2, newest: int, ids: list[int]) -> "_Replay":
+        """From iSAM2's joint marginal of pose ``newest`` and the landmarks ``ids``, in the world
+        frame at iSAM2's linearisation point (:func:`world_joint_marginal`)."""
         linearisation = isam.getLinearizationPoint()
-        anchor = linearisation.atPose2(x_key)
+        anchor = linearisation.atPose2(X(newest))
+        P = world_joint_marginal(isam, OdometryChain(newest), anchor, ids)
+        if P is None:
+            raise RuntimeError(f"iSAM2 cannot form the joint marginal of pose {newest} and landmarks {ids}")
         landmark_at = {lid: np.asarray(linearisation.atPoint2(L(lid)), dtype=float) for lid in ids}
-        n = 3 + 2 * len(ids)
-        J = np.eye(n)
-        J[:3, :3] = body_to_world(anchor.theta())
-        P = np.empty((n, n))
-        keys = [x_key] + [L(i) for i in ids]
-        offsets = [0] + [3 + 2 * j for j in range(len(ids))]
-        for a, ka in zip(offsets, keys):
-            for b, kb in zip(offsets, keys):
-                block = joint.at(ka, kb)
-                P[a : a + block.shape[0], b : b + block.shape[1]] = block
         column = {lid: 3 + 2 * j for j, lid in enumerate(ids)}
-        return cls(J @ P @ J.T, np.array([anchor.x(), anchor.y(), anchor.theta()]), column, landmark_at)
+        return cls(P, np.array([anchor.x(), anchor.y(), anchor.theta()]), column, landmark_at)
 
     def run(self, since: list) -> None:
         """Replay the held steps not replayed yet: predict with each odometry, then update
