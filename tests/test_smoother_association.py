@@ -189,7 +189,7 @@ def _readings_of_two_points(b_offset_m: float, as_a: int, landmark_sigma_m: floa
     callback and the keys."""
     from gtsam.symbol_shorthand import L, X
 
-    from fgslam.smoother.association import world_joint_marginal
+    from fgslam.smoother.online import world_joint_marginal
     from fgslam.smoother.chain import OdometryChain
 
     a, b, c = FIRST_ASSOCIATED_ID, FIRST_ASSOCIATED_ID + 1, FIRST_ASSOCIATED_ID + 2

@@ -62,7 +62,6 @@ from ekf.association import (DEFAULT_AMBIGUITY_MARGIN, DEFAULT_GATE_PROBABILITY,
                              settle_pairing)
 from ekf.models import range_bearing, range_bearing_jacobians
 from ekf.slam import DEFAULT_NEW_LANDMARK_PROBABILITY
-from fgslam.smoother.online import world_joint_marginal
 from fgslam.smoother.pending import PENDING_GATE
 from slamio.geometry import wrap_angle
 from slamio.log import Observation
@@ -216,7 +215,7 @@ class SmootherAssociation:
                   isam: gtsam.ISAM2, joint_marginal, known_points: list[int]) -> Decision:
         """Decide the step's id-less observations ``(position in step, observation)`` made
         from pose ``k`` seeded at ``seed``. ``joint_marginal(ids)`` returns
-        the covariance of [pose, landmarks ``ids``] (:func:`world_joint_marginal`) or None
+        the covariance of [pose, landmarks ``ids``] (:func:`fgslam.smoother.online.world_joint_marginal`) or None
         when iSAM2 cannot form it; ``known_points`` the point landmarks iSAM2 holds."""
         expired = [g for g in self.waiting if k - g[-1].pose_index > self.max_wait_steps]
         self.unconfirmed += sum(len(g) for g in expired)
@@ -558,5 +557,5 @@ class SmootherAssociation:
         self.waiting = []
 
 
-__all__ = ["SmootherAssociation", "Change", "FIRST_ASSOCIATED_ID", "association_problem", "world_joint_marginal",
-           "observation_point", "point_spread_m"]
+__all__ = ["SmootherAssociation", "Change", "FIRST_ASSOCIATED_ID", "association_problem", "observation_point",
+           "point_spread_m"]

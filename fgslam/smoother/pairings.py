@@ -15,7 +15,7 @@ from dataclasses import replace
 import gtsam
 from gtsam.symbol_shorthand import L, X
 
-from fgslam.smoother.association import world_joint_marginal
+from fgslam.smoother.online import world_joint_marginal
 from fgslam.smoother.chain import OdometryChain
 from slamio.errors import FgslamError
 from slamio.log import Observation
@@ -30,16 +30,16 @@ class IdlessPairings:
 
     def _marginal_at_pose(self, p: int, pose: gtsam.Pose2, ids):
         """iSAM2's joint marginal of pose ``p`` (at ``pose``) and landmarks ``ids``, in the world
-        frame (:func:`~fgslam.smoother.association.world_joint_marginal`)."""
+        frame (:func:`~fgslam.smoother.online.world_joint_marginal`)."""
         return world_joint_marginal(self._isam, OdometryChain(p), pose, ids)
 
     def _associate(self, k: int, seed: gtsam.Pose2, observations) -> list[Observation]:
         """The step's observations with the id-less ones given the id association chose
         (:mod:`fgslam.smoother.association`); those it did not place are left out. First
         sightings confirmed now are held too, at their own poses."""
-        points = self._point_landmarks() if self._association.retry else None  # O(map): only when needed
-        if points is not None:
-            for s, lid in self._association.retry_rejected(k, self._isam, self._marginal_at_pose, points):
+        if self._association.retry:  # listing the map's landmarks is O(map): only when something is due
+            for s, lid in self._association.retry_rejected(k, self._isam, self._marginal_at_pose,
+                                                           self._point_landmarks()):
                 self._add_observation(s.pose_index, s.seed, replace(s.observation, landmark_id=lid))
         unknown = [(i, o) for i, o in enumerate(observations) if o.landmark_id is None and not o.range_only]
         self._held.uncorrected |= bool(unknown)
@@ -53,7 +53,7 @@ class IdlessPairings:
         since = self._online._caught_up_since_chain()
         decision = self._association.associate(
             k, seed, unknown, self._isam, lambda ids: world_joint_marginal(self._isam, since, seed, ids),
-            self._point_landmarks() if points is None else points)
+            self._point_landmarks())
         for lid, sightings in decision.confirmed.items():
             self._landmarks.is_tag(lid, False)
             for s in sightings:
