@@ -116,10 +116,9 @@ def _unweighted_whitened(factor, values: gtsam.Values) -> np.ndarray:
 
 
 def _rows(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values):
-    """Per row of ``graph``'s whitened Jacobian: its group ("" for rows of none), its unweighted
-    whitened error, whether its measurement is an outlier (by that error), and the
-    measurement's index."""
-    groups, errors, outlier, index = [], [], [], []
+    """Per row of ``graph``'s whitened Jacobian: its group ("" for rows of none), whether its
+    measurement is an outlier (by its unweighted whitened error), and the measurement's index."""
+    groups, outlier, index = [], [], []
     for i in range(graph.size()):
         factor = graph.at(i)
         if factor is None:
@@ -127,19 +126,18 @@ def _rows(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values):
         dim = int(factor.dim())
         group = _group_of(factor)
         rows = ["bearing", "range"] if group == "bearing+range" else [group] * dim
-        e = _unweighted_whitened(factor, values) if group else np.zeros(dim)
+        beyond = bool(group) and bool(np.any(np.abs(_unweighted_whitened(factor, values)) > GATE_SIGMA))
         groups += rows
-        errors.append(e)
-        outlier += [bool(np.any(np.abs(e) > GATE_SIGMA))] * dim
+        outlier += [beyond] * dim
         index += [i] * dim
-    return np.array(groups), np.concatenate(errors) if errors else np.zeros(0), np.array(outlier), np.array(index)
+    return np.array(groups), np.array(outlier, dtype=bool), np.array(index)
 
 
 def graph_verdict(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> dict[str, GroupVerdict]:
     """Per noise group present in ``graph``, its :class:`GroupVerdict` at ``values`` (the batch
     optimum)."""
     A, b = whitened_system(graph, values)
-    groups, errors, outlier, index = _rows(graph, values)
+    groups, outlier, index = _rows(graph, values)
     if len(groups) != A.shape[0]:  # a factor type of unexpected rows: no verdict rather than a wrong one
         return {}
     present = [g for g in GROUPS if np.any(groups == g)]

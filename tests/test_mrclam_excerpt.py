@@ -307,4 +307,4 @@ def test_the_odometry_window_sets_the_stretch_the_rates_describe(tmp_path, capsy
     assert models["5"]["odometry"]["noise"] != models["1"]["odometry"]["noise"]
     capsys.readouterr()
     assert main(["calibrate", *logs, "--odometry-window", "-1"]) == 1
-    assert "--odometry-window must be seconds" in capsys.readouterr().err
+    assert "--odometry-window must be a number > 0 and <= 600" in capsys.readouterr().err

@@ -18,7 +18,8 @@ import argparse
 import json
 from pathlib import Path
 
-from fgslam.cli.common import add_overwrite_option, add_verb, check_new_file, holds_outputs, read, write_new_file
+from fgslam.cli.common import (add_overwrite_option, add_verb, check_new_file, check_number, holds_outputs, read,
+                               write_new_file)
 from slamio.errors import FgslamError
 from slamio.noise.errors import NoiseModelError
 
@@ -164,8 +165,8 @@ def _calibrate_from_logs(args: argparse.Namespace, paths: list[str]) -> int:
     if args.out:  # before the fit, so nothing is computed for nothing
         check_new_file(args.out, overwrite=args.overwrite, example="noise.json")
     window = getattr(args, "odometry_window", 1.0)
-    if not (window > 0.0 and window <= 600.0):
-        raise FgslamError(f"--odometry-window must be seconds within 0..600, got {window!r}")
+    check_number("--odometry-window", window, above=0.0, at_most=600.0,
+                 what="the seconds of driving the odometry's variance rates are fitted over")
     model = fit_noise_model([read(p) for p in paths], fit_mount=getattr(args, "fit_mount", False), window_s=window)
     print(noise_model_summary(model))
     if args.out:

@@ -30,6 +30,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from slamio.geometry import wrap_angle
+from slamio.noise.fitting import mad_sigma
 
 __all__ = ["MountFit", "determined", "fit_mount", "sensor_bearings_rad"]
 
@@ -68,10 +69,6 @@ def sensor_bearings_rad(poses: np.ndarray, landmarks: np.ndarray, mount: tuple[f
     return wrap_angle(np.arctan2(landmarks[:, 1] - sy, landmarks[:, 0] - sx) - poses[:, 2] - myaw)
 
 
-def _robust_sigma(x: np.ndarray) -> float:
-    return float(1.4826 * np.median(np.abs(x - np.median(x)))) if len(x) else math.nan
-
-
 def fit_mount(poses: np.ndarray, landmarks: np.ndarray, bearings_rad: np.ndarray,
               start: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> MountFit:
     """The mount that makes the measured ``bearings_rad`` of ``landmarks`` seen from the true
@@ -85,10 +82,10 @@ def fit_mount(poses: np.ndarray, landmarks: np.ndarray, bearings_rad: np.ndarray
         return wrap_angle(measured - p[3] * sensor_bearings_rad(poses, landmarks, (p[0], p[1], p[2])))
 
     p0 = np.array([*start, 1.0])
-    scale = max(_robust_sigma(residual(p0)), 1e-4)
+    scale = max(mad_sigma(residual(p0)), 1e-4)
     for _ in range(2):  # the robust σ at the start may be a parallax's; once more at the solution's
         solution = least_squares(residual, p0, loss="soft_l1", f_scale=scale, x_scale=[0.1, 0.1, 0.1, 0.1])
-        p0, scale = solution.x, max(_robust_sigma(solution.fun), 1e-5)
+        p0, scale = solution.x, max(mad_sigma(solution.fun), 1e-5)
     J = solution.jac
     try:
         cov = np.linalg.inv(J.T @ J) * scale**2
