@@ -64,7 +64,7 @@ from slamio.noise.errors import NoiseModelError
 from slamio.noise.fitting import (GATE_SIGMAS, TruthData, fit_reading_correlation, line_fit, mad_sigma, nnls_rates,
                                   residuals_about_own_lines, truth_at, truth_data)
 from slamio.noise.model import NoiseModel, ObservationModel, OdometryModel, OdometryNoiseRates
-from slamio.noise.mount_fit import MountFit, determined
+from slamio.noise.mount_fit import MountFit, determined, sensor_poses
 from slamio.noise.mount_fit import fit_mount as fit_sensor_mount
 from slamio.noise.range import fit_range_only
 
@@ -188,43 +188,42 @@ def _fit_odometry(datas: Sequence[TruthData], window_s: float, lag_grid_s: np.nd
 # --------------------------------------------------------------------------- observation fit
 
 
-def true_range_bearing(data: TruthData, latency_s: float) -> tuple[np.ndarray, ...]:
-    """(measured range, measured bearing, true range, true bearing, picture times, landmark
-    positions (n, 2)) of the readings with truth."""
+def _readings_at_truth(data: TruthData, latency_s: float) -> tuple[np.ndarray, ...]:
+    """(the robot's true pose at each picture (n, 3), measured range, measured bearing, picture
+    time, landmark position (n, 2)) of the readings whose picture time the truth brackets."""
     if not data.observations:
         empty = np.zeros(0)
-        return empty, empty, empty, empty, empty, np.zeros((0, 2))
+        return np.zeros((0, 3)), empty, empty, empty, np.zeros((0, 2))
     obs = data.observations
     t = np.array([o[0] for o in obs]) - latency_s
     poses, ok = truth_at(data, t)
-    lm = np.array([o[3] for o in obs])
-    if data.mount is not None:  # the truth as the sensor sees it: from the sensor's pose on the robot
-        mx, my, myaw = data.mount
-        c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-        poses = np.column_stack([poses[:, 0] + c * mx - s * my, poses[:, 1] + s * mx + c * my, poses[:, 2] + myaw])
-    dx, dy = lm[:, 0] - poses[:, 0], lm[:, 1] - poses[:, 1]
-    r = np.hypot(dx, dy)
-    b = wrap_angle(np.arctan2(dy, dx) - poses[:, 2])
     rm = np.array([o[1] for o in obs])
     bm = np.array([o[2] for o in obs])
-    return rm[ok], bm[ok], r[ok], b[ok], t[ok], lm[ok]
+    lm = np.array([o[3] for o in obs])
+    return poses[ok], rm[ok], bm[ok], t[ok], lm[ok]
+
+
+def true_range_bearing(data: TruthData, latency_s: float) -> tuple[np.ndarray, ...]:
+    """(measured range, measured bearing, true range, true bearing, picture times, landmark
+    positions (n, 2)) of the readings with truth, the truth as the sensor sees it: from its
+    pose on the robot (:func:`slamio.noise.mount_fit.sensor_poses`; the centre without one)."""
+    poses, rm, bm, t, lm = _readings_at_truth(data, latency_s)
+    mount = (0.0, 0.0, 0.0) if data.mount is None else data.mount
+    sensor = sensor_poses(poses, mount)
+    dx, dy = lm[:, 0] - sensor[:, 0], lm[:, 1] - sensor[:, 1]
+    return rm, bm, np.hypot(dx, dy), wrap_angle(np.arctan2(dy, dx) - sensor[:, 2]), t, lm
 
 
 def _mount(datas: Sequence[TruthData], latency_s: float, adopt: bool) -> tuple[list[TruthData], MountFit | None]:
     """The sensor's pose on the robot fitted from the bearings (:mod:`slamio.noise.mount_fit`),
     and ``datas`` seen from it when ``adopt`` and the data determine it (else as the headers
     state)."""
-    poses, landmarks, bearings = [], [], []
-    for d in datas:
-        t = np.array([o[0] for o in d.observations]) - latency_s
-        at, ok = truth_at(d, t)
-        poses.append(at[ok])
-        landmarks.append(np.array([o[3] for o in d.observations])[ok])
-        bearings.append(np.array([o[2] for o in d.observations])[ok])
-    start = next((d.mount for d in datas if d.mount is not None), (0.0, 0.0, 0.0))
-    if sum(len(b) for b in bearings) < 20:  # too few to place the sensor: the observation fit says so
+    readings = [_readings_at_truth(d, latency_s) for d in datas]
+    if sum(len(bm) for _, _, bm, _, _ in readings) < 20:  # too few to place the sensor: the observation fit says so
         return list(datas), None
-    fit = fit_sensor_mount(np.vstack(poses), np.vstack(landmarks), np.concatenate(bearings), start)
+    start = next((d.mount for d in datas if d.mount is not None), (0.0, 0.0, 0.0))
+    fit = fit_sensor_mount(np.vstack([p for p, *_ in readings]), np.vstack([lm for *_, lm in readings]),
+                           np.concatenate([bm for _, _, bm, _, _ in readings]), start)
     return ([replace(d, mount=fit.pose) for d in datas] if adopt and determined(fit) else list(datas)), fit
 
 

@@ -32,7 +32,7 @@ from scipy.optimize import least_squares
 from slamio.geometry import wrap_angle
 from slamio.noise.fitting import mad_sigma
 
-__all__ = ["MountFit", "determined", "fit_mount", "sensor_bearings_rad"]
+__all__ = ["MountFit", "determined", "fit_mount", "sensor_bearings_rad", "sensor_poses"]
 
 #: The offset is taken as determined when its σ is below this (metres) and the yaw's below
 #: :data:`MAX_YAW_SIGMA_RAD`: a fit that cannot place the sensor within 2 cm says nothing.
@@ -60,13 +60,19 @@ class MountFit:
         }
 
 
+def sensor_poses(poses: np.ndarray, mount: tuple[float, float, float]) -> np.ndarray:
+    """(n, 3): where a sensor at ``mount`` on the robot is, and the direction it looks, when
+    the robot is at ``poses`` (n, 3: x, y, θ)."""
+    mx, my, myaw = mount
+    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    return np.column_stack([poses[:, 0] + c * mx - s * my, poses[:, 1] + s * mx + c * my, poses[:, 2] + myaw])
+
+
 def sensor_bearings_rad(poses: np.ndarray, landmarks: np.ndarray, mount: tuple[float, float, float]) -> np.ndarray:
     """Bearing of each landmark (n, 2) from a sensor at ``mount`` on the robot at ``poses``
     (n, 3: x, y, θ), counter-clockwise from the sensor's axis."""
-    mx, my, myaw = mount
-    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-    sx, sy = poses[:, 0] + c * mx - s * my, poses[:, 1] + s * mx + c * my
-    return wrap_angle(np.arctan2(landmarks[:, 1] - sy, landmarks[:, 0] - sx) - poses[:, 2] - myaw)
+    sensor = sensor_poses(poses, mount)
+    return wrap_angle(np.arctan2(landmarks[:, 1] - sensor[:, 1], landmarks[:, 0] - sensor[:, 0]) - sensor[:, 2])
 
 
 def fit_mount(poses: np.ndarray, landmarks: np.ndarray, bearings_rad: np.ndarray,
