@@ -131,26 +131,24 @@ class FastDecoder:
 
     def record(self, raw: bytes) -> Any:
         """The record of one line (bytes, line ending allowed), or None: let the slow path decide."""
-        if b"null" in raw:
-            return self._with_nulls(raw)
-        try:
-            struct = self._plain.decode(raw)
-        except (msgspec.DecodeError, RecursionError):
-            return None
-        values = msgspec.structs.asdict(struct)
-        if raw.count(b":") != 1 + len(values) - list(values.values()).count(None):
-            return None  # a key given twice
-        return _finished(self._plain_classes[type(struct)], values)
+        if b"null" in raw:  # an explicit null is told apart from an absent field (UNSET)
+            return _decoded(self._unset, self._unset_classes, raw, UNSET)
+        return _decoded(self._plain, self._plain_classes, raw, None)
 
-    def _with_nulls(self, raw: bytes) -> Any:
-        try:
-            struct = self._unset.decode(raw)
-        except (msgspec.DecodeError, RecursionError):
-            return None
-        values = msgspec.structs.asdict(struct)
-        if raw.count(b":") != 1 + len(values) - list(values.values()).count(UNSET):
-            return None
-        return _finished(self._unset_classes[type(struct)], {k: None if v is UNSET else v for k, v in values.items()})
+
+def _decoded(decoder: msgspec.json.Decoder, classes: dict[type, type], raw: bytes, absent: Any) -> Any:
+    """The record ``decoder`` makes of ``raw``, or None; ``absent`` is what its structs hold for
+    a field the line leaves out (None, or UNSET where the line holds a null)."""
+    try:
+        struct = decoder.decode(raw)
+    except (msgspec.DecodeError, RecursionError):
+        return None
+    values = msgspec.structs.asdict(struct)
+    if raw.count(b":") != 1 + len(values) - list(values.values()).count(absent):
+        return None  # a key given twice
+    if absent is UNSET:
+        values = {k: None if v is UNSET else v for k, v in values.items()}
+    return _finished(classes[type(struct)], values)
 
 
 def _finished(cls: type, values: dict) -> Any:
