@@ -72,7 +72,8 @@ def test_a_model_carries_the_mount_through_its_file_and_refuses_a_bad_one(tmp_pa
     data = json.loads(path.read_text())
     data["observation"]["sensor_pose_on_robot"] = [0.1, 0.0]
     path.write_text(json.dumps(data, indent=2))
-    with pytest.raises(NoiseModelError, match=r"noise.json:\d+: observation.sensor_pose_on_robot: it must be"):
+    with pytest.raises(NoiseModelError,
+                       match=r"noise.json:\d+: observation.sensor_pose_on_robot must be \[x_m, y_m, yaw_rad\]"):
         load_noise_model(path)
     with pytest.raises(NoiseModelError, match="within 10 m"):
         ObservationModel(sensor_pose_on_robot=(30.0, 0.0, 0.0))

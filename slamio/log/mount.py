@@ -23,7 +23,7 @@ import numpy as np
 
 from slamio.geometry import wrap_angle
 
-__all__ = ["MAX_MOUNT_OFFSET_M", "camera_mount_fields", "moved_to_robot_centre", "pose_on_robot",
+__all__ = ["MAX_MOUNT_OFFSET_M", "camera_mount_fields", "checked_mount", "moved_to_robot_centre", "pose_on_robot",
            "reading_in_robot_frame"]
 
 #: What the header's ``sensor.readings_at`` says of a camera's detections: fgslam's camera
@@ -42,18 +42,26 @@ def pose_on_robot(sensor: dict) -> tuple[float, float, float] | None:
     value = sensor.get("pose_on_robot") if isinstance(sensor, dict) else None
     if value is None:
         return None
-    if (not isinstance(value, list) or len(value) != 3
+    x, y, yaw = checked_mount(value if isinstance(value, list) else None, "header field 'sensor.pose_on_robot'")
+    if x == 0.0 and y == 0.0 and wrap_angle(yaw) == 0.0:
+        return None
+    return x, y, yaw
+
+
+def checked_mount(value, field: str) -> tuple[float, float, float]:
+    """``value`` as a sensor's pose on the robot ``(x_m, y_m, yaw_rad)``; ValueError naming
+    ``field`` and the rule broken: three numbers, within :data:`MAX_MOUNT_OFFSET_M` of the
+    centre, a yaw within ±2π."""
+    if (not isinstance(value, (list, tuple)) or len(value) != 3
             or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)):
-        raise ValueError("header field 'sensor.pose_on_robot' must be [x_m, y_m, yaw_rad], three numbers: the "
+        raise ValueError(f"{field} must be [x_m, y_m, yaw_rad], three numbers: the "
                          "sensor's origin in the robot frame (x forward, y left) and the direction it looks")
     x, y, yaw = (float(v) for v in value)
     if not (abs(x) <= MAX_MOUNT_OFFSET_M and abs(y) <= MAX_MOUNT_OFFSET_M):
-        raise ValueError(f"header field 'sensor.pose_on_robot' puts the sensor {math.hypot(x, y):g} m from the "
+        raise ValueError(f"{field} puts the sensor {math.hypot(x, y):g} m from the "
                          f"robot's centre; a sensor on the robot sits within {MAX_MOUNT_OFFSET_M:g} m")
     if not abs(yaw) <= 2.0 * math.pi:
-        raise ValueError(f"header field 'sensor.pose_on_robot' yaw {yaw!r} must be an angle within ±2π rad")
-    if x == 0.0 and y == 0.0 and wrap_angle(yaw) == 0.0:
-        return None
+        raise ValueError(f"{field} yaw {yaw!r} must be an angle within ±2π rad")
     return x, y, yaw
 
 

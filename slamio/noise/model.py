@@ -186,15 +186,13 @@ class ObservationModel:
 
     def __post_init__(self) -> None:
         if self.sensor_pose_on_robot is not None:
-            from slamio.log.mount import pose_on_robot
+            from slamio.log.mount import checked_mount
 
             try:
-                mount = pose_on_robot({"pose_on_robot": list(self.sensor_pose_on_robot)
-                                       if isinstance(self.sensor_pose_on_robot, (list, tuple)) else self.sensor_pose_on_robot})
+                mount = checked_mount(self.sensor_pose_on_robot, "observation.sensor_pose_on_robot")
             except ValueError as exc:
-                raise NoiseModelError("observation.sensor_pose_on_robot: " + str(exc).replace(
-                    "header field 'sensor.pose_on_robot'", "it"), ("observation", "sensor_pose_on_robot")) from None
-            object.__setattr__(self, "sensor_pose_on_robot", mount or (0.0, 0.0, 0.0))
+                raise NoiseModelError(str(exc), ("observation", "sensor_pose_on_robot")) from None
+            object.__setattr__(self, "sensor_pose_on_robot", mount)
         if not isinstance(self.range_is_depth, bool):
             raise NoiseModelError(f"observation.range_is_depth must be true or false, got {self.range_is_depth!r}",
                                   ("observation", "range_is_depth"))
