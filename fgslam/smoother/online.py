@@ -58,12 +58,11 @@ class OnlinePose:
         self._anchor = anchor
         self._since = self._since[len(self._since) - steps_after :] if steps_after else []
         self._since_chain = OdometryChain(newest_in_isam)
-        self._marginal = None
-        self._joint = None
-        self._replay = None
+        self.forget_marginal()
 
     def forget_marginal(self) -> None:
-        """iSAM2 changed without new poses (the final updates): recompute the marginal when asked."""
+        """iSAM2 changed (an update, or the final updates without new poses): recompute the
+        marginal, the NIS's joint and the replay when asked."""
         self._marginal = None
         self._joint = None
         self._replay = None
