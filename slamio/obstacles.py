@@ -6,7 +6,8 @@ is pure geometry on them, the same for the simulated robot, the simulated camera
 and the navigators' tests:
 
 * :func:`ray_cast_m` — distance along rays from a point to the first obstacle (a laser's
-  truth, and the truth a depth-image scan is checked against);
+  truth, and the truth a depth-image scan is checked against); :func:`line_of_sight` — is a
+  point (a landmark) hidden behind an obstacle;
 * :func:`disc_contacts` / :func:`push_disc_out` — the robot's disc against the obstacles:
   where it touches (for the bumper) and where it ends up when a move would enter one (it
   slides along, as the simulated Create does along the arena's walls);
@@ -22,8 +23,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Obstacles", "box_segments", "room_segments", "ray_cast_m", "disc_contacts", "push_disc_out",
-           "clearance_m"]
+__all__ = ["Obstacles", "box_segments", "room_segments", "ray_cast_m", "line_of_sight", "disc_contacts",
+           "push_disc_out", "clearance_m"]
 
 
 def _array(rows, width: int) -> np.ndarray:
@@ -128,6 +129,17 @@ def ray_cast_m(obstacles: Obstacles, origin_xy, angles_rad, max_range_m: float =
     hits = np.hstack([_segment_hits(origin, dirs, tall_segments), _circle_hits(origin, dirs, tall_circles)])
     nearest = hits.min(axis=1) if hits.shape[1] else np.full(len(dirs), np.inf)
     return np.where(nearest <= max_range_m, nearest, np.inf)
+
+
+def line_of_sight(obstacles: Obstacles, from_xy, to_xy, min_height_m: float = 0.0) -> bool:
+    """True when no obstacle at least ``min_height_m`` tall stands between the two points
+    (a landmark on an obstacle's face is seen: the hit must come before the point itself)."""
+    offset = np.asarray(to_xy, dtype=float) - np.asarray(from_xy, dtype=float)
+    distance = float(np.hypot(*offset))
+    if distance == 0.0:
+        return True
+    hit = ray_cast_m(obstacles, from_xy, [math.atan2(offset[1], offset[0])], min_height_m=min_height_m)[0]
+    return bool(hit >= distance - 1e-6)
 
 
 # --------------------------------------------------------------------------- the robot's disc

@@ -21,7 +21,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Scan", "scan_from_ranges"]
+from slamio.obstacles import Obstacles, ray_cast_m
+
+__all__ = ["Scan", "scan_from_ranges", "ray_cast_scan"]
 
 
 @dataclass(frozen=True)
@@ -75,3 +77,16 @@ def scan_from_ranges(angles_rad, ranges_m, max_range_m: float, min_range_m: floa
     ranges[free] = np.inf
     ranges[unknown & ~free] = np.nan
     return Scan(np.asarray(angles_rad, dtype=float), ranges, max_range_m, min_range_m)
+
+
+def ray_cast_scan(obstacles: Obstacles, pose, field_of_view_rad: float, rays: int, max_range_m: float,
+                  min_height_m: float = 0.0) -> Scan:
+    """The true scan from a robot at ``pose`` (x, y, θ): ``rays`` rays spread evenly over
+    ``field_of_view_rad`` centred straight ahead, cast against the obstacles at least
+    ``min_height_m`` tall (a simulated laser; the truth a depth-image scan is checked against)."""
+    if rays < 1:
+        raise ValueError(f"a scan needs at least one ray, got {rays}")
+    half = 0.5 * field_of_view_rad
+    angles = np.linspace(-half, half, rays) if rays > 1 else np.zeros(1)
+    ranges = ray_cast_m(obstacles, pose[:2], angles + pose[2], max_range_m, min_height_m)
+    return Scan(angles, ranges, max_range_m)

@@ -75,3 +75,17 @@ def test_scan_marks_free_and_unknown():
     assert scan.field_of_view_rad == pytest.approx(0.3)
     with pytest.raises(ValueError, match="increase"):
         Scan([0.1, 0.0], [1.0, 1.0], 4.0)
+
+
+def test_line_of_sight_and_a_ray_cast_scan():
+    from slamio.obstacles import line_of_sight
+    from slamio.scan import ray_cast_scan
+
+    world = Obstacles(room_segments(4.0, 4.0)) + Obstacles(circles_m=[[2.0, 2.0, 0.3]])
+    assert not line_of_sight(world, (1.0, 2.0), (3.0, 2.0))
+    assert line_of_sight(world, (1.0, 1.0), (3.0, 1.0))
+    assert line_of_sight(world, (1.0, 1.0), (4.0, 1.0))  # a tag on the wall itself is seen
+    scan = ray_cast_scan(world, (1.0, 2.0, 0.0), math.radians(57), 5, max_range_m=2.5)
+    assert scan.angles_rad[[0, 2, 4]] == pytest.approx([-math.radians(28.5), 0.0, math.radians(28.5)])
+    assert scan.ranges_m[2] == pytest.approx(0.7)
+    assert np.isinf(scan.ranges_m[0])  # the wall 3.0 / cos(28.5°) away is beyond 2.5 m
