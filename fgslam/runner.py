@@ -468,7 +468,7 @@ def _run_each(log: RunLog, steps: Sequence[Step], names: Sequence[str], progress
 
 def _without_batch(log: RunLog, failures: Sequence[EstimatorFailure]) -> str:
     """Why a log without pose truth cannot be compared when no iSAM2 ran through."""
-    failed = [f for f in failures if f.name in ISAM2_NAMES]
+    failed = [f for f in failures if f.name in REGISTRY and REGISTRY[f.name].isam2]
     if failed:
         return (f"{failed[0].sentence()}; {_log_name(log)} has no pose truth, so the reference is the batch solve, "
                 "which starts from iSAM2's result: nothing can be scored")
