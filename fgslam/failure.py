@@ -98,6 +98,9 @@ class EstimatorFailed(FgslamError):
         super().__init__(failure.sentence())
         self.failure = failure
 
+    def __reduce__(self):  # pickled whole: fgslam bench runs estimators in worker processes
+        return (EstimatorFailed, (self.failure,))
+
 
 class NonFiniteEstimate(ArithmeticError):
     """An estimator's pose or covariance is no longer a number (:func:`check_finite`)."""

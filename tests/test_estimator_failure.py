@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import pickle
 
 import gtsam
 import numpy as np
@@ -18,7 +19,7 @@ from gtsam.symbol_shorthand import X
 from ekf import EkfSlam
 from fgslam import registry, runner
 from fgslam.cli import main
-from fgslam.failure import FAILED_EXIT_STATUS, EstimatorFailed, check_finite, reason_of
+from fgslam.failure import FAILED_EXIT_STATUS, EstimatorFailed, EstimatorFailure, check_finite, reason_of
 from fgslam.runner3d import prepare_log3d, run_estimator_3d
 from fgslam.smoother import Isam2Smoother
 from slamio.datasets.seed003_log import drive_to_log
@@ -107,6 +108,14 @@ def test_a_singular_innovation_in_ekf_vio_is_its_failure_and_isam2_3d_runs_on(tm
     assert metrics["isam2-3d"]["ate_rmse_m"] is not None and metrics["batch"]["ate_rmse_m"] is not None
     row = next(line for line in out.splitlines() if line.startswith("ekf-vio "))
     assert row.split(None, 1)[1] == "failed at step 66 (t = 6.60 s): numpy LinAlgError: Singular matrix"
+
+
+def test_fgslam_check_says_the_failure_in_one_line(tmp_path, capsys):
+    log = tmp_path / "small.jsonl"
+    write_log(log, *gyro_flipped(3, DriveScenario(straight_m=40.0, side_m=25.0), axes="xyz"))
+    assert main(["check", str(log), "--estimator", "ekf-vio", "--against", "truth"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err == "fgslam: error: ekf-vio failed at step 66 (t = 6.60 s): numpy LinAlgError: Singular matrix"
 
 
 def test_the_3d_runner_raises_one_failure_naming_the_estimator_step_and_time():
@@ -220,7 +229,7 @@ def test_a_failing_estimator_is_a_row_an_entry_and_exit_4_and_the_others_are_unc
         ["ekf", "ekf-singular", "isam2", "dead_reckoning", "batch"]
     assert printed.err.count("fgslam: ekf-singular failed at step 100") == 1 and "Traceback" not in printed.err
     report = (tmp_path / "out" / "report.html").read_text()
-    assert f'<tr class="failed"><td>ekf-singular</td><td colspan="' in report and cell in report
+    assert '<tr class="failed"><td>ekf-singular</td><td colspan="' in report and cell in report
     assert not (tmp_path / "out" / "ekf-singular.tum").exists()
 
 
@@ -230,7 +239,8 @@ def test_a_nan_covariance_is_caught_at_its_step_by_the_finiteness_check(test_est
     assert status == 4
     failed = json.loads((tmp_path / "out" / "metrics.json").read_text())["ekf-nan-cov"]["failed"]
     assert failed["step"] == FAIL_STEP
-    assert failed["reason"] == "non-finite estimate: its pose covariance is not a number (1 of 9 entries NaN or infinite)"
+    assert failed["reason"] == ("non-finite estimate: its pose covariance is not a number (1 of 9 entries NaN or "
+                                "infinite)")
     row = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("ekf-nan-cov "))
     assert row.split(None, 1)[1].startswith("failed at step 100 (t = ")
 
@@ -269,6 +279,12 @@ def test_reason_of_names_gtsam_exceptions_by_their_class_and_variable():
                                        "system: check the odometry, on a 3-D log the gyro sign)")
     assert reason_of(ValueError("first line\nsecond line\n\nmore")) == "ValueError: first line second line"
     assert len(reason_of(RuntimeError("x" * 500))) == 160
+
+
+def test_a_failure_survives_pickling_as_a_worker_process_sends_it():
+    failed = EstimatorFailed(EstimatorFailure("ekf", 12, 1.2, "numpy LinAlgError: Singular matrix"))
+    again = pickle.loads(pickle.dumps(failed))
+    assert again.failure == failed.failure and str(again) == str(failed)
 
 
 def test_check_finite_accepts_numbers_and_names_what_is_not():
