@@ -73,13 +73,13 @@ class EstimatorFailure:
         return cls(name, entry.get("step"), entry.get("time_s"), str(entry.get("reason")), entry.get("phase", "step"))
 
     def where(self) -> str:
-        """``failed at step 529 (t = 52.90 s)``, ``failed in finish() after step 529 ...`` or
-        ``failed in the batch solve``."""
+        """``failed at step 529 (t = 52.90 s)``, ``failed in finish() after step 544 (t = ...)``
+        (the last step) or ``failed`` (the batch solve)."""
         stamp = "" if self.time_s is None else f" (t = {self.time_s:.2f} s)"
-        if self.phase == "batch":
-            return "failed in the batch solve"
+        if self.phase == "batch":  # the name says it: "batch failed: ..."
+            return "failed"
         if self.phase == "finish":
-            return f"failed in finish() after the last step, {self.step}{stamp}"
+            return f"failed in finish() after step {self.step}{stamp}"
         return f"failed at step {self.step}{stamp}"
 
     def cell(self) -> str:

@@ -430,8 +430,9 @@ def compare_log(
     except Exception as error:  # e.g. gtsam's IndeterminateSystemException
         failure = EstimatorFailure("batch", None, None, reason_of(error), "batch")
         if truth is None:
-            raise FgslamError(f"{_log_name(log)}: the {failure.sentence()}; without pose truth in the log it is the "
-                              "reference, so nothing can be scored") from error
+            raise FgslamError(f"{_log_name(log)}: the batch solve from {smoother.name}'s result failed: "
+                              f"{failure.reason}; without pose truth in the log it is the reference, so nothing "
+                              "can be scored") from error
         return Comparison(runs, truth, stamps_s, smoother, failures=[*failures, failure])
     batch_run = _batch_run(batch, smoother_run)
     runs.append(batch_run)

@@ -269,6 +269,28 @@ def test_the_batch_starts_from_another_isam2_when_one_fails_and_without_any_ther
     assert "no pose truth" in err
 
 
+def test_a_failed_batch_solve_is_a_row_against_truth_and_one_line_without(monkeypatch, tmp_path, capsys):
+    """The batch solve meeting GTSAM's IndeterminateSystemException (a real one, from an iSAM2
+    update of an unconstrained graph, in place of the batch solve)."""
+    monkeypatch.setattr(runner, "batch_solve", lambda smoother: unconstrained())
+    assert main(["run", OCTAGON, "--out", str(tmp_path / "a"), "--estimators", "ekf,isam2", "--no-report"]) == 4
+    printed = capsys.readouterr()
+    metrics = json.loads((tmp_path / "a" / "metrics.json").read_text())
+    assert metrics["batch"] == {"failed": {"step": None, "time_s": None, "phase": "batch", "reason": (
+        "gtsam IndeterminateSystemException near variable x1 (an under-determined system: check the odometry, "
+        "on a 3-D log the gyro sign)")}}
+    assert metrics["isam2"]["ate_rmse_m"] is not None and "noise_verdict" not in metrics
+    row = next(line for line in printed.out.splitlines() if line.startswith("batch "))
+    assert row.split(None, 1)[1].startswith("failed: gtsam IndeterminateSystemException near variable x1")
+    log = read_log(OCTAGON)
+    no_truth = tmp_path / "no_truth.jsonl"
+    write_log(no_truth, log.header, [r for r in log.records if not isinstance(r, TruthPose)])
+    assert main(["run", str(no_truth), "--out", str(tmp_path / "b"), "--estimators", "ekf,isam2"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"fgslam: error: {no_truth}: the batch solve from isam2's result failed: gtsam "
+                          "IndeterminateSystemException near variable x1") and "\n" not in err
+
+
 # --------------------------------------------------------------------------- the pieces
 
 
