@@ -286,14 +286,14 @@ def score_3d(log, log_path, estimator: str, against: str) -> Score:
     else:
         graph = ready.estimator("isam2-3d")
         # checking isam2-3d itself: its one run (with covariances) also gives the graph
-        graph_run = run_estimator_3d(graph, ready.inputs, covariances=estimator == "isam2-3d")
+        graph_run = run_estimator_3d(graph, ready.inputs, covariances=estimator == "isam2-3d", stamps_s=ready.stamps_s)
         require_landmarks_seen_twice(graph, log_path)
         if estimator == "isam2-3d":
             run = graph_run
         reference_poses = batch_solve_3d(graph).trajectory()
         has_pose = np.ones(n_steps, dtype=bool)
     if run is None:
-        run = run_estimator_3d(ready.estimator(estimator), ready.inputs)
+        run = run_estimator_3d(ready.estimator(estimator), ready.inputs, stamps_s=ready.stamps_s)
     if against == "truth":  # the truth is in the log's world frame, where the first pose is start.pose3
         run = in_world(run, ready.world_T_start)
     ate = position_rmse_m(run.final, reference_poses, 3, has_pose)

@@ -129,7 +129,7 @@ def run_one_3d(seed: int, estimators: tuple[str, ...], scenario=None) -> RunResu
     truth = drive.truth_world_T_imu
     out_nees, final, online, times = {}, {}, {}, {}
     for name in estimators:
-        run = run_estimator_3d(ready.estimator(name), ready.inputs)
+        run = run_estimator_3d(ready.estimator(name), ready.inputs, stamps_s=ready.stamps_s)
         out_nees[name] = pose_nees_series(run.online, run.covariances, truth)
         final[name] = position_rmse_m(run.final, truth)
         online[name] = position_rmse_m(run.online, truth)

@@ -30,6 +30,7 @@ import scipy.linalg  # noqa: F401  (scipy's own BLAS is loaded now, so the threa
 from threadpoolctl import threadpool_limits
 
 from fgslam.compare import NIS_DOF, EstimatorRun, Reference, relabel_landmarks, score_associations
+from fgslam.failure import EstimatorFailed, EstimatorFailure, StepWatch, check_finite, reason_of
 from fgslam.memory import PeakMemory
 from fgslam.registry import DEFAULTS, REGISTRY, isam2_names, names_for, parse_names
 from fgslam.registry import expected_outlier_kernel  # noqa: F401  (scripts import it from here)
@@ -88,6 +89,8 @@ class Comparison:
     batch_errors: tuple[float, float] | None = None
     #: noise group → :class:`fgslam.verdict.GroupVerdict` at the batch optimum (empty: none)
     verdict: dict = field(default_factory=dict)
+    #: the estimators that stopped mid-run (not in ``runs``), in the order they ran
+    failures: list[EstimatorFailure] = field(default_factory=list)
 
     def smoother_short_of_optimum(self) -> str | None:
         """A note when iSAM2's final estimate is not the batch optimum (its χ²/2 more than
@@ -138,16 +141,24 @@ def run_estimator(
     the estimator states for its online pose (for NEES). A run that only serves as a
     reference or a timing can skip that work. The peak memory of the whole run is measured
     too (:class:`fgslam.memory.PeakMemory`; the consistency work is included in it).
+
+    An exception from the estimator (in a step, ``finish()`` or reading its final estimate),
+    or a pose or stated covariance that is not a number after a step
+    (:func:`fgslam.failure.check_finite`), is raised as :class:`fgslam.failure.EstimatorFailed`
+    naming the estimator, the step and the reason.
     """
     trace = _Trace(len(steps), covariances and hasattr(estimator, "current_covariance"),
                    covariances and hasattr(estimator, "predicted_nis"), hasattr(estimator, "step_associations"))
-    with pinned_threads(blas_threads), PeakMemory() as memory:
-        _feed_steps(estimator, steps, progress, trace)
-        start = time.perf_counter()
-        estimator.finish()
-        final = np.asarray(estimator.trajectory(), dtype=float)
-        finish_s = time.perf_counter() - start
-    landmarks, heights, landmark_covariances, association = _final_map(estimator, steps, trace, covariances)
+    watch = trace.watch = StepWatch(estimator.name, [step.stamp_s for step in steps])
+    with watch.failures():
+        with pinned_threads(blas_threads), PeakMemory() as memory:
+            _feed_steps(estimator, steps, progress, trace)
+            watch.finishing()
+            start = time.perf_counter()
+            estimator.finish()
+            final = np.asarray(estimator.trajectory(), dtype=float)
+            finish_s = time.perf_counter() - start
+        landmarks, heights, landmark_covariances, association = _final_map(estimator, steps, trace, covariances)
     with_nis = trace.with_nis
     run = EstimatorRun(
         name=estimator.name,
@@ -184,12 +195,16 @@ class _Trace:
         self.nis_dofs: list[int] = []
         self.true_ids: list[int | None] = []
         self.keys: list[int | None] = []
+        self.watch: StepWatch | None = None  # the step being fed, for a failure's report
 
 
 def _feed_steps(estimator: Estimator, steps: Sequence[Step], progress: Progress | None, trace: _Trace) -> None:
-    """Every step into ``estimator``, timing ``step`` and ``current_pose`` alone."""
+    """Every step into ``estimator``, timing ``step`` and ``current_pose`` alone; after each,
+    its pose and stated covariance must be numbers (:func:`fgslam.failure.check_finite`)."""
     every = max(1, len(steps) // 200)
     for i, step in enumerate(steps):
+        if trace.watch is not None:
+            trace.watch.step = i
         if trace.with_nis:  # against the prediction, so before the step; outside the timed region
             for observation, value in zip(step.observations, estimator.predicted_nis(step)):  # type: ignore[attr-defined]
                 if value is not None:
@@ -200,11 +215,15 @@ def _feed_steps(estimator: Estimator, steps: Sequence[Step], progress: Progress 
         estimator.step(step)
         trace.online[i] = estimator.current_pose()
         trace.step_times_s[i] = time.perf_counter() - start
+        check_finite(trace.online[i])  # a diverged estimator fails here, not in the figures
         if trace.pose_covariances is not None:  # for NEES; outside the timed region
             try:
-                trace.pose_covariances[i] = estimator.current_covariance()  # type: ignore[attr-defined]
+                covariance = estimator.current_covariance()  # type: ignore[attr-defined]
             except RuntimeError:  # gtsam.IndeterminateSystemException: no marginal this step
-                trace.pose_covariances[i] = np.nan
+                covariance = np.nan
+            else:
+                check_finite(trace.online[i], covariance)
+            trace.pose_covariances[i] = covariance
         if trace.associating:  # bookkeeping for the score, outside the timed region
             trace.keys.extend(estimator.step_associations())  # type: ignore[attr-defined]
             trace.true_ids.extend(_true_id(o) for o in step.observations)
@@ -390,49 +409,91 @@ def compare_log(
     ``isam2`` when it ran, else from the first robust iSAM2 (whose graph, and so whose
     batch solve, is robust too). ``consistency`` is :func:`run_estimator`'s ``covariances``
     (NEES, NIS and covariance ellipses).
+
+    An estimator that fails mid-run (:class:`fgslam.failure.EstimatorFailed`) is kept in
+    :attr:`Comparison.failures` and the others go on. Where the failure leaves nothing to
+    measure against — every iSAM2 failed, or the batch solve did, on a log without pose
+    truth — the comparison stops with one :class:`FgslamError` saying which and why.
     """
     steps = log.steps()
+    stamps_s = np.array([s.stamp_s for s in steps])
+    runs, failures, smoother, smoother_run = _run_each(log, steps, estimator_names, progress, consistency)
+    truth = truth_reference(log)
+    if smoother is None:  # no batch solve: only the log's own truth can be the reference
+        if truth is None:
+            raise FgslamError(_without_batch(log, failures))
+        return Comparison(runs, truth, stamps_s, failures=failures)
+    if not log.truth_landmarks() and truth is None:  # the smoothed solution will be the reference
+        require_usable_reference(smoother, steps, _log_name(log))
+    try:
+        batch = _batch_solve(smoother, progress)
+    except Exception as error:  # e.g. gtsam's IndeterminateSystemException
+        failure = EstimatorFailure("batch", None, None, reason_of(error), "batch")
+        if truth is None:
+            raise FgslamError(f"{_log_name(log)}: the batch solve from {smoother.name}'s result failed: "
+                              f"{failure.reason}; without pose truth in the log it is the reference, so nothing "
+                              "can be scored") from error
+        return Comparison(runs, truth, stamps_s, smoother, failures=[*failures, failure])
+    batch_run = _batch_run(batch, smoother_run)
+    runs.append(batch_run)
+    reference = choose_reference(log, batch.trajectory, batch_run.landmarks, batch_run.landmark_heights)
+    return Comparison(runs, reference, stamps_s, smoother, (batch.initial_error, batch.final_error),
+                      verdict_or_none(smoother.graph(), batch.values), failures)
+
+
+def _log_name(log) -> str:
+    return str(getattr(log, "path", "the log"))
+
+
+def _run_each(log: RunLog, steps: Sequence[Step], names: Sequence[str], progress: Progress | None,
+              consistency: bool) -> tuple[list[EstimatorRun], list[EstimatorFailure], Isam2Smoother | None,
+                                          EstimatorRun | None]:
+    """``(runs, failures, smoother, its run)``: every named estimator on ``steps``, those that
+    failed set apart, and the iSAM2 the batch solve starts from (plain ``isam2`` when it ran,
+    else the first iSAM2; None when none ran through)."""
     runs: list[EstimatorRun] = []
+    failures: list[EstimatorFailure] = []
     smoother: Isam2Smoother | None = None
     smoother_run: EstimatorRun | None = None
-    for name in estimator_names:
-        run, estimator = run_estimator(ESTIMATORS[name](log.header), steps, progress, covariances=consistency)
+    for name in names:
+        try:
+            run, estimator = run_estimator(ESTIMATORS[name](log.header), steps, progress, covariances=consistency)
+        except EstimatorFailed as failed:
+            failures.append(failed.failure)
+            continue
         runs.append(run)
         if isinstance(estimator, Isam2Smoother) and (smoother is None or name == "isam2"):
             smoother, smoother_run = estimator, run
-    if smoother is None:  # no batch solve: only the log's own truth can be the reference
-        truth = truth_reference(log)
-        if truth is None:
-            raise FgslamError(
-                f"{getattr(log, 'path', 'the log')} has no pose truth, so the reference is the batch solve, which "
-                "starts from iSAM2's result: keep isam2 (or one of "
-                f"{', '.join(n for n in ISAM2_NAMES if n != 'isam2')}) in --estimators"
-            )
-        return Comparison(runs, truth, np.array([s.stamp_s for s in steps]), None, None)
-    if not log.truth_landmarks() and truth_reference(log) is None:  # the smoothed solution will be the reference
-        require_usable_reference(smoother, steps, getattr(log, "path", "the log"))
+    return runs, failures, smoother, smoother_run
+
+
+def _without_batch(log: RunLog, failures: Sequence[EstimatorFailure]) -> str:
+    """Why a log without pose truth cannot be compared when no iSAM2 ran through."""
+    failed = [f for f in failures if f.name in REGISTRY and REGISTRY[f.name].isam2]
+    if failed:
+        return (f"{failed[0].sentence()}; {_log_name(log)} has no pose truth, so the reference is the batch solve, "
+                "which starts from iSAM2's result: nothing can be scored")
+    return (f"{_log_name(log)} has no pose truth, so the reference is the batch solve, which starts from iSAM2's "
+            f"result: keep isam2 (or one of {', '.join(n for n in ISAM2_NAMES if n != 'isam2')}) in --estimators")
+
+
+def _batch_solve(smoother: Isam2Smoother, progress: Progress | None):
+    """:func:`fgslam.smoother.batch_solve` from ``smoother``'s result, BLAS pinned, with progress."""
     if progress is not None:
         progress(0, 1, "batch")
     with pinned_threads():
         batch = batch_solve(smoother)
     if progress is not None:
         progress(1, 1, "batch")
-    batch_landmarks, batch_heights = dict(batch.landmarks), batch.landmark_heights
+    return batch
+
+
+def _batch_run(batch, smoother_run: EstimatorRun | None) -> EstimatorRun:
+    """The batch solve as an :class:`EstimatorRun`, its landmarks under the true ids when the
+    smoother associated observations itself."""
+    landmarks, heights = dict(batch.landmarks), batch.landmark_heights
     if smoother_run is not None and smoother_run.association is not None:  # the smoother's own keys → true ids
-        batch_landmarks = relabel_landmarks(batch_landmarks, smoother_run.association)
-        batch_heights = relabel_landmarks(batch_heights, smoother_run.association) if batch_heights else batch_heights
-    runs.append(
-        EstimatorRun(
-            name="batch",
-            online=None,
-            final=batch.trajectory,
-            landmarks=batch_landmarks,
-            step_times_s=None,
-            total_time_s=batch.time_s,
-            landmark_heights=batch_heights,
-        )
-    )
-    stamps_s = np.array([s.stamp_s for s in steps])
-    reference = choose_reference(log, batch.trajectory, batch_landmarks, batch_heights)
-    return Comparison(runs, reference, stamps_s, smoother, (batch.initial_error, batch.final_error),
-                      verdict_or_none(smoother.graph(), batch.values))
+        landmarks = relabel_landmarks(landmarks, smoother_run.association)
+        heights = relabel_landmarks(heights, smoother_run.association) if heights else heights
+    return EstimatorRun(name="batch", online=None, final=batch.trajectory, landmarks=landmarks, step_times_s=None,
+                        total_time_s=batch.time_s, landmark_heights=heights)

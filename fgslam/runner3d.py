@@ -30,6 +30,7 @@ from ekf.drive3d import StepInput, step_inputs
 from ekf.vio import pose_nees
 from fgslam.compare import TOP_LEVEL_KEYS, nees_band
 from fgslam.compare.metrics import OPTIONAL_TOP_LEVEL_KEYS
+from fgslam.failure import EstimatorFailed, EstimatorFailure, StepWatch, check_finite, failed_cell, reason_of
 from fgslam.memory import PeakMemory
 from fgslam.registry import DEFAULTS, REGISTRY, build, names_for, parse_names
 from fgslam.runner import pinned_threads
@@ -144,11 +145,13 @@ class Comparison3d:
     runs: list[Run3d]
     reference: Reference3d
     stamps_s: np.ndarray
-    smoother: object  # the StereoIsam2 the batch solve started from
-    batch_error: float
-    isam2_error: float
+    smoother: object  # the StereoIsam2 the batch solve started from (None: isam2-3d failed)
+    batch_error: float | None  # None: no batch solve (isam2-3d or the batch solve failed)
+    isam2_error: float | None
     #: noise group ("imu", "stereo") → :class:`fgslam.verdict.GroupVerdict` at the batch optimum
     verdict: dict = field(default_factory=dict)
+    #: the estimators that stopped mid-run (not in ``runs``), in the order they ran
+    failures: list[EstimatorFailure] = field(default_factory=list)
 
     def smoother_short_of_optimum(self) -> None:
         """No note on a 3-D log (a planar :class:`fgslam.runner.Comparison` gives one when
@@ -156,37 +159,59 @@ class Comparison3d:
         return None
 
 
-def run_estimator_3d(estimator, inputs: list[StepInput], *, covariances: bool = True, progress=None) -> Run3d:
+def run_estimator_3d(estimator, inputs: list[StepInput], *, covariances: bool = True, progress=None,
+                     stamps_s=None) -> Run3d:
     """Feed every step's input (:func:`ekf.drive3d.step_inputs`); time each ``step`` (BLAS
     pinned to one thread) and measure the run's peak memory (:class:`fgslam.memory.PeakMemory`,
-    the consistency work included)."""
+    the consistency work included).
+
+    An exception from the estimator, or a pose or stated covariance that is not a number
+    after a step (:func:`fgslam.failure.check_finite`), is raised as
+    :class:`fgslam.failure.EstimatorFailed` naming the estimator, the step and the reason
+    (with its time stamp from ``stamps_s``, the steps' times, when given)."""
     n = len(inputs)
     times = np.empty(n)
     covs = np.full((n, POSE_DOF, POSE_DOF), np.nan) if covariances else None
+    watch = StepWatch(estimator.name, stamps_s)
+    with watch.failures():
+        with pinned_threads(), PeakMemory() as memory:
+            _feed_3d(estimator, inputs, times, covs, progress, watch)
+            watch.finishing()
+            online = np.asarray(estimator.trajectory(), dtype=float)
+            finish_s = 0.0
+            final = online
+            if hasattr(estimator, "finish"):
+                start = time.perf_counter()
+                estimator.finish()
+                final = np.asarray(estimator.smoothed_trajectory(), dtype=float)
+                finish_s = time.perf_counter() - start
+        landmarks = dict(estimator.landmarks())
+        nis = estimator.nis() if hasattr(estimator, "nis") else None
+    return Run3d(estimator.name, online, final, landmarks, times, float(times.sum() + finish_s), covs, nis,
+                 memory.peak_bytes)
+
+
+def _feed_3d(estimator, inputs: list[StepInput], times: np.ndarray, covs: np.ndarray | None, progress,
+             watch: StepWatch) -> None:
+    """Every input into ``estimator``: ``times[t]`` each step's wall time, ``covs[t]`` (when
+    not None) the stated pose covariance after it, taken outside the timed region."""
+    n = len(inputs)
     every = max(1, n // 200)
-    with pinned_threads(), PeakMemory() as memory:
-        for t, args in enumerate(inputs):
-            start = time.perf_counter()
-            estimator.step(*args)
-            times[t] = time.perf_counter() - start
-            if covs is not None:  # outside the timed region
-                try:
-                    covs[t] = estimator.current_covariance()
-                except RuntimeError:  # gtsam.IndeterminateSystemException: no marginal this step
-                    pass
-            if progress is not None and (t % every == 0 or t == n - 1):
-                progress(t + 1, n, estimator.name)
-        online = np.asarray(estimator.trajectory(), dtype=float)
-        finish_s = 0.0
-        final = online
-        if hasattr(estimator, "finish"):
-            start = time.perf_counter()
-            estimator.finish()
-            final = np.asarray(estimator.smoothed_trajectory(), dtype=float)
-            finish_s = time.perf_counter() - start
-    nis = estimator.nis() if hasattr(estimator, "nis") else None
-    return Run3d(estimator.name, online, final, dict(estimator.landmarks()), times, float(times.sum() + finish_s),
-                 covs, nis, memory.peak_bytes)
+    for t, args in enumerate(inputs):
+        watch.step = t
+        start = time.perf_counter()
+        estimator.step(*args)
+        times[t] = time.perf_counter() - start
+        check_finite(estimator.current_pose())  # a diverged estimator fails here, not in the figures
+        if covs is not None:  # outside the timed region
+            try:
+                covs[t] = estimator.current_covariance()
+            except RuntimeError:  # gtsam.IndeterminateSystemException: no marginal this step
+                pass
+            else:
+                check_finite(estimator.current_pose(), covs[t])
+        if progress is not None and (t % every == 0 or t == n - 1):
+            progress(t + 1, n, estimator.name)
 
 
 @dataclass(frozen=True)
@@ -242,31 +267,57 @@ def in_world(run: Run3d, world_T_start: np.ndarray) -> Run3d:
 
 
 def run_log3d(log: RunLog, names: list[str], *, consistency: bool = True, progress=None) -> Comparison3d:
-    """Every named estimator on ``log``, then the batch solve from isam2-3d's graph."""
+    """Every named estimator on ``log``, then the batch solve from isam2-3d's graph.
+
+    An estimator that fails mid-run (:class:`fgslam.failure.EstimatorFailed`) is kept in
+    :attr:`Comparison3d.failures` and the others go on. When isam2-3d or the batch solve
+    fails there is no batch solution: a log with pose truth is still compared against its
+    truth; without truth nothing can be scored, and that is one :class:`FgslamError`."""
+    ready = prepare_log3d(log)
+    runs, failures, smoother = [], [], None
+    for name in names:
+        estimator = ready.estimator(name)
+        try:
+            run = run_estimator_3d(estimator, ready.inputs, covariances=consistency, progress=progress,
+                                   stamps_s=ready.stamps_s)
+        except EstimatorFailed as failed:
+            failures.append(failed.failure)
+            continue
+        smoother = estimator if name == "isam2-3d" else smoother
+        runs.append(in_world(run, ready.world_T_start))
+    truth = truth_reference_3d(log, ready.steps)
+    if smoother is not None:
+        try:
+            return _with_batch(ready, runs, failures, smoother, truth, progress)
+        except EstimatorFailed as failed:  # the batch solve's
+            failures.append(failed.failure)
+    if truth is None:
+        raise FgslamError(f"{log.path}: {failures[-1].sentence()}; the log has no pose truth, so the reference is "
+                          "the batch solve from isam2-3d's graph: nothing can be scored")
+    return Comparison3d(runs, truth, ready.stamps_s, smoother, None, None, failures=failures)
+
+
+def _with_batch(ready: Log3d, runs: list, failures: list, smoother, truth: Reference3d | None,
+                progress) -> Comparison3d:
+    """The comparison with the batch solve from ``smoother``'s graph (an exception in it is
+    raised as :class:`fgslam.failure.EstimatorFailed` named ``batch``)."""
     from fgslam.smoother3d import batch_solve
     from fgslam.verdict import verdict_or_none
 
-    ready = prepare_log3d(log)
-    runs = []
-    smoother = None
-    for name in names:
-        estimator = ready.estimator(name)
-        if name == "isam2-3d":
-            smoother = estimator
-        runs.append(in_world(run_estimator_3d(estimator, ready.inputs, covariances=consistency, progress=progress),
-                             ready.world_T_start))
-    assert smoother is not None  # parse_estimator_names_3d keeps it
-    with pinned_threads(), PeakMemory() as memory:
-        if progress is not None:
-            progress(0, 1, "batch")
-        batch = batch_solve(smoother)
-        if progress is not None:
-            progress(1, 1, "batch")
+    try:
+        with pinned_threads(), PeakMemory() as memory:
+            if progress is not None:
+                progress(0, 1, "batch")
+            batch = batch_solve(smoother)
+            if progress is not None:
+                progress(1, 1, "batch")
+    except Exception as error:  # e.g. gtsam's IndeterminateSystemException
+        raise EstimatorFailed(EstimatorFailure("batch", None, None, reason_of(error), "batch")) from error
     runs.append(in_world(Run3d("batch", None, batch.trajectory(), batch.landmarks(), None, batch.seconds,
                                peak_memory_bytes=memory.peak_bytes), ready.world_T_start))
-    reference = truth_reference_3d(log, ready.steps) or Reference3d("batch", runs[-1].final, runs[-1].landmarks)
+    reference = truth or Reference3d("batch", runs[-1].final, runs[-1].landmarks)
     return Comparison3d(runs, reference, ready.stamps_s, smoother, float(batch.error), smoother.error(),
-                        verdict_or_none(smoother.graph, batch.values))
+                        verdict_or_none(smoother.graph, batch.values), failures)
 
 
 # --------------------------------------------------------------------------- metrics
@@ -454,6 +505,9 @@ def table_rows_3d(metrics: dict) -> tuple[list[str], list[list[str]]]:
     batch_is_reference = metrics.get("reference") == "smoothed"
     errors = {"ate_rmse_m", "ate_2d_rmse_m", "final_pose_error_m", "map_median_m"}
     for name, m in estimator_entries_3d(metrics).items():
+        if failed_cell(name, m) is not None:  # stopped mid-run: its name and why, no figures
+            rows.append([name, failed_cell(name, m)])
+            continue
         reference_row = name == "batch" and batch_is_reference  # the reference itself: nothing to score
         cells = ["batch (reference)" if reference_row else name]
         for _, key, scale, digits in COLUMNS_3D:
@@ -492,9 +546,14 @@ def reference_line_3d(metrics: dict) -> str:
 
 def format_table_3d(metrics: dict) -> str:
     header, rows = table_rows_3d(metrics)
-    widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
+    full = [header, *(r for r in rows if len(r) == len(header))]  # a failed estimator's row: name, sentence
+    widths = [max(len(r[i]) for r in full) for i in range(len(header))]
+    widths[0] = max(len(r[0]) for r in [header, *rows])
     lines = [reference_line_3d(metrics), ""]
     for r in [header, *rows]:
+        if len(r) < len(header):
+            lines.append(f"{r[0].ljust(widths[0])}  {r[1]}")
+            continue
         lines.append("  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths))))
     if metrics.get("reference") == "smoothed":
         lines.append("no ground truth: every error above is the distance to the smoothed solution (batch, the "

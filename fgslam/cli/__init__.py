@@ -6,7 +6,8 @@
 - :mod:`fgslam.cli.common`: the one error path (:func:`~fgslam.cli.common.run_verb`: every
   :class:`~slamio.errors.FgslamError` or :class:`OSError` becomes ``fgslam: error: <what,
   where, how to fix it>`` and exit status 1 — status 2 when an input file cannot be used,
-  :class:`~slamio.errors.InputFileError`, see :func:`main`), reading logs, and outputs that
+  :class:`~slamio.errors.InputFileError`, see :func:`main`; ``fgslam run`` returns 4 when an
+  estimator failed mid-run, :data:`fgslam.failure.FAILED_EXIT_STATUS`), reading logs, and outputs that
   never replace what the user has unless asked (``--overwrite``).
 - :mod:`fgslam.cli.progress`: the one progress display (tqdm).
 

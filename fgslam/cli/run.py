@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import sys
 from pathlib import Path
 
 from fgslam.atomic import write_text_whole
@@ -12,6 +13,7 @@ from fgslam.cli.common import add_overwrite_option, add_verb, command_line, hold
 from fgslam.cli.estimators import ESTIMATOR_HELP, ESTIMATOR_HELP_3D
 from fgslam.cli.progress import Progress
 from fgslam.cli.results import ResultsFolder
+from fgslam.failure import FAILED_EXIT_STATUS
 from slamio.errors import FgslamError
 
 #: File names ``fgslam run`` writes besides <estimator>[_online].tum and the report's PNGs:
@@ -41,7 +43,15 @@ def add_parser(verbs) -> argparse.ArgumentParser:
         + "\n".join(f"  {name:<16} {text}" for name, text in ESTIMATOR_HELP_3D.items())
         + "\n\ntiming: the wall time of each estimator.step (and finish() in the total), with\n"
           "BLAS/OpenMP pinned to one thread (threadpoolctl), so the figures compare the\n"
-          "algorithms, not how many cores a BLAS grabs; NEES/NIS work is outside the timed region.",
+          "algorithms, not how many cores a BLAS grabs; NEES/NIS work is outside the timed region.\n\n"
+          "exit status: 0 when every estimator ran through; "
+          f"{FAILED_EXIT_STATUS} when an estimator failed mid-run\n"
+          "(an exception such as gtsam's IndeterminateSystemException, or a pose or covariance that\n"
+          "is not a number): its row says 'failed at step N: reason', metrics.json has\n"
+          "{\"failed\": {\"step\": N, \"time_s\": t, \"reason\": ...}} for it, and the other estimators'\n"
+          "results are written; 1 for a mistake in the command, or when the failure leaves no\n"
+          "reference (the batch solve, or every iSAM2 it starts from, failed on a log without\n"
+          "pose truth); 2 when the log cannot be used.",
         description=(
             "Run every estimator on the same log and compare them. The reference is the log's\n"
             "ground truth wherever it has some: with gaps in the truth (e.g. Vicon drop-outs)\n"
@@ -109,6 +119,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     results = ResultsFolder(args.out, overwrite=args.overwrite, verb="run", own_names=own_names,
                             source=str(Path(args.log).resolve())).check()
 
+    from fgslam.failure import with_failures
     from fgslam.provenance import provenance
     from fgslam.registry import parse_names
     from fgslam.runner import TIMING, require_motion
@@ -133,7 +144,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     with Progress() as progress:
         result = compare(log, names, progress=progress, consistency=not args.no_consistency)
         progress(0, 1, "metrics")  # errors against the reference, NEES/NIS over every step: seconds on long runs
-        metrics = compute_metrics(result, log_path=str(args.log))
+        metrics = with_failures(compute_metrics(result, log_path=str(args.log)), result.failures, [*names, "batch"])
         progress(1, 1, "metrics")
     metrics["timing"] = TIMING["what"]  # strings: not mistaken for an estimator
     metrics["blas_threads"] = TIMING["blas_threads"]
@@ -152,7 +163,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     if verdict:
         metrics["noise_verdict"] = {group: v.as_dict() for group, v in verdict.items()}
         metrics["noise_source"] = noise_source(log.header)
-    metrics["provenance"] = provenance(args.log, [r.name for r in result.runs], command=command_line(args, "run"))
+    ran = [*(r.name for r in result.runs), *(f.name for f in result.failures)]
+    metrics["provenance"] = provenance(args.log, ran, command=command_line(args, "run"))
 
     replaced = results.clear()
     with results.filling(**run_provenance(args)), Progress() as progress:
@@ -163,7 +175,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     slowed = dimension == 2 and not args.no_consistency and any(name.startswith("isam2") for name in names)
     return finish_run(args, results, log, written, replaced, format_table(metrics), notes=[short] if short else [],
                       timing_note=TIMING["consistency_note"] if slowed else None,
-                      verdict=verdict_lines(verdict, metrics.get("noise_source")) if verdict else [])
+                      verdict=verdict_lines(verdict, metrics.get("noise_source")) if verdict else [],
+                      failures=result.failures)
 
 
 def noise_source(header) -> str:
@@ -310,8 +323,11 @@ def run_provenance(args: argparse.Namespace) -> dict:
 
 
 def finish_run(args: argparse.Namespace, results, log, written: list[str], replaced, table: str,
-               notes: list[str] = (), timing_note: str | None = None, verdict: list[str] = ()) -> int:
-    """Print the table and say what was written (the folder is sealed: its manifest is written)."""
+               notes: list[str] = (), timing_note: str | None = None, verdict: list[str] = (),
+               failures=()) -> int:
+    """Print the table and say what was written (the folder is sealed: its manifest is written).
+    The exit status: 0, or :data:`fgslam.failure.FAILED_EXIT_STATUS` when an estimator failed
+    (``failures``, :class:`fgslam.failure.EstimatorFailure`; each also said on stderr)."""
     from fgslam.runner import TIMING
 
     written.append("manifest.json")
@@ -332,7 +348,10 @@ def finish_run(args: argparse.Namespace, results, log, written: list[str], repla
         print(f"note: {log.truncated}")
     for text in notes:
         print(f"note: {text}")
-    return 0
+    for failure in failures:
+        print(f"fgslam: {failure.sentence()}; the other estimators' results are written to {Path(args.out)}/ "
+              f"(exit status {FAILED_EXIT_STATUS})", file=sys.stderr)
+    return FAILED_EXIT_STATUS if failures else 0
 
 
 def _write_results_3d(args: argparse.Namespace, metrics: dict, result) -> list[str]:

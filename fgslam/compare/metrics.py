@@ -70,6 +70,9 @@ The shape of :func:`compute_metrics`'s dictionary (a 3-D log's run has the same 
                                          # (10⁶ bytes; fgslam.memory); None if unmeasured
          "steps": int,                   # poses this estimator estimated
          "failure": str|None},           # why its estimate cannot be scored (NaN poses)
+     "<estimator that failed mid-run>": {"failed": {"step": int|None, "time_s": float|None,
+                                          "reason": str, "phase": "step"|"finish"|"batch"}},
+                                         # and nothing else (fgslam.failure.with_failures)
      ...}
 
 A run whose batch solve ran also has ``"noise_verdict"`` (per noise group: ``chi2``, ``dof``,

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from fgslam.compare.metrics import estimator_names
 from fgslam.compare.runs import describe_reference
+from fgslam.failure import failed_cell
 
 
 TABLE_HEADERS = (
@@ -154,7 +155,9 @@ def table_rows(metrics: dict) -> tuple[tuple[str, ...], list[tuple[str, ...]], l
 
     Returns ``(headers, rows, notes)``: ``rows`` hold formatted strings (metres to 0.1 mm,
     times in milliseconds, ``-`` for "not applicable"); an ``*`` after an ATE means the
-    estimate was aligned in SE(2); ``notes`` explain the marks that occur.
+    estimate was aligned in SE(2); ``notes`` explain the marks that occur. The row of an
+    estimator that failed mid-run has two cells, its name and ``failed at step N (t = ...
+    s): <reason>`` (it has no figures).
     """
     names = estimator_names(metrics)
     # Columns that only matter for some runs appear only when some estimator has them.
@@ -169,6 +172,10 @@ def table_rows(metrics: dict) -> tuple[tuple[str, ...], list[tuple[str, ...]], l
     batch_is_reference = metrics.get("reference") == "smoothed"
     for name in names:
         m = metrics[name]
+        failed_text = failed_cell(name, m)
+        if failed_text is not None:
+            rows.append((name, failed_text))
+            continue
         star = "*" if m.get("aligned") else ""
         any_aligned |= bool(m.get("aligned"))
         if name == "batch" and batch_is_reference:  # the reference itself: nothing to score
@@ -218,10 +225,14 @@ def format_table(metrics: dict) -> str:
     99th-percentile step time (milliseconds). ``-`` means not applicable.
     """
     headers, rows, notes = table_rows(metrics)
-    widths = [max(len(h), *(len(r[i]) for r in rows)) if rows else len(h) for i, h in enumerate(headers)]
+    full = [r for r in rows if len(r) == len(headers)]  # a failed estimator's row is its name and one sentence
+    widths = [max(len(h), *(len(r[i]) for r in full)) if full else len(h) for i, h in enumerate(headers)]
+    widths[0] = max(widths[0], *(len(r[0]) for r in rows)) if rows else widths[0]
 
     def line(cells) -> str:
         first = cells[0].ljust(widths[0])
+        if len(cells) < len(widths):
+            return "  ".join([first, *cells[1:]]).rstrip()
         rest = [c.rjust(w) for c, w in zip(cells[1:], widths[1:])]
         return "  ".join([first, *rest]).rstrip()
 

@@ -72,6 +72,7 @@ table.metrics th { background: #f2f2f2; }
 table.metrics td { text-align: right; font-family: ui-monospace, Menlo, Consolas, monospace; }
 table.metrics td:first-child { text-align: left; font-weight: 600; }
 table.figures td { text-align: left; font-family: inherit; }
+table.metrics tr.failed td { text-align: left; color: #a00000; }
 dl dt { font-weight: 600; font-family: ui-monospace, Menlo, Consolas, monospace; }
 dl dd { margin: 0 0 0.5em 1.5em; }
 img { max-width: 100%; height: auto; border: 1px solid #eee; }
@@ -104,6 +105,10 @@ def _html_table(metrics: dict) -> str:
     parts += [f"<th>{e(h)}</th>" for h in headers]
     parts.append("</tr></thead><tbody>")
     for row in rows:
+        if len(row) < len(headers):  # a failed estimator: its name and what stopped it
+            parts.append(f'<tr class="failed"><td>{e(row[0])}</td><td colspan="{len(headers) - 1}">'
+                         f"{e(' '.join(row[1:]))}</td></tr>")
+            continue
         parts.append("<tr>" + "".join(f"<td>{e(c)}</td>" for c in row) + "</tr>")
     parts.append("</tbody></table>")
     parts += [f'<p class="note">{e(n)}</p>' for n in notes]

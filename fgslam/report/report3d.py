@@ -65,7 +65,12 @@ def write_report_3d(out_dir, metrics: dict, runs, reference, *, title: str = "fg
     e = html.escape
     prov = metrics.get("provenance") or {}
     head = "".join(f"<th>{e(h)}</th>" for h in table_header)
-    body = "\n".join("<tr>" + "".join(f"<td>{e(c)}</td>" for c in row) + "</tr>" for row in table_rows)
+    body = "\n".join(
+        "<tr>" + "".join(f"<td>{e(c)}</td>" for c in row) + "</tr>" if len(row) == len(table_header)
+        # a failed estimator: its name and what stopped it
+        else f'<tr class="failed"><td>{e(row[0])}</td><td colspan="{len(table_header) - 1}">{e(row[1])}</td></tr>'
+        for row in table_rows
+    )
     page = f"""<!DOCTYPE html>
 <html lang="en">
 <head>
