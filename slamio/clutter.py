@@ -173,7 +173,7 @@ def disc_free_grid(world: ClutterWorld, cell_m: float = 0.05,
     """Where the robot's centre may be: a boolean grid (rows along y, columns along x; cell
     (i, j) centred at ((j + ½)·cell_m, (i + ½)·cell_m)) that is True where a disc of
     ``radius_m`` there overlaps no obstacle (the occupied cells dilated by the radius, via a
-    Euclidean distance transform; half a cell more, so a True cell is free for certain)."""
+    Euclidean distance transform; a cell more, so a True cell is free for certain)."""
     from scipy.ndimage import distance_transform_edt
 
     columns, rows = (int(math.ceil(side / cell_m)) for side in world.room_m)
@@ -182,7 +182,7 @@ def disc_free_grid(world: ClutterWorld, cell_m: float = 0.05,
     occupied = _inside_objects(world, x[None, :], y[:, None])
     occupied = np.pad(occupied, 1, constant_values=True)  # the walls around
     distance_m = distance_transform_edt(~occupied) * cell_m
-    return (distance_m > radius_m + 0.5 * cell_m)[1:-1, 1:-1], cell_m
+    return (distance_m > radius_m + cell_m)[1:-1, 1:-1], cell_m
 
 
 def _connected(world: ClutterWorld) -> bool:

@@ -13,7 +13,8 @@ into a :class:`slamio.scan.Scan` from the robot's centre:
    centred straight ahead; a point belongs to the ray whose bin holds its bearing *from the
    robot's centre*. The fan spans only the bearings whose robot-centre ray the camera sees
    from ``near_m`` (0.5 m: the Kinect's minimum range) outwards — a camera ahead of the
-   centre sees the outer bearings only far away (0.13 m ahead, the Kinect's 57°: ±21.6°).
+   centre sees the outer bearings only far away (0.13 m ahead, the Kinect's 57°: ±21.4°, so
+   rays from −21° to +21°).
 4. **Each ray's range** is the nearest obstacle point of its bin (its horizontal distance
    from the robot's centre), with these rules for what the depth did not see:
 
@@ -35,7 +36,7 @@ into a :class:`slamio.scan.Scan` from the robot's centre:
 
 The pixel geometry (rays, bins, band intervals) depends only on the camera and the band: it
 is computed once per camera and kept (:func:`_geometry`, a small cache), so a frame costs a
-few array passes — measured 11 ms for a 640×480 frame on this machine (docs/create.md).
+few array passes — measured 11 ms for a 640×480 frame on one idle core (docs/clutter.md).
 """
 
 from __future__ import annotations
