@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from slamio.geometry import wrap_angle
+from slamio.obstacles import Obstacles, ray_cast_m
 
 WHEEL_BASE_M = 0.235  # iRobot Create (Open Interface spec)
 MAX_WHEEL_SPEED_M_S = 0.5  # Drive Direct accepts ±500 mm/s per wheel
@@ -87,11 +88,13 @@ def observation_sigmas(noise) -> dict[str, float]:
 
 @dataclass(frozen=True)
 class World:
-    """Landmarks: (N, 2) positions; heights and facing yaws (N,) or None."""
+    """Landmarks: (N, 2) positions; heights and facing yaws (N,) or None; ``obstacles`` (a
+    :class:`slamio.obstacles.Obstacles`, or None) hide the landmarks behind them."""
 
     landmarks_xy: np.ndarray
     heights_m: np.ndarray | None = None
     yaws_rad: np.ndarray | None = None
+    obstacles: Obstacles | None = None
 
 
 
@@ -203,6 +206,9 @@ def _sightings_block(poses: np.ndarray, pose_ids: np.ndarray, lm_ids: np.ndarray
         seen &= cos_facing >= math.cos(sensor.facing_limit_rad)
         tag_yaw = wrap_angle(yaw - pth)
     rows, cols = np.nonzero(seen)
+    if world.obstacles is not None and len(rows):
+        keep = _unoccluded(world.obstacles, poses[pose_ids[rows], :2], world.landmarks_xy[lm_ids[cols]])
+        rows, cols = rows[keep], cols[keep]
     return (
         pose_ids[rows],
         lm_ids[cols],
@@ -210,6 +216,20 @@ def _sightings_block(poses: np.ndarray, pose_ids: np.ndarray, lm_ids: np.ndarray
         bearing[rows, cols],
         None if tag_yaw is None else tag_yaw[rows, cols],
     )
+
+
+def _unoccluded(obstacles: Obstacles, from_xy: np.ndarray, to_xy: np.ndarray) -> np.ndarray:
+    """Whether each (from, to) pair sees across the obstacles (:func:`slamio.obstacles.line_of_sight`,
+    one ray cast per distinct origin): a landmark on an obstacle's face is seen from its front."""
+    offset = to_xy - from_xy
+    distance = np.hypot(offset[:, 0], offset[:, 1])
+    angles = np.arctan2(offset[:, 1], offset[:, 0])
+    keep = np.ones(len(from_xy), dtype=bool)
+    origins, which = np.unique(from_xy, axis=0, return_inverse=True)
+    for k, origin in enumerate(origins):
+        pairs = np.nonzero(which.reshape(-1) == k)[0]
+        keep[pairs] = ray_cast_m(obstacles, origin, angles[pairs]) >= distance[pairs] - 1e-6
+    return keep
 
 
 def visible_landmarks(poses: np.ndarray, world: World, sensor: SensorModel) -> Sightings:

@@ -15,7 +15,7 @@ from slamio.camera.tag_noise import TagNoise
 from slamio.geometry import wrap_angle
 from slamio.sim_models import MotionModel, SensorModel, WheelSlipNoise, World
 
-SCENARIOS = ("arena-square", "arena-octagon", "cylinders", "grid")
+SCENARIOS = ("arena-square", "arena-octagon", "cylinders", "grid", "clutter")
 
 ARENA_SIDE_M = 3.048  # 10 ft
 ARENA_PATH_WIDTH_M = 1.8288  # 6 ft
@@ -25,6 +25,12 @@ ARENA_TAG_SIZE_M = 0.16
 #: ``tag_noise="measured"``: the arena camera (640 px across its 1.2 rad FOV) and a 0.16 m tag
 #: with the corner precision measured on real photos (slamio/camera/tag_noise.py).
 ARENA_TAG_NOISE = TagNoise(fx_px=320.0 / math.tan(0.6), tag_size_m=ARENA_TAG_SIZE_M)
+#: ``clutter``: the world is always :func:`slamio.clutter.clutter_world` of this seed (as the
+#: other scenarios' worlds are fixed; the simulator's seed draws the noise), its objects kept
+#: off the patrol loop, a 3 m square 1.5 m in from the walls of the 6 m room (pillars and
+#: cylinders stand between it and the walls, boxes inside it: tags go out of sight behind them).
+CLUTTER_WORLD_SEED = 0
+CLUTTER_LOOP_INSET_M = 1.5
 GRID_SPACING_M = 3.0
 GRID_LANE_EVERY_ROWS = 3  # one lane per three landmark rows (9 m apart)
 GRID_MARGIN_M = 2.0
@@ -68,6 +74,18 @@ _KINECT = SensorModel(
     sigma_range_per_m2=1.425e-3,
     sigma_bearing_rad=0.01,
     sigma_height_m=0.02,
+)
+_CLUTTER_CAMERA = SensorModel(  # the tag camera with the Kinect's 57° and 4 m
+    landmark_kind="apriltag",
+    fov_rad=math.radians(57.0),
+    min_range_m=0.15,
+    max_range_m=4.0,
+    sigma_range_m=0.01,
+    sigma_range_per_m=0.0,
+    sigma_range_per_m2=0.005,
+    sigma_bearing_rad=0.01,
+    sigma_tag_yaw_rad=0.05,
+    facing_limit_rad=TAG_FACING_LIMIT_RAD,
 )
 _GRID_MOTION = MotionModel(dt_s=0.2, speed_m_s=0.5, max_turn_rate_rad_s=1.0, turn_gain_per_s=2.0, lookahead_m=1.0)
 _GRID_ODOMETRY = WheelSlipNoise(k_wheel=0.01, slip_sigma_x_m=2e-3, slip_sigma_y_m=2e-3, slip_sigma_theta_rad=1e-3)
@@ -169,6 +187,22 @@ def grid_path(n_landmarks: int, spacing_m: float = GRID_SPACING_M) -> np.ndarray
     return np.array(points)
 
 
+def clutter_loop(room_side_m: float = 6.0, inset_m: float = CLUTTER_LOOP_INSET_M) -> np.ndarray:
+    """The ``clutter`` scenario's patrol: a square ``inset_m`` in from the room's walls."""
+    return polygon_path(4, room_side_m - 2.0 * inset_m, (0.5 * room_side_m, 0.5 * room_side_m))
+
+
+def clutter_scenario_world():
+    """``(ClutterWorld, World, waypoints)`` of the ``clutter`` scenario: the tags as landmarks,
+    hidden behind the room's obstacles."""
+    from slamio.clutter import ROOM_M, clutter_world
+
+    waypoints = clutter_loop(ROOM_M[0])
+    room = clutter_world(CLUTTER_WORLD_SEED, room_m=ROOM_M, keep_clear_xy=waypoints)
+    xy, heights, yaws = room.tag_arrays()
+    return room, World(xy, heights, wrap_angle(yaws), room.obstacles), waypoints
+
+
 def scenario(name: str, n_landmarks: int, grid_spacing_m: float = GRID_SPACING_M) -> Scenario:
     centre = (0.5 * ARENA_SIDE_M, 0.5 * ARENA_SIDE_M)
     if name in ("arena-square", "arena-octagon"):
@@ -183,6 +217,14 @@ def scenario(name: str, n_landmarks: int, grid_spacing_m: float = GRID_SPACING_M
         return Scenario(
             name, world, waypoints, 3, _ARENA_MOTION, _ARENA_ODOMETRY, _KINECT,
             {"landmark_colours": list(CYLINDER_COLOURS), "room_m": [0.0, 0.0, 5.0, 5.0], "camera": "Kinect v1"},
+        )
+    if name == "clutter":
+        room, world, waypoints = clutter_scenario_world()
+        return Scenario(
+            name, world, waypoints, 2, _ARENA_MOTION, _ARENA_ODOMETRY, _CLUTTER_CAMERA,
+            {"room_m": [0.0, 0.0, *room.room_m], "tag_height_m": TAG_HEIGHT_M,
+             "world": f"slamio.clutter.clutter_world({CLUTTER_WORLD_SEED}) kept off the loop",
+             "occlusion": "tags hidden behind walls, boxes and cylinders are not seen"},
         )
     return Scenario(
         name, World(grid_landmarks_xy(n_landmarks, grid_spacing_m)), grid_path(n_landmarks, grid_spacing_m), 2,

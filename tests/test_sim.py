@@ -81,8 +81,8 @@ def sight_windows(records, gap_s: float) -> dict[int, int]:
 # --------------------------------------------------------------------------- arguments, determinism
 
 
-def test_scenarios_are_the_documented_four():
-    assert SCENARIOS == ("arena-square", "arena-octagon", "cylinders", "grid")
+def test_scenarios_are_the_documented_five():
+    assert SCENARIOS == ("arena-square", "arena-octagon", "cylinders", "grid", "clutter")
 
 
 @pytest.mark.parametrize(

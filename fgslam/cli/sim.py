@@ -23,6 +23,8 @@ def add_parser(verbs) -> argparse.ArgumentParser:
             "  arena-octagon  the same arena, octagon path\n"
             "  cylinders      seed 000's three coloured cylinders seen by a Kinect\n"
             "  grid           N landmarks on a grid (--landmarks N), a long loop with revisits\n"
+            "  clutter        a 6 m room with boxes and cylinders (slamio.clutter, world seed 0):\n"
+            "                 AprilTags on walls and boxes, hidden when an obstacle is in the way\n"
             "  stereo-loop    seed 003's car: a 435 m city loop seen by a stereo camera, with IMU\n"
             "                 velocities; writes a 3-D log (--outliers moves that share of the\n"
             "                 stereo measurements by up to 30 px)"

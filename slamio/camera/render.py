@@ -14,6 +14,12 @@ camera delivers them.
   (the AprilTag "tag size"). The back of the card is white.
 - **Cylinders** (:class:`CylinderSpec`): vertical, standing on the floor, coloured, lit by
   a fixed directional light (Lambertian with ambient), top cap included.
+- **Walls** (:class:`WallSpec`): plain vertical rectangles standing on the floor between two
+  floor points (a room's wall, a box's side), flat-shaded with a faint checker texture of
+  ``texture_m`` squares (so they are not one flat colour); ``cull_back`` skips a wall whose
+  front (the side its normal, left of p0→p1, points to) faces away from the camera — the far
+  sides of a closed box, hidden by its near ones anyway. Walls are not anti-aliased (their
+  edges are one ray per pixel; objects in front of them are).
 - **Boards** (:class:`BoardSpec`): seed 002's flat upright shapes — a circle, a triangle
   (apex up) or a rectangle — of one colour, ``width_m`` wide and ``height_m`` tall, their
   lowest point ``bottom_m`` above the floor, facing world direction ``yaw_rad``; both sides
@@ -94,10 +100,27 @@ BOARD_SHAPES = ("circle", "triangle", "rectangle")
 
 
 @dataclass(frozen=True)
+class WallSpec:
+    """A vertical rectangle from floor point (x0, y0) to (x1, y1), ``height_m`` tall; its
+    front faces left of the direction p0 → p1 (the sides of a counter-clockwise polygon face
+    inwards, as a room's walls; a box's are drawn the other way round to face out)."""
+
+    x0_m: float
+    y0_m: float
+    x1_m: float
+    y1_m: float
+    height_m: float
+    colour_bgr: tuple[int, int, int] = (170, 175, 180)
+    texture_m: float = 0.25
+    cull_back: bool = False
+
+
+@dataclass(frozen=True)
 class Scene:
     tags: tuple[TagSpec, ...] = ()
     cylinders: tuple[CylinderSpec, ...] = ()
     boards: tuple[BoardSpec, ...] = ()
+    walls: tuple[WallSpec, ...] = ()
     floor_bgr: tuple[int, int, int] = (110, 115, 120)
     background_bgr: tuple[int, int, int] = (185, 185, 180)
     light_dir: tuple[float, float, float] = field(default=(0.4, 0.3, 0.85))
@@ -319,6 +342,35 @@ def _board_bounds(board: BoardSpec) -> np.ndarray:
     return np.array([base + sx * h * right + z * up for sx in (-1, 1) for z in (0.0, board.height_m)])
 
 
+def _wall_axes(wall: WallSpec) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+    """(floor point p0, along (unit p0→p1), up, normal (left of along), length) of a wall."""
+    p0 = np.array([wall.x0_m, wall.y0_m, 0.0])
+    edge = np.array([wall.x1_m - wall.x0_m, wall.y1_m - wall.y0_m, 0.0])
+    length = float(np.linalg.norm(edge))
+    along = edge / max(length, 1e-12)
+    return p0, along, np.array([0.0, 0.0, 1.0]), np.array([-along[1], along[0], 0.0]), length
+
+
+def _wall(origin, dirs, box, buf: _Buffer, wall: WallSpec, light: np.ndarray, want_colour: bool) -> None:
+    p0, along, up, normal, length = _wall_axes(wall)
+    if wall.cull_back and float((origin - p0) @ normal) < 0.0:
+        return
+    t, a, b, _ = _plane_hits(origin, dirs, box, p0, along, up, normal)
+    hit = (t > 0) & (a >= 0.0) & (a <= length) & (b >= 0.0) & (b <= wall.height_m)
+    t = np.where(hit, t, np.inf)
+    colour = None
+    if want_colour:
+        with np.errstate(invalid="ignore"):  # misses have a, b = nan
+            squares = np.floor(np.nan_to_num(a) / wall.texture_m) + np.floor(np.nan_to_num(b) / wall.texture_m)
+        shade = (0.55 + 0.45 * abs(float(normal @ light))) * np.where(squares % 2 == 0, 1.0, 0.88)
+        colour = (shade[..., None] * np.asarray(wall.colour_bgr, dtype=np.float32)).astype(np.float32)
+    buf.offer(box, t, colour)
+
+
+def _wall_bounds(wall: WallSpec) -> np.ndarray:
+    return np.array([[x, y, z] for x, y in ((wall.x0_m, wall.y0_m), (wall.x1_m, wall.y1_m)) for z in (0.0, wall.height_m)])
+
+
 def _cylinder_bounds(cyl: CylinderSpec) -> np.ndarray:
     r = cyl.radius_m
     return np.array([[cyl.x_m + sx * r, cyl.y_m + sy * r, z] for sx in (-1, 1) for sy in (-1, 1)
@@ -373,6 +425,8 @@ def _object_boxes(camera: CameraModel, T_world_camera: np.ndarray, scene: Scene)
         boxes.append((cyl, _pixel_box(camera, T_camera_world, _cylinder_bounds(cyl))))
     for board in scene.boards:
         boxes.append((board, _pixel_box(camera, T_camera_world, _board_bounds(board))))
+    for wall in scene.walls:
+        boxes.append((wall, _pixel_box(camera, T_camera_world, _wall_bounds(wall))))
     return [(obj, box) for obj, box in boxes if box is not None]
 
 
@@ -401,6 +455,8 @@ def _cast(camera: CameraModel, T_world_camera: np.ndarray, scene: Scene, samples
             _tag(origin, dirs, sub, buf, obj, want_colour)
         elif isinstance(obj, BoardSpec):
             _board(origin, dirs, sub, buf, obj, light, want_colour)
+        elif isinstance(obj, WallSpec):
+            _wall(origin, dirs, sub, buf, obj, light, want_colour)
         else:
             _cylinder(origin, dirs, sub, buf, obj, light, want_colour)
     return buf
@@ -430,7 +486,9 @@ def render(
     colour = centre.colour[:, :, 0].astype(np.float64)
     samples = max(1, int(supersample)) ** 2
     if samples > 1:  # anti-aliasing where an object is: supersample² rays per pixel inside its box
-        for _, box in boxes:
+        for obj, box in boxes:
+            if isinstance(obj, WallSpec):  # large and plain: one ray per pixel (module docstring)
+                continue
             r0, r1, c0, c1 = box
             buf = _cast(camera, T_world_camera, scene, samples, box, boxes, True)
             colour[r0:r1, c0:c1] = buf.colour.mean(axis=2)

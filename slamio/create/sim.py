@@ -26,7 +26,8 @@ What is simulated
   origin (default seed 004's 10 ft square; None: no walls). The disc cannot cross a wall
   (it slides along it, the wheels slip and the encoders keep counting); a wall touching
   the front half presses the bumper (packet 7: within 20° of straight ahead both bumpers,
-  else the left or right one).
+  else the left or right one). ``obstacles`` (:class:`slamio.obstacles.Obstacles`: walls,
+  boxes, cylinders, e.g. :func:`slamio.clutter.clutter_world`'s) block and bump the same way.
 * **Encoders.** What the wheels report errs like the odometry noise model a recording
   states (:class:`slamio.create.odometry.OdometryNoise`, ``odometry_noise``; default the
   nominal model of :func:`wheel_odometry_noise`): each step the measured distance and turn
@@ -90,6 +91,7 @@ from slamio.create.protocol import Opcode, OiMode
 from slamio.create.pty_port import close_pty, open_pty, unread_bytes
 from slamio.create.sim_model import (
     bump_bits,
+    move_disc,
     command_size,
     damage_bytes,
     measured_wheel_travel_m,
@@ -100,7 +102,7 @@ from slamio.create.sim_model import (
     wheel_speeds_from_drive,
 )
 from slamio.errors import FgslamError
-from slamio.geometry import arc_increment, compose_pose
+from slamio.obstacles import Obstacles
 
 __all__ = ["SimulatedCreate", "STEP_S", "ROBOT_RADIUS_M", "ARENA_M", "DEFAULT_START_POSE"]
 
@@ -110,12 +112,11 @@ ARENA_M = (3.048, 3.048)  # seed 004's 10 ft × 10 ft arena
 DEFAULT_START_POSE = (0.75, 0.75, 0.0)
 
 
-
 class SimulatedCreate:
     """A Create on a pseudo-terminal (module docstring); start with :meth:`start` or ``with``."""
 
     def __init__(self, model: str = "create2", *, seed: int = 0, time_scale: float = 1.0,
-                 arena_m: tuple[float, float] | None = ARENA_M,
+                 arena_m: tuple[float, float] | None = ARENA_M, obstacles: Obstacles | None = None,
                  start_pose: Sequence[float] = DEFAULT_START_POSE, odometry_noise: OdometryNoise | None = None,
                  accel_m_s2: float = 1.0, corrupt_fraction: float = 0.0, drop_fraction: float = 0.0,
                  robot_radius_m: float = ROBOT_RADIUS_M, wheel_base_m: float = WHEEL_BASE_M,
@@ -130,6 +131,7 @@ class SimulatedCreate:
         self.model = model
         self.time_scale = float(time_scale)
         self.arena_m = arena_m
+        self.obstacles = obstacles
         self.odometry_noise = wheel_odometry_noise(model) if odometry_noise is None else odometry_noise
         self.accel_m_s2 = float(accel_m_s2)
         self.corrupt_fraction = float(corrupt_fraction)
@@ -584,12 +586,7 @@ class SimulatedCreate:
         distance_m = 0.5 * (travel[0] + travel[1])
         angle_rad = (travel[1] - travel[0]) / self.wheel_base_m
         x0, y0, _ = self._pose
-        x, y, theta = compose_pose(self._pose, arc_increment(distance_m, angle_rad))
-        if self.arena_m is not None:
-            r = self.robot_radius_m
-            x = min(max(x, r), self.arena_m[0] - r)
-            y = min(max(y, r), self.arena_m[1] - r)
+        self._pose = move_disc(self._pose, distance_m, angle_rad, self.arena_m, self.obstacles, self.robot_radius_m)
         self._turn_rad += angle_rad
-        self._pose = (x, y, theta)
-        self._path_m += math.hypot(x - x0, y - y0)
-        self._bumps = bump_bits(self._pose, self.arena_m, self.robot_radius_m)
+        self._path_m += math.hypot(self._pose[0] - x0, self._pose[1] - y0)
+        self._bumps = bump_bits(self._pose, self.arena_m, self.robot_radius_m, self.obstacles)

@@ -1,7 +1,7 @@
 """The simulated Create's robot as plain functions (:mod:`slamio.create.sim` holds the
 state and the pseudo-terminal): the wheel speeds of a Drive command, what the encoders
 measure of a step (:func:`measured_wheel_travel_m`), the bumpers against the arena's
-walls (:func:`bump_bits`), the bytes a bad cable delivers (:func:`damage_bytes`) and where
+walls and obstacles (:func:`bump_bits`; :func:`move_disc` keeps the disc out of them), the bytes a bad cable delivers (:func:`damage_bytes`) and where
 one Open Interface command ends (:func:`command_size`).
 """
 
@@ -14,9 +14,12 @@ import numpy as np
 
 from slamio.create.odometry import OdometryNoise, default_noise
 from slamio.create.protocol import Opcode
+from slamio.geometry import arc_increment, compose_pose
+from slamio.obstacles import Obstacles, disc_contacts, push_disc_out
 
 __all__ = [
-    "ARG_BYTES", "bump_bits", "command_size", "damage_bytes", "measured_wheel_travel_m", "ramp_wheels", "sign",
+    "ARG_BYTES", "bump_bits", "command_size", "contact_bump_bits", "damage_bytes", "measured_wheel_travel_m",
+    "move_disc", "ramp_wheels", "sign",
     "truncate", "wheel_odometry_noise", "wheel_speeds_from_drive", "without_sideways",
 ]
 
@@ -118,21 +121,13 @@ def ramp_wheels(wheel_m_s: Sequence[float], command_mm_s: Sequence[float], accel
     return speeds, travel
 
 
-def bump_bits(pose: Sequence[float], arena_m: tuple[float, float] | None, robot_radius_m: float) -> int:
-    """Packet 7's bump bits of a disc of ``robot_radius_m`` at ``pose`` in the arena: a wall
-    within 20° of straight ahead presses both bumpers, else the left or the right one."""
-    if arena_m is None:
-        return 0
-    x, y, theta = pose
-    r, eps = robot_radius_m, 1e-3
+def contact_bump_bits(theta_rad: float, contact_directions_rad) -> int:
+    """Packet 7's bump bits of a robot heading ``theta_rad`` touched from these world
+    directions: within 20° of straight ahead both bumpers, else the left or the right one
+    on its side; a contact behind the wheel axis (more than 90° off) presses nothing."""
     bits = 0
-    # (touching?, direction from the centre to that wall in the world frame)
-    walls = ((x <= r + eps, math.pi), (x >= arena_m[0] - r - eps, 0.0),
-             (y <= r + eps, -math.pi / 2), (y >= arena_m[1] - r - eps, math.pi / 2))
-    for touching, direction in walls:
-        if not touching:
-            continue
-        bearing = (direction - theta + math.pi) % (2 * math.pi) - math.pi
+    for direction in contact_directions_rad:
+        bearing = (float(direction) - theta_rad + math.pi) % (2 * math.pi) - math.pi
         if abs(bearing) <= math.radians(20):
             bits |= 0x03
         elif 0 < bearing <= math.pi / 2:
@@ -140,6 +135,37 @@ def bump_bits(pose: Sequence[float], arena_m: tuple[float, float] | None, robot_
         elif -math.pi / 2 <= bearing < 0:
             bits |= 0x01  # right bumper
     return bits
+
+
+def bump_bits(pose: Sequence[float], arena_m: tuple[float, float] | None, robot_radius_m: float,
+              obstacles: Obstacles | None = None) -> int:
+    """Packet 7's bump bits of a disc of ``robot_radius_m`` at ``pose`` touching the arena's
+    walls or ``obstacles`` (:func:`contact_bump_bits`)."""
+    x, y, theta = pose
+    r, eps = robot_radius_m, 1e-3
+    directions: list[float] = []
+    if arena_m is not None:  # (touching?, direction from the centre to that wall in the world frame)
+        walls = ((x <= r + eps, math.pi), (x >= arena_m[0] - r - eps, 0.0),
+                 (y <= r + eps, -math.pi / 2), (y >= arena_m[1] - r - eps, math.pi / 2))
+        directions += [direction for touching, direction in walls if touching]
+    if obstacles is not None:
+        directions += disc_contacts(obstacles, (x, y), r).tolist()
+    return contact_bump_bits(theta, directions)
+
+
+def move_disc(pose: Sequence[float], distance_m: float, angle_rad: float, arena_m: tuple[float, float] | None,
+              obstacles: Obstacles | None, robot_radius_m: float) -> tuple[float, float, float]:
+    """The pose after the wheels roll an arc of ``distance_m`` and turn ``angle_rad``: a disc
+    that would enter an obstacle is pushed out of it (it slides along), then kept inside the
+    arena's walls."""
+    x, y, theta = compose_pose(tuple(pose), arc_increment(distance_m, angle_rad))
+    if obstacles is not None:
+        x, y = push_disc_out(obstacles, (x, y), robot_radius_m)
+    if arena_m is not None:
+        r = robot_radius_m
+        x = min(max(x, r), arena_m[0] - r)
+        y = min(max(y, r), arena_m[1] - r)
+    return x, y, theta
 
 
 def damage_bytes(data: bytes, rng: np.random.Generator, drop_fraction: float,
