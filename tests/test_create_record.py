@@ -43,7 +43,7 @@ from slamio.create.record import record
 from slamio.create.record_settings import RecorderSettings
 from slamio.create.sim import SimulatedCreate
 from slamio.errors import FgslamError
-from slamio.log import Odometry, read_log
+from slamio.log import Event, Odometry, read_log
 
 ROOT = Path(__file__).resolve().parents[1]
 FAST = 20.0
@@ -213,7 +213,12 @@ def test_bump_stops_the_robot_and_keeps_the_log(tmp_path):
         counted_m = sim.encoder_distance_m
     assert result.reason.kind == "bump" and "bumper" in result.reason.message
     log = read_log(out)
-    assert len(log.records) == result.records > 0
+    odometry = [r for r in log.records if isinstance(r, Odometry)]
+    assert len(odometry) == result.records > 0 and result.bumps == 0  # the bump ended the run
+    # the bump is an event of its own, of the pose before the last record (the motion since)
+    events = [r for r in log.records if isinstance(r, Event)]
+    assert [(e.kind, e.side, e.pose_index) for e in events] == [("bump", "both", result.records - 1)]
+    assert log.records[-2:] == (events[0], odometry[-1])
     logged_m = integrate_records(log.records)[1]
     # The log holds the drive up to the wall (0.578 m away) and nothing the encoders did not
     # count. How far they counted past it depends on how fast the host reacts: the wheels
@@ -227,6 +232,8 @@ def test_wheel_drop_stops_the_robot(tmp_path):
         result = drive(sim, tmp_path / "drop.jsonl", on_record=lambda n: n == 20 and sim.lift())
         assert stopped(sim)
     assert result.reason.kind == "wheel-drop"
+    events = [r for r in read_log(tmp_path / "drop.jsonl").records if isinstance(r, Event)]
+    assert [(e.kind, e.side) for e in events] == [("wheel-drop", "both")]
 
 
 def test_watchdog_stops_the_wheels_while_the_host_loop_hangs(tmp_path):

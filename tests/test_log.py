@@ -20,6 +20,9 @@ from slamio.log import (
     RANGE_M,
     SIGMA_ANGLE_RAD,
     SIGMA_LENGTH_M,
+    EVENT_KINDS,
+    EVENT_SIDES,
+    Event,
     Header,
     LogFormatError,
     Observation,
@@ -27,6 +30,7 @@ from slamio.log import (
     TruthLandmark,
     TruthPose,
     as_matrix3,
+    event_counts,
     format_line,
     group_steps,
     read_log,
@@ -96,10 +100,15 @@ def records_in_time_order(draw, start_stamp_s):
     stamp = start_stamp_s
     out = []
     truth_ids: set[int] = set()  # a landmark's truth is given once (the reader refuses a second)
+    poses = 0  # odometry records so far: an event's pose_index
     for _ in range(draw(st.integers(0, 12))):
         stamp += draw(st.floats(min_value=0.0, max_value=1.0))
-        kind = draw(st.sampled_from(["odometry", "observation", "truth_pose", "truth_landmark"]))
-        if kind == "odometry":
+        kind = draw(st.sampled_from(["odometry", "observation", "truth_pose", "truth_landmark", "event"]))
+        if kind == "event":
+            out.append(Event(stamp, draw(st.sampled_from(EVENT_KINDS)), poses,
+                             draw(st.one_of(st.none(), st.sampled_from(EVENT_SIDES)))))
+        elif kind == "odometry":
+            poses += 1
             raw = draw(st.booleans())
             out.append(
                 Odometry(
@@ -177,6 +186,21 @@ def test_steps_group_records_by_pose():
     assert steps[2].truth is None
 
 
+def test_event_records_belong_to_no_step_and_are_counted_by_kind(tmp_path):
+    """An event between two odometry records is kept in file order, changes no step, and
+    its pose_index is the odometry records before it (the reader checks)."""
+    events = [Event(0.15, "bump", 1, "left"), Event(0.15, "bump", 1, "both"), Event(0.2, "wheel-drop", 2)]
+    records = RECORDS[:7] + events[:2] + RECORDS[7:] + events[2:]
+    path = tmp_path / "events.jsonl"
+    write_log(path, HEADER, records)
+    assert json.loads(path.read_text().splitlines()[8]) == {
+        "type": "event", "stamp_s": 0.15, "kind": "bump", "pose_index": 1, "side": "left"}
+    log = read_log(path)
+    assert log.records == tuple(records)
+    assert log.steps() == group_steps(HEADER, RECORDS)
+    assert event_counts(log.records) == {"bump": 2, "wheel-drop": 1}
+
+
 def test_unknown_landmark_is_written_as_null(log_path):
     lines = log_path.read_text().splitlines()
     assert json.loads(lines[7])["landmark_id"] is None
@@ -208,6 +232,17 @@ def replace_line(path, number, text):
          '"sigma_range_m": 0.1, "sigma_bearing_rad": 0.1}', "missing field 'landmark_id'"),
         ('{"type": "wheel", "stamp_s": 0.1}', "unknown record type \"wheel\""),
         ('{"type": "truth_pose", "stamp_s": 0.1, "x_m": 0, "y_m": 0, "theta_rad": 0, "z_m": 1}', "unknown field(s) z_m"),
+        ('{"type": "event", "stamp_s": 0.1, "kind": "bumped", "pose_index": 1}',
+         "field 'kind' is \"bumped\"; write one of bump, cliff, wheel-drop"),
+        ('{"type": "event", "stamp_s": 0.1, "kind": "bump", "pose_index": 1, "side": "front"}',
+         "field 'side' is \"front\"; write one of left, right, both"),
+        ('{"type": "event", "stamp_s": 0.1, "kind": "bump", "pose_index": -1}', "field 'pose_index' is -1"),
+        ('{"type": "event", "stamp_s": 0.1, "kind": "cliff"}', "missing field 'pose_index'"),
+        ('{"type": "event", "stamp_s": 0.1, "pose_index": 1}', "missing field 'kind'"),
+        ('{"type": "event", "stamp_s": 0.1, "kind": "bump", "pose_index": 0}',
+         "field 'pose_index' is 0 but 1 odometry record comes before this line"),
+        ('{"type": "event", "stamp_s": 0.1, "kind": "bump", "pose_index": 1, "bumper": "left"}',
+         "unknown field(s) bumper in this event record"),
         ("[1, 2, 3]", "one JSON object"),
         ("", "empty line"),
     ],

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 import slamio.log.fields as F
 import slamio.log.records3d as R3
-from slamio.log import read_log
+from slamio.log import EVENT_KINDS, EVENT_SIDES, read_log
 from slamio.log.fast import PLANAR_KINDS, KINDS_3D, SPEC, FastDecoder
 from slamio.log.fields import _BadLine
 from slamio.log.parse import parse_record
@@ -75,6 +75,10 @@ def field_values(name: str):
                                                                      min_size=3, max_size=3))
     if name in ("v_mps", "w_radps"):
         return st.lists(numbers, min_size=2, max_size=4)
+    if name in ("kind", "side"):  # an event's words: right ones mostly, near misses and other types too
+        words = EVENT_KINDS if name == "kind" else EVENT_SIDES
+        return st.one_of(st.sampled_from(words), st.sampled_from(words), oddities, numbers,
+                         st.sampled_from(["Bump", "bump ", "", "wheel_drop", "cliff\u0000", "both:"]))
     return st.one_of(numbers, numbers, oddities)
 
 
@@ -146,6 +150,9 @@ def test_what_the_fast_path_accepts_the_slow_path_accepts_as_the_same_record(cas
     '{"type": "truth_landmark", "landmark_id": 1.0, "x_m": 1, "y_m": 2}',
     '{"type": "odometry", "stamp_s": 1, "dx_m": 0, "dy_m": 0, "dtheta_rad": 0, '
     '"covariance": [[1e-12, 0, 0], [0, 1, 0], [0, 0, 1]]}',
+    '{"type": "event", "stamp_s": 1, "kind": "bump", "pose_index": 2, "side": "left", "side": "right"}',
+    '{"type": "event", "stamp_s": 1, "kind": "bump", "pose_index": 2.0}',
+    '{"type": "event", "stamp_s": 1, "kind": "bump:", "pose_index": 2}',
 ])
 def test_lines_the_fast_path_leaves_to_the_slow_path(line):
     """Keys twice (also one spelled with an escape), NaN, a bool or a float where an integer

@@ -167,6 +167,7 @@ class LogTally:
         self.truth = None  # the current pose's truth (the last truth record since its odometry)
         self.surveyed: set[int] = set()
         self.surveyed3 = 0
+        self.events: dict[str, int] = {}  # event kind -> count
 
     def add(self, record) -> None:
         log = self._log
@@ -190,6 +191,8 @@ class LogTally:
             self.surveyed.add(record.landmark_id)
         elif isinstance(record, log.TruthLandmark3):
             self.surveyed3 += 1
+        elif isinstance(record, log.Event):
+            self.events[record.kind] = self.events.get(record.kind, 0) + 1
 
     def _truths(self) -> tuple[int, int]:
         """(poses with a truth, of them with a position alone) up to and with the current pose."""
@@ -217,6 +220,8 @@ class LogTally:
             f"{counted(self.poses, 'pose')} over {self.stamp - self.start:.1f} s, "
             f"{counted(self.observations, 'observation')} of {counted(len(self.ids), 'landmark')}"
             + (f" (+{unknown} with unknown id)" if unknown else "") + f", {truth}"
+            + (f", {counted(sum(self.events.values()), 'event')} ("
+               + ", ".join(f"{n} {kind}" for kind, n in sorted(self.events.items())) + ")" if self.events else "")
         )
 
 

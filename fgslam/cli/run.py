@@ -124,6 +124,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from fgslam.registry import parse_names
     from fgslam.runner import TIMING, require_motion
     from fgslam.verdict import verdict_lines
+    from slamio.log import event_counts
 
     log = read(args.log)
     require_motion(log, "estimate or score")
@@ -152,6 +153,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         metrics["log_truncated"] = log.truncated
     if getattr(log, "rejected", None):
         metrics["log_rejected"] = log.rejection_summary()
+    events = event_counts(log.records)
+    if events:  # what the robot met (bumps, cliffs, wheel drops); the estimators ignore them
+        metrics["events"] = events
     if args.noise is not None:
         metrics["noise_model"] = str(args.noise)
     if args.calibration is not None:

@@ -116,8 +116,9 @@ TOP_LEVEL_KEYS = (
     "provenance",
 )
 #: Top-level keys a run has only sometimes: the noise verdict of a planar run's batch solution
-#: (:mod:`fgslam.verdict`) and where the log's noise came from.
-OPTIONAL_TOP_LEVEL_KEYS = ("noise_verdict", "noise_source")
+#: (:mod:`fgslam.verdict`), where the log's noise came from, and the log's ``event`` records
+#: counted by kind (``{"bump": 3}``: what the robot met; the estimators ignore them).
+OPTIONAL_TOP_LEVEL_KEYS = ("noise_verdict", "noise_source", "events")
 METRIC_KEYS = (
     "ate_rmse_m",
     "ate_online_rmse_m",

@@ -16,12 +16,18 @@
    which also puts the log in place only once the robot has answered), so a recorder killed
    at any moment (even by SIGKILL) leaves every record but possibly the one being written;
    ``read_log`` drops a cut-off last line and says so;
-5. stops on the first hazard (:mod:`slamio.create.safety`: bump, wheel drop, mode change,
+5. writes every bump, wheel drop and cliff it sees as an ``event`` record, just before the
+   next odometry record (so every record a hook wrote for the pose before it comes first);
+6. stops on the first hazard (:mod:`slamio.create.safety`: bump, wheel drop, mode change,
    watchdog, no data, a terminating signal, serial error, a full disk), keeps the log, and
    returns the :class:`~slamio.create.safety.StopReason` in a :class:`RecordResult`. SIGHUP,
    SIGINT, SIGQUIT and SIGTERM stop the robot even when the recorder inherited them ignored
    (:class:`slamio.create.signals.TerminationSignals`), and the stop is read back from the
-   robot (:mod:`slamio.create.stopping`).
+   robot (:mod:`slamio.create.stopping`). With ``RecorderSettings.bump_ends_run`` False a bump
+   only stops the wheels and the run goes on, its controller kept from driving forward while
+   the bumper is pressed (:mod:`slamio.create.bumper`);
+7. ends normally (``completed``) when the controller is done, when ``RecorderSettings.duration_s``
+   of robot time has passed, or when the hooks say the run is over (``finished``).
 
 The scripted paths stop (``settle_s``) between a straight and a turn: a Create 2 encoder
 counts in the commanded direction, so a wheel reversed while still rolling would count the
@@ -36,6 +42,7 @@ import time
 from typing import Any, Callable, Protocol, Sequence
 
 from slamio.create import protocol
+from slamio.create.bumper import away_from_bumper
 from slamio.create.controllers import PathController, TeleopController
 from slamio.create.link import CreateLink, LinkError
 from slamio.create.odometry import Create1Odometry, Create2Odometry, OdometryNoise, default_noise
@@ -50,10 +57,10 @@ from slamio.create.record_settings import (
 from slamio.create.safety import SafetyMonitor, StopReason
 from slamio.create.signals import Interrupted, TerminationSignals, describe_signal, guarded
 from slamio.geometry import compose_pose
-from slamio.log import LogWriter
+from slamio.log import Event, LogWriter
 from slamio.log.pending import LogWriteError, PendingLogWriter
 
-__all__ = ["RecordHooks", "record"]
+__all__ = ["Controller", "RecordHooks", "record"]
 
 
 # --------------------------------------------------------------------------- recording
@@ -71,7 +78,25 @@ class RecordHooks(Protocol):
 
     # optional: ``started(log)``, called once the log is open, before the first record;
     # ``passed()``, called at the end of every pass of the control loop (after its command
-    # and any record went out) and after every read while waiting for the robot's first answer
+    # and any record went out) and after every read while waiting for the robot's first answer;
+    # ``finished(now_s) -> bool | str``, called every pass after ``due``: true ends the run
+    # normally (``completed``; a string is the reason's message), e.g. once enough landmarks are mapped
+
+
+class Controller(Protocol):
+    """What drives the robot (:class:`PathController`, :class:`TeleopController`,
+    :class:`fgslam.live.steering.WaypointFollower`, a navigator)."""
+
+    def advance(self, distance_m: float, angle_rad: float) -> None:
+        """The robot's motion since the previous reading (every reading)."""
+
+    def command(self, now_s: float, unread: tuple[float, float] = (0.0, 0.0)) -> tuple[float, float] | None:
+        """(left, right) wheel speeds in mm/s now, or None when done."""
+
+    # optional: ``bumper_changed(state, now_s)``, called when the (debounced) bumper state
+    # changes — a :class:`slamio.create.bumper.BumperState`, pressed or released — with
+    # ``RecorderSettings.bump_ends_run`` False, before the next ``command``; the wheels have
+    # already been stopped, and forward commands are replaced by a stop while it is pressed
 
 
 def record(
@@ -151,19 +176,30 @@ class _Recording:
             debounce=settings.bump_debounce if model == "create2" else 1,
             model=model,
             expected_mode=None,
+            bump_ends_run=settings.bump_ends_run,
         )
+        self.events: list[tuple[float, str, str | None, int]] = []  # (stamp, kind, side, pose) not yet logged
         self.t0 = clock()
         self.records = 0
         self.distance_m = self.angle_rad = 0.0
         self.pose = tuple(float(v) for v in start_pose)  # dead-reckoned, for RecordResult.final_pose
         self.stamp = 0.0
         self.started = False  # the robot answered and the log is in place
+        self.started_s: float | None = None  # robot time the drive began
 
     def now_s(self) -> float:
         return max(self.stamp, self.clock() - self.t0)
 
+    def write_events(self, log: PendingLogWriter) -> None:
+        """The events seen since the last record, each stamped when its reading came (never
+        before a line already written), with the pose they belong to."""
+        for stamp, kind, side, pose in self.events:
+            log.write(Event(max(stamp, log.last_stamp_s), kind, pose, side))
+        self.events.clear()
+
     def write_record(self, log: PendingLogWriter, sig: TerminationSignals) -> None:
         with sig.held():  # a written record is always a counted one
+            self.write_events(log)
             self.stamp = self.now_s()
             rec = self.odometry.take(self.stamp)
             log.write(rec)
@@ -184,7 +220,12 @@ class _Recording:
         else:
             if values.get(35) == self.target_mode and self.monitor.expected_mode is None:
                 self.monitor.expected_mode = self.target_mode
+            bumper = self.monitor.bumper.state
             self.monitor.readings(values)
+            self.events += [(t, kind, side, self.records) for kind, side in self.monitor.take_events()]
+            told = getattr(self.controller, "bumper_changed", None)
+            if self.monitor.bumper.state != bumper and told is not None:
+                told(self.monitor.bumper.state, t)
             if self.model == "create2":
                 d, a = self.odometry.update(values[43], values[44])
             else:
@@ -208,6 +249,8 @@ class _Recording:
             shutdown=getattr(link, "last_shutdown", None),
             log_placed=log_placed,
             signum=signum,
+            bumps=self.monitor.bump_stops,
+            started_s=self.started_s,
         )
 
 
@@ -234,8 +277,9 @@ def _run_guarded(run: _Recording, log: PendingLogWriter, sig: TerminationSignals
                         on_placed()
                 run.started = True
                 monitor.expected_mode = target_mode
+                run.started_s = run.now_s()
                 reason = _drive(link, run.reader, run.odometry, run.controller, monitor, run.settings, run.now_s,
-                                frame_tap, run.use, lambda: run.write_record(log, sig), run.hooks)
+                                frame_tap, run.use, lambda: run.write_record(log, sig), run.hooks, run.started_s)
             if reason.is_fault:
                 monitor.trip(reason)  # keeps an earlier reason if there is one
         finally:
@@ -310,13 +354,15 @@ def _first_reading(reader, odometry, target_mode, settings, now_s, tap, passed=N
 
 
 def _drive(link, reader, odometry, controller, monitor, settings, now_s, tap, use, write_record,
-           hooks=None) -> StopReason:
-    """The control loop; returns why it ended."""
+           hooks=None, start_s: float = 0.0) -> StopReason:
+    """The control loop from ``start_s`` (robot time: the robot has answered, the drive and its
+    ``duration_s`` begin); returns why it ended."""
     last_command: tuple[float, float] | None = None
     last_sent_wall = -math.inf
     last_sent_s = -math.inf
     next_record = settings.record_period_s
     passed = getattr(hooks, "passed", None)
+    bump_stops = 0
     with monitor:
         while True:
             if monitor.tripped.is_set():
@@ -326,12 +372,18 @@ def _drive(link, reader, odometry, controller, monitor, settings, now_s, tap, us
             if monitor.tripped.is_set():
                 return monitor.reason  # type: ignore[return-value]
             t = now_s()
+            if monitor.bump_stops != bump_stops:  # the monitor stopped the wheels for a bump
+                bump_stops = monitor.bump_stops
+                last_command, last_sent_s = (0.0, 0.0), t
+                if isinstance(odometry, Create1Odometry):
+                    odometry.command(0.0, 0.0, t)
             unread = odometry.unread(t) if isinstance(odometry, Create1Odometry) else (0.0, 0.0)
             wheels = controller.command(t, unread)
             if wheels is None:
                 if isinstance(controller, TeleopController):
                     return StopReason("quit", "quit from the keyboard")
                 return StopReason("completed", "path driven to the end")
+            wheels = away_from_bumper(wheels, monitor.bumper.state)  # never into a pressed bumper
             wall = time.monotonic()
             changed = wheels != last_command and (t - last_sent_s >= settings.command_interval_s - SAME_TIME_S
                                                   or wheels == (0.0, 0.0))
@@ -355,5 +407,22 @@ def _drive(link, reader, odometry, controller, monitor, settings, now_s, tap, us
                 next_record = t + settings.record_period_s
             if passed is not None:
                 passed()
-            if settings.max_duration_s is not None and t >= settings.max_duration_s:
-                return StopReason("time-limit", f"stopped after the {settings.max_duration_s} s time limit")
+            end = _run_over(t, t - start_s, settings, hooks)
+            if end is not None:
+                return end
+
+
+def _run_over(t: float, driven_s: float, settings: RecorderSettings, hooks) -> StopReason | None:
+    """The end of a run that the controller did not end at ``t`` (robot time since the recorder
+    began), ``driven_s`` after the robot first answered: the duration asked for, the hooks'
+    ``finished`` (both normal ends), or the time limit (a fault)."""
+    if settings.duration_s is not None and driven_s >= settings.duration_s - SAME_TIME_S:
+        return StopReason("completed", f"ran for the {settings.duration_s:g} s asked for")
+    finished = getattr(hooks, "finished", None)
+    if finished is not None:
+        done = finished(t)
+        if done:
+            return StopReason("completed", done if isinstance(done, str) else "the run's goal was reached")
+    if settings.max_duration_s is not None and t >= settings.max_duration_s:
+        return StopReason("time-limit", f"stopped after the {settings.max_duration_s} s time limit")
+    return None

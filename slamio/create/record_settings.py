@@ -28,7 +28,25 @@ SAME_TIME_S = 1e-9
 @dataclass(frozen=True)
 class RecorderSettings:
     """Speeds, periods and limits of a recording. Times marked (robot) use the recorder's
-    clock (the simulator's when simulated); (wall) ones the computer's."""
+    clock (the simulator's when simulated); (wall) ones the computer's.
+
+    How a run may end besides its controller finishing:
+
+    * ``duration_s`` (robot): the drive is as long as this, counted from the robot's first
+      answer (starting the robot is not part of it) — when it has passed, the run ends
+      normally (kind ``completed``, exit status 0), the stop confirmed as at any end. For a
+      controller that never finishes by itself (a navigator exploring);
+    * ``max_duration_s`` (robot): a safety cap, counted from the recorder's start (the log's
+      stamps) — a run still going then is stopped early (kind ``time-limit``, a fault, exit
+      status 2);
+    * ``bump_ends_run`` (default True: every recording and ``fgslam live --path``): a bump
+      ends the run. False (a robot that navigates by itself): a bump stops the wheels at once
+      and is logged as an ``event`` record and counted (:attr:`RecordResult.bumps`); the
+      controller is told (its optional ``bumper_changed(state, now_s)``), and while a bumper is
+      pressed only commands that do not drive forward are obeyed — reversing, turning in place
+      (:mod:`slamio.create.bumper`) — a forward one is replaced by a stop. Wheel drops and a
+      cliff (the robot leaving Safe mode) end the run either way.
+    """
 
     speed_m_s: float = 0.2  # straight segments
     turn_rate_rad_s: float = 0.8  # turns in place (wheels at ±0.094 m/s)
@@ -45,8 +63,10 @@ class RecorderSettings:
     data_timeout_s: float = 0.5  # (wall) no valid reading for this long → stop
     startup_timeout_s: float = 3.0  # (wall) wait this long for the robot to answer
     mode: str = "safe"  # safe or full
-    max_duration_s: float | None = None  # (robot) stop after this long
+    max_duration_s: float | None = None  # (robot) stop after this long, a fault (time-limit)
     bump_debounce: int = 2  # readings in a row that must show a bump or wheel drop
+    duration_s: float | None = None  # (robot) end normally (completed) after this long
+    bump_ends_run: bool = True  # False: a bump stops the wheels, is logged, and the run goes on
 
     def __post_init__(self):
         if self.mode not in ("safe", "full"):
@@ -56,6 +76,12 @@ class RecorderSettings:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise FgslamError(f"{name} must be a positive number, got {value!r}")
+        for name in ("duration_s", "max_duration_s"):
+            value = getattr(self, name)
+            if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise FgslamError(f"{name} must be a positive number of seconds or None, got {value!r}")
+        if not isinstance(self.bump_ends_run, bool):
+            raise FgslamError(f"bump_ends_run must be True or False, got {self.bump_ends_run!r}")
         if self.speed_m_s > 0.5:
             raise FgslamError(f"speed_m_s {self.speed_m_s} is above the Create's 0.5 m/s")
 
@@ -75,6 +101,8 @@ class RecordResult:
     shutdown: ShutdownReport | None = None
     log_placed: bool = True  # False: the robot never answered, ``out_path`` is as it was
     signum: int | None = None  # the signal that stopped the recording, if one did
+    bumps: int = 0  # bumper presses the run went on after (RecorderSettings.bump_ends_run False)
+    started_s: float | None = None  # robot time the drive began (the robot answered); None: it never did
 
     @property
     def completed(self) -> bool:
@@ -92,6 +120,7 @@ def status_of(result: RecordResult) -> dict[str, Any]:
         "distance_m": result.distance_m,
         "angle_rad": result.angle_rad,
         "final_pose": list(result.final_pose),
+        "bumps": result.bumps,
         "link": result.link_stats,
         "shutdown": None if result.shutdown is None else {**asdict(result.shutdown),
                                                            "summary": result.shutdown.summary},

@@ -7,7 +7,9 @@ So the host watches:
 
 * **bump** or **wheel drop** (packet 7), seen in ``debounce`` consecutive readings (one
   bad frame that slipped through the checksum must not stop a run, a real bumper stays
-  pressed);
+  pressed). With ``bump_ends_run=False`` (a robot that navigates by itself) a bump stops
+  the wheels at once but does not end the run: it is counted, kept as an event, and the
+  driver may back away (:mod:`slamio.create.bumper`); a wheel drop still ends it;
 * **mode**: the robot left Safe/Full by itself (packet 35 went to Passive: cliff, wheel
   drop, charger, or the robot was reset);
 * **watchdog**: the host loop stopped sending commands for ``command_timeout_s`` (a hang,
@@ -22,7 +24,9 @@ So the host watches:
 
 :class:`SafetyMonitor` keeps the first reason (:class:`StopReason`) and sends the stop at
 once (``stop_motors``, normally Drive Direct 0 0). The recorder returns that reason, prints
-it and writes it next to the log.
+it and writes it next to the log. The hazards it sees in the readings — a bump, a wheel
+drop, the robot leaving Safe mode for Passive by itself (a cliff) — wait in
+:attr:`SafetyMonitor.events` for the recorder to write them to the log as ``event`` records.
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ import time
 from dataclasses import dataclass
 from typing import Callable, Mapping
 
+from slamio.create.bumper import BumperWatch, bumper_state
 from slamio.create.protocol import OiMode, decode_bumps_and_drops
 
 __all__ = [
@@ -43,6 +48,7 @@ __all__ = [
     "implausible_frame",
     "implausible_encoder_jump",
     "implausible_create1_reading",
+    "event_of",
     "SafetyMonitor",
 ]
 
@@ -146,6 +152,21 @@ def implausible_create1_reading(distance_mm: int, angle_deg: int, elapsed_s: flo
     return None
 
 
+def event_of(hazard: StopReason, values: Mapping[int, int]) -> tuple[str, str | None] | None:
+    """The log event ``(kind, side)`` of a hazard seen in the reading ``values``: a bump, a
+    wheel drop, or a cliff (the robot left Safe mode for Passive without a wheel drop: the OI
+    does so at a drop in the floor, and on the charger); None for the other stops."""
+    if hazard.kind == "bump":
+        return "bump", bumper_state(values.get(7, 0)).side
+    if hazard.kind == "wheel-drop":
+        b = decode_bumps_and_drops(values.get(7, 0))
+        left, right = b.wheel_drop_left, b.wheel_drop_right
+        return "wheel-drop", "both" if left and right else ("left" if left else ("right" if right else None))
+    if hazard.kind == "mode" and values.get(35) == OiMode.PASSIVE:
+        return "cliff", None
+    return None
+
+
 class SafetyMonitor:
     """Trips once, stops the motors at once, remembers why; watches two timeouts.
 
@@ -156,11 +177,19 @@ class SafetyMonitor:
     ``expected_mode`` None skips the mode check (until the host has seen the mode it set).
     Timeouts are in wall-clock seconds (``wall_clock``): they are about the host being
     alive, not about robot time.
+
+    ``bump_ends_run`` False: a bump does not trip the monitor. On each new press (debounced
+    like every hazard, :class:`slamio.create.bumper.BumperWatch` in :attr:`bumper`) it calls
+    ``stop_motors`` at once, counts the stop in :attr:`bump_stops` and adds the event; the
+    caller keeps its commands away from the bumper while :attr:`bumper` shows it pressed
+    (:func:`slamio.create.bumper.away_from_bumper`). :attr:`events` collects ``(kind, side)``
+    of every hazard seen in the readings (:func:`event_of`); :meth:`take_events` empties it.
     """
 
     def __init__(self, stop_motors: Callable[[], None], *, command_timeout_s: float = 0.5,
                  data_timeout_s: float = 0.5, debounce: int = 2, model: str = "create2",
-                 expected_mode: OiMode | None = OiMode.SAFE, wall_clock: Callable[[], float] = time.monotonic):
+                 expected_mode: OiMode | None = OiMode.SAFE, wall_clock: Callable[[], float] = time.monotonic,
+                 bump_ends_run: bool = True):
         self._stop_motors = stop_motors
         self.command_timeout_s = command_timeout_s
         self.data_timeout_s = data_timeout_s
@@ -178,6 +207,10 @@ class SafetyMonitor:
         self._hazard_streak: dict[str, int] = {}
         self._thread: threading.Thread | None = None
         self._quit = threading.Event()
+        self.bump_ends_run = bump_ends_run
+        self.bumper = BumperWatch(self.debounce)
+        self.bump_stops = 0  # stops sent for a bump that did not end the run
+        self.events: list[tuple[str, str | None]] = []  # (kind, side) seen in the readings, not yet logged
 
     @property
     def reason(self) -> StopReason | None:
@@ -200,14 +233,33 @@ class SafetyMonitor:
     def command_sent(self) -> None:
         self._last_command = self._wall()
 
+    def take_events(self) -> list[tuple[str, str | None]]:
+        """The events seen since the last call, oldest first (called from the reading thread)."""
+        events, self.events = self.events, []
+        return events
+
+    def _stop_for_bump(self) -> None:
+        """A new press with ``bump_ends_run`` False: the wheels stop now, the run goes on."""
+        try:
+            self._stop_motors()
+        except Exception as exc:  # kept as trip() keeps it; the loop's next command or the shutdown retries
+            self.stop_errors.append(f"{type(exc).__name__}: {exc}")
+        self.bump_stops += 1
+        self.events.append(("bump", self.bumper.state.side))
+
     def readings(self, values: Mapping[int, int]) -> StopReason | None:
         """Check one sensor reading; trips (and returns the reason) on a hazard."""
         self._last_data = self._wall()
         hazards = []
         if 7 in values:
             hazard = hazard_from_bumps(values[7])
-            if hazard is not None:
+            if hazard is not None and (self.bump_ends_run or hazard.kind != "bump"):
                 hazards.append(hazard)
+            if not self.bump_ends_run:
+                presses = self.bumper.presses
+                self.bumper.reading(values[7])
+                if self.bumper.presses > presses:
+                    self._stop_for_bump()
         if 35 in values and self.expected_mode is not None:
             hazard = hazard_from_mode(values[35], self.expected_mode)
             if hazard is not None:
@@ -216,7 +268,10 @@ class SafetyMonitor:
         self._hazard_streak = {k: self._hazard_streak.get(k, 0) + 1 for k in seen}
         for hazard in hazards:
             if self._hazard_streak[hazard.kind] >= self.debounce:
-                self.trip(hazard)
+                if self.trip(hazard):
+                    event = event_of(hazard, values)
+                    if event is not None:
+                        self.events.append(event)
                 return hazard
         return None
 

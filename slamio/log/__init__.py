@@ -9,7 +9,8 @@ Line 1 is a header; every later line is one record with a ``"type"``. A planar l
                         height and tag yaw, and their standard deviations;
 * ``truth_pose``      — optional ground truth of the current pose;
 * ``truth_landmark``  — optional ground truth of one landmark (at most one per id);
-* ``live_step``       — written by ``fgslam live``: the smoother's wall time for one pose.
+* ``live_step``       — written by ``fgslam live``: the smoother's wall time for one pose;
+* ``event``           — a bump, a cliff or a wheel drop the robot met, and at which pose.
 
 A **3-D log** (version 2, start pose ``pose3``) holds ``velocity_odometry``,
 ``stereo_observation``, ``truth_pose3``, ``truth_landmark3`` and ``live_step`` records
@@ -62,11 +63,14 @@ from slamio.log.read import (
     DT_TOLERANCE_S, LogFormatError, LogStream, iter_log, parse_header, parse_record, read_log, sensor_range_limits,
 )
 from slamio.log.records import (
+    EVENT_KINDS,
+    EVENT_SIDES,
     FORMAT_NAME,
     FORMAT_VERSION,
     PLANAR_VERSION,
     UNITS,
     VERSIONS,
+    Event,
     Header,
     LiveStep,
     Matrix3,
@@ -79,6 +83,7 @@ from slamio.log.records import (
     TruthLandmark,
     TruthPose,
     as_matrix3,
+    event_counts,
     group_steps,
 )
 from slamio.log.records3d import (
@@ -104,12 +109,12 @@ from slamio.log.write import LogWriter, format_line, header_to_dict, record_to_d
 
 __all__ = [
     "COORDINATE_M", "INCREMENT_M", "INCREMENT_RAD", "WORLD_ANGLE_RAD",
-    "DT_TOLERANCE_S", "FORMAT_NAME", "FORMAT_VERSION", "MAX_HEADING_VARIANCE_RAD2", "MAX_ID", "MAX_NESTING", "MAX_POSE_INDEX", "STAMP_S",
+    "DT_TOLERANCE_S", "EVENT_KINDS", "EVENT_SIDES", "FORMAT_NAME", "FORMAT_VERSION", "MAX_HEADING_VARIANCE_RAD2", "MAX_ID", "MAX_NESTING", "MAX_POSE_INDEX", "STAMP_S",
     "MAX_POSITION_VARIANCE_M2", "MIN_COVARIANCE_EIGENVALUE", "PLANAR_VERSION", "RANGE_M", "SENSOR_LIMIT_SIGMAS",
     "SIGMA_ANGLE_RAD", "SIGMA_LENGTH_M", "UNITS", "VERSIONS",
-    "Header", "LiveStep", "LogFormatError", "LogWriter", "Matrix3", "Observation", "Odometry", "Record", "Rejected",
+    "Event", "Header", "LiveStep", "LogFormatError", "LogWriter", "Matrix3", "Observation", "Odometry", "Record", "Rejected",
     "RunLog", "Step", "TruthLandmark", "TruthPose",
-    "as_matrix3", "format_line", "group_steps", "header_to_dict", "iter_log", "LogStream", "parse_header", "parse_record", "read_log",
+    "as_matrix3", "event_counts", "format_line", "group_steps", "header_to_dict", "iter_log", "LogStream", "parse_header", "parse_record", "read_log",
     "record_to_dict", "sensor_range_limits", "write_log",
     # the 3-D records (slamio.log.records3d)
     "MAX_MOUNT_M", "MAX_PIXEL_PX", "MAX_SPEED_MPS", "MAX_TURN_RATE_RADPS", "RECORDS_3D", "SIGMA_PIXEL_PX", "TYPE_OF_3D",

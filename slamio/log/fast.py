@@ -26,14 +26,14 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Annotated, Any, Callable, Optional, Union
+from typing import Annotated, Any, Callable, Literal, Optional, Union
 
 import msgspec
 from msgspec import UNSET, Meta, UnsetType
 
 import slamio.log.fields as F
 import slamio.log.records3d as R3
-from slamio.log.records import LiveStep, Observation, Odometry, TruthLandmark, TruthPose
+from slamio.log.records import EVENT_KINDS, EVENT_SIDES, Event, LiveStep, Observation, Odometry, TruthLandmark, TruthPose
 
 
 def _within(lo: float, hi: float) -> Any:
@@ -79,6 +79,10 @@ SPEC: dict[str, tuple[type, tuple[tuple[str, Any, bool], ...]]] = {
     "live_step": (LiveStep, (
         ("stamp_s", _STAMP, True), ("pose_index", Annotated[int, Meta(ge=0, le=F.MAX_POSE_INDEX)], True),
         ("latency_s", _within(0.0, F.STAMP_S), True))),
+    "event": (Event, (
+        ("stamp_s", _STAMP, True), ("kind", Literal[EVENT_KINDS], True),  # type: ignore[valid-type]
+        ("pose_index", Annotated[int, Meta(ge=0, le=F.MAX_POSE_INDEX)], True),
+        ("side", Literal[EVENT_SIDES], False))),  # type: ignore[valid-type]
     "velocity_odometry": (R3.VelocityOdometry, (
         ("stamp_s", _STAMP, True), ("dt_s", Annotated[float, Meta(gt=0.0, le=R3.MAX_DT_S)], True),
         ("v_mps", tuple[(_beyond_not(R3.MAX_SPEED_MPS),) * 3], True),  # type: ignore[misc]
@@ -94,7 +98,7 @@ SPEC: dict[str, tuple[type, tuple[tuple[str, Any, bool], ...]]] = {
     "truth_landmark3": (R3.TruthLandmark3, (
         ("landmark_id", _ID, True), ("x_m", _COORD, True), ("y_m", _COORD, True), ("z_m", _COORD, True))),
 }
-PLANAR_KINDS = ("odometry", "observation", "truth_pose", "truth_landmark", "live_step")
+PLANAR_KINDS = ("odometry", "observation", "truth_pose", "truth_landmark", "live_step", "event")
 KINDS_3D = ("velocity_odometry", "stereo_observation", "truth_pose3", "truth_landmark3", "live_step")
 
 

@@ -178,6 +178,28 @@ def _integer(d: dict, key: str, *, optional: bool = False, id_range: bool = Fals
     return value
 
 
+def _choice(d: dict, key: str, choices: tuple[str, ...], *, optional: bool = False) -> str | None:
+    """``d[key]``, one of the strings ``choices`` (None when optional and absent)."""
+    if key not in d or d[key] is None:
+        if optional:
+            return None
+        raise _BadLine(f"missing field '{key}'; write one of {', '.join(choices)}")
+    value = d[key]
+    if not isinstance(value, str) or value not in choices:
+        raise _BadLine(f"field '{key}' is {_show(value)}; write one of {', '.join(choices)}")
+    return value
+
+
+def _pose_index(d: dict, key: str = "pose_index") -> int:
+    """A pose index, 0 ≤ k ≤ :data:`MAX_POSE_INDEX` (a GTSAM key's 56 bits)."""
+    index = _integer(d, key)
+    if index < 0:  # type: ignore[operator]
+        raise _BadLine(f"field '{key}' is {_show(index)}; a pose index is >= 0 (pose 0 is the start)")
+    if index > MAX_POSE_INDEX:  # type: ignore[operator]
+        raise _BadLine(f"'{key}' is {_show(index)}, above 2^56-1 (a GTSAM key holds a 56-bit index)")
+    return index  # type: ignore[return-value]
+
+
 _WHY_STAMP = ("a stamp is seconds of Unix time (1.7e9 s today) or since the start of the run; "
               "milliseconds or nanoseconds written as seconds? (is the line corrupted?)")
 

@@ -13,13 +13,13 @@ from slamio.errors import FgslamError, InputFileError
 from slamio.log.fields import (
     _WHY_COORDINATE, _WHY_INCREMENT, _WHY_WORLD_ANGLE, COORDINATE_M, INCREMENT_M, INCREMENT_RAD, WORLD_ANGLE_RAD,
     _magnitude, _WHY_RANGE, MAX_POSE_INDEX, RANGE_M, STAMP_S, SIGMA_ANGLE_RAD, SIGMA_LENGTH_M,
-    _angle, _BadLine,
-    _check_fields, _covariance, _integer, _number, _object, _paired, _show,
+    _angle, _BadLine, _choice,
+    _check_fields, _covariance, _integer, _number, _object, _paired, _pose_index, _show,
     _sigma_angle, _sigma_length, _stamp, _vector3, _within,
 )
 from slamio.log.records import (
-    _CLASS_OF, _PLANAR_TYPES, _TYPES_3D, FORMAT_NAME, UNITS, VERSIONS, Header, LiveStep, Observation, Odometry,
-    Record, TruthLandmark, TruthPose,
+    _CLASS_OF, _PLANAR_TYPES, _TYPES_3D, EVENT_KINDS, EVENT_SIDES, FORMAT_NAME, UNITS, VERSIONS, Event, Header,
+    LiveStep, Observation, Odometry, Record, TruthLandmark, TruthPose,
 )
 import slamio.log.records3d as log3d
 from slamio.log.mount import pose_on_robot
@@ -198,6 +198,9 @@ def parse_record(d: dict) -> Record:
         if index > MAX_POSE_INDEX:  # type: ignore[operator]
             raise _BadLine(f"'pose_index' is {_show(index)}, above 2^56-1 (a GTSAM key holds a 56-bit index)")
         return LiveStep(stamp_s=_stamp(d), pose_index=index, latency_s=latency)  # type: ignore[arg-type]
+    if cls is Event:
+        return Event(stamp_s=_stamp(d), kind=_choice(d, "kind", EVENT_KINDS), pose_index=_pose_index(d),
+                     side=_choice(d, "side", EVENT_SIDES, optional=True))  # type: ignore[arg-type]
     if cls is TruthPose:
         return TruthPose(
             stamp_s=_stamp(d),

@@ -90,6 +90,7 @@ class PendingLogWriter:
         except OSError as exc:
             raise LogWriteError(f"cannot write the log {self.final}: {exc.strerror or exc}") from None
         self._lines = 0  # complete lines written (the header included)
+        self.last_stamp_s = header.stamp_s  # the latest stamp written (a line must not go back before it)
         self._write_line(format_line(header))
 
     def _where(self) -> Path:
@@ -114,6 +115,9 @@ class PendingLogWriter:
 
     def write(self, record: Record) -> None:
         self._write_line(format_line(record))
+        stamp = getattr(record, "stamp_s", None)
+        if stamp is not None and stamp > self.last_stamp_s:
+            self.last_stamp_s = stamp
 
     def flush(self) -> None:
         """Every line is with the operating system as soon as it is written: nothing to do."""

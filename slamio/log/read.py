@@ -28,7 +28,7 @@ from slamio.log.parse import (  # noqa: F401  (the slow path, also imported from
     _sensor_limit, check_records, parse_header, parse_record, sensor_range_limits,
 )
 from slamio.log.records import (
-    _PLANAR_TYPES, _TYPES_3D, Header, Observation, Record, Rejected, RunLog, TruthLandmark,
+    _PLANAR_TYPES, _TYPES_3D, Event, Header, Observation, Odometry, Record, Rejected, RunLog, TruthLandmark,
 )
 import slamio.log.records3d as log3d
 
@@ -350,6 +350,7 @@ class _ReadState:
         self.n_records = self.n_rejected = 0
         self.limits: tuple[float | None, float | None] = (None, None)
         self.last_stamp = -math.inf
+        self.pose = 0  # the latest pose of a planar log: odometry records so far (an event's pose_index)
         self.pose_stamp = -math.inf  # stamp of the latest pose (3-D logs: velocity_odometry.dt_s must span from it)
         self.stamp_at = (1, 0, 0)  # last_stamp's (line, records and rejections before it); line 1: the header's
         self.truth_at: dict[int, tuple[int, Record, int, int]] = {}  # landmark id -> (line, record, records, rejections)
@@ -380,9 +381,18 @@ class _ReadState:
             if lid in self.truth_at:
                 raise _landmark_conflict(kind, self.truth_at[lid], number, record)
             self.truth_at[lid] = (number, record, self.n_records, self.n_rejected)
+        cls = type(record)
         if self.is_3d:
             self.pose_stamp = _check_interval(record, self.pose_stamp)
-        elif type(record) is Observation and self.limits != (None, None):
+        elif cls is Odometry:
+            self.pose += 1
+        elif cls is Event and record.pose_index != self.pose:
+            raise _BadLine(
+                f"field 'pose_index' is {record.pose_index} but {self.pose} odometry record"
+                f"{' comes' if self.pose == 1 else 's come'} before this line: an event belongs to the latest pose, "
+                f"the number of odometry records before it; write {self.pose} (or move the line)"
+            )
+        elif cls is Observation and self.limits != (None, None):
             outside = _outside_sensor(record, *self.limits)
             if outside is not None:
                 reason, message = outside

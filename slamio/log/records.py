@@ -151,7 +151,31 @@ class LiveStep:
     latency_s: float
 
 
-Record = Union[Odometry, Observation, TruthPose, TruthLandmark, LiveStep, Any]  # Any: the 3-D records (slamio.log.records3d)
+#: What an ``event`` record reports (:class:`Event`).
+EVENT_KINDS = ("bump", "cliff", "wheel-drop")
+#: Which side of the robot an event was on.
+EVENT_SIDES = ("left", "right", "both")
+
+
+@dataclass(frozen=True)
+class Event:
+    """Something that happened to the robot at ``stamp_s``: a bumper pressed (``bump``), the
+    robot at a drop (``cliff``) or a wheel dropped (``wheel-drop``), one of
+    :data:`EVENT_KINDS` (written by the recorder, :mod:`slamio.create.record`).
+
+    ``pose_index`` is the pose the event belongs to: the number of odometry records before
+    it (0 before the first), as observations belong to the latest pose. ``side`` is
+    ``left``, ``right`` or ``both`` when the robot tells (the bumpers, the wheel drops).
+    Estimators ignore events.
+    """
+
+    stamp_s: float
+    kind: str
+    pose_index: int
+    side: str | None = None
+
+
+Record = Union[Odometry, Observation, TruthPose, TruthLandmark, LiveStep, Event, Any]  # Any: the 3-D records (slamio.log.records3d)
 
 _TYPE_OF = {
     Odometry: "odometry",
@@ -159,10 +183,11 @@ _TYPE_OF = {
     TruthPose: "truth_pose",
     TruthLandmark: "truth_landmark",
     LiveStep: "live_step",
+    Event: "event",
 }
 _CLASS_OF = {name: cls for cls, name in _TYPE_OF.items()}
 #: Record types of a planar log and of a 3-D log (live_step is in both).
-_PLANAR_TYPES = ("odometry", "observation", "truth_pose", "truth_landmark", "live_step")
+_PLANAR_TYPES = ("odometry", "observation", "truth_pose", "truth_landmark", "live_step", "event")
 _TYPES_3D = ("velocity_odometry", "stereo_observation", "truth_pose3", "truth_landmark3", "live_step")
 
 
@@ -280,6 +305,15 @@ def group_steps(header: Header, records: Iterable[Record], *, at_robot_centre: b
             truth = record
     steps.append(Step(len(steps), stamp, odometry, tuple(observations), truth))
     return steps
+
+
+def event_counts(records: Iterable[Record]) -> dict[str, int]:
+    """How many ``event`` records of each kind (kinds in :data:`EVENT_KINDS` order; none: ``{}``)."""
+    counts: dict[str, int] = {}
+    for record in records:
+        if type(record) is Event:
+            counts[record.kind] = counts.get(record.kind, 0) + 1
+    return {kind: counts[kind] for kind in EVENT_KINDS if kind in counts}
 
 
 def as_matrix3(m: Any) -> Matrix3:
