@@ -19,7 +19,6 @@ import math
 from dataclasses import dataclass, field
 from typing import Mapping, Protocol
 
-import numpy as np
 
 from slamio.geometry import wrap_angle
 from slamio.scan import Scan

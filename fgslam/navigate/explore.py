@@ -16,7 +16,7 @@ closures). So this navigator does two things on the occupancy grid its scans bui
 
 Goals are chosen by cost: distance plus ``turn_cost_m_per_rad`` for the turn toward them
 (:func:`goal_cost_m`), landmark goals weighted by ``landmark_weight``; when none is left it
-goes back to the landmark it saw longest ago, or wanders. It starts with a look-around turn.
+goes back to the landmark it saw longest ago, or wanders. It starts with a look-around turn (a circle less the camera's view).
 It steers to the goal with :class:`~fgslam.navigate.vfh.Vfh` (local avoidance, turn-to-look).
 A frontier goal is reached when the robot is within ``reach_m`` or the cell is no longer a
 frontier (seen from afar). Stuck (no ``progress_m`` closer to the goal for ``stuck_s``) or
@@ -38,6 +38,7 @@ from scipy import ndimage
 from fgslam.navigate.common import ROBOT_RADIUS_M, Command, Situation, heading_error_rad, limited_command, turn_towards
 from fgslam.navigate.grid import OccupancyGrid
 from fgslam.navigate.vfh import Vfh
+from slamio.camera.kinect import KINECT_HFOV_RAD
 from slamio.geometry import wrap_angle
 
 __all__ = ["Explore", "frontier_mask", "frontier_goals", "landmark_viewpoint", "goal_cost_m", "Goal"]
@@ -242,8 +243,9 @@ class Explore:
         self.vfh.backoff.start(situation, prefer_left=bool(self.rng.integers(2)))
 
     def _look_around(self, situation: Situation) -> Command | None:
-        """The first turn on the spot, one full circle, so the map starts all round."""
-        if self._look_turned >= 2 * math.pi:
+        """The first turn on the spot, so the map starts all round: a full circle less the
+        camera's view (what it saw at the start)."""
+        if self._look_turned >= 2 * math.pi - 0.9 * KINECT_HFOV_RAD:
             return None
         if self._last_heading is not None:
             self._look_turned += abs(wrap_angle(situation.pose[2] - self._last_heading))
@@ -273,7 +275,7 @@ class Explore:
         return situation.now_s - goal.improved_s <= self.stuck_s
 
     def step(self, situation: Situation) -> Command:
-        self.vfh.observe(situation)
+        fresh_scan = self.vfh.observe(situation)
         self.visits.update(situation.sightings, situation.now_s)
         if situation.bumped and not self.vfh.backoff.active:
             if self.goal is not None:
@@ -287,7 +289,7 @@ class Explore:
         looking = self._look_around(situation)
         if looking is not None:
             return looking
-        if situation.now_s - self._replanned_s >= self.replan_s:
+        if situation.now_s - self._replanned_s >= self.replan_s and not fresh_scan:  # not both in one step
             self._refresh(situation.now_s)
             if (self.goal is not None and self.goal.kind == "frontier"
                     and not any(math.hypot(f[0] - self.goal.xy[0], f[1] - self.goal.xy[1]) < 0.3 for f in self._frontiers)):

@@ -25,10 +25,12 @@ What :class:`DriveResult` reports, and how:
   one;
 * ``area_seen_m2`` — 0.25 m cells crossed by a scan ray (up to its hit or the maximum
   range): the floor the depth camera has looked at; ``area_visited_m2`` — 0.25 m cells
-  whose centre came within the robot's radius of its path (sampled every step);
+  the robot's disc overlapped (its path sampled every other step);
 * ``landmarks_seen`` — ids sighted at least once; ``landmarks_revisited`` — ids sighted again
   after at least ``revisit_gap_s`` (20 s) without a sighting: a second, separate visit;
-* ``step_time_us`` — the wall-clock time of each ``navigator.step`` call.
+* ``step_time_us`` — the wall-clock time of each ``navigator.step`` call (a busy machine
+  shows in its tail); ``step_cpu_us`` — the CPU time of the calling thread for each call
+  (:func:`time.thread_time`: what the step itself costs, whatever else runs).
 """
 
 from __future__ import annotations
@@ -65,6 +67,7 @@ class DriveResult:
     landmarks_revisited: set[int]
     sightings: dict[int, int]
     step_time_us: np.ndarray
+    step_cpu_us: np.ndarray
     landmark_count: int = 0
     state_time_s: dict[str, float] = field(default_factory=dict)
 
@@ -74,7 +77,9 @@ class DriveResult:
                 "area_seen_m2": round(self.area_seen_m2, 2), "area_visited_m2": round(self.area_visited_m2, 2),
                 "landmarks_seen": len(self.landmarks_seen), "landmarks_revisited": len(self.landmarks_revisited),
                 "landmarks": self.landmark_count, "step_mean_us": round(float(self.step_time_us.mean()), 1),
-                "step_max_us": round(float(self.step_time_us.max()), 1)}
+                "step_max_us": round(float(self.step_time_us.max()), 1),
+                "step_cpu_mean_us": round(float(self.step_cpu_us.mean()), 1),
+                "step_cpu_max_us": round(float(self.step_cpu_us.max()), 1)}
 
 
 def six_metre_room() -> tuple[Obstacles, dict[int, tuple[float, float]]]:
@@ -114,7 +119,8 @@ def _cells_of_scan(scan, pose) -> np.ndarray:
     ray, sample = np.nonzero(samples[None, :] <= reach[:, None])
     bearing = scan.angles_rad[ray] + pose[2]
     xy = np.column_stack([pose[0] + samples[sample] * np.cos(bearing), pose[1] + samples[sample] * np.sin(bearing)])
-    return np.unique(np.floor(xy / CELL_M).astype(int), axis=0)
+    cells = np.floor(xy / CELL_M).astype(np.int64)
+    return np.unique(cells[:, 0] * 1_000_003 + cells[:, 1])  # one key per cell (worlds < 250 km)
 
 
 def _visited_cells(path_xy: np.ndarray) -> int:
@@ -124,8 +130,9 @@ def _visited_cells(path_xy: np.ndarray) -> int:
     centres = (np.column_stack([gx.ravel(), gy.ravel()]) + 0.5) * CELL_M
     visited = np.zeros(len(centres), bool)
     for chunk in np.array_split(path_xy[::2], max(1, len(path_xy) // 400)):
-        d2 = ((centres[:, None, :] - chunk[None, :, :]) ** 2).sum(axis=2)
-        visited |= (d2 <= ROBOT_RADIUS_M**2).any(axis=1)
+        # distance from each path point to each cell's nearest point: the disc overlaps the cell
+        gap = np.maximum(np.abs(centres[:, None, :] - chunk[None, :, :]) - 0.5 * CELL_M, 0.0)
+        visited |= ((gap**2).sum(axis=2) < ROBOT_RADIUS_M**2).any(axis=1)
     return int(visited.sum())
 
 
@@ -172,7 +179,7 @@ def drive(obstacles: Obstacles, navigator: Navigator, start_pose, *, duration_s:
     scan = scan_pose = None
     next_scan_s, pressed_before, bumps = 0.0, False, 0
     sight = _Sightings(landmarks, camera_fov_rad, camera_range_m, revisit_gap_s)
-    path, states, step_us, seen_cells, state_time = [], [], np.zeros(steps), set(), {}
+    path, states, step_us, cpu_us, seen_cells, state_time = [], [], np.zeros(steps), np.zeros(steps), set(), {}
     for i in range(steps):
         now = i * dt_s
         contacts = wrap_angle(disc_contacts(obstacles, pose[:2], ROBOT_RADIUS_M) - pose[2])
@@ -181,14 +188,14 @@ def drive(obstacles: Obstacles, navigator: Navigator, start_pose, *, duration_s:
         bumps += int(pressed and not pressed_before)
         if now + 1e-9 >= next_scan_s:
             scan, scan_pose = ray_cast_scan(obstacles, pose, fov_rad, rays, max_range_m), estimate
-            seen_cells.update(map(tuple, _cells_of_scan(scan, pose)))
+            seen_cells.update(_cells_of_scan(scan, pose).tolist())
             sight.look(obstacles, pose, now)
             next_scan_s += scan_every_s
         situation = Situation(now, estimate, scan, scan_pose, pressed, bump_side(front) if pressed else None,
                               {k: sight.landmarks[k] for k in sight.count}, dict(sight.count))
-        started = time.perf_counter()
+        started, started_cpu = time.perf_counter(), time.thread_time()
         command = navigator.step(situation)
-        step_us[i] = (time.perf_counter() - started) * 1e6
+        step_us[i], cpu_us[i] = (time.perf_counter() - started) * 1e6, (time.thread_time() - started_cpu) * 1e6
         left, right = wheel_speeds_m_s(command.speed_m_s, command.turn_rate_rad_s)
         speed, turn = 0.5 * (left + right), (right - left) / WHEEL_BASE_M
         if pressed and (not pressed_before or speed > 0):
@@ -205,4 +212,4 @@ def drive(obstacles: Obstacles, navigator: Navigator, start_pose, *, duration_s:
     path_xy = np.asarray(path)[:, :2]
     return DriveResult(np.asarray(path), states, bumps, _longest_stuck_s(path_xy, dt_s), len(seen_cells) * CELL_M**2,
                        _visited_cells(path_xy) * CELL_M**2, set(sight.count), set(sight.revisited), dict(sight.count),
-                       step_us, len(sight.landmarks), state_time)
+                       step_us, cpu_us, len(sight.landmarks), state_time)

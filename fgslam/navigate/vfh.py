@@ -67,10 +67,17 @@ def polar_histogram(cells_xy, certainty, robot_xy, sectors: int, d_max_m: float,
     magnitude = cell_magnitudes(certainty, distance, d_max_m)
     spread = np.arcsin(np.clip(enlarge_m / np.maximum(distance, 1e-9), 0.0, 1.0))
     spread = np.where(distance <= enlarge_m, math.pi / 2, spread)  # inside the margin: the whole half-plane
-    half_sector = math.pi / sectors
-    gap = np.abs(wrap_angle(sector_angles_rad(sectors)[None, :] - bearing[:, None]))
-    covered = gap <= spread[:, None] + half_sector
-    return covered.T.astype(float) @ magnitude
+    # each cell adds its magnitude to the sectors whose centre lies within spread + α/2 of
+    # its bearing: a run of sectors [first, last] (unwrapped), summed with a difference array
+    alpha = 2 * math.pi / sectors
+    reach = spread + 0.5 * alpha
+    first = np.ceil((bearing - reach + math.pi) / alpha - 0.5 - 1e-12).astype(int)
+    last = np.floor((bearing + reach + math.pi) / alpha - 0.5 + 1e-12).astype(int)
+    last = np.minimum(last, first + sectors - 1)
+    difference = np.zeros(3 * sectors + 1)
+    np.add.at(difference, first + sectors, magnitude)
+    np.add.at(difference, last + sectors + 1, -magnitude)
+    return np.cumsum(difference[:-1]).reshape(3, sectors).sum(axis=0)
 
 
 def smooth_histogram(histogram, half_width: int) -> np.ndarray:
@@ -157,16 +164,17 @@ class Vfh:
     name = "vfh"
 
     def __init__(self, *, seed: int = 0, goal_xy=None, grid: OccupancyGrid | None = None, sectors: int = 72,
-                 d_max_m: float = 1.6, margin_m: float = 0.08, smoothing: int = 2, low: float = 1.0, high: float = 2.5,
+                 d_max_m: float = 1.6, margin_m: float = 0.1, smoothing: int = 2, low: float = 1.0, high: float = 2.5,
                  s_max: int = 16, wander_period_s: float = 20.0, look_m=(0.45, 0.7, 0.95), look_side_m=0.2,
-                 relook_s: float = 5.0):
+                 relook_s: float = 5.0, near_m: float = ROBOT_RADIUS_M + 0.1):
         self.rng = np.random.default_rng(seed)
         self.goal_xy = goal_xy
         self.grid = grid if grid is not None else OccupancyGrid()
         self.sectors, self.d_max_m, self.enlarge_m = sectors, d_max_m, ROBOT_RADIUS_M + margin_m
         self.smoothing, self.low, self.high, self.s_max = smoothing, low, high, s_max
         self.wander_period_s = wander_period_s
-        angles, look = sector_angles_rad(sectors), np.asarray(look_m, dtype=float)
+        self._angles = angles = sector_angles_rad(sectors)
+        look = np.asarray(look_m, dtype=float)
         # per sector, the offsets of the cells that must have been seen for it to count as known:
         # along its centre line and ``look_side_m`` to either side (the disc's corridor)
         along, side = np.meshgrid(look, [-look_side_m, 0.0, look_side_m])
@@ -181,21 +189,23 @@ class Vfh:
         self._wander_until_s = 0.0
         self._look_sign = 1.0
         self._cleared_xy = None
-        self.relook_s = relook_s
+        self.relook_s, self.near_m = relook_s, near_m
         self._looked_s = np.full(sectors, -math.inf)  # when each sector was last in a scan's view
         self._window = (np.zeros((0, 2)), np.zeros(0))
 
     # ------------------------------------------------------------------ memory
 
-    def observe(self, situation: Situation) -> None:
-        """Put a new scan, the floor under the robot (free) and a bump into the grid."""
+    def observe(self, situation: Situation) -> bool:
+        """Put a new scan, the floor under the robot (free) and a bump into the grid; True when
+        there was a new scan."""
         x, y = situation.pose[:2]
         if self._cleared_xy is None or abs(x - self._cleared_xy[0]) + abs(y - self._cleared_xy[1]) > 0.05:
             self.grid.clear_footprint((x, y), ROBOT_RADIUS_M)
             self._cleared_xy = (x, y)
-        if situation.scan is not None and situation.scan is not self._last_scan and situation.scan_pose is not None:
+        fresh = situation.scan is not None and situation.scan is not self._last_scan and situation.scan_pose is not None
+        if fresh:
             self.grid.add_scan(situation.scan, situation.scan_pose)
-            bearings = wrap_angle(sector_angles_rad(self.sectors) - situation.scan_pose[2])
+            bearings = wrap_angle(self._angles - situation.scan_pose[2])
             scan = situation.scan
             self._looked_s[(bearings >= scan.angles_rad[0]) & (bearings <= scan.angles_rad[-1])] = situation.now_s
             self._last_scan = situation.scan
@@ -205,6 +215,7 @@ class Vfh:
             reach = ROBOT_RADIUS_M + 0.05
             self.grid.mark_occupied([[x + reach * math.cos(theta + side), y + reach * math.sin(theta + side)]],
                                     self.grid.limit)
+        return fresh
 
     def histogram(self, pose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(smoothed density, blocked, known) per sector at ``pose``."""
@@ -217,8 +228,10 @@ class Vfh:
         return smoothed, self._blocked.copy(), seen | self._blocked
 
     def _gap_ahead_m(self, pose) -> float:
-        """Free distance in the corridor the disc sweeps straight ahead (occupied cells of the
-        active window :meth:`histogram` last read)."""
+        """Free distance in the corridor the disc sweeps straight ahead, or 0 when an occupied
+        cell is within ``near_m`` of the centre in the front ±60° (the robot arcs as it turns:
+        beside an obstacle it turns in place first). Occupied cells of the active window
+        :meth:`histogram` last read."""
         cells, log_odds = self._window
         cells = cells[log_odds > 0.5]
         if len(cells) == 0:
@@ -226,6 +239,8 @@ class Vfh:
         c, s = math.cos(pose[2]), math.sin(pose[2])
         dx, dy = cells[:, 0] - pose[0], cells[:, 1] - pose[1]
         ahead, side = c * dx + s * dy, -s * dx + c * dy
+        if np.any((ahead > 0.5 * np.abs(side)) & (np.hypot(ahead, side) < self.near_m)):
+            return 0.0
         inside = (ahead > 0) & (np.abs(side) < ROBOT_RADIUS_M + 0.03)
         return float(ahead[inside].min() - ROBOT_RADIUS_M) if inside.any() else math.inf
 
@@ -235,7 +250,7 @@ class Vfh:
         """One VFH decision toward the world-frame heading ``goal_rad``."""
         pose = situation.pose
         smoothed, blocked, known = self.histogram(pose)
-        angles = sector_angles_rad(self.sectors)
+        angles = self._angles
         goal_sector = int(np.argmin(np.abs(wrap_angle(angles - goal_rad))))
         unlooked = situation.now_s - self._looked_s > self.relook_s  # not in the camera's view lately
         if not known[goal_sector] and unlooked[goal_sector]:
