@@ -3,6 +3,7 @@ navigators' behaviour in it (issue 44)."""
 
 import math
 
+import numpy as np
 import pytest
 
 from fgslam.navigate import make_navigator
@@ -36,6 +37,13 @@ def test_straight_and_arc_motion_in_an_empty_world():
     arc = drive(Obstacles(), _Constant(0.1, 0.5), (0.0, 0.0, 0.0), duration_s=2 * math.pi, dt_s=math.pi / 100)
     assert arc.path[-1][:2] == pytest.approx([0.0, 0.4], abs=1e-6) and math.cos(arc.path[-1][2]) == pytest.approx(-1.0)
     assert straight.bumps == arc.bumps == 0
+
+
+def test_odometry_noise_tells_the_navigator_a_drifting_pose():
+    nav = _Constant(0.2, 0.1)
+    result = drive(Obstacles(), nav, (0.0, 0.0, 0.0), duration_s=10.0, odometry_noise=0.1, seed=4)
+    told, truth = np.array(nav.seen[-1].pose), result.path[-2]
+    assert 1e-3 < np.hypot(*(told[:2] - truth[:2])) < 0.2 * 2.0  # drifted, by about 10 % of the 2 m driven
 
 
 def test_driving_into_a_wall_is_one_bump_and_stops_at_the_wall():

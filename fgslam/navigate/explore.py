@@ -157,7 +157,7 @@ class Explore:
     name = "explore"
 
     def __init__(self, *, seed: int = 0, grid: OccupancyGrid | None = None, replan_s: float = 1.0,
-                 reach_m: float = 0.35, stuck_s: float = 8.0, progress_m: float = 0.15, revisit_gap_s: float = 20.0,
+                 reach_m: float = 0.35, stuck_s: float = 6.0, progress_m: float = 0.15, revisit_gap_s: float = 20.0,
                  visits_wanted: int = 2, landmark_weight: float = 0.7, turn_cost_m_per_rad: float = 0.5):
         self.rng = np.random.default_rng(seed)
         self.grid = grid if grid is not None else OccupancyGrid()
@@ -289,15 +289,21 @@ class Explore:
         looking = self._look_around(situation)
         if looking is not None:
             return looking
-        if situation.now_s - self._replanned_s >= self.replan_s and not fresh_scan:  # not both in one step
+        # at most one heavy job a step besides steering (a scan, the map's offers, a choice),
+        # so that no step costs much more than the others
+        busy = fresh_scan
+        if situation.now_s - self._replanned_s >= self.replan_s and not busy:
             self._refresh(situation.now_s)
+            busy = True
             if (self.goal is not None and self.goal.kind == "frontier"
                     and not any(math.hypot(f[0] - self.goal.xy[0], f[1] - self.goal.xy[1]) < 0.3 for f in self._frontiers)):
                 self.goal = None  # seen from afar: that frontier is gone
         if self.goal is None:
+            if busy:
+                return limited_command(0.0, 0.0, "plan")  # choose next step
             self.goal = self._choose(situation)
         if self.goal is None:
-            command = self.vfh.steer(situation, self.vfh._goal_rad(situation))
+            command = self.vfh.steer(situation, self.vfh.goal_heading_rad(situation))
             return limited_command(command.speed_m_s, command.turn_rate_rad_s, "wander")
         if not self._progress(situation):
             self._abandon(situation)

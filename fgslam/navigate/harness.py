@@ -2,7 +2,9 @@
 
 No camera images, no SLAM: the robot is a unicycle disc (radius 0.17 m) whose pose the
 navigator is told exactly (or, with ``odometry_noise``, as dead reckoning with a fractional
-error on each step's distance and turn). Each step of ``dt_s``:
+error on each step's distance and turn, blind to sliding along walls; the landmarks it is
+told of stay at their true places, so that option only tests a drifting pose). Each step
+of ``dt_s``:
 
 * every ``scan_every_s`` a range scan is ray-cast from the true pose
   (:func:`slamio.scan.ray_cast_scan`, the Kinect's 57° by default, 4 m) and the landmarks in

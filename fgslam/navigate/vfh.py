@@ -276,7 +276,8 @@ class Vfh:
             speed = 0.0
         return limited_command(speed, turn_towards(error), "drive" if speed > 0 else "turn")
 
-    def _goal_rad(self, situation: Situation) -> float:
+    def goal_heading_rad(self, situation: Situation) -> float:
+        """The world-frame heading toward the goal point, or the wander heading (module docstring)."""
         x, y, theta = situation.pose
         if self.goal_xy is not None:
             return math.atan2(self.goal_xy[1] - y, self.goal_xy[0] - x)
@@ -293,4 +294,4 @@ class Vfh:
             self.backoff.start(situation, prefer_left=bool(self.rng.integers(2)))
         if self.backoff.active:
             return self.backoff.step(situation)
-        return self.steer(situation, self._goal_rad(situation))
+        return self.steer(situation, self.goal_heading_rad(situation))
