@@ -4,7 +4,7 @@ revisited, and the step's CPU time (median, 99th percentile, largest, of the cal
 what a step costs whatever else the machine runs) and its largest wall-clock time. Issue 44's goals: 0 bumps, never stuck > 10 s, ≥ 90 % of the
 landmarks seen and ≥ 80 % revisited.
 
-    .venv/bin/python scripts/navigate_report.py [--seeds 10] [--minutes 5] [NAME ...]
+    .venv/bin/python -m scripts.navigate_report [--seeds 10] [--minutes 5] [NAME ...]
 """
 
 from __future__ import annotations
