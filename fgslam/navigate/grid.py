@@ -1,0 +1,141 @@
+"""A log-odds occupancy grid built from range scans: the navigators' memory of what they saw.
+
+The Kinect sees 57° at a time and a scan is ~0.4 s old when it arrives, so a navigator that
+wants a wider view than the newest scan keeps what earlier scans showed: each scan, placed at
+the pose it was taken from, lowers the log-odds of the cells its rays crossed (free) and
+raises the cell each ray hit (occupied). A ray with no return (``inf``) is free to the scan's
+maximum range; an unknown ray (``nan``) changes nothing — unknown stays unknown, and a cell
+never crossed keeps log-odds 0 (:meth:`OccupancyGrid.known`).
+
+The grid is square, fixed in the map frame, centred on ``centre_xy``; rays leaving it are cut
+at its edge. Each cell is updated at most once per scan (however many rays cross it), as in
+Borenstein and Koren's histogram grid.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from slamio.scan import Scan
+
+__all__ = ["OccupancyGrid"]
+
+
+class OccupancyGrid:
+    """Log-odds per cell, rows = y, columns = x (module docstring)."""
+
+    def __init__(self, half_size_m: float = 10.0, resolution_m: float = 0.1, centre_xy=(0.0, 0.0),
+                 hit_log_odds: float = 0.9, free_log_odds: float = -0.4, limit_log_odds: float = 3.5):
+        self.resolution_m = float(resolution_m)
+        self.cells = int(math.ceil(2 * half_size_m / resolution_m))
+        self.origin_xy = (centre_xy[0] - 0.5 * self.cells * resolution_m, centre_xy[1] - 0.5 * self.cells * resolution_m)
+        self.log_odds = np.zeros((self.cells, self.cells), dtype=np.float32)
+        self.hit, self.free, self.limit = hit_log_odds, free_log_odds, limit_log_odds
+        self._footprint = None
+
+    # ------------------------------------------------------------------ coordinates
+
+    def index(self, xy) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(row, column, inside) of map-frame points ``xy`` (n, 2)."""
+        xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+        col = np.floor((xy[:, 0] - self.origin_xy[0]) / self.resolution_m).astype(int)
+        row = np.floor((xy[:, 1] - self.origin_xy[1]) / self.resolution_m).astype(int)
+        inside = (row >= 0) & (row < self.cells) & (col >= 0) & (col < self.cells)
+        return row, col, inside
+
+    def centres(self, row, col) -> np.ndarray:
+        """Map-frame centres (n, 2) of cells."""
+        return np.column_stack([self.origin_xy[0] + (np.asarray(col) + 0.5) * self.resolution_m,
+                                self.origin_xy[1] + (np.asarray(row) + 0.5) * self.resolution_m])
+
+    def values_at(self, xy, outside: float = 0.0) -> np.ndarray:
+        """Log-odds at map-frame points (``outside`` for points off the grid)."""
+        row, col, inside = self.index(xy)
+        values = np.full(len(row), outside, dtype=float)
+        values[inside] = self.log_odds[row[inside], col[inside]]
+        return values
+
+    # ------------------------------------------------------------------ updates
+
+    def add_scan(self, scan: Scan, scan_pose) -> None:
+        """Integrate one scan taken at ``scan_pose`` (module docstring)."""
+        known = scan.known
+        if not known.any():
+            return
+        angles = scan.angles_rad[known] + scan_pose[2]
+        ranges = scan.ranges_m[known]
+        hit = np.isfinite(ranges)
+        free_to = np.where(hit, ranges - 0.5 * self.resolution_m, scan.max_range_m)
+        step = 0.7 * self.resolution_m
+        samples = np.arange(0.0, scan.max_range_m + step, step)
+        along = samples[None, :] <= free_to[:, None]  # (rays, samples)
+        ray, sample = np.nonzero(along)
+        distance = samples[sample]
+        xy = np.column_stack([scan_pose[0] + distance * np.cos(angles[ray]),
+                              scan_pose[1] + distance * np.sin(angles[ray])])
+        row, col, inside = self.index(xy)
+        flat = row[inside] * self.cells + col[inside]  # repeats write the same value: once per scan
+        grid = self.log_odds.reshape(-1)
+        grid[flat] = np.maximum(grid[flat] + self.free, -self.limit)
+        if hit.any():
+            ends = np.column_stack([scan_pose[0] + ranges[hit] * np.cos(angles[hit]),
+                                    scan_pose[1] + ranges[hit] * np.sin(angles[hit])])
+            self.mark_occupied(ends)
+
+    def mark_occupied(self, xy, log_odds: float | None = None) -> None:
+        """Raise the cells holding ``xy`` (a hit, or where the bumper was pressed)."""
+        row, col, inside = self.index(xy)
+        flat = row[inside] * self.cells + col[inside]
+        grid = self.log_odds.reshape(-1)
+        grid[flat] = np.minimum(grid[flat] + (self.hit if log_odds is None else log_odds), self.limit)
+
+    def clear_footprint(self, xy, radius_m: float) -> None:
+        """Mark the unknown cells under the robot's disc at ``xy`` free: the robot stands there
+        (a depth camera never sees the floor it stands on, and such pockets would look like
+        frontiers). Cells already known keep their value."""
+        if self._footprint is None or self._footprint[0] != radius_m:
+            reach = int(math.ceil(radius_m / self.resolution_m))
+            offsets = np.arange(-reach, reach + 1) * self.resolution_m
+            dx, dy = np.meshgrid(offsets, offsets)
+            inside = dx**2 + dy**2 <= radius_m**2
+            self._footprint = (radius_m, np.column_stack([dx[inside], dy[inside]]))
+        row, col, ok = self.index(self._footprint[1] + np.asarray(xy[:2], dtype=float))
+        row, col = row[ok], col[ok]
+        unknown = self.log_odds[row, col] == 0
+        self.log_odds[row[unknown], col[unknown]] = 2 * self.free
+
+    # ------------------------------------------------------------------ queries
+
+    def window(self, xy, radius_m: float) -> tuple[np.ndarray, np.ndarray]:
+        """The cells within a square of half-size ``radius_m`` around ``xy``: their map-frame
+        centres (n, 2) and log-odds (n,), for the histogram's active window."""
+        row, col, _ = self.index([xy])
+        reach = int(math.ceil(radius_m / self.resolution_m))
+        r0, r1 = max(row[0] - reach, 0), min(row[0] + reach + 1, self.cells)
+        c0, c1 = max(col[0] - reach, 0), min(col[0] + reach + 1, self.cells)
+        if r0 >= r1 or c0 >= c1:
+            return np.zeros((0, 2)), np.zeros(0)
+        block = self.log_odds[r0:r1, c0:c1]
+        rows, cols = np.nonzero(block > 0)
+        return self.centres(rows + r0, cols + c0), block[rows, cols].astype(float)
+
+    def bounds(self, margin: int = 2) -> tuple[slice, slice]:
+        """(rows, columns) slices of the smallest block holding every known cell, plus
+        ``margin`` cells (an empty block before the first scan)."""
+        rows, cols = np.nonzero(np.any(self.log_odds != 0, axis=1))[0], np.nonzero(np.any(self.log_odds != 0, axis=0))[0]
+        if len(rows) == 0:
+            return slice(0, 0), slice(0, 0)
+        return (slice(max(rows[0] - margin, 0), min(rows[-1] + margin + 1, self.cells)),
+                slice(max(cols[0] - margin, 0), min(cols[-1] + margin + 1, self.cells)))
+
+    def known(self) -> np.ndarray:
+        """True for cells some ray crossed or ended in."""
+        return self.log_odds != 0
+
+    def free_mask(self, threshold: float = -0.3) -> np.ndarray:
+        return self.log_odds < threshold
+
+    def occupied_mask(self, threshold: float = 0.5) -> np.ndarray:
+        return self.log_odds > threshold
