@@ -26,11 +26,13 @@ def colour_front_end(camera, options: ColourOptions):
 
 
 def simulated_kinect(sim, options: ColourOptions = ColourOptions(), *, supersample: int = 1,
-                     pixel_noise: float = 2.0, seed: int = 0):
+                     pixel_noise: float = 2.0, seed: int = 0, scene=None, camera=None):
     """``(grab_for, front_end, truth_landmarks)`` for a simulated Kinect seeing the arena's cylinders.
 
     Each landmark of ``options`` named in :data:`ARENA_CYLINDER_XY` is placed there with its
-    width and height (0.40 m when the file gives none) and rendered in that colour.
+    width and height (0.40 m when the file gives none) and rendered in that colour. A
+    ``scene`` (e.g. the clutter room's, :meth:`slamio.clutter.ClutterWorld.scene`) replaces
+    the arena: its cylinders with an id are the truth; ``camera`` replaces the Kinect's mount.
     """
     from slamio.camera.model import T_robot_camera_from_mount, kinect_v1_default
     from slamio.camera.render import CYLINDER_BGR, CylinderSpec, Scene, render
@@ -41,8 +43,12 @@ def simulated_kinect(sim, options: ColourOptions = ColourOptions(), *, supersamp
                      c.landmark_id)
         for c in options.colours if c.name in ARENA_CYLINDER_XY and c.name in CYLINDER_BGR
     )
-    scene = Scene(cylinders=cylinders)
-    camera = kinect_v1_default(T_robot_camera_from_mount(x_m=0.10, z_m=0.30))
+    if scene is None:
+        scene = Scene(cylinders=cylinders)
+    else:
+        cylinders = tuple(c for c in scene.cylinders if c.landmark_id is not None)
+    if camera is None:
+        camera = kinect_v1_default(T_robot_camera_from_mount(x_m=0.10, z_m=0.30))
     front_end = colour_front_end(camera, options)
     rng = np.random.default_rng(seed)  # used only in the camera worker
 

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+import fgslam.cli.live_navigate as live_navigate
 from fgslam.cli.common import add_overwrite_option, add_verb, check_new_file, check_number
 from fgslam.cli.progress import Progress
 from fgslam.cli.robot_end import report_end, robot_session, say
@@ -68,7 +69,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
                     help="drive the Create on the iSAM2 pose with the camera in the loop; record it all")
     live.add_argument("--port", required=True, help="serial port (e.g. /dev/ttyUSB0) or 'sim'")
     live.add_argument("--model", choices=("create1", "create2"), default="create2")
-    live.add_argument("--path", default="octagon", help="square, octagon or a waypoint file (default octagon)")
+    live.add_argument("--path", default=None, help="square, octagon or a waypoint file (default octagon)")
     live.add_argument("--laps", type=int, default=1)
     live.add_argument("--side", type=float, default=ARENA_PATH_WIDTH_M, metavar="M",
                       help=f"square/octagon width across flats (default {ARENA_PATH_WIDTH_M} m)")
@@ -103,6 +104,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     live.add_argument("--sim-seed", type=int, default=1)
     live.add_argument("--sim-unplug-after", type=float, default=None, metavar="S",
                       help="simulation: pull the simulated cable after S robot seconds (fault test)")
+    live_navigate.add_options(live)
     live.set_defaults(func=cmd_live)
     return live
 
@@ -133,6 +135,9 @@ def _check_inside_arena(waypoints: np.ndarray, start_pose, path: str, *, given_s
                 "would drive into a wall")
 
 
+#: Where a navigator starts in seed 004's arena when --start-pose is not given: its centre, facing +x.
+DEFAULT_NAVIGATE_START = (1.524, 1.524, 0.0)
+
 #: The Create's top wheel speed (slamio.create.record refuses more, but only once the robot is up).
 MAX_SPEED_M_S = 0.5
 
@@ -140,6 +145,9 @@ MAX_SPEED_M_S = 0.5
 def _check_options(args: argparse.Namespace) -> None:
     """Every option, before the port is opened and the robot moves: a bad value is one line
     naming the option, never a stop after pose 0 (or a robot driving something else)."""
+    path_given = args.path is not None
+    args.path = args.path or "octagon"
+    live_navigate.check_options(args, path_given)
     if args.laps < 1:
         raise FgslamError(f"--laps must be >= 1 (how many times the path is driven); got {args.laps}")
     if args.port == "sim" and (args.camera is not None or args.frames is not None):
@@ -190,10 +198,16 @@ def cmd_live(args: argparse.Namespace) -> int:
     window_poses = _window_poses(args)
     sensor = ({"kind": "range-bearing", "landmark_kind": "coloured-cylinder", "source": "fgslam live"}
               if args.kind == "colour" else None)
-    waypoints = _waypoints(args)
-    start_pose = tuple(args.start_pose) if args.start_pose else start_pose_facing(waypoints)
-    if args.port == "sim":
-        _check_inside_arena(waypoints, start_pose, args.path, given_start=args.start_pose is not None)
+    world = live_navigate.clutter_world(args) if args.world == "clutter" else None
+    waypoints = _waypoints(args) if args.navigate is None else np.zeros((0, 2))
+    if world is not None:
+        start_pose = live_navigate.start_pose_of(world, args)
+        live_navigate.check_inside_room(world, waypoints, start_pose, given_start=args.start_pose is not None)
+    else:
+        start_pose = (tuple(args.start_pose) if args.start_pose else
+                      start_pose_facing(waypoints) if len(waypoints) else DEFAULT_NAVIGATE_START)
+        if args.port == "sim":
+            _check_inside_arena(waypoints, start_pose, args.path, given_start=args.start_pose is not None)
     settings = LiveSettings(speed_m_s=args.speed, command_timeout_s=args.watchdog, data_timeout_s=args.watchdog)
     status = Progress(unit="poses")
     last_map = [0.0]
@@ -209,7 +223,8 @@ def cmd_live(args: argparse.Namespace) -> int:
             return (f"pose {index:5d}  x {x:6.3f} y {y:6.3f} m ±{max(sigma[:2]):.3f}  θ {math.degrees(th):6.1f}° "
                     f"±{math.degrees(sigma[2]):.1f}  landmarks {len(smoother.landmarks()):2d}  "
                     f"iSAM2 {1e3 * latency_s:5.2f} ms (max {worst_ms[0]:5.2f})  "
-                    f"frames {loop.frames_used} used, {loop.frames_skipped + loop.frames_dropped} dropped")
+                    f"frames {loop.frames_used} used, {loop.frames_skipped + loop.frames_dropped} dropped"
+                    + live_navigate.status_text(loop))
 
         status.status(index + 1, text)
         if args.map_png and time.monotonic() - last_map[0] > 2.0:
@@ -221,34 +236,33 @@ def cmd_live(args: argparse.Namespace) -> int:
     with robot_session((args.out, "--out"), (args.map_png, "--map-png")) as signals:  # one writer per log; every terminating signal stops the robot
         check_new_file(args.out, overwrite=args.overwrite)  # again, under the lock
         result, sim_truth = _drive(args, waypoints, start_pose, settings, status, on_step, sensor, window_poses,
-                                   signals)
+                                   signals, world)
         with signals.held(raise_after=False):  # the robot is stopped: what is left is to say so
             return _report(args, result, sim_truth)
 
 
-def _drive(args, waypoints, start_pose, settings, status, on_step, sensor, window_poses, signals):
+def _drive(args, waypoints, start_pose, settings, status, on_step, sensor, window_poses, signals, world):
     """Start the simulator (--port sim) or the camera, open the link, run the live loop.
     Returns the :class:`LiveResult` and the simulator's true end pose (None: a real robot)."""
-    from fgslam.live import run_live, simulated_camera
+    from fgslam.live import Lockstep, run_live
     from slamio.create.link import CreateLink
 
     sim = link = None
     true_pose = None
     unplug_timer = None
     odometry_noise = None  # a real robot: the recorder's nominal model
+    lockstep = scan_camera = navigator = None
     try:
         if args.port == "sim":
             from slamio.create.sim import SimulatedCreate
 
+            room = live_navigate.clutter_sim_kwargs(world) if world is not None else {}
             sim = SimulatedCreate(args.model, seed=args.sim_seed, time_scale=args.sim_time_scale,
-                                  start_pose=start_pose).start()
-            if args.kind == "colour":
-                from fgslam.live_colour import simulated_kinect
-
-                grab_for, front_end, truth_landmarks = simulated_kinect(sim, _colour_options(args), seed=args.sim_seed)
-            else:
-                grab_for, front_end, truth_landmarks = simulated_camera(sim, seed=args.sim_seed,
-                                                                        tag_size_m=args.tag_size)
+                                  start_pose=start_pose, **room).start()
+            grab_for, front_end, truth_landmarks, scan_camera = live_navigate.sim_frames(
+                world, args, sim, _colour_options(args) if args.kind == "colour" else None)
+            if args.navigate is not None:  # the same run on any machine: frames and steps take fixed robot time
+                lockstep = Lockstep(sim)
             port, clock, truth = sim.port, sim.clock, (lambda: sim.true_pose)
             odometry_noise = sim.odometry_noise  # the log states what the simulated encoders do
             if args.sim_unplug_after is not None:
@@ -261,13 +275,19 @@ def _drive(args, waypoints, start_pose, settings, status, on_step, sensor, windo
                 unplug_timer.start()
         else:
             grab_for, front_end = _real_camera(args)
+            scan_camera = getattr(front_end, "camera", None)
             port, clock, truth, truth_landmarks = args.port, time.monotonic, None, ()
+        if args.navigate is not None:
+            from fgslam.navigate import make_navigator
+
+            navigator = make_navigator(args.navigate, seed=args.sim_seed)
         link = CreateLink(port, args.model, baud=args.baud)
         link.open()  # a port that does not open is a user error (exit 1), before the log exists
         result = run_live(link, args.out, waypoints, start_pose=start_pose, grab_for=grab_for, front_end=front_end,
                           settings=settings, truth=truth, truth_landmarks=truth_landmarks, clock=clock,
                           odometry_noise=odometry_noise, on_step=on_step, sensor=sensor, window_poses=window_poses,
-                          overwrite=args.overwrite, signals=signals)
+                          overwrite=args.overwrite, signals=signals, lockstep=lockstep, navigator=navigator,
+                          scan_camera=scan_camera, duration_s=args.duration, until_landmarks=args.until_landmarks)
     finally:
         with signals.held(raise_after=False):
             status.close()
@@ -289,6 +309,8 @@ def _report(args, result, true_pose) -> int:
     if len(lat):
         say(f"iSAM2 step latency: median {np.median(lat):.2f} ms, p99 {np.percentile(lat, 99):.2f} ms, "
             f"max {lat.max():.2f} ms", sys.stdout)
+    for line in live_navigate.report_lines(result):
+        say(line, sys.stdout)
     x, y, th = result.final_pose
     say(f"final iSAM2 pose: x {x:.3f} m, y {y:.3f} m, θ {math.degrees(th):.1f}°; "
         f"{len(result.landmarks)} landmarks", sys.stdout)

@@ -33,6 +33,7 @@ class LiveResult:
     latencies_s: np.ndarray  # wall time of every smoother step
     frame_seconds: np.ndarray  # wall time of every frame (grab + detection)
     landmarks: dict[int, tuple[float, float]] = field(default_factory=dict)
+    navigator_step_s: np.ndarray = field(default_factory=lambda: np.zeros(0))  # CPU of each navigator step
 
     @property
     def completed(self) -> bool:
@@ -50,8 +51,11 @@ class LiveLoop:
     def __init__(self, tracker: PoseTracker, camera: CameraWorker | None, smoother: SmootherWorker,
                  grab_for: Callable[[int, Odometry], Callable[[], object]] | None,
                  settings: LiveSettings = LiveSettings(), truth: Callable[[], tuple[float, float, float]] | None = None,
-                 truth_landmarks: Sequence[TruthLandmark] = (), lockstep: Lockstep | None = None):
+                 truth_landmarks: Sequence[TruthLandmark] = (), lockstep: Lockstep | None = None,
+                 until: Callable[[float], bool | str] | None = None):
         self.tracker = tracker
+        self.until = until
+        self.controller = None  # what drives (set by run_live): the status line shows a navigator's state
         self._control = ControlHold(lockstep) if lockstep is not None else None
         self.camera = camera
         self.smoother = smoother
@@ -105,6 +109,11 @@ class LiveLoop:
             else:
                 return False
         return now_s - self._last_record_s >= self.s.record_period_s - SAME_TIME_S
+
+    def finished(self, now_s: float) -> bool | str:
+        """The recorder's question after each pass: is the run over? (``until``: e.g. enough
+        landmarks seen; a string says why.) Ending is the recorder's, with the robot stopped."""
+        return self.until(now_s) if self.until is not None else False
 
     def after_record(self, record, log: LogWriter) -> None:
         self._log = log

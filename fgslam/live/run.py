@@ -9,6 +9,7 @@ from typing import Callable
 import numpy as np
 
 from fgslam.live.loop import LiveLoop, LiveResult
+from fgslam.live.navigation import NavigatingController, ScanSlot, Sightings, navigating_camera
 from fgslam.live.steering import LiveSettings, PoseTracker, WaypointFollower
 from fgslam.live.workers import CameraWorker, Lockstep, SmootherWorker
 from slamio.errors import FgslamError
@@ -61,11 +62,13 @@ def live_sim_camera(mount_height_m: float = 0.2):
 
 
 def simulated_camera(sim, *, supersample: int = 1, pixel_noise: float = 2.0, seed: int = 0,
-                     tag_size_m: float = 0.16, mount_height_m: float = 0.2):
-    """The camera of a hardware-in-the-loop run: seed 004's eight arena tags rendered from
-    the simulated Create's true pose at the instant each pose is made. Its observations
-    carry the noise those frames have (:func:`live_sim_tag_noise`), so a replay of the log
-    is consistent.
+                     tag_size_m: float = 0.16, mount_height_m: float = 0.2, scene=None, camera=None,
+                     depth_model: str = "ideal"):
+    """The camera of a hardware-in-the-loop run: seed 004's eight arena tags (or ``scene``,
+    e.g. the clutter room's, seen by ``camera``) rendered from the simulated Create's true
+    pose at the instant each pose is made. Its observations carry the noise those frames
+    have (:func:`live_sim_tag_noise`), so a replay of the log is consistent. Each frame has
+    its registered depth (``depth_model``), from which a navigator's scan is made.
 
     Returns ``(grab_for, front_end, truth_landmarks)``: ``grab_for(index, odometry,
     true_pose=None)`` takes ``true_pose`` (the truth the live loop has just written) or
@@ -76,8 +79,8 @@ def simulated_camera(sim, *, supersample: int = 1, pixel_noise: float = 2.0, see
     from slamio.camera.render import render
     from slamio.camera.sources import Frame
 
-    scene = arena_tag_scene(tag_size_m)
-    camera = live_sim_camera(mount_height_m)
+    scene = arena_tag_scene(tag_size_m) if scene is None else scene
+    camera = live_sim_camera(mount_height_m) if camera is None else camera
     front_end = FrontEnd(camera, FrontEndConfig(tag_size_m=tag_size_m, noise=live_sim_tag_noise(tag_size_m)))
     rng = np.random.default_rng(seed)  # used only in the camera worker
 
@@ -85,7 +88,8 @@ def simulated_camera(sim, *, supersample: int = 1, pixel_noise: float = 2.0, see
         pose = sim.true_pose if true_pose is None else true_pose  # now, or the truth the loop just wrote
 
         def grab():
-            frame = render(camera, pose, scene, supersample=supersample, noise_sigma=pixel_noise, rng=rng)
+            frame = render(camera, pose, scene, supersample=supersample, noise_sigma=pixel_noise, rng=rng,
+                           depth_model=depth_model)
             return Frame(odometry.stamp_s, index, f"sim:{index}", frame.bgr, frame.depth_m)
 
         return grab
@@ -154,7 +158,8 @@ def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front
              clock: Callable[[], float] = time.monotonic, sensor: dict | None = None,
              observation_noise: dict | None = None, odometry_noise=None, on_step=None,
              lockstep: Lockstep | None = None, window_poses: int | None = LIVE_WINDOW_POSES,
-             overwrite: bool = False, signals=None) -> LiveResult:
+             overwrite: bool = False, signals=None, navigator=None, scan_camera=None,
+             duration_s: float | None = None, until_landmarks: int | None = None) -> LiveResult:
     """Drive ``waypoints`` on the robot behind ``link`` with iSAM2 in the loop; log to
     ``out_path``. ``grab_for``/``front_end`` give the camera (None: odometry only);
     ``smoother`` defaults to :class:`fgslam.smoother.Isam2Smoother` with its defaults and a
@@ -175,7 +180,13 @@ def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front
 
     ``overwrite`` and ``signals`` go to :func:`slamio.create.record.record`: the log replaces
     an existing ``out_path`` only once the robot has answered, and the terminating signals
-    stop the robot (the caller installs ``signals``; None: the recording installs its own)."""
+    stop the robot (the caller installs ``signals``; None: the recording installs its own).
+
+    ``navigator`` (a :mod:`fgslam.navigate` policy) drives instead of ``waypoints``: it steers
+    by the obstacle scan of each frame's depth (``scan_camera``: the depth's intrinsics and
+    mount, :mod:`fgslam.live.navigation`); a bump stops the wheels, is logged as an event and
+    the navigator backs off, the run goes on. ``duration_s`` (robot seconds) and
+    ``until_landmarks`` (that many landmarks seen) end the run normally."""
     from slamio.create.record import record
     from slamio.create.record_settings import RecorderSettings
 
@@ -186,25 +197,46 @@ def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front
     if smoother is None:
         smoother = _default_smoother(start_pose, front_end, window_poses)
     tracker = PoseTracker(start_pose)
+    scans, sightings = ScanSlot(), Sightings()
     camera = None
     if grab_for is not None and front_end is not None:
-        camera = CameraWorker(lambda frame: front_end.process(frame).observations, lockstep=lockstep)
-    def step_hook(index, smoother_, latency):
-        on_step(index, smoother_, latency, loop)
+        if navigator is not None:
+            grab_for, process = navigating_camera(front_end, grab_for, tracker.current, scans, sightings, scan_camera)
+        else:
+            def process(frame):
+                return front_end.process(frame).observations
+        camera = CameraWorker(process, lockstep=lockstep)
 
-    worker = SmootherWorker(smoother, tracker, step_hook if on_step is not None else None, lockstep=lockstep)
-    loop = LiveLoop(tracker, camera, worker, grab_for, settings, truth, truth_landmarks, lockstep=lockstep)
+    def step_hook(index, smoother_, latency):
+        if navigator is not None and index % 10 == 0:  # the map the navigator revisits, once a second
+            sightings.mapped(smoother_.landmarks())
+        if on_step is not None:
+            on_step(index, smoother_, latency, loop)
+
+    worker = SmootherWorker(smoother, tracker, step_hook, lockstep=lockstep)
+    def enough_landmarks(now_s):
+        seen = sightings.landmarks_seen
+        return f"saw {seen} landmarks (--until-landmarks {until_landmarks})" if seen >= until_landmarks else False
+
+    loop = LiveLoop(tracker, camera, worker, grab_for, settings, truth, truth_landmarks, lockstep=lockstep,
+                    until=enough_landmarks if until_landmarks is not None else None)
     worker.submit(Step(0, 0.0, None, (), None))  # pose 0: the start pose (lockstep: the clock stands already)
-    follower = WaypointFollower(waypoints, tracker.current, settings, on_advance=tracker.advance)
+    if navigator is not None:
+        follower = NavigatingController(navigator, tracker.current, scans, sightings, accel_m_s2=settings.accel_m_s2,
+                                        on_advance=tracker.advance)
+    else:
+        follower = WaypointFollower(waypoints, tracker.current, settings, on_advance=tracker.advance)
+    loop.controller = follower  # the status line shows a navigator's state
     recorder = RecorderSettings(speed_m_s=settings.speed_m_s, turn_rate_rad_s=settings.turn_rate_rad_s,
                                 accel_m_s2=settings.accel_m_s2, record_period_s=settings.record_period_s,
-                                command_timeout_s=settings.command_timeout_s, data_timeout_s=settings.data_timeout_s)
+                                command_timeout_s=settings.command_timeout_s, data_timeout_s=settings.data_timeout_s,
+                                duration_s=duration_s, bump_ends_run=navigator is None)
     sensor, observation_noise = _sensor_header(sensor, observation_noise, front_end if camera is not None else None)
     try:
         result = record(link, out_path, follower, settings=recorder, clock=clock, hooks=loop,
                         start_pose=start_pose, sensor=sensor, observation_noise=observation_noise,
                         noise=odometry_noise, overwrite=overwrite, signals=signals,
-                        source={"generator": "fgslam.live", "waypoints": np.asarray(waypoints).tolist()})
+                        source=_source(waypoints, navigator))
     finally:
         loop.close()
     if worker.error is not None:  # after the last record: the recorder did not see it
@@ -222,4 +254,12 @@ def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front
         latencies_s=np.array(worker.latencies_s),
         frame_seconds=np.array(camera.frame_seconds if camera else []),
         landmarks=dict(smoother.landmarks()),
+        navigator_step_s=np.array(getattr(follower, "step_seconds", [])),
     )
+
+
+def _source(waypoints, navigator) -> dict:
+    """The header's ``source`` of a live run: the waypoints driven, or the navigator that drove."""
+    if navigator is not None:
+        return {"generator": "fgslam.live", "navigator": navigator.name}
+    return {"generator": "fgslam.live", "waypoints": np.asarray(waypoints).tolist()}

@@ -13,7 +13,7 @@ import numpy as np
 from slamio.create.controllers import WheelRamp
 from slamio.create.odometry import WHEEL_BASE_M
 from slamio.create.record_settings import SAME_TIME_S
-from slamio.errors import FgslamError, InputFileError, read_text
+from slamio.errors import InputFileError, read_text
 from slamio.geometry import arc_increment, between_pose, compose_pose, wrap_angle
 from slamio.log import Odometry
 
