@@ -92,3 +92,16 @@ def test_the_controller_hands_the_navigator_its_situation_and_a_bump():
     told, after = navigator.seen[2], navigator.seen[3]
     assert told.bumped and told.bump_side == "front"  # a press between two steps is not lost
     assert not after.bumped and controller.state == "drive"
+
+
+def test_the_run_ends_normally_once_enough_landmarks_are_seen(tmp_path, capsys):
+    out = tmp_path / "until.jsonl"
+    code = main(["live", "--port", "sim", "--navigate", "explore", "--until-landmarks", "2", "--duration", "120",
+                 "--sim-seed", "2", "--sim-time-scale", "20", "--out", str(out)])
+    captured = capsys.readouterr()
+    said = captured.out + captured.err
+    assert code == 0, said
+    assert "saw 2 landmarks (--until-landmarks 2)" in said and "robot stopped (confirmed)" in said
+    seen = {r.landmark_id for r in read_log(out).records if isinstance(r, Observation)}
+    assert len(seen) >= 2
+    assert read_log(out).steps()[-1].stamp_s < 120.0  # long before the duration
