@@ -208,7 +208,10 @@ def cmd_live(args: argparse.Namespace) -> int:
                       start_pose_facing(waypoints) if len(waypoints) else DEFAULT_NAVIGATE_START)
         if args.port == "sim":
             _check_inside_arena(waypoints, start_pose, args.path, given_start=args.start_pose is not None)
-    settings = LiveSettings(speed_m_s=args.speed, command_timeout_s=args.watchdog, data_timeout_s=args.watchdog)
+    watchdog = args.watchdog
+    if args.port == "sim" and args.navigate is not None:  # lockstep: the robot streams nothing while its clock stands
+        watchdog = max(watchdog, live_navigate.LOCKSTEP_WATCHDOG_S)
+    settings = LiveSettings(speed_m_s=args.speed, command_timeout_s=watchdog, data_timeout_s=watchdog)
     status = Progress(unit="poses")
     last_map = [0.0]
 

@@ -12,6 +12,12 @@ from slamio.errors import FgslamError
 
 WORLDS = ("arena", "clutter")
 
+#: The watchdog (wall seconds) of a simulated navigated run. It runs in lockstep: the
+#: simulated clock stands while a frame is rendered, detected and scanned, and the robot
+#: streams nothing meanwhile — but neither does it move, so a busy machine's long frame is
+#: no hazard (fgslam.live.Lockstep). A real robot keeps --watchdog.
+LOCKSTEP_WATCHDOG_S = 30.0
+
 
 def add_options(live: argparse.ArgumentParser) -> None:
     from fgslam.navigate import NAVIGATORS

@@ -52,9 +52,11 @@ class LiveLoop:
                  grab_for: Callable[[int, Odometry], Callable[[], object]] | None,
                  settings: LiveSettings = LiveSettings(), truth: Callable[[], tuple[float, float, float]] | None = None,
                  truth_landmarks: Sequence[TruthLandmark] = (), lockstep: Lockstep | None = None,
-                 until: Callable[[float], bool | str] | None = None):
+                 until: Callable[[float], bool | str] | None = None,
+                 on_observations: Callable[[Sequence[Observation]], None] | None = None):
         self.tracker = tracker
         self.until = until
+        self.on_observations = on_observations
         self.controller = None  # what drives (set by run_live): the status line shows a navigator's state
         self._control = ControlHold(lockstep) if lockstep is not None else None
         self.camera = camera
@@ -155,6 +157,8 @@ class LiveLoop:
         for o in observations:
             self._log.write(o)
         self.observations += len(observations)
+        if self.on_observations is not None:  # as they enter the log: what --until-landmarks counts
+            self.on_observations(observations)
         self._log.flush()
 
     def _write_latencies(self) -> None:

@@ -6,8 +6,8 @@ in, a speed and turn rate out. This module gives them what the live loop has:
 * :class:`ScanSlot` — the newest obstacle scan and the pose estimate it was taken from. The
   camera worker fills it from each frame's registered depth
   (:func:`slamio.camera.depth_scan.depth_scan`) while it looks for landmarks in the same frame;
-* :class:`Sightings` — every landmark observation the front-end made, counted per landmark,
-  and the newest map the smoother published;
+* :class:`Sightings` — every landmark observation written to the log, counted per landmark
+  (the live loop tells it), and the newest map the smoother published;
 * :class:`NavigatingController` — the recorder's controller (as
   :class:`~fgslam.live.steering.WaypointFollower` is for ``--path``): each pass of the control
   loop it asks the navigator for a command on the pose the loop steers by
@@ -80,6 +80,18 @@ class Sightings:
         with self._lock:
             return len(self._counts)
 
+    def until(self, landmarks: int | None) -> Callable[[float], bool | str] | None:
+        """The live loop's end test for ``--until-landmarks``: true (a reason) once that many
+        different landmarks have been seen; None when no count is asked for."""
+        if landmarks is None:
+            return None
+
+        def enough(now_s: float) -> bool | str:
+            seen = self.landmarks_seen
+            return f"saw {seen} landmarks (--until-landmarks {landmarks})" if seen >= landmarks else False
+
+        return enough
+
 
 class NavigatingController:
     """The recorder's controller when a navigator drives: :meth:`command` gives (left, right)
@@ -131,15 +143,16 @@ class NavigatingController:
         return self._ramp((1000.0 * left, 1000.0 * right), now_s)
 
 
-def navigating_camera(front_end, grab_for, estimate: Callable[[], tuple[float, float, float]], scans: ScanSlot,
-                      sightings: Sightings, scan_camera):
-    """The camera worker's parts when a navigator drives: ``(grab_for, process)``.
+def navigating_camera(front_end, grab_for, estimate: Callable[[], tuple[float, float, float]],
+                      scans: ScanSlot | None, scan_camera):
+    """The camera worker's parts: ``(grab_for, process)``.
 
     ``grab_for`` notes the pose estimate each frame is asked for at (the control loop's
     :class:`~fgslam.live.steering.PoseTracker`, ``estimate``); ``process`` runs the landmark
-    front-end on the frame, counts what it saw in ``sightings`` and, when the frame has a
-    registered depth image, offers its obstacle scan (from ``scan_camera``'s intrinsics and
-    mount) with that pose to ``scans``. The frames are the landmarks' frames: one grab, both uses.
+    front-end on the frame and, when a navigator drives (``scans`` given) and the frame has a
+    registered depth image, offers its obstacle scan
+    (from ``scan_camera``'s intrinsics and mount) with that pose to ``scans``. The frames are
+    the landmarks' frames: one grab, both uses.
     """
     from slamio.camera.depth_scan import depth_scan
 
@@ -155,10 +168,9 @@ def navigating_camera(front_end, grab_for, estimate: Callable[[], tuple[float, f
 
     def process(frame):
         observations = front_end.process(frame).observations
-        sightings.seen(observations)
         with lock:
             pose = asked_at.pop(frame.index, None)
-        if pose is not None and getattr(frame, "depth_m", None) is not None:
+        if scans is not None and pose is not None and getattr(frame, "depth_m", None) is not None:
             scans.offer(depth_scan(frame.depth_m, scan_camera), pose)
         return observations
 

@@ -198,14 +198,7 @@ def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front
         smoother = _default_smoother(start_pose, front_end, window_poses)
     tracker = PoseTracker(start_pose)
     scans, sightings = ScanSlot(), Sightings()
-    camera = None
-    if grab_for is not None and front_end is not None:
-        if navigator is not None:
-            grab_for, process = navigating_camera(front_end, grab_for, tracker.current, scans, sightings, scan_camera)
-        else:
-            def process(frame):
-                return front_end.process(frame).observations
-        camera = CameraWorker(process, lockstep=lockstep)
+    camera, grab_for = _camera(front_end, grab_for, lockstep, tracker, (scans, scan_camera) if navigator else None)
 
     def step_hook(index, smoother_, latency):
         if navigator is not None and index % 10 == 0:  # the map the navigator revisits, once a second
@@ -214,12 +207,8 @@ def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front
             on_step(index, smoother_, latency, loop)
 
     worker = SmootherWorker(smoother, tracker, step_hook, lockstep=lockstep)
-    def enough_landmarks(now_s):
-        seen = sightings.landmarks_seen
-        return f"saw {seen} landmarks (--until-landmarks {until_landmarks})" if seen >= until_landmarks else False
-
     loop = LiveLoop(tracker, camera, worker, grab_for, settings, truth, truth_landmarks, lockstep=lockstep,
-                    until=enough_landmarks if until_landmarks is not None else None)
+                    until=sightings.until(until_landmarks), on_observations=sightings.seen)
     worker.submit(Step(0, 0.0, None, (), None))  # pose 0: the start pose (lockstep: the clock stands already)
     if navigator is not None:
         follower = NavigatingController(navigator, tracker.current, scans, sightings, accel_m_s2=settings.accel_m_s2,
@@ -242,6 +231,21 @@ def run_live(link, out_path: str, waypoints, *, start_pose, grab_for=None, front
     if worker.error is not None:  # after the last record: the recorder did not see it
         raise FgslamError(f"live loop: {type(worker.error).__name__}: {worker.error}") from worker.error
     smoother.finish()
+    return _live_result(result, smoother, loop, worker, camera, follower)
+
+
+def _camera(front_end, grab_for, lockstep, tracker: PoseTracker, scanning):
+    """The camera worker of a live run and the grabber the loop asks frames from (None:
+    no camera). ``scanning`` = (a :class:`ScanSlot`, the depth's camera) also makes each
+    frame's obstacle scan for a navigator."""
+    if grab_for is None or front_end is None:
+        return None, grab_for
+    scans, scan_camera = scanning if scanning is not None else (None, None)
+    grab_for, process = navigating_camera(front_end, grab_for, tracker.current, scans, scan_camera)
+    return CameraWorker(process, lockstep=lockstep), grab_for
+
+
+def _live_result(result, smoother, loop: LiveLoop, worker: SmootherWorker, camera, follower) -> LiveResult:
     return LiveResult(
         record=result,
         final_pose=tuple(float(v) for v in smoother.current_pose()),  # type: ignore[arg-type]

@@ -166,38 +166,9 @@ def parse_record(d: dict) -> Record:
             angle_rad=angle,
         )  # type: ignore[arg-type]
     if cls is Observation:
-        if "landmark_id" not in d:
-            raise _BadLine("missing field 'landmark_id' (an integer, or null when unknown)")
-        height = _magnitude(d, "height_m", COORDINATE_M, "m", _WHY_COORDINATE, optional=True)
-        sigma_height = _sigma_length(d, "sigma_height_m", optional=True)
-        _paired(height, sigma_height, "height_m", "sigma_height_m")
-        yaw, sigma_yaw = _angle(d, "tag_yaw_rad", optional=True), _sigma_angle(d, "sigma_tag_yaw_rad", optional=True)
-        _paired(yaw, sigma_yaw, "tag_yaw_rad", "sigma_tag_yaw_rad")
-        bearing, sigma_bearing = _angle(d, "bearing_rad", optional=True), _sigma_angle(d, "sigma_bearing_rad", optional=True)
-        _paired(bearing, sigma_bearing, "bearing_rad", "sigma_bearing_rad")
-        if bearing is None and yaw is not None:
-            raise _BadLine("a range-only observation (no 'bearing_rad') cannot have a tag yaw")
-        return Observation(
-            stamp_s=_stamp(d),
-            landmark_id=_integer(d, "landmark_id", optional=True, id_range=True),
-            range_m=_within("range_m", _number(d, "range_m"), RANGE_M, "m", _WHY_RANGE),
-            bearing_rad=bearing,
-            sigma_range_m=_sigma_length(d, "sigma_range_m"),
-            sigma_bearing_rad=sigma_bearing,
-            height_m=height,
-            sigma_height_m=sigma_height,
-            tag_yaw_rad=yaw,
-            sigma_tag_yaw_rad=sigma_yaw,
-            truth_landmark_id=_integer(d, "truth_landmark_id", optional=True, id_range=True),
-        )  # type: ignore[arg-type]
+        return _observation(d)
     if cls is LiveStep:
-        index = _integer(d, "pose_index")
-        latency = _magnitude(d, "latency_s", STAMP_S, "s", "a latency is the seconds one step took")
-        if index < 0 or latency < 0:  # type: ignore[operator]
-            raise _BadLine("'pose_index' and 'latency_s' must be >= 0")
-        if index > MAX_POSE_INDEX:  # type: ignore[operator]
-            raise _BadLine(f"'pose_index' is {_show(index)}, above 2^56-1 (a GTSAM key holds a 56-bit index)")
-        return LiveStep(stamp_s=_stamp(d), pose_index=index, latency_s=latency)  # type: ignore[arg-type]
+        return _live_step(d)
     if cls is Event:
         return Event(stamp_s=_stamp(d), kind=_choice(d, "kind", EVENT_KINDS), pose_index=_pose_index(d),
                      side=_choice(d, "side", EVENT_SIDES, optional=True))  # type: ignore[arg-type]
@@ -215,6 +186,45 @@ def parse_record(d: dict) -> Record:
         height_m=_magnitude(d, "height_m", COORDINATE_M, "m", _WHY_COORDINATE, optional=True),
         yaw_rad=_magnitude(d, "yaw_rad", WORLD_ANGLE_RAD, "rad", _WHY_WORLD_ANGLE, optional=True),
     )  # type: ignore[arg-type]
+
+
+def _observation(d: dict) -> Observation:
+    """An ``observation`` record's fields, checked."""
+    if "landmark_id" not in d:
+        raise _BadLine("missing field 'landmark_id' (an integer, or null when unknown)")
+    height = _magnitude(d, "height_m", COORDINATE_M, "m", _WHY_COORDINATE, optional=True)
+    sigma_height = _sigma_length(d, "sigma_height_m", optional=True)
+    _paired(height, sigma_height, "height_m", "sigma_height_m")
+    yaw, sigma_yaw = _angle(d, "tag_yaw_rad", optional=True), _sigma_angle(d, "sigma_tag_yaw_rad", optional=True)
+    _paired(yaw, sigma_yaw, "tag_yaw_rad", "sigma_tag_yaw_rad")
+    bearing, sigma_bearing = _angle(d, "bearing_rad", optional=True), _sigma_angle(d, "sigma_bearing_rad", optional=True)
+    _paired(bearing, sigma_bearing, "bearing_rad", "sigma_bearing_rad")
+    if bearing is None and yaw is not None:
+        raise _BadLine("a range-only observation (no 'bearing_rad') cannot have a tag yaw")
+    return Observation(
+        stamp_s=_stamp(d),
+        landmark_id=_integer(d, "landmark_id", optional=True, id_range=True),
+        range_m=_within("range_m", _number(d, "range_m"), RANGE_M, "m", _WHY_RANGE),
+        bearing_rad=bearing,
+        sigma_range_m=_sigma_length(d, "sigma_range_m"),
+        sigma_bearing_rad=sigma_bearing,
+        height_m=height,
+        sigma_height_m=sigma_height,
+        tag_yaw_rad=yaw,
+        sigma_tag_yaw_rad=sigma_yaw,
+        truth_landmark_id=_integer(d, "truth_landmark_id", optional=True, id_range=True),
+    )  # type: ignore[arg-type]
+
+
+def _live_step(d: dict) -> LiveStep:
+    """A ``live_step`` record's fields, checked."""
+    index = _integer(d, "pose_index")
+    latency = _magnitude(d, "latency_s", STAMP_S, "s", "a latency is the seconds one step took")
+    if index < 0 or latency < 0:  # type: ignore[operator]
+        raise _BadLine("'pose_index' and 'latency_s' must be >= 0")
+    if index > MAX_POSE_INDEX:  # type: ignore[operator]
+        raise _BadLine(f"'pose_index' is {_show(index)}, above 2^56-1 (a GTSAM key holds a 56-bit index)")
+    return LiveStep(stamp_s=_stamp(d), pose_index=index, latency_s=latency)  # type: ignore[arg-type]
 
 
 def check_records(source: str, header: Header, records) -> tuple[Record, ...]:
