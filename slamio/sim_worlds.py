@@ -6,7 +6,7 @@ in :mod:`slamio.sim`'s docstring).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -75,18 +75,7 @@ _KINECT = SensorModel(
     sigma_bearing_rad=0.01,
     sigma_height_m=0.02,
 )
-_CLUTTER_CAMERA = SensorModel(  # the tag camera with the Kinect's 57° and 4 m
-    landmark_kind="apriltag",
-    fov_rad=math.radians(57.0),
-    min_range_m=0.15,
-    max_range_m=4.0,
-    sigma_range_m=0.01,
-    sigma_range_per_m=0.0,
-    sigma_range_per_m2=0.005,
-    sigma_bearing_rad=0.01,
-    sigma_tag_yaw_rad=0.05,
-    facing_limit_rad=TAG_FACING_LIMIT_RAD,
-)
+_CLUTTER_CAMERA = replace(_TAG_CAMERA, fov_rad=math.radians(57.0), max_range_m=4.0)  # the Kinect's 57° and 4 m
 _GRID_MOTION = MotionModel(dt_s=0.2, speed_m_s=0.5, max_turn_rate_rad_s=1.0, turn_gain_per_s=2.0, lookahead_m=1.0)
 _GRID_ODOMETRY = WheelSlipNoise(k_wheel=0.01, slip_sigma_x_m=2e-3, slip_sigma_y_m=2e-3, slip_sigma_theta_rad=1e-3)
 _GRID_SENSOR = SensorModel(

@@ -75,3 +75,11 @@ def run_main_with_json(main, args, out, capsys):
     """``main([*args, "--json", out])`` succeeds; what it printed and the JSON it wrote."""
     assert main([*args, "--json", str(out)]) == 0
     return capsys.readouterr().out, json.loads(out.read_text())
+
+
+def sim_steps(sim, seconds: float) -> None:
+    """Step a hand-stepped simulated Create through ``seconds`` of robot time."""
+    from slamio.create.sim import STEP_S
+
+    for _ in range(round(seconds / STEP_S)):
+        sim.step()

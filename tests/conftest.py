@@ -83,3 +83,25 @@ def cable_back_on_retry():
         return opener, attempts
 
     return make
+
+
+@pytest.fixture
+def manual():
+    """``make(model="create2", **kwargs) -> (sim, port)``: simulated Creates stepped by hand
+    (no pacing thread), each with a pyserial port on its pseudo-terminal; closed after the test."""
+    import serial
+
+    from slamio.create.sim import SimulatedCreate
+
+    made = []
+
+    def make(model="create2", **kwargs):
+        sim = SimulatedCreate(model, **kwargs).start(thread=False)
+        port = serial.serial_for_url(sim.port, baudrate=115200, timeout=0.5)
+        made.append((sim, port))
+        return sim, port
+
+    yield make
+    for sim, port in made:
+        port.close()
+        sim.close()

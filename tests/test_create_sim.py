@@ -24,28 +24,6 @@ NOISELESS = OdometryNoise(np.zeros((3, 3)), np.zeros((3, 3)), quantisation_floor
 from slamio.errors import FgslamError
 
 
-@pytest.fixture
-def manual():
-    """A simulated Create stepped by hand, and a pyserial port on its pty."""
-    made = []
-
-    def make(model="create2", **kwargs):
-        sim = SimulatedCreate(model, **kwargs).start(thread=False)
-        port = serial.serial_for_url(sim.port, baudrate=115200, timeout=0.5)
-        made.append((sim, port))
-        return sim, port
-
-    yield make
-    for sim, port in made:
-        port.close()
-        sim.close()
-
-
-def steps(sim, seconds):
-    for _ in range(round(seconds / STEP_S)):
-        sim.step()
-
-
 def ask(sim, port, packet_ids):
     sim.handle_bytes(p.query_list(packet_ids))
     data = port.read(p.query_response_size(packet_ids))
@@ -83,18 +61,18 @@ def test_drive_command_radii():
 def test_kinematics_straight_and_in_place(manual):
     sim, _ = manual(arena_m=None, odometry_noise=NOISELESS, start_pose=(0.0, 0.0, 0.0))
     sim.handle_bytes(p.start() + p.safe() + p.drive_direct(left_mm_s=200, right_mm_s=200))
-    steps(sim, 2.0)
+    builders.sim_steps(sim, 2.0)
     sim.handle_bytes(p.drive_direct(left_mm_s=0, right_mm_s=0))
-    steps(sim, 0.5)
+    builders.sim_steps(sim, 0.5)
     x, y, theta = sim.true_pose
     # 2 s at 0.2 m/s, less the ramps at 1 m/s² (the accelerate and the brake cancel out)
     assert x == pytest.approx(0.4, abs=0.005) and y == 0.0 and theta == 0.0
     assert sim.true_path_length_m == pytest.approx(x)
     turn = math.pi / 2 * WHEEL_BASE_M / 2 / 1.0  # wheel travel for 90°, over 1 s
     sim.handle_bytes(p.drive_direct(left_mm_s=-1000 * turn, right_mm_s=1000 * turn))
-    steps(sim, 1.0)
+    builders.sim_steps(sim, 1.0)
     sim.handle_bytes(p.drive_direct(left_mm_s=0, right_mm_s=0))
-    steps(sim, 0.5)
+    builders.sim_steps(sim, 0.5)
     assert sim.true_pose[2] == pytest.approx(math.pi / 2, abs=0.02)
     assert sim.true_pose[:2] == pytest.approx((x, 0.0), abs=1e-9)
 
@@ -104,7 +82,7 @@ def test_encoders_count_in_the_commanded_direction_and_wrap(manual):
     sim.handle_bytes(p.start() + p.safe())
     first = ask(sim, port, [43, 44])
     sim.handle_bytes(p.drive_direct(left_mm_s=200, right_mm_s=200))
-    steps(sim, 1.0)
+    builders.sim_steps(sim, 1.0)
     moved = ask(sim, port, [43, 44])
     forward = counts_delta(moved[43], first[43])
     assert forward * CREATE2_MM_PER_COUNT == pytest.approx(0.2 * 1000 * 1.0 - 20, abs=2)  # 20 mm lost ramping up
@@ -122,7 +100,7 @@ def test_create1_angle_packet_truncates_and_forgets_the_remainder(manual):
     sim.handle_bytes(p.start() + p.safe())
     wheel = math.radians(30.0) * WHEEL_BASE_M / 2 * 1000  # 30°/s in place
     sim.handle_bytes(p.drive_direct(left_mm_s=-wheel, right_mm_s=wheel))
-    steps(sim, 0.5)  # get up to speed
+    builders.sim_steps(sim, 0.5)  # get up to speed
     ask(sim, port, [20])
     readings = []
     for _ in range(40):  # read every 15 ms: 0.45° each time
@@ -137,12 +115,12 @@ def test_create1_angle_packet_truncates_and_forgets_the_remainder(manual):
 def test_walls_press_the_bumpers_and_stop_the_robot(manual):
     sim, port = manual(start_pose=(2.5, 1.5, 0.0), odometry_noise=NOISELESS)  # 0.38 m from the east wall
     sim.handle_bytes(p.start() + p.safe() + p.drive_direct(left_mm_s=300, right_mm_s=300))
-    steps(sim, 3.0)
+    builders.sim_steps(sim, 3.0)
     assert sim.true_pose[0] == pytest.approx(3.048 - 0.17)
     b = p.decode_bumps_and_drops(ask(sim, port, [7])[7])
     assert b.bump_left and b.bump_right
     sim.handle_bytes(p.drive_direct(left_mm_s=-100, right_mm_s=100))  # turn left at the wall
-    steps(sim, 1.0)
+    builders.sim_steps(sim, 1.0)
     b = p.decode_bumps_and_drops(ask(sim, port, [7])[7])
     assert b.bump_right and not b.bump_left  # the wall is now on the right
 
@@ -159,7 +137,7 @@ def test_lifting_in_safe_mode_drops_to_passive(manual):
 def test_stream_frames_every_step_and_pause(manual):
     sim, port = manual()
     sim.handle_bytes(p.start() + p.safe() + p.stream([7, 35, 43, 44]))
-    steps(sim, 10 * STEP_S)
+    builders.sim_steps(sim, 10 * STEP_S)
     parser = StreamParser([7, 35, 43, 44])
     frames = parser.feed(port.read(10 * 13))
     assert len(frames) == 10 and frames[0].values[35] == OiMode.SAFE
@@ -174,7 +152,7 @@ def test_same_seed_same_encoder_noise():
     def run(seed):
         sim = SimulatedCreate("create2", seed=seed, arena_m=None).start(thread=False)
         sim.handle_bytes(p.start() + p.safe() + p.drive_direct(left_mm_s=150, right_mm_s=250))
-        steps(sim, 2.0)
+        builders.sim_steps(sim, 2.0)
         sim.close()
         return sim._ticks, sim.true_pose
 
@@ -186,7 +164,7 @@ def test_same_seed_same_encoder_noise():
 def test_faults_damage_and_drop_bytes_from_their_own_stream(manual):
     sim, port = manual(corrupt_fraction=0.2, drop_fraction=0.1, seed=5)
     sim.handle_bytes(p.start() + p.safe() + p.stream([7, 35, 43, 44]))
-    steps(sim, 100 * STEP_S)
+    builders.sim_steps(sim, 100 * STEP_S)
     data = port.read(1300 - sim.bytes_dropped)
     assert sim.bytes_corrupted > 0 and sim.bytes_dropped > 0
     assert len(data) == 1300 - sim.bytes_dropped

@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import math
 
+import builders
 import numpy as np
 import pytest
-import serial
 
 from slamio.create import protocol as p
 from slamio.create.odometry import OdometryNoise, quantisation_floor
-from slamio.create.sim import ROBOT_RADIUS_M, STEP_S, SimulatedCreate
+from slamio.create.sim import ROBOT_RADIUS_M
 from slamio.create.sim_model import contact_bump_bits
 from slamio.obstacles import Obstacles, box_segments
 
@@ -20,39 +20,18 @@ NOISELESS = OdometryNoise(np.zeros((3, 3)), np.zeros((3, 3)), quantisation_floor
 BOX = Obstacles(box_segments((3.0, 1.0), (0.6, 0.6)), segment_heights_m=np.full(4, 0.5))
 
 
-@pytest.fixture
-def manual():
-    made = []
-
-    def make(**kwargs):
-        sim = SimulatedCreate("create2", arena_m=None, odometry_noise=NOISELESS, **kwargs).start(thread=False)
-        port = serial.serial_for_url(sim.port, baudrate=115200, timeout=0.5)
-        made.append((sim, port))
-        return sim, port
-
-    yield make
-    for sim, port in made:
-        port.close()
-        sim.close()
-
-
-def steps(sim, seconds):
-    for _ in range(round(seconds / STEP_S)):
-        sim.step()
-
-
 def bumps(sim, port):
     sim.handle_bytes(p.query_list([7]))
     return p.decode_bumps_and_drops(p.decode_query_response([7], port.read(p.query_response_size([7])))[7])
 
 
 def test_driving_into_a_box_stops_at_its_face_and_presses_both_bumpers(manual):
-    sim, port = manual(obstacles=BOX, start_pose=(1.5, 1.0, 0.0))  # 1.2 m west of the face, heading at it
+    sim, port = manual(arena_m=None, odometry_noise=NOISELESS, obstacles=BOX, start_pose=(1.5, 1.0, 0.0))  # 1.2 m west of the face, heading at it
     sim.handle_bytes(p.start() + p.safe() + p.drive_direct(left_mm_s=300, right_mm_s=300))
-    steps(sim, 2.0)
+    builders.sim_steps(sim, 2.0)
     b = bumps(sim, port)
     assert not (b.bump_left or b.bump_right)  # 0.6 m travelled (after the ramp), 1.03 m to go
-    steps(sim, 4.0)
+    builders.sim_steps(sim, 4.0)
     x, y, theta = sim.true_pose
     assert x == pytest.approx(2.7 - ROBOT_RADIUS_M, abs=1e-6)  # the disc touches the face
     assert y == pytest.approx(1.0, abs=1e-9) and theta == pytest.approx(0.0, abs=1e-9)
@@ -63,9 +42,9 @@ def test_driving_into_a_box_stops_at_its_face_and_presses_both_bumpers(manual):
 
 def test_an_oblique_push_slides_along_the_face_and_presses_the_side_bumper(manual):
     # heading θ = 30°: the face (normal −x) is 30° to the robot's right
-    sim, port = manual(obstacles=BOX, start_pose=(2.2, 0.6, math.radians(30.0)))
+    sim, port = manual(arena_m=None, odometry_noise=NOISELESS, obstacles=BOX, start_pose=(2.2, 0.6, math.radians(30.0)))
     sim.handle_bytes(p.start() + p.safe() + p.drive_direct(left_mm_s=200, right_mm_s=200))
-    steps(sim, 3.0)
+    builders.sim_steps(sim, 3.0)
     x, y, _ = sim.true_pose
     assert x == pytest.approx(2.7 - ROBOT_RADIUS_M, abs=1e-6)
     # the wheels roll 0.2 m/s × 2.9 s (after the 0.2 s ramp) = 0.58 m; y gains sin 30° of it,
@@ -88,9 +67,9 @@ def test_bump_directions_by_hand():
 
 def test_backing_into_a_pillar_stops_but_presses_nothing(manual):
     pillar = Obstacles(circles_m=[(1.0, 1.0, 0.2)])
-    sim, port = manual(obstacles=pillar, start_pose=(1.6, 1.0, 0.0))  # the pillar behind
+    sim, port = manual(arena_m=None, odometry_noise=NOISELESS, obstacles=pillar, start_pose=(1.6, 1.0, 0.0))  # the pillar behind
     sim.handle_bytes(p.start() + p.safe() + p.drive_direct(left_mm_s=-200, right_mm_s=-200))
-    steps(sim, 3.0)
+    builders.sim_steps(sim, 3.0)
     assert sim.true_pose[0] == pytest.approx(1.0 + 0.2 + ROBOT_RADIUS_M, abs=1e-6)
     b = bumps(sim, port)
     assert not (b.bump_left or b.bump_right)
