@@ -7,8 +7,9 @@ the tag-frame points ``(-s,-s), (s,-s), (s,s), (-s,s)``/2 (x right, y up on the 
 tag): bottom-left, bottom-right, top-right, top-left. OpenCV's IPPE square wants top-left,
 top-right, bottom-right, bottom-left — the same corners backwards
 (:func:`opencv_corners_from_mit`). The pose (:func:`slamio.camera.apriltag.estimate_tag_pose`,
-corners undistorted through the camera model, pinhole or equidistant fisheye) is checked by
-its reprojection error: above ``max_reprojection_px`` the detection is refused (a wrong
+corners undistorted through the camera model, pinhole or equidistant fisheye), refined by
+Gauss–Newton on the corners in pixels (the maximum-likelihood pose under the pixel noise),
+is checked by its RMS reprojection error: above ``max_reprojection_px`` the detection is refused (a wrong
 corner order, a wrong tag size or camera, a misdetection). A mirrored corner order
 reprojects just as well (a square seen from behind): it is caught because the tag's printed
 face would then point away from the camera.
@@ -69,25 +70,47 @@ def _project(camera: CameraModel, params: np.ndarray, object_points: np.ndarray)
     return camera.project(p).ravel()
 
 
-def pose_covariance(camera: CameraModel, pose: TagPose, tag_size_m: float, pixel_sigma_px: float
-                    ) -> tuple[np.ndarray, np.ndarray] | None:
-    """(params, Σ): the pose as (rotation vector, translation) and its 6×6 covariance from
-    ``pixel_sigma_px`` per corner coordinate; None when the geometry leaves it unobservable."""
-    import cv2
-
-    rvec = cv2.Rodrigues(np.asarray(pose.R_camera_tag, dtype=float))[0].ravel()
-    params = np.concatenate([rvec, np.asarray(pose.t_camera_tag_m, dtype=float)])
-    obj = tag_object_points(tag_size_m)
+def _jacobian(camera: CameraModel, params: np.ndarray, obj: np.ndarray) -> np.ndarray:
     J = np.zeros((8, 6))
     steps = np.array([1e-6] * 3 + [1e-6 * max(1.0, float(np.linalg.norm(params[3:])))] * 3)
     for k in range(6):
         d = np.zeros(6)
         d[k] = steps[k]
         J[:, k] = (_project(camera, params + d, obj) - _project(camera, params - d, obj)) / (2 * steps[k])
+    return J
+
+
+def pose_covariance(camera: CameraModel, pose: TagPose, tag_size_m: float, pixel_sigma_px: float,
+                    corners_px: np.ndarray | None = None, iterations: int = 5
+                    ) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """(params, Σ, RMS px): the pose as (rotation vector, translation), refined by Gauss–Newton
+    on the ``corners_px`` (OpenCV order) in pixels when given — IPPE solves in undistorted
+    coordinates, where a fisheye's pixel noise is not uniform — its 6×6 covariance from
+    ``pixel_sigma_px`` per corner coordinate, and the RMS pixel residual; None when the
+    geometry leaves the pose unobservable."""
+    import cv2
+
+    rvec = cv2.Rodrigues(np.asarray(pose.R_camera_tag, dtype=float))[0].ravel()
+    params = np.concatenate([rvec, np.asarray(pose.t_camera_tag_m, dtype=float)])
+    obj = tag_object_points(tag_size_m)
+    target = None if corners_px is None else np.asarray(corners_px, dtype=float).ravel()
+    for _ in range(iterations if target is not None else 0):
+        J = _jacobian(camera, params, obj)
+        r = target - _project(camera, params, obj)
+        try:
+            step = np.linalg.lstsq(J, r, rcond=None)[0]
+        except np.linalg.LinAlgError:
+            return None
+        params = params + step
+        if np.max(np.abs(step)) < 1e-10:
+            break
+    J = _jacobian(camera, params, obj)
     JtJ = J.T @ J
     if not np.all(np.isfinite(JtJ)) or np.linalg.cond(JtJ) > 1e14:
         return None
-    return params, pixel_sigma_px ** 2 * np.linalg.inv(JtJ)
+    rms = float("nan") if target is None else float(np.sqrt(np.mean(
+        np.sum((target - _project(camera, params, obj)).reshape(4, 2) ** 2, axis=1))))
+    return params, pixel_sigma_px ** 2 * np.linalg.inv(JtJ), rms
 
 
 def _geometry(params: np.ndarray, T_level_camera: np.ndarray) -> np.ndarray:
@@ -112,10 +135,12 @@ def corner_observation(corners_mit_px, tag_size_m: float, camera: CameraModel, T
         return "behind_camera"
     if float(np.dot(pose.R_camera_tag[:, 2], pose.t_camera_tag_m)) >= 0.0:
         return "facing_away"  # the printed face turned from the camera: corners in the mirrored order
-    solved = pose_covariance(camera, pose, tag_size_m, pixel_sigma_px)
-    if solved is None:
+    solved = pose_covariance(camera, pose, tag_size_m, pixel_sigma_px, corners)
+    if solved is None or not math.isfinite(solved[2]):
         return "unobservable"
-    params, cov = solved
+    params, cov, rms_px = solved
+    if not rms_px <= max_reprojection_px:
+        return "reprojection"
     g0 = _geometry(params, T_level_camera)
     G = np.zeros((4, 6))
     for k in range(6):
@@ -135,5 +160,5 @@ def corner_observation(corners_mit_px, tag_size_m: float, camera: CameraModel, T
     return CornerObservation(
         float(g0[0]), float(g0[1]), float(g0[2]) if has_yaw else None, float(g0[3]),
         float(sig[0]), float(sig[1]), min(sigma_yaw, math.pi) if has_yaw else None, float(sig[3]),
-        float(pose.reprojection_error_px), bool(ambiguous),
+        rms_px, bool(ambiguous),
     )
