@@ -471,7 +471,7 @@ def circle_bag(tmp_path_factory):
         ({"odom_topic": "/odometry"}, "/odometry", r"not in the bag; expected the robot's odometry \(nav_msgs/msg/Odometry\); topics of that type here: /odom"),
         ({"odom_topic": "/mocap"}, "/mocap", r"has type geometry_msgs/msg/PoseStamped, expected the robot's odometry \(nav_msgs/msg/Odometry\)"),
         ({}, "(odometry)", r"no /fgslam/run_log topic .* name the odometry topic .*candidates: /odom"),
-        ({"odom_topic": "/odom", "detections_topic": "/odom"}, "/odom", r"has type nav_msgs/msg/Odometry, expected tag detections \(apriltag_ros/msg/AprilTagDetectionArray\)"),
+        ({"odom_topic": "/odom", "detections_topic": "/odom"}, "/odom", r"has type nav_msgs/msg/Odometry, expected tag detections \(apriltag_ros/msg/AprilTagDetectionArray or apriltag_msgs/msg/ApriltagArrayStamped\)"),
         ({"odom_topic": "/odom", "truth_topic": "/tag_detections"}, "/tag_detections", r"expected ground-truth poses"),
         ({"odom_topic": "/odom", "tag_pose_topic": "/tags/tag_"}, r"/tags/tag_<id>", r"expected one geometry_msgs/PoseStamped topic per tag"),
     ],

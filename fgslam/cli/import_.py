@@ -16,6 +16,7 @@ from fgslam.cli.common import (
     hold_outputs,
     write_run_log,
 )
+from fgslam.cli.import_rosbag import ROSBAG_OPTIONS, add_rosbag_options
 from slamio.errors import FgslamError
 
 DATASETS = ["victoria-park", "plaza1", "plaza2", "mrclam", "rosbag", "seed003"]
@@ -38,6 +39,8 @@ def add_parser(verbs) -> argparse.ArgumentParser:
             "                 with cameras reading barcoded landmarks, Vicon ground truth.\n"
             "  rosbag         a ROS 1 .bag or ROS 2 bag folder (SOURCE) through the rosbags package:\n"
             "                 --odom-topic, --detections-topic or --tag-pose-topic, --truth-topic;\n"
+            "                 tag corners (apriltag_msgs) with --camera and --tags/--tag-size;\n"
+            "                 --camera-pose, --level, --truth-bag: docs/datasets-mrclam-rosbag.md;\n"
             "                 a bag from `fgslam export rosbag` needs no topics (topics named are\n"
             "                 read from it too, in place of the run log it stores).\n"
             "  seed003        one of seed 003's stereo + IMU drives (SOURCE: its .npz): a 3-D log\n"
@@ -90,6 +93,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
                      help="seed003: σ of each axis of the IMU's linear velocity (default 0.05 m/s)")
     imp.add_argument("--turn-rate-sigma", type=float, default=None, metavar="RAD/S",
                      help="seed003: σ of each axis of the IMU's angular velocity (default 0.005 rad/s)")
+    add_rosbag_options(imp)
     imp.set_defaults(func=cmd_import, takes_extra_paths=True)
     return imp
 
@@ -110,6 +114,7 @@ DATASET_OPTIONS = (
     ("--pixel-sigma", "pixel_sigma", ("seed003",), 1.0),
     ("--speed-sigma", "speed_sigma", ("seed003",), 0.05),
     ("--turn-rate-sigma", "turn_rate_sigma", ("seed003",), 0.005),
+    *((option, name, ("rosbag",), None) for option, name in ROSBAG_OPTIONS),
 )
 
 
@@ -173,14 +178,11 @@ def _import(args: argparse.Namespace, source: str | None, out: str) -> int:
     elif args.dataset == "seed003":
         header, records = _import_seed003(source, args)
     elif args.dataset == "rosbag":
-        from slamio.datasets.rosbag import import_rosbag
+        from fgslam.cli.import_rosbag import import_rosbag_cli
 
         topics = (args.odom_topic, args.detections_topic, args.tag_pose_topic, args.truth_topic)
-        header, records = import_rosbag(  # topics named: read them, also from a bag fgslam export wrote
-            source, odom_topic=args.odom_topic, detections_topic=args.detections_topic,
-            tag_pose_topic=args.tag_pose_topic, truth_topic=args.truth_topic,
-            standard_topics_only=any(t is not None for t in topics),
-        )
+        # topics named: read them, also from a bag fgslam export wrote
+        header, records = import_rosbag_cli(args, source, standard_topics_only=any(t is not None for t in topics))
     else:  # plaza1, plaza2
         from slamio.datasets.plaza import import_plaza
 

@@ -70,6 +70,7 @@ definitions, the typestore, :class:`MessageFactory`, tag geometry): :mod:`slamio
 from __future__ import annotations
 
 import bisect
+import dataclasses
 import math
 import os
 from dataclasses import dataclass
@@ -82,12 +83,14 @@ from slamio.datasets.rosbag_export import export_rosbag
 from slamio.datasets.rosbag_messages import (
     APRILTAG_DETECTION_ARRAY_MSG, APRILTAG_DETECTION_MSG, DETECTIONS_TOPIC, LANDMARKS_TOPIC, ODOMETRY_TOPIC,
     RUN_LOG_TOPIC, T_ROBOT_OPTICAL, TRUTH_TOPIC, MessageFactory, _rosbags, apriltag_typestore, compose_jacobians,
-    tag_observation_geometry,
 )
-from slamio.datasets.rosbag_read import BagFormatError, Messages, bag_paths, read_bag
+from slamio.datasets.rosbag_corners import DEFAULT_MAX_REPROJECTION_PX
+from slamio.datasets.rosbag_level import DEFAULT_LEVEL_THRESHOLD_DEG, LEVEL_MODES, Attitudes, levelling_rotation, out_of_plane
+from slamio.datasets.rosbag_observe import camera_mount, sighting_observations, tag_map_from_tf, truth_from_bag
+from slamio.datasets.rosbag_read import CORNERS_TYPE, BagFormatError, Messages, bag_paths, read_bag, read_pose_topic
 from slamio.errors import FgslamError
 from slamio.geometry import between_pose, wrap_angle
-from slamio.log import Header, Observation, Odometry, Record, TruthPose, as_matrix3
+from slamio.log import Header, Observation, Odometry, Record, TruthLandmark, TruthPose, as_matrix3
 from slamio.log.mount import camera_mount_fields
 from slamio.log.read import check_records
 from slamio.se3 import quaternion_from_rotation, rotation_from_quaternion, yaw_from_quaternion
@@ -203,6 +206,16 @@ def import_rosbag(
     max_truth_gap_s: float = DEFAULT_MAX_TRUTH_GAP_S,
     start_from: str = "odom",
     standard_topics_only: bool = False,
+    camera: Any = None,
+    camera_info_topic: str | None = None,
+    tag_sizes: Any = None,
+    tag_size_m: float | None = None,
+    pixel_sigma_px: float | None = None,
+    max_reprojection_px: float = DEFAULT_MAX_REPROJECTION_PX,
+    level: str = "auto",
+    level_threshold_deg: float = DEFAULT_LEVEL_THRESHOLD_DEG,
+    truth_bag: str | os.PathLike[str] | None = None,
+    truth_pose_of: str = "body",
 ) -> tuple[Header, list[Record]]:
     """Convert a ROS 1 ``.bag`` file or a ROS 2 bag folder into a run-log header and records.
 
@@ -216,6 +229,15 @@ def import_rosbag(
     :class:`~slamio.datasets.victoria_park.DatasetFormatError`) naming the topic and what
     was expected for a missing topic, a wrong message type or an unusable message, and
     :class:`~slamio.errors.FgslamError` for an unreadable bag or a bad option.
+
+    Tag corners (``apriltag_msgs/ApriltagArrayStamped`` on ``detections_topic``) need a
+    camera (``camera``: a :class:`~slamio.camera.model.CameraModel`, or ``camera_info_topic``)
+    and tag sizes (``tag_sizes``: a :class:`~slamio.datasets.tagslam_files.TagsFile`, and/or
+    ``tag_size_m`` for every tag it does not list); ``pixel_sigma_px`` is the corners' noise
+    (default: the tags file's ``pixel_noise``, else 1 px). ``level`` and ``level_threshold_deg``:
+    :mod:`slamio.datasets.rosbag_level`. ``truth_bag``: read ``truth_topic`` from that bag
+    instead (``truth_pose_of="camera"`` when its poses are the camera's), with its /tf tag
+    map as truth landmarks. What was assumed is in ``header.source["warnings"]``.
     """
     _rosbags()
     path = os.fspath(path)
@@ -223,27 +245,53 @@ def import_rosbag(
     _check_options(tag_normal_axis, start_from, truth_topic, odom_min_period_s,
                    sigma_range_m=sigma_range_m, sigma_bearing_rad=sigma_bearing_rad,
                    sigma_tag_yaw_rad=sigma_tag_yaw_rad, sigma_height_m=sigma_height_m, max_truth_gap_s=max_truth_gap_s)
-    o = _Options(
-        path, ros_version, odom_topic, detections_topic, tag_pose_topic, truth_topic,  # type: ignore[arg-type]
-        _robot_camera_transform(T_robot_camera), tag_normal_axis, sigma_range_m, sigma_bearing_rad, sigma_tag_yaw_rad,
-        with_height, sigma_height_m, odometry_noise if odometry_noise is not None else CommandOdometryNoise(),
-        covariance_from_message, odom_min_period_s, interpolate_detections, max_truth_gap_s, start_from,
-    )
-    messages = read_bag(path, bag, ros_version, odom_topic, detections_topic, tag_pose_topic, truth_topic,
-                        use_header_stamps, standard_topics_only)
+    if level not in LEVEL_MODES:
+        raise FgslamError(f"level must be one of {', '.join(LEVEL_MODES)}, got {level!r}")
+    if truth_pose_of not in ("body", "camera"):
+        raise FgslamError(f"truth_pose_of must be 'body' or 'camera', got {truth_pose_of!r}")
+    if truth_bag is not None and truth_topic is None:
+        raise FgslamError("a truth bag needs its truth topic (--truth-topic)")
+    truth_here = truth_topic if truth_bag is None else None
+    messages = read_bag(path, bag, ros_version, odom_topic, detections_topic, tag_pose_topic, truth_here,
+                        use_header_stamps, standard_topics_only, camera_info_topic)
     if not isinstance(messages, Messages):  # a bag fgslam exported: its run log, as it was
         return messages
     if not messages.odometry:
         raise BagFormatError(path, odom_topic, "has no messages; expected nav_msgs/Odometry poses of the robot")
+    warnings: list[str] = []
+    T_given = None if T_robot_camera is None else _robot_camera_transform(T_robot_camera)
+    T_rc, mount_source = camera_mount(T_given, messages.tf_static, messages.body_frame, messages.detections_frame,
+                                      warnings)
+    camera, pixel_sigma_px = _corner_inputs(path, detections_topic, messages, camera, camera_info_topic, tag_sizes,
+                                            tag_size_m, pixel_sigma_px, warnings)
+    o = _Options(
+        path, ros_version, odom_topic, detections_topic, tag_pose_topic, truth_topic,  # type: ignore[arg-type]
+        T_rc, tag_normal_axis, sigma_range_m, sigma_bearing_rad, sigma_tag_yaw_rad,
+        with_height, sigma_height_m, odometry_noise if odometry_noise is not None else CommandOdometryNoise(),
+        covariance_from_message, odom_min_period_s, interpolate_detections, max_truth_gap_s, start_from,
+        camera, tag_sizes, tag_size_m, pixel_sigma_px or 1.0, max_reprojection_px, mount_source,
+    )
+    attitudes, level_report = _level(o, messages, level, level_threshold_deg, warnings)
+    if level_report["levelled"]:
+        o = dataclasses.replace(o, covariance_from_message=False)  # the messages' covariance is in the old frame
     n_odometry_messages = len(messages.odometry)
     odometry = _thinned(messages.odometry, odom_min_period_s)
-    at_pose, inside = _observations_by_pose(o, messages.sightings, [m[0] for m in odometry], messages.dropped)
+    observed = sighting_observations(o, messages, attitudes, odometry[0][0], messages.dropped)
+    at_pose, inside = _observations_by_pose(o, observed, [m[0] for m in odometry], messages.dropped)
+    landmarks: list[TruthLandmark] = []
+    if truth_bag is not None:
+        poses, frame, tf = read_pose_topic(os.fspath(truth_bag), truth_topic)  # type: ignore[arg-type]
+        messages.truth = truth_from_bag(poses, truth_pose_of, T_rc)
+        landmarks = tag_map_from_tf(tf, frame)
     truth = _Truth(messages.truth, odometry[0][0], max_truth_gap_s)
     start_pose = _start_pose(o, odometry, truth)
     records, counts = _pose_records(o, odometry, at_pose, inside, truth)
-    header = _header(o, messages, start_pose, odometry[0][0], n_odometry_messages, counts,
-                     sum(isinstance(r, Observation) for r in records))
-    return header, list(check_records(path, header, records))  # never a log the reader refuses
+    n_observations = sum(isinstance(r, Observation) for r in records)
+    _warn_counts(o, messages, counts, n_observations, warnings)
+    header = _header(o, messages, start_pose, odometry[0][0], n_odometry_messages, counts, n_observations)
+    header.source.update({"warnings": warnings, "levelling": level_report, "camera_mount": mount_source,
+                          **({"truth_bag": os.fspath(truth_bag), "truth_pose_of": truth_pose_of} if truth_bag else {})})
+    return header, list(check_records(path, header, [*landmarks, *records]))  # never a log the reader refuses
 
 
 @dataclass(frozen=True)
@@ -269,6 +317,20 @@ class _Options:
     interpolate_detections: bool
     max_truth_gap_s: float
     start_from: str
+    camera: Any = None
+    tag_sizes: Any = None
+    tag_size_m: float | None = None
+    pixel_sigma_px: float = 1.0
+    max_reprojection_px: float = DEFAULT_MAX_REPROJECTION_PX
+    mount_source: str = ""
+
+    def tag_size_of(self, tag_id: int) -> float | None:
+        listed = self.tag_sizes.sizes_m.get(tag_id) if self.tag_sizes is not None else None
+        if listed is not None:
+            return listed
+        if self.tag_size_m is not None:
+            return self.tag_size_m
+        return self.tag_sizes.default_size_m if self.tag_sizes is not None else None
 
 
 def _thinned(odometry: list, min_period_s: float) -> list:
@@ -284,36 +346,99 @@ def _thinned(odometry: list, min_period_s: float) -> list:
     return thinned
 
 
-def _observations_by_pose(o: _Options, sightings, odo_times: list[int], dropped: dict[str, int]):
-    """The sightings as observations, grouped by the pose they belong to: ``at_pose``
+def _observations_by_pose(o: _Options, observed: list, odo_times: list[int], dropped: dict[str, int]):
+    """The observations (stamp ns, observation), grouped by the pose they belong to: ``at_pose``
     (odometry index → observations) and ``inside`` (interval end index → {time: observations})."""
-    t0 = odo_times[0]
-    normal_sign = 1.0 if o.tag_normal_axis == "+z" else -1.0
     at_pose: dict[int, list[Observation]] = {}
     inside: dict[int, dict[int, list[Observation]]] = {}
-    for t, tag_id, position, quaternion in sightings:
+    for t, obs in observed:
         if t < odo_times[0]:
             dropped["before_first_odometry"] += 1
             continue
         if t > odo_times[-1]:
             dropped["after_last_odometry"] += 1
             continue
-        range_m, bearing_rad, yaw, height = tag_observation_geometry(position, quaternion, o.T_rc, normal_sign)
-        if not range_m > 0.0:
-            dropped["zero_range"] += 1
-            continue
-        obs = Observation(
-            (t - t0) / 1e9, tag_id, range_m, bearing_rad, o.sigma_range_m, o.sigma_bearing_rad,
-            height_m=height if o.with_height else None,
-            sigma_height_m=o.sigma_height_m if o.with_height else None,
-            tag_yaw_rad=yaw, sigma_tag_yaw_rad=o.sigma_tag_yaw_rad if yaw is not None else None,
-        )
         k = bisect.bisect_right(odo_times, t) - 1
         if odo_times[k] == t or not o.interpolate_detections:
             at_pose.setdefault(k, []).append(obs)
         else:
             inside.setdefault(k + 1, {}).setdefault(t, []).append(obs)
     return at_pose, inside
+
+
+def _corner_inputs(path: str, topic: str | None, messages: Messages, camera: Any, camera_info_topic: str | None,
+                   tag_sizes: Any, tag_size_m: float | None, pixel_sigma_px: float | None, warnings: list[str]):
+    """The camera and the corner σ for tag-corner detections (refusing what is missing)."""
+    if camera is None and messages.camera_info is not None:
+        from slamio.camera.camera_files import camera_from_camera_info_message
+
+        camera = camera_from_camera_info_message(messages.camera_info, f"{path}: topic {camera_info_topic}")
+    if not messages.corners:
+        return camera, pixel_sigma_px
+    if camera is None:
+        raise BagFormatError(path, topic, f"holds tag corners ({CORNERS_TYPE}) and no camera was given: give "
+                             "--camera FILE (a Kalibr cameras.yaml or ROS camera_info YAML) or --camera-info-topic")
+    if tag_sizes is None and tag_size_m is None:
+        raise BagFormatError(path, topic, "holds tag corners and no tag size was given: give --tags FILE "
+                             "(TagSLAM's tagslam.yaml or default_tag_size/tags) or --tag-size M")
+    if pixel_sigma_px is None:
+        from_file = tag_sizes.pixel_noise_px if tag_sizes is not None else None
+        pixel_sigma_px = from_file if from_file is not None else 1.0
+        if from_file is None:
+            warnings.append("corner noise: assumed 1.0 px per corner coordinate (no --pixel-sigma, no pixel_noise in "
+                            "a tags file); each tag's range, bearing and yaw sigma follow from it")
+    ids = sorted({i for _, i, _ in messages.corners})
+    unsized = [i for i in ids if (tag_sizes is None or i not in tag_sizes.sizes_m)]
+    if unsized:
+        default = tag_size_m if tag_size_m is not None else (tag_sizes.default_size_m if tag_sizes else None)
+        warnings.append(f"tag size: tags {', '.join(map(str, unsized))} are not listed in a tags file; "
+                        + (f"used {default:g} m for them" if default is not None else "their detections are dropped"))
+    return camera, pixel_sigma_px
+
+
+def _level(o: _Options, messages: Messages, level: str, threshold_deg: float, warnings: list[str]):
+    """The levelled attitudes, their planar poses put into ``messages.odometry``, and the report."""
+    R_level, tilt0, levelled = levelling_rotation(messages.odometry_3d[0][2], level, threshold_deg)
+    attitudes = Attitudes(messages.odometry_3d, R_level)
+    messages.odometry = [(t, attitudes.planar(i), C) for i, (t, _, C) in enumerate(messages.odometry)]
+    plane = out_of_plane(attitudes)
+    if levelled:
+        warnings.append(f"levelling: the odometry frame is not level: the first pose's z axis is {tilt0:.1f} deg from "
+                        f"the frame's z (above {threshold_deg:g} deg); every pose was turned by {tilt0:.1f} deg so that "
+                        "axis points up (--level none keeps the frame as it is), and the messages' covariance "
+                        "was not used")
+    elif tilt0 > 1.0:
+        warnings.append(f"levelling: the first pose is tilted {tilt0:.1f} deg from the odometry frame's z (at most "
+                        f"{threshold_deg:g} deg: taken as the body's own tilt on a level frame, not levelled; "
+                        "--level first-pose levels it)")
+    if plane["max_abs_dz_m"] > 0.05 or plane["max_tilt_deg"] > 5.0:
+        warnings.append(f"3-D motion: the body's height changed by up to {plane['max_abs_dz_m']:.2f} m and it tilted "
+                        f"by up to {plane['max_tilt_deg']:.1f} deg (mean {plane['mean_tilt_deg']:.1f} deg); the log "
+                        "is planar: heights are dropped, and every detection was turned by the body's roll and pitch "
+                        "at its time before its floor range and bearing were taken")
+    return attitudes, {"mode": level, "first_pose_tilt_deg": round(tilt0, 3), "levelled": levelled, **{
+        k: round(v, 4) for k, v in plane.items()}}
+
+
+def _warn_counts(o: _Options, messages: Messages, counts: dict, n_observations: int, warnings: list[str]) -> None:
+    """Warnings for default noise and dropped detections, with the numbers."""
+    n_default = counts["covariance"]["default_model"]
+    if n_default:
+        warnings.append(f"odometry noise: {n_default} of {n_default + counts['covariance']['from_message']} increments "
+                        "use the default model (the messages' covariance does not grow like a propagated one: "
+                        f"{dict(o.noise.__dict__)}); give a fitted model with `fgslam calibrate`")
+    if messages.sightings:
+        warnings.append(f"tag pose noise: constant sigmas for the {len(messages.sightings)} tag poses (range "
+                        f"{o.sigma_range_m:g} m, bearing {o.sigma_bearing_rad:g} rad, yaw {o.sigma_tag_yaw_rad:g} rad)")
+    refused = {k: v for k, v in messages.dropped.items() if k.startswith("corners_") and v}
+    if refused:
+        total = len(messages.corners)
+        warnings.append(f"tag corners: {sum(refused.values())} of {total} detections dropped ("
+                        + ", ".join(f"{k[8:]} {v}" for k, v in sorted(refused.items()))
+                        + f"; reprojection bound {o.max_reprojection_px:g} px)")
+    lost = messages.dropped.get("before_first_odometry", 0) + messages.dropped.get("after_last_odometry", 0)
+    if lost:
+        warnings.append(f"time: {lost} detections fall outside the odometry's time span and were dropped")
 
 
 class _Truth:
@@ -405,7 +530,7 @@ def _header(o: _Options, messages: Messages, start_pose, t0: int, n_odometry_mes
                 "covariance_from_message": o.covariance_from_message,
                 "default_model": dict(o.noise.__dict__),
             },
-            "observation": {
+            "observation": _corner_noise(o, messages) if messages.corners else {
                 "model": "constant sigmas (options of the importer); the detections' covariance is ignored",
                 "sigma_range_m": o.sigma_range_m,
                 "sigma_bearing_rad": o.sigma_bearing_rad,
@@ -418,6 +543,7 @@ def _header(o: _Options, messages: Messages, start_pose, t0: int, n_odometry_mes
             "bag": o.path,
             "ros_version": o.ros_version,
             "converted_by": "fgslam import rosbag",
+            "tag_corner_detections": len(messages.corners),
             "topics": {"odometry": o.odom_topic, "detections": o.detections_topic,
                        "tag_pose_prefix": o.tag_pose_topic, "truth": o.truth_topic},
             "time_origin_ns": t0,
@@ -433,3 +559,17 @@ def _header(o: _Options, messages: Messages, start_pose, t0: int, n_odometry_mes
             "dropped": messages.dropped,
         },
     )
+
+
+def _corner_noise(o: _Options, messages: Messages) -> dict:
+    return {
+        "model": "tag corners: each corner coordinate known to pixel_sigma_px; the pose's covariance from the "
+                 "corner residuals' Jacobian through the lens model, propagated to range, bearing, tag yaw and "
+                 "height (slamio.datasets.rosbag_corners); each observation carries its own sigmas",
+        "pixel_sigma_px": o.pixel_sigma_px,
+        "max_reprojection_px": o.max_reprojection_px,
+        "camera": {"name": o.camera.name, "width_px": o.camera.width_px, "height_px": o.camera.height_px,
+                   "K": [[float(v) for v in row] for row in o.camera.K], "distortion_model": o.camera.distortion_model,
+                   "dist_coeffs": [float(v) for v in o.camera.dist_coeffs]},
+        "tag_sizes_m": {str(i): o.tag_size_of(i) for i in sorted({i for _, i, _ in messages.corners})},
+    }

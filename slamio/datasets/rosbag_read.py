@@ -11,6 +11,7 @@ import math
 import os
 import re
 import tempfile
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -23,11 +24,15 @@ from slamio.errors import MAX_TEXT_BYTES, FgslamError, InputFileError, check_reg
 from slamio.log import Header, LogFormatError, Record, read_log
 from slamio.se3 import yaw_from_quaternion
 
-__all__ = ["BagFormatError", "Messages", "bag_paths", "read_bag"]
+__all__ = ["BagFormatError", "CORNERS_TYPE", "Messages", "bag_paths", "read_bag", "read_extras", "read_pose_topic"]
 
 _ODOMETRY_TYPES = ("nav_msgs/msg/Odometry",)
 _POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/PoseWithCovarianceStamped")
 _TRUTH_TYPES = _POSE_TYPES + _ODOMETRY_TYPES
+#: The MIT / KumarRobotics detector's messages: per tag an id and four pixel corners, no pose.
+CORNERS_TYPE = "apriltag_msgs/msg/ApriltagArrayStamped"
+CAMERA_INFO_TYPES = ("sensor_msgs/msg/CameraInfo",)
+TF_TYPES = ("tf2_msgs/msg/TFMessage", "tf/msg/tfMessage")
 
 
 class BagFormatError(DatasetFormatError):
@@ -89,6 +94,11 @@ def _pose_of(msg):
     return pose.pose if hasattr(pose, "pose") else pose
 
 
+def _pose3(pose_msg) -> tuple[tuple[float, float, float], tuple[float, float, float, float]]:
+    p, q = pose_msg.position, pose_msg.orientation
+    return (float(p.x), float(p.y), float(p.z)), (float(q.x), float(q.y), float(q.z), float(q.w))
+
+
 def _planar(pose_msg) -> tuple[float, float, float]:
     q = pose_msg.orientation
     return float(pose_msg.position.x), float(pose_msg.position.y), yaw_from_quaternion(q.x, q.y, q.z, q.w)
@@ -138,6 +148,7 @@ def _checked_topics(path: str, topics, odom_topic: str, detections_topic: str | 
         # any package's AprilTagDetectionArray with apriltag_ros's fields (forks add fields)
         msgtype = topics[detections_topic].msgtype if detections_topic in topics else None
         accepted = (msgtype,) if msgtype and msgtype.endswith("/AprilTagDetectionArray") else (_DETECTION_ARRAY_TYPE,)
+        accepted = accepted + (CORNERS_TYPE,)
         _check_topic(path, topics, detections_topic, accepted, "tag detections")
     tag_topics: dict[str, int] = {}
     if tag_pose_topic is not None:
@@ -177,6 +188,12 @@ class Messages:
     sightings: list[tuple[int, int, Any, Any]]  # (stamp, tag id, position, quaternion) in the camera frame
     dropped: dict[str, int]
     tag_topics: dict[str, int]  # tag pose topic -> tag id
+    odometry_3d: list[tuple[int, Any, Any]] = dataclasses.field(default_factory=list)  # (stamp, position, quaternion)
+    corners: list[tuple[int, int, np.ndarray]] = dataclasses.field(default_factory=list)  # (stamp, id, 4×2 px)
+    camera_info: Any = None  # the first sensor_msgs/CameraInfo of camera_info_topic
+    tf_static: dict[tuple[str, str], np.ndarray] = dataclasses.field(default_factory=dict)  # (parent, child) -> 4×4
+    detections_frame: str | None = None  # the detections' header frame_id
+    body_frame: str | None = None  # the odometry's child_frame_id
 
 
 def _read_messages(path: str, reader, odom_topic: str, detections_topic: str | None, truth_topic: str | None,
@@ -190,6 +207,9 @@ def _read_messages(path: str, reader, odom_topic: str, detections_topic: str | N
     sightings: list[tuple[int, int, Any, Any]] = []  # (stamp, tag id, position, quaternion)
     dropped = {"tag_bundles": 0, "zero_range": 0, "before_first_odometry": 0, "after_last_odometry": 0}
     counts = {t: 0 for t in wanted}
+    odometry_3d: list = []
+    corners: list = []
+    detections_frame = body_frame = None
     for connection, bag_time, raw in reader.messages(connections=connections):
         topic = connection.topic
         counts[topic] += 1
@@ -201,13 +221,20 @@ def _read_messages(path: str, reader, odom_topic: str, detections_topic: str | N
         stamp = _stamp_ns(msg, bag_time, use_header_stamps)
         if topic == odom_topic:
             pose = _planar(msg.pose.pose)
+            odometry_3d.append((stamp, *_pose3(msg.pose.pose)))
+            body_frame = str(msg.child_frame_id)
             C = np.asarray(msg.pose.covariance, dtype=float).reshape(6, 6)[np.ix_((0, 1, 5), (0, 1, 5))]
             if not all(math.isfinite(v) for v in pose):
                 raise BagFormatError(path, topic, f"pose {pose} is not finite", index)
             odometry.append((stamp, pose, C))
         elif topic == truth_topic:
             truth.append((stamp, _planar(_pose_of(msg))))
+        elif topic == detections_topic and connection.msgtype == CORNERS_TYPE:
+            detections_frame = str(msg.header.frame_id)
+            for tag in msg.apriltags:
+                corners.append((stamp, int(tag.id), np.array([[c.x, c.y] for c in tag.corners], dtype=float)))
         elif topic == detections_topic:
+            detections_frame = str(msg.header.frame_id)
             detections = getattr(msg, "detections", None)
             if detections is None or (detections and not hasattr(detections[0], "pose")):
                 raise BagFormatError(
@@ -230,14 +257,92 @@ def _read_messages(path: str, reader, odom_topic: str, detections_topic: str | N
             p = _pose_of(msg)
             sightings.append((stamp, tag_topics[topic], (p.position.x, p.position.y, p.position.z),
                               (p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)))
-    for messages in (odometry, truth, sightings):
+    for messages in (odometry, truth, sightings, odometry_3d, corners):
         messages.sort(key=lambda m: m[0])
-    return Messages(odometry, truth, sightings, dropped, tag_topics)
+    bad = [i for i, (_, p, q) in enumerate(odometry_3d) if not np.all(np.isfinite(p + q)) or abs(np.linalg.norm(q) - 1) > 0.01]
+    if bad:
+        raise BagFormatError(path, odom_topic, f"orientation {odometry_3d[bad[0]][2]} is not a unit quaternion",
+                             bad[0] + 1)
+    return Messages(odometry, truth, sightings, dropped, tag_topics, odometry_3d, corners,
+                    detections_frame=detections_frame, body_frame=body_frame)
+
+
+def read_extras(path: str, reader, camera_info_topic: str | None) -> tuple[Any, dict]:
+    """The first ``sensor_msgs/CameraInfo`` of ``camera_info_topic`` (None when not asked) and
+    every transform on ``/tf_static`` (``(parent, child) -> 4×4``; empty when the bag has none)."""
+    topics = reader.topics
+    info = None
+    if camera_info_topic is not None:
+        _check_topic(path, topics, camera_info_topic, CAMERA_INFO_TYPES, "the camera's calibration")
+        for connection, _, raw in reader.messages(connections=[c for c in reader.connections
+                                                               if c.topic == camera_info_topic]):
+            info = reader.deserialize(raw, connection.msgtype)
+            break
+    tf: dict[tuple[str, str], np.ndarray] = {}
+    connections = [c for c in reader.connections if c.topic == "/tf_static" and c.msgtype in TF_TYPES]
+    for connection, _, raw in (reader.messages(connections=connections) if connections else ()):  # [] = all
+        tf.update(_transforms(path, "/tf_static", reader.deserialize(raw, connection.msgtype)))
+    return info, tf
+
+
+def read_pose_topic(path: str, topic: str, use_header_stamps: bool = True
+                    ) -> tuple[list[tuple[int, Any, Any]], str, dict[tuple[str, str], np.ndarray]]:
+    """Every pose on ``topic`` (Odometry, PoseStamped or PoseWithCovarianceStamped) of the bag
+    at ``path`` as (stamp ns, position, quaternion), in time order: ground truth from a
+    second bag; with the poses' frame_id and the last value of every transform on its /tf
+    and /tf_static (the reference's tag map)."""
+    from rosbags.highlevel import AnyReader
+
+    bag, ros_version = bag_paths(path)
+    try:
+        reader = AnyReader([bag], default_typestore=apriltag_typestore(ros_version))
+        reader.open()
+    except FgslamError:
+        raise
+    except Exception as exc:
+        raise InputFileError(f"{path}: cannot read as a ROS {ros_version} bag ({type(exc).__name__}: {exc})") from None
+    try:
+        _check_topic(path, reader.topics, topic, _TRUTH_TYPES, "ground-truth poses")
+        out = []
+        for i, (connection, bag_time, raw) in enumerate(
+                reader.messages(connections=[c for c in reader.connections if c.topic == topic])):
+            msg = reader.deserialize(raw, connection.msgtype)
+            p, q = _pose3(_pose_of(msg))
+            if not np.all(np.isfinite(p + q)) or abs(np.linalg.norm(q) - 1) > 0.01:
+                raise BagFormatError(path, topic, f"pose {p} {q} is not finite or not a unit quaternion", i + 1)
+            out.append((_stamp_ns(msg, bag_time, use_header_stamps), p, q))
+            frame = str(msg.header.frame_id).lstrip("/")
+        tf: dict[tuple[str, str], np.ndarray] = {}
+        connections = [c for c in reader.connections if c.topic in ("/tf", "/tf_static") and c.msgtype in TF_TYPES]
+        for connection, _, raw in (reader.messages(connections=connections) if connections else ()):  # [] = all
+            tf.update(_transforms(path, connection.topic, reader.deserialize(raw, connection.msgtype)))
+    finally:
+        reader.close()
+    if not out:
+        raise BagFormatError(path, topic, "has no messages; expected ground-truth poses")
+    return sorted(out, key=lambda m: m[0]), frame, tf
+
+
+def _transforms(path: str, topic: str, msg) -> dict[tuple[str, str], np.ndarray]:
+    """A TFMessage's transforms as (parent, child) -> 4×4."""
+    from slamio.se3 import rotation_from_quaternion
+
+    tf = {}
+    for x in msg.transforms:
+        t, q = x.transform.translation, x.transform.rotation
+        R = rotation_from_quaternion(q.x, q.y, q.z, q.w)
+        if R is None:
+            raise BagFormatError(path, topic, f"{x.header.frame_id} -> {x.child_frame_id}: rotation is not a quaternion")
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = R, (t.x, t.y, t.z)
+        tf[(str(x.header.frame_id).lstrip("/"), str(x.child_frame_id).lstrip("/"))] = T
+    return tf
 
 
 def read_bag(path: str, bag: Path, ros_version: int, odom_topic: str | None, detections_topic: str | None,
              tag_pose_topic: str | None, truth_topic: str | None, use_header_stamps: bool,
-             standard_topics_only: bool) -> Messages | tuple[Header, list[Record]]:
+             standard_topics_only: bool, camera_info_topic: str | None = None
+             ) -> Messages | tuple[Header, list[Record]]:
     """The messages of the topics asked for (:class:`Messages`); or, for a bag fgslam
     exported (it has :data:`RUN_LOG_TOPIC`) unless ``standard_topics_only``, the run log it
     holds as (header, records). ``bag`` and ``ros_version`` are :func:`bag_paths`'s."""
@@ -264,6 +369,9 @@ def read_bag(path: str, bag: Path, ros_version: int, odom_topic: str | None, det
                 f"odometry topic (nav_msgs/Odometry); candidates: {', '.join(candidates) or '(none)'}",
             )
         tag_topics = _checked_topics(path, topics, odom_topic, detections_topic, tag_pose_topic, truth_topic)
-        return _read_messages(path, reader, odom_topic, detections_topic, truth_topic, tag_topics, use_header_stamps)
+        messages = _read_messages(path, reader, odom_topic, detections_topic, truth_topic, tag_topics,
+                                  use_header_stamps)
+        messages.camera_info, messages.tf_static = read_extras(path, reader, camera_info_topic)
+        return messages
     finally:
         reader.close()
