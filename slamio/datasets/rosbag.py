@@ -222,13 +222,11 @@ def import_rosbag(
     A bag written by :func:`export_rosbag` (it has ``/fgslam/run_log``) gives back the
     exported log exactly, whatever topics are named, unless ``standard_topics_only``.
     Otherwise ``odom_topic`` is required and the other topics are optional; see the module
-    docstring for every conversion rule and option. Write the result with
-    ``slamio.log.write_log``.
+    docstring for every conversion rule and option. Write the result with ``write_log``.
 
-    Raises :class:`BagFormatError` (a
-    :class:`~slamio.datasets.victoria_park.DatasetFormatError`) naming the topic and what
-    was expected for a missing topic, a wrong message type or an unusable message, and
-    :class:`~slamio.errors.FgslamError` for an unreadable bag or a bad option.
+    Raises :class:`BagFormatError` naming the topic and what was expected (a missing topic,
+    a wrong message type, an unusable message), :class:`~slamio.errors.FgslamError` for an
+    unreadable bag or a bad option.
 
     Tag corners (``apriltag_msgs/ApriltagArrayStamped`` on ``detections_topic``) need a
     camera (``camera``: a :class:`~slamio.camera.model.CameraModel`, or ``camera_info_topic``)
@@ -245,23 +243,17 @@ def import_rosbag(
     _check_options(tag_normal_axis, start_from, truth_topic, odom_min_period_s,
                    sigma_range_m=sigma_range_m, sigma_bearing_rad=sigma_bearing_rad,
                    sigma_tag_yaw_rad=sigma_tag_yaw_rad, sigma_height_m=sigma_height_m, max_truth_gap_s=max_truth_gap_s)
-    if level not in LEVEL_MODES:
-        raise FgslamError(f"level must be one of {', '.join(LEVEL_MODES)}, got {level!r}")
-    if truth_pose_of not in ("body", "camera"):
-        raise FgslamError(f"truth_pose_of must be 'body' or 'camera', got {truth_pose_of!r}")
-    if truth_bag is not None and truth_topic is None:
-        raise FgslamError("a truth bag needs its truth topic (--truth-topic)")
-    truth_here = truth_topic if truth_bag is None else None
-    messages = read_bag(path, bag, ros_version, odom_topic, detections_topic, tag_pose_topic, truth_here,
-                        use_header_stamps, standard_topics_only, camera_info_topic)
+    _check_level_and_truth(level, truth_pose_of, truth_bag, truth_topic)
+    messages = read_bag(path, bag, ros_version, odom_topic, detections_topic, tag_pose_topic,
+                        truth_topic if truth_bag is None else None, use_header_stamps, standard_topics_only,
+                        camera_info_topic)
     if not isinstance(messages, Messages):  # a bag fgslam exported: its run log, as it was
         return messages
     if not messages.odometry:
         raise BagFormatError(path, odom_topic, "has no messages; expected nav_msgs/Odometry poses of the robot")
     warnings: list[str] = []
-    T_given = None if T_robot_camera is None else _robot_camera_transform(T_robot_camera)
-    T_rc, mount_source = camera_mount(T_given, messages.tf_static, messages.body_frame, messages.detections_frame,
-                                      warnings)
+    T_rc, mount_source = camera_mount(None if T_robot_camera is None else _robot_camera_transform(T_robot_camera),
+                                      messages.tf_static, messages.body_frame, messages.detections_frame, warnings)
     camera, pixel_sigma_px = _corner_inputs(path, detections_topic, messages, camera, camera_info_topic, tag_sizes,
                                             tag_size_m, pixel_sigma_px, warnings)
     o = _Options(
@@ -271,27 +263,43 @@ def import_rosbag(
         covariance_from_message, odom_min_period_s, interpolate_detections, max_truth_gap_s, start_from,
         camera, tag_sizes, tag_size_m, pixel_sigma_px or 1.0, max_reprojection_px, mount_source,
     )
+    return _convert(o, messages, warnings, level, level_threshold_deg, truth_bag, truth_pose_of)
+
+
+def _check_level_and_truth(level: str, truth_pose_of: str, truth_bag, truth_topic) -> None:
+    if level not in LEVEL_MODES:
+        raise FgslamError(f"level must be one of {', '.join(LEVEL_MODES)}, got {level!r}")
+    if truth_pose_of not in ("body", "camera"):
+        raise FgslamError(f"truth_pose_of must be 'body' or 'camera', got {truth_pose_of!r}")
+    if truth_bag is not None and truth_topic is None:
+        raise FgslamError("a truth bag needs its truth topic (--truth-topic)")
+
+
+def _convert(o: "_Options", messages: Messages, warnings: list[str], level: str, level_threshold_deg: float,
+             truth_bag, truth_pose_of: str) -> tuple[Header, list[Record]]:
+    """:func:`import_rosbag` once the bag is read and the options checked: level the
+    odometry, place the detections, read the truth, and make the header and records."""
     attitudes, level_report = _level(o, messages, level, level_threshold_deg, warnings)
     if level_report["levelled"]:
         o = dataclasses.replace(o, covariance_from_message=False)  # the messages' covariance is in the old frame
     n_odometry_messages = len(messages.odometry)
-    odometry = _thinned(messages.odometry, odom_min_period_s)
+    odometry = _thinned(messages.odometry, o.odom_min_period_s)
     observed = sighting_observations(o, messages, attitudes, odometry[0][0], messages.dropped)
     at_pose, inside = _observations_by_pose(o, observed, [m[0] for m in odometry], messages.dropped)
     landmarks: list[TruthLandmark] = []
     if truth_bag is not None:
-        poses, frame, tf = read_pose_topic(os.fspath(truth_bag), truth_topic)  # type: ignore[arg-type]
-        messages.truth = truth_from_bag(poses, truth_pose_of, T_rc)
+        poses, frame, tf = read_pose_topic(os.fspath(truth_bag), o.truth_topic)  # type: ignore[arg-type]
+        messages.truth = truth_from_bag(poses, truth_pose_of, o.T_rc)
         landmarks = tag_map_from_tf(tf, frame)
-    truth = _Truth(messages.truth, odometry[0][0], max_truth_gap_s)
+    truth = _Truth(messages.truth, odometry[0][0], o.max_truth_gap_s)
     start_pose = _start_pose(o, odometry, truth)
     records, counts = _pose_records(o, odometry, at_pose, inside, truth)
     n_observations = sum(isinstance(r, Observation) for r in records)
     _warn_counts(o, messages, counts, n_observations, warnings)
     header = _header(o, messages, start_pose, odometry[0][0], n_odometry_messages, counts, n_observations)
-    header.source.update({"warnings": warnings, "levelling": level_report, "camera_mount": mount_source,
+    header.source.update({"warnings": warnings, "levelling": level_report, "camera_mount": o.mount_source,
                           **({"truth_bag": os.fspath(truth_bag), "truth_pose_of": truth_pose_of} if truth_bag else {})})
-    return header, list(check_records(path, header, [*landmarks, *records]))  # never a log the reader refuses
+    return header, list(check_records(o.path, header, [*landmarks, *records]))  # never a log the reader refuses
 
 
 @dataclass(frozen=True)
