@@ -76,8 +76,9 @@ class OccupancyGrid:
 
     # ------------------------------------------------------------------ updates
 
-    def add_scan(self, scan: Scan, scan_pose) -> None:
-        """Integrate one scan taken at ``scan_pose`` (module docstring)."""
+    def add_scan(self, scan: Scan, scan_pose, free_range_m: float | None = None) -> None:
+        """Integrate one scan taken at ``scan_pose`` (module docstring); ``free_range_m``:
+        free only the cells that near (hits are marked at any range)."""
         known = scan.known
         if not known.any():
             return
@@ -85,6 +86,8 @@ class OccupancyGrid:
         ranges = scan.ranges_m[known]
         hit = np.isfinite(ranges)
         free_to = np.where(hit, ranges - 0.5 * self.resolution_m, scan.max_range_m)
+        if free_range_m is not None:
+            free_to = np.minimum(free_to, free_range_m)
         step = 0.7 * self.resolution_m
         samples = np.arange(0.0, scan.max_range_m + step, step)
         along = samples[None, :] <= free_to[:, None]  # (rays, samples)

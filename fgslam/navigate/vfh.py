@@ -147,7 +147,7 @@ class Vfh:
                  d_max_m: float = 1.6, margin_m: float = 0.03, block_m: float = 0.3, clear_m: float = 0.45,
                  s_max: int = 16, wander_period_s: float = 20.0, look_m=(0.45, 0.7, 0.95), look_side_m=0.2,
                  relook_s: float = 5.0, near_m: float = ROBOT_RADIUS_M + 0.12, stuck_s: float = 7.0,
-                 progress_m: float = 0.15):
+                 progress_m: float = 0.15, free_range_m: float | None = None):
         self.rng = np.random.default_rng(seed)
         self.goal_xy = goal_xy
         self.grid = grid if grid is not None else OccupancyGrid()
@@ -178,7 +178,9 @@ class Vfh:
         self._window = (np.zeros((0, 2)), np.zeros(0))
         self._boxed_turned = 0.0  # how far it has turned since no way was open
         self._boxed_heading: float | None = None
+        self._histogram = None
         self.stuck_s, self.progress_m = stuck_s, progress_m
+        self.free_range_m = free_range_m
         self._anchor: tuple[float, float, float] | None = None  # (x, y, since): the wander watchdog
 
     # ------------------------------------------------------------------ memory
@@ -192,7 +194,7 @@ class Vfh:
             self._cleared_xy = (x, y)
         fresh = situation.scan is not None and situation.scan is not self._last_scan and situation.scan_pose is not None
         if fresh:
-            self.grid.add_scan(situation.scan, situation.scan_pose)
+            self.grid.add_scan(situation.scan, situation.scan_pose, self.free_range_m)
             bearings = wrap_angle(self._angles - situation.scan_pose[2])
             scan = situation.scan
             self._looked_s[(bearings >= scan.angles_rad[0]) & (bearings <= scan.angles_rad[-1])] = situation.now_s
@@ -205,8 +207,12 @@ class Vfh:
                                     self.grid.limit)
         return fresh
 
-    def histogram(self, pose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(free distance, blocked, known) per sector at ``pose`` (module docstring, steps 1–2)."""
+    def histogram(self, pose, reuse: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(free distance, blocked, known) per sector at ``pose`` (module docstring, steps 1–2);
+        ``reuse``: the previous step's (world-frame, so still right after a turn; at most a
+        step's travel, ~1 cm, old), when the caller already did a heavy job this step."""
+        if reuse and self._histogram is not None:
+            return self._histogram
         cells, log_odds = self._window = self.grid.window(pose[:2], self.d_max_m)
         free = free_distances_m(cells[log_odds > OCCUPIED_LOG_ODDS], pose[:2], self._angles, self.enlarge_m,
                                 self.d_max_m)
@@ -214,7 +220,8 @@ class Vfh:
         # known: its corridor was seen, up to where it is blocked (what lies behind a wall never is)
         seen = (self.grid.values_at(self._probes + np.asarray(pose[:2])) != 0).reshape(self.sectors, -1)
         seen |= self._probe_along_m[None, :] > free[:, None] + 0.5 * self.grid.resolution_m
-        return free, self._blocked.copy(), seen.all(axis=1) | self._blocked
+        self._histogram = (free, self._blocked.copy(), seen.all(axis=1) | self._blocked)
+        return self._histogram
 
     def _gap_ahead_m(self, pose) -> float:
         """Free distance in the corridor the disc sweeps straight ahead, or 0 when an occupied
@@ -235,10 +242,11 @@ class Vfh:
 
     # ------------------------------------------------------------------ steering
 
-    def steer(self, situation: Situation, goal_rad: float) -> Command:
-        """One VFH decision toward the world-frame heading ``goal_rad``."""
+    def steer(self, situation: Situation, goal_rad: float, reuse: bool = False) -> Command:
+        """One VFH decision toward the world-frame heading ``goal_rad`` (``reuse``: the
+        previous step's histogram, :meth:`histogram`)."""
         pose = situation.pose
-        free, blocked, known = self.histogram(pose)
+        free, blocked, known = self.histogram(pose, reuse)
         angles = self._angles
         goal_sector = int(np.argmin(np.abs(wrap_angle(angles - goal_rad))))
         unlooked = situation.now_s - self._looked_s > self.relook_s  # not in the camera's view lately
@@ -254,7 +262,7 @@ class Vfh:
             self._wander_heading = direction  # the wander goal is out of reach: wander where the way is open
         error = heading_error_rad(pose, direction)
         heading_sector = int(np.argmin(np.abs(wrap_angle(angles - pose[2]))))
-        room = min(max((free[heading_sector] - self.block_m) / (self.d_max_m - self.block_m), 0.0), 1.0)
+        room = min(max((free[heading_sector] - self.block_m) / 0.5, 0.0), 1.0)  # cruise with 0.8 m free
         # arcs sweep the sides the narrow camera has not seen: turn mostly on the spot
         speed = CRUISE_SPEED_M_S * (0.3 + 0.7 * room) * max(0.0, 1.0 - abs(error) / math.radians(25))
         if self._gap_ahead_m(pose) < 0.08 + speed**2 / (2 * 0.5) + speed * 0.2:
@@ -296,7 +304,7 @@ class Vfh:
         return self._wander_heading
 
     def step(self, situation: Situation) -> Command:
-        self.observe(situation)
+        fresh = self.observe(situation)  # a scan integrated: one heavy job is enough for a step
         x, y = situation.pose[:2]
         if self._anchor is None or math.hypot(x - self._anchor[0], y - self._anchor[1]) > self.progress_m:
             self._anchor = (x, y, situation.now_s)
@@ -310,4 +318,4 @@ class Vfh:
             self.backoff.start(situation, prefer_left=bool(self.rng.integers(2)))
         if self.backoff.active:
             return self.backoff.step(situation)
-        return self.steer(situation, self.goal_heading_rad(situation))
+        return self.steer(situation, self.goal_heading_rad(situation), reuse=fresh)
