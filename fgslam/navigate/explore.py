@@ -307,6 +307,8 @@ class Explore:
                 self._abandon(situation)
             else:
                 self.vfh.backoff.start(situation, prefer_left=bool(self.rng.integers(2)))
+        if self.vfh.spot.update(situation) and not self.vfh.backoff.active:
+            self._abandon(situation)  # goal after goal and still on one spot: leave it
         if self.vfh.backoff.active:
             return self.vfh.backoff.step(situation)
         looking = self._look_around(situation)

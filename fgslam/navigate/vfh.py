@@ -35,8 +35,8 @@ import math
 
 import numpy as np
 
-from fgslam.navigate.common import (CRUISE_SPEED_M_S, ROBOT_RADIUS_M, BackOff, Command, Situation, heading_error_rad,
-                                    limited_command, turn_towards)
+from fgslam.navigate.common import (CRUISE_SPEED_M_S, ROBOT_RADIUS_M, BackOff, Command, Situation, SpotWatch,
+                                    heading_error_rad, limited_command, turn_towards)
 from fgslam.navigate.grid import OccupancyGrid
 from slamio.geometry import wrap_angle
 
@@ -179,9 +179,8 @@ class Vfh:
         self._boxed_turned = 0.0  # how far it has turned since no way was open
         self._boxed_heading: float | None = None
         self._histogram = None
-        self.stuck_s, self.progress_m = stuck_s, progress_m
+        self.spot = SpotWatch(stuck_s, progress_m)
         self.free_range_m = free_range_m
-        self._anchor: tuple[float, float, float] | None = None  # (x, y, since): the wander watchdog
 
     # ------------------------------------------------------------------ memory
 
@@ -305,12 +304,8 @@ class Vfh:
 
     def step(self, situation: Situation) -> Command:
         fresh = self.observe(situation)  # a scan integrated: one heavy job is enough for a step
-        x, y = situation.pose[:2]
-        if self._anchor is None or math.hypot(x - self._anchor[0], y - self._anchor[1]) > self.progress_m:
-            self._anchor = (x, y, situation.now_s)
-        elif situation.now_s - self._anchor[2] > self.stuck_s and not self.backoff.active:
+        if self.spot.update(situation) and not self.backoff.active:
             # dithering on one spot (two ways that each close when looked at): leave it
-            self._anchor = None
             self.backoff.start(situation, prefer_left=bool(self.rng.integers(2)))
             self._wander_heading = float(wrap_angle(situation.pose[2] + math.pi))
             self._wander_until_s = situation.now_s + self.wander_period_s
