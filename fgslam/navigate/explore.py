@@ -185,24 +185,31 @@ class Explore:
         self._frontiers: list[tuple[float, float]] = []
         self._clearance = None  # (block, row slice, column slice)
         self._replanned_s = -math.inf
+        self._pending = None  # a clearance map waiting for its frontiers (:meth:`_refresh`)
         self._look_until: float | None = None
         self._look_turned = 0.0
         self._last_heading: float | None = None
 
     # ------------------------------------------------------------------ the map's offers
 
-    def _refresh(self, now_s: float) -> None:
-        """Recompute the frontiers and the clearance map on the known block."""
-        rows, cols = self.grid.bounds()
-        block = self.grid.log_odds[rows, cols]
-        if block.size == 0:
-            self._frontiers, self._clearance = [], None
-            return
-        clearance = clearance_map_m(block, self.grid.resolution_m)
+    def _refresh(self, now_s: float) -> bool:
+        """Recompute the clearance map, then (on the next call) the frontiers, on the known
+        block: two steps, so that neither costs much. True when both are new."""
+        if self._pending is None:
+            rows, cols = self.grid.bounds()
+            block = self.grid.log_odds[rows, cols].copy()
+            if block.size == 0:
+                self._frontiers, self._clearance, self._replanned_s = [], None, now_s
+                return True
+            self._pending = (block, clearance_map_m(block, self.grid.resolution_m), rows, cols)
+            return False
+        block, clearance, rows, cols = self._pending
+        self._pending = None
         self._clearance = (clearance, rows, cols)
         found = frontier_goals(block, clearance)
         self._frontiers = [tuple(self.grid.centres([r + rows.start], [c + cols.start])[0]) for r, c, _ in found]
         self._replanned_s = now_s
+        return True
 
     def clearance_at(self, xy) -> np.ndarray:
         """Clearance (m) at map-frame points from the last refresh (0 off the known block)."""
@@ -318,9 +325,8 @@ class Explore:
         # so that no step costs much more than the others
         busy = fresh_scan
         if situation.now_s - self._replanned_s >= self.replan_s and not busy:
-            self._refresh(situation.now_s)
             busy = True
-            if (self.goal is not None and self.goal.kind == "frontier"
+            if self._refresh(situation.now_s) and (self.goal is not None and self.goal.kind == "frontier"
                     and not any(math.hypot(f[0] - self.goal.xy[0], f[1] - self.goal.xy[1]) < 0.3 for f in self._frontiers)):
                 self.goal = None  # seen from afar: that frontier is gone
         if self.goal is None:
