@@ -96,15 +96,19 @@ class BackOff:
         self._target_heading: float | None = None
         self._deadline_s = 0.0
         self.active = False
+        self._distance_now_m = distance_m
 
-    def start(self, situation: Situation, prefer_left: bool = True) -> None:
+    def start(self, situation: Situation, prefer_left: bool = True, distance_m: float | None = None) -> None:
+        """Arm it; ``distance_m`` overrides the reverse for this once (leaving a spot the robot
+        dithered on takes more than the bump's 0.15 m)."""
+        self._distance_now_m = self.distance_m if distance_m is None else distance_m
         side = situation.bump_side
         left = side == "right" or (side != "left" and prefer_left)
         x, y, theta = situation.pose
         self._start_xy = (x, y)
         self._target_heading = wrap_angle(theta + (self.turn_rad if left else -self.turn_rad))
         # a stuck reverse (something behind) must not hold the robot for ever
-        self._deadline_s = situation.now_s + 2.0 * self.distance_m / self.speed_m_s + 4.0
+        self._deadline_s = situation.now_s + 2.0 * self._distance_now_m / self.speed_m_s + 4.0
         self.active = True
 
     def step(self, situation: Situation) -> Command:
@@ -112,7 +116,7 @@ class BackOff:
         if situation.now_s > self._deadline_s:
             self.active = False
         elif self._start_xy is not None:
-            if math.hypot(x - self._start_xy[0], y - self._start_xy[1]) < self.distance_m:
+            if math.hypot(x - self._start_xy[0], y - self._start_xy[1]) < self._distance_now_m:
                 return limited_command(-self.speed_m_s, 0.0, "back-off")
             self._start_xy = None
         if self.active:

@@ -9,10 +9,16 @@ closures). So this navigator does two things on the occupancy grid its scans bui
   with room for the robot (:func:`frontier_goals`);
 * **landmark revisits** — a mapped landmark seen on fewer than ``visits_wanted`` separate
   visits and not seen for ``revisit_gap_s`` becomes a goal: a viewpoint 1–1.5 m from it,
-  on known free floor with room for the robot, with no occupied cell between
+  on known free floor with room for the robot, with no occupied cell between, and within
+  40° of the mean direction it was seen from (a tag is read from its front only; the
+  Situation carries no tag yaws, so where it was seen from is the estimate of its facing)
   (:func:`landmark_viewpoint`); there the robot turns to face it. A visit is counted, as
   the harness counts it, when the landmark's sighting count rises again after
   ``revisit_gap_s`` without a rise.
+
+The floor counts as explored (freed in the grid) only within ``explored_range_m`` (3 m) of
+where a scan was taken: the tag detector reads a 16 cm tag to ~3.5 m, so a room seen only
+from afar still has frontiers that bring the robot near its walls.
 
 Goals are chosen by cost: distance plus ``turn_cost_m_per_rad`` for the turn toward them
 (:func:`goal_cost_m`), landmark goals weighted by ``landmark_weight``; when none is left it
@@ -20,11 +26,15 @@ goes back to the landmark it saw longest ago, or wanders. It starts with a look-
 It steers to the goal with :class:`~fgslam.navigate.vfh.Vfh` (local avoidance, turn-to-look).
 A frontier goal is reached when the robot is within ``reach_m`` or the cell is no longer a
 frontier (seen from afar). Stuck (no ``progress_m`` closer to the goal for ``stuck_s``) or
-bumped twice on the way: the goal is abandoned and its neighbourhood black-listed. On a bump
+bumped twice on the way, or 7 s on one spot whatever the goals: the goal is abandoned and
+its neighbourhood black-listed for ``blacklist_s`` (60 s: the map grows, a way that failed
+may open). On a bump
 the robot backs off ~0.15 m and turns away from the bump side.
 
-Work per step stays small: the frontiers and the clearance map are recomputed once every
-``replan_s`` on the block of known cells only.
+Work per step stays small: at most one heavy job a step (a scan, the clearance map, the
+frontiers, a goal choice; the steering then reuses the previous step's histogram), and the
+clearance map and the frontiers are recomputed once every ``replan_s``, on two steps, on the
+block of known cells only.
 """
 
 from __future__ import annotations
@@ -265,12 +275,12 @@ class Explore:
 
     # ------------------------------------------------------------------ stepping
 
-    def _abandon(self, situation: Situation) -> None:
-        """Black-list the goal's neighbourhood, drop it, back off."""
+    def _abandon(self, situation: Situation, distance_m: float | None = None) -> None:
+        """Black-list the goal's neighbourhood, drop it, back off (``distance_m``)."""
         if self.goal is not None:
             self._ban(self.goal.xy, situation.now_s)
         self.goal = None
-        self.vfh.backoff.start(situation, prefer_left=bool(self.rng.integers(2)))
+        self.vfh.backoff.start(situation, prefer_left=bool(self.rng.integers(2)), distance_m=distance_m)
 
     def _look_around(self, situation: Situation) -> Command | None:
         """The first turn on the spot, so the map starts all round: a full circle less the
@@ -315,7 +325,7 @@ class Explore:
             else:
                 self.vfh.backoff.start(situation, prefer_left=bool(self.rng.integers(2)))
         if self.vfh.spot.update(situation) and not self.vfh.backoff.active:
-            self._abandon(situation)  # goal after goal and still on one spot: leave it
+            self._abandon(situation, self.vfh.escape_reverse_m(situation.pose))  # goal after goal and still on one spot: leave it
         if self.vfh.backoff.active:
             return self.vfh.backoff.step(situation)
         looking = self._look_around(situation)
@@ -337,7 +347,7 @@ class Explore:
             command = self.vfh.steer(situation, self.vfh.goal_heading_rad(situation), reuse=busy)
             return limited_command(command.speed_m_s, command.turn_rate_rad_s, "wander")
         if not self._progress(situation):
-            self._abandon(situation)
+            self._abandon(situation, self.vfh.escape_reverse_m(situation.pose))
             return self.vfh.backoff.step(situation)
         distance = math.hypot(self.goal.xy[0] - situation.pose[0], self.goal.xy[1] - situation.pose[1])
         if self.goal.kind != "frontier" and (self.goal.facing or distance < self.reach_m):

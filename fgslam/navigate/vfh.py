@@ -4,26 +4,33 @@ that make it usable with a narrow, slow depth camera.
 From the occupancy grid the scans build (:mod:`fgslam.navigate.grid`, our histogram grid),
 each step:
 
-1. the *active window* — occupied cells within ``d_max`` of the robot — votes into a polar
-   histogram of ``sectors`` sectors (world frame). A cell of certainty ``c`` at distance ``d``
-   adds ``m = c²·(a − b·d)`` with ``a = b·d_max`` (:func:`cell_magnitudes`), enlarged over
-   every sector within ``asin((robot radius + margin)/d)`` of its bearing (VFH+), so a free
-   sector means the robot's disc fits that way (:func:`polar_histogram`);
-2. the histogram is smoothed with the paper's triangular window of half-width ``l``
-   (:func:`smooth_histogram`) and thresholded with hysteresis (two thresholds, VFH+;
-   :func:`blocked_sectors`) into blocked and free sectors. A sector whose near cells were
-   never seen is *unknown*: not free;
+1. the *active window* — occupied cells within ``d_max`` of the robot — makes a polar
+   histogram of ``sectors`` sectors (world frame) holding, per sector, how far the robot's
+   disc enlarged to ``robot radius + half a cell's diagonal + margin`` (0.17 + 0.07 + 0.03 m:
+   an occupied cell means an obstacle somewhere in it) can go that way before it covers a
+   cell (:func:`free_distances_m`). This is VFH+'s binary histogram with the obstacle's
+   distance for its magnitude: the paper's summed ``c²·(a − b·d)`` magnitudes against a fixed
+   threshold blocked every sector in the clutter room (80 occupied cells within 1.6 m sum far
+   above any threshold that still stops for one), while a distance means the same in any room;
+2. a sector is blocked when its free distance is below ``block_m`` (0.3 m), free again above
+   ``clear_m`` (0.45 m), as before in between (VFH+ hysteresis; :func:`blocked_sectors`). A
+   sector whose corridor (out to where it is blocked: what lies behind a wall is never seen)
+   was never seen is *unknown*: not free;
 3. runs of free, known sectors are the candidate valleys (:func:`valleys`). A wide valley
    (more than ``s_max`` sectors) offers the directions ``s_max/2`` in from each border, and the
    goal direction itself when it lies well inside; a narrow one its middle (the paper's
    k_n/k_f rule; :func:`candidate_directions`). The robot takes the candidate that costs least
    in turning from the goal, its heading and its previous choice (VFH+'s cost with
    hysteresis, so it does not dither or turn round; :func:`choose_direction`);
-4. speed falls with the smoothed density ahead and with the turn still to make, and is 0
-   when an occupied cell lies in the corridor ahead within the stopping distance.
+4. speed rises with the free distance ahead (cruise at 0.8 m) and falls with the turn still
+   to make (0 beyond 25°: arcs sweep sides the ±21° camera has not seen), and is 0 when an
+   occupied cell lies in the corridor ahead within the stopping distance.
 
 When the goal direction was never seen the robot turns to look at it before it commits;
-with no valley at all it turns toward the nearest unknown sector (or in place when boxed in).
+with no valley at all it turns toward the nearest unknown sector for up to a full circle,
+then backs off and takes the opposite heading — never "blocked" for ever
+(:meth:`Vfh._boxed_in`). A robot that stays 7 s within 0.15 m of one spot (two ways that
+each close when looked at) does the same (:class:`~fgslam.navigate.common.SpotWatch`).
 Without a goal point it wanders: the goal heading is kept and changed by a random turn every
 ``wander_period_s``. On a bump it backs off ~0.15 m and turns away (:class:`BackOff`), and
 marks where it hit in the grid (something the scan did not show).
@@ -41,6 +48,7 @@ from fgslam.navigate.grid import OccupancyGrid
 from slamio.geometry import wrap_angle
 
 OCCUPIED_LOG_ODDS = 0.5  # a cell above this is an obstacle (one hit: 0.9)
+ESCAPE_REVERSE_M = 0.25  # leaving a spot: back the way it came, well out of a 0.1 m circle
 
 __all__ = ["Vfh", "free_distances_m", "blocked_sectors", "valleys",
            "candidate_directions", "choose_direction", "sector_angles_rad"]
@@ -146,8 +154,8 @@ class Vfh:
     def __init__(self, *, seed: int = 0, goal_xy=None, grid: OccupancyGrid | None = None, sectors: int = 72,
                  d_max_m: float = 1.6, margin_m: float = 0.03, block_m: float = 0.3, clear_m: float = 0.45,
                  s_max: int = 16, wander_period_s: float = 20.0, look_m=(0.45, 0.7, 0.95), look_side_m=0.2,
-                 relook_s: float = 5.0, near_m: float = ROBOT_RADIUS_M + 0.12, stuck_s: float = 7.0,
-                 progress_m: float = 0.15, free_range_m: float | None = None):
+                 relook_s: float = 5.0, near_m: float = ROBOT_RADIUS_M + 0.12, stuck_s: float = 6.0,
+                 progress_m: float = 0.2, free_range_m: float | None = None):
         self.rng = np.random.default_rng(seed)
         self.goal_xy = goal_xy
         self.grid = grid if grid is not None else OccupancyGrid()
@@ -285,10 +293,18 @@ class Vfh:
         if self._boxed_turned < 2 * math.pi:
             return limited_command(0.0, self._look_sign, "look" if (~known).any() else "blocked")
         self._boxed_heading = None
-        self.backoff.start(situation, prefer_left=bool(self.rng.integers(2)))
+        self.backoff.start(situation, prefer_left=bool(self.rng.integers(2)), distance_m=self.escape_reverse_m(pose))
         self._wander_heading = float(wrap_angle(pose[2] + math.pi))
         self._wander_until_s = situation.now_s + self.wander_period_s
         return self.backoff.step(situation)
+
+    def escape_reverse_m(self, pose) -> float:
+        """How far to reverse when leaving a spot: :data:`ESCAPE_REVERSE_M`, less when the map
+        shows something nearer behind (the robot has no eyes there; its own path is free)."""
+        if self._histogram is None:
+            return ESCAPE_REVERSE_M
+        behind = int(np.argmin(np.abs(wrap_angle(self._angles - (pose[2] + math.pi)))))
+        return float(np.clip(self._histogram[0][behind] - 0.05, 0.05, ESCAPE_REVERSE_M))
 
     def goal_heading_rad(self, situation: Situation) -> float:
         """The world-frame heading toward the goal point, or the wander heading (module docstring)."""
@@ -306,7 +322,8 @@ class Vfh:
         fresh = self.observe(situation)  # a scan integrated: one heavy job is enough for a step
         if self.spot.update(situation) and not self.backoff.active:
             # dithering on one spot (two ways that each close when looked at): leave it
-            self.backoff.start(situation, prefer_left=bool(self.rng.integers(2)))
+            self.backoff.start(situation, prefer_left=bool(self.rng.integers(2)),
+                               distance_m=self.escape_reverse_m(situation.pose))
             self._wander_heading = float(wrap_angle(situation.pose[2] + math.pi))
             self._wander_until_s = situation.now_s + self.wander_period_s
         if situation.bumped:
