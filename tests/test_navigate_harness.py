@@ -93,3 +93,28 @@ def test_explore_s001_stops_two_and_a_half_lengths_from_the_nearest_obstacle_and
     after = turn + states[turn:].index("scan-wait")
     assert abs(math.degrees(result.path[after][2])) == pytest.approx(45.0, abs=2.5)
     assert result.bumps == 0
+
+
+def test_a_clutter_world_drives_from_its_start_with_the_depth_scan_and_its_tags():
+    from slamio.clutter import clutter_world
+
+    world = clutter_world(1)
+    nav = _Constant()
+    result = drive(world, nav, duration_s=1.0)
+    scan = nav.seen[0].scan
+    # the live loop's scan: 0.5° bins from the robot's centre over ±21° (depth_scan's fan)
+    assert np.degrees(scan.angles_rad[[0, -1]]) == pytest.approx([-21.0, 21.0])
+    assert result.path[0] == pytest.approx(world.start_pose) and result.landmark_count == len(world.tags)
+    assert sum(s.scan is not s2.scan for s, s2 in zip(nav.seen[1:], nav.seen[:-1])) == 2  # at 0.4 s and 0.8 s
+
+
+def test_a_tag_is_sighted_from_its_front_only():
+    # a tag at the origin facing +x; the robot 2 m away looks at it from 0°, 60° and 80° off its normal
+    sighted = []
+    for off_deg in (0.0, 60.0, 80.0):
+        a = math.radians(off_deg)
+        pose = (2.0 * math.cos(a), 2.0 * math.sin(a), a + math.pi)
+        result = drive(Obstacles(), _Constant(), pose, duration_s=0.1, landmarks={0: (0.0, 0.0)},
+                       landmark_yaws={0: 0.0})
+        sighted.append(bool(result.landmarks_seen))
+    assert sighted == [True, True, False]  # the detector needs the face within 70°

@@ -10,8 +10,9 @@ from fgslam.navigate.common import CRUISE_SPEED_M_S, limited_command
 from fgslam.navigate.explore import frontier_goals, frontier_mask, goal_cost_m, landmark_viewpoint
 from fgslam.navigate.explore_s001 import STOP_DISTANCE_M, approach_distance_m, nearest_obstacle
 from fgslam.navigate.grid import OccupancyGrid
-from fgslam.navigate.vfh import (blocked_sectors, candidate_directions, cell_magnitudes, choose_direction,
-                                 polar_histogram, sector_angles_rad, smooth_histogram, valleys)
+from fgslam.navigate.common import SpotWatch
+from fgslam.navigate.vfh import (blocked_sectors, candidate_directions, choose_direction, free_distances_m,
+                                 sector_angles_rad, valleys)
 from fgslam.navigate.vfh_s000 import VfhS000, passable_regions, widest_region_middle_rad
 from slamio.errors import FgslamError
 from slamio.scan import Scan
@@ -81,24 +82,24 @@ def test_nearest_obstacle_is_placed_in_the_map_frame():
 # --------------------------------------------------------------------------- vfh
 
 
-def test_cell_magnitude_is_c_squared_times_a_minus_bd():
-    np.testing.assert_allclose(cell_magnitudes([2.0, 2.0, 1.0], [1.0, 2.0, 0.0], 1.6), [4 * 0.6, 0.0, 1.6])
+def test_free_distance_is_how_far_the_enlarged_disc_goes_before_a_cell():
+    directions = np.radians([0.0, 10.0, 20.0, 180.0])
+    # a cell 1 m ahead, disc enlarged to 0.25 m: straight on 1 − 0.25; at 10° its lateral offset is
+    # sin 10° = 0.174 m: cos 10° − √(0.25² − 0.174²) = 0.805; at 20° (0.342 m aside) and behind: clear
+    free = free_distances_m([[1.0, 0.0]], (0.0, 0.0), directions, 0.25, 1.6)
+    np.testing.assert_allclose(free, [0.75, 0.8050, 1.6, 1.6], atol=1e-3)
+    # a cell already inside the enlarged disc, ahead-left: blocks the ways toward it, not away
+    near = free_distances_m([[0.1, 0.1]], (0.0, 0.0), np.radians([0.0, 45.0, -90.0, 180.0]), 0.25, 1.6)
+    np.testing.assert_allclose(near, [0.0, 0.0, 1.6, 1.6])
+    assert free_distances_m(np.zeros((0, 2)), (0, 0), directions, 0.25, 1.6).tolist() == [1.6] * 4
 
 
-def test_one_cell_fills_the_sectors_its_enlarged_disc_covers():
-    # a cell 1 m ahead, enlarged by 0.25 m: asin(0.25) = 14.48°, + half a 5° sector = 16.98°
-    # → the six sectors centred at ±2.5°, ±7.5°, ±12.5° (±17.5° is just outside)
-    h = polar_histogram([[1.0, 0.0]], [1.0], (0.0, 0.0), 72, 2.0, 0.25)
-    centres = np.degrees(sector_angles_rad(72))
-    np.testing.assert_allclose(h[np.abs(centres) < 15], 1.0)
-    assert h.sum() == pytest.approx(6.0)
-    assert polar_histogram([[3.0, 0.0]], [1.0], (0.0, 0.0), 72, 2.0, 0.25).sum() == 0.0  # beyond d_max
-
-
-def test_smoothing_is_the_paper_s_triangle_and_wraps_round():
-    h = np.zeros(8)
-    h[0] = 5.0
-    np.testing.assert_allclose(smooth_histogram(h, 2), [3, 2, 1, 0, 0, 0, 1, 2])
+def test_spot_watch_fires_after_the_limit_on_one_spot_and_not_while_moving():
+    watch = SpotWatch(limit_s=7.0, radius_m=0.15)
+    still = [watch.update(Situation(t, (1.0 + 0.01 * (t % 2), 1.0, t), None, None)) for t in np.arange(0.0, 8.0, 0.5)]
+    assert still.index(True) == 15 and sum(still) == 1  # 7.5 s > 7 s, then the spot starts again
+    moving = SpotWatch(limit_s=7.0, radius_m=0.15)
+    assert not any(moving.update(Situation(t, (0.05 * t, 0.0, 0.0), None, None)) for t in np.arange(0.0, 20.0, 0.5))
 
 
 def test_threshold_hysteresis_keeps_the_previous_state_in_between():
@@ -155,6 +156,22 @@ def test_a_scan_frees_the_cells_along_its_rays_marks_the_hit_and_leaves_the_rest
     assert values[3] == 0 and values[4] == 0  # beyond the hit, and along the unknown rays
 
 
+def test_a_ray_beside_a_thin_pole_does_not_free_the_pole_s_cell():
+    # rays every 0.5°; a 0.1 m pole's cell 1 m ahead is crossed by rays that pass beside the pole
+    # (they reach 3 m) while the rays through the pole stop at it: the cell is not freed
+    grid = OccupancyGrid(half_size_m=4.0, resolution_m=0.1)
+    angles = np.radians(np.arange(-20.0, 20.5, 0.5))
+    ranges = np.full(len(angles), 3.0)
+    pole = np.abs(angles) <= math.radians(1.0)  # the pole, 1 m ahead, hides ±1°
+    ranges[pole] = 1.0
+    grid.add_scan(Scan(angles, ranges, 4.0), (0.05, 0.05, 0.0))
+    assert grid.values_at([[1.05, 0.05]])[0] > 0  # the pole's cell: a hit, never freed
+    assert grid.values_at([[1.05, 0.25]])[0] < 0  # beside it, every ray went past: free
+    assert grid.values_at([[0.55, 0.05]])[0] < 0  # before it
+    # the fan's edge: a cell half outside the fan stays unknown
+    assert grid.values_at([[1.05, 0.05 + math.tan(math.radians(20.0)) * 1.0 + 0.04]])[0] == 0
+
+
 def test_frontiers_are_free_cells_beside_unknown_ones():
     log_odds = np.zeros((10, 10))
     log_odds[:, :5] = -1.0  # the left half seen free, the right half unknown
@@ -174,5 +191,9 @@ def test_landmark_viewpoint_is_free_in_range_and_sees_the_landmark():
     view = landmark_viewpoint(grid, lambda xy: np.full(len(np.atleast_2d(xy)), 1.0), landmark, (0.0, 2.5))
     assert view is not None and view[1] > 0.5
     assert 0.99 <= math.hypot(view[0] - landmark[0], view[1] - landmark[1]) <= 1.51
+    # seen from the north-east: a viewpoint within 40° of that side
+    facing = landmark_viewpoint(grid, lambda xy: np.full(len(np.atleast_2d(xy)), 1.0), landmark, (-2.5, 2.5),
+                                facing_rad=math.radians(45.0))
+    assert facing is not None and abs(math.degrees(math.atan2(facing[1] - landmark[1], facing[0] - landmark[0])) - 45) <= 40
     assert goal_cost_m((0, 0, 0), (2, 0)) == pytest.approx(2.0) and goal_cost_m((0, 0, 0), (0, 2)) == pytest.approx(
         2 + 0.5 * math.pi / 2)

@@ -10,7 +10,9 @@ for the status line. Commands are kept inside what the iRobot Create can do
 limit via :func:`slamio.sim_models.wheel_speeds_m_s`).
 
 :class:`BackOff` is the one bump reaction of the robust navigators: reverse ~0.15 m, then
-turn away from the side that was hit.
+turn away from the side that was hit. :class:`SpotWatch` notices a robot that has stayed on
+one spot too long (dithering between two ways that each close when looked at, or goals
+given up one after another), so the owner can back off and try elsewhere.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from slamio.geometry import wrap_angle
 from slamio.scan import Scan
 from slamio.sim_models import WHEEL_BASE_M, wheel_speeds_m_s
 
-__all__ = ["Situation", "Command", "Navigator", "limited_command", "BackOff", "ROBOT_RADIUS_M",
+__all__ = ["Situation", "Command", "Navigator", "limited_command", "BackOff", "SpotWatch", "ROBOT_RADIUS_M",
            "ROBOT_LENGTH_M", "CRUISE_SPEED_M_S", "MAX_TURN_RATE_RAD_S", "heading_error_rad", "turn_towards"]
 
 ROBOT_RADIUS_M = 0.17  # the Create is a disc 0.34 m across
@@ -94,15 +96,19 @@ class BackOff:
         self._target_heading: float | None = None
         self._deadline_s = 0.0
         self.active = False
+        self._distance_now_m = distance_m
 
-    def start(self, situation: Situation, prefer_left: bool = True) -> None:
+    def start(self, situation: Situation, prefer_left: bool = True, distance_m: float | None = None) -> None:
+        """Arm it; ``distance_m`` overrides the reverse for this once (leaving a spot the robot
+        dithered on takes more than the bump's 0.15 m)."""
+        self._distance_now_m = self.distance_m if distance_m is None else distance_m
         side = situation.bump_side
         left = side == "right" or (side != "left" and prefer_left)
         x, y, theta = situation.pose
         self._start_xy = (x, y)
         self._target_heading = wrap_angle(theta + (self.turn_rad if left else -self.turn_rad))
         # a stuck reverse (something behind) must not hold the robot for ever
-        self._deadline_s = situation.now_s + 2.0 * self.distance_m / self.speed_m_s + 4.0
+        self._deadline_s = situation.now_s + 2.0 * self._distance_now_m / self.speed_m_s + 4.0
         self.active = True
 
     def step(self, situation: Situation) -> Command:
@@ -110,7 +116,7 @@ class BackOff:
         if situation.now_s > self._deadline_s:
             self.active = False
         elif self._start_xy is not None:
-            if math.hypot(x - self._start_xy[0], y - self._start_xy[1]) < self.distance_m:
+            if math.hypot(x - self._start_xy[0], y - self._start_xy[1]) < self._distance_now_m:
                 return limited_command(-self.speed_m_s, 0.0, "back-off")
             self._start_xy = None
         if self.active:
@@ -119,3 +125,22 @@ class BackOff:
                 return limited_command(0.0, math.copysign(MAX_TURN_RATE_RAD_S, error), "turn-away")
             self.active = False
         return limited_command(0.0, 0.0, "back-off")
+
+
+class SpotWatch:
+    """True from :meth:`update` when the robot's centre has stayed within ``radius_m`` of one
+    spot for ``limit_s`` (the spot is reset then, and whenever the centre leaves it)."""
+
+    def __init__(self, limit_s: float = 7.0, radius_m: float = 0.15):
+        self.limit_s, self.radius_m = limit_s, radius_m
+        self._anchor: tuple[float, float, float] | None = None  # x, y, since
+
+    def update(self, situation: Situation) -> bool:
+        x, y = situation.pose[:2]
+        if self._anchor is None or math.hypot(x - self._anchor[0], y - self._anchor[1]) > self.radius_m:
+            self._anchor = (x, y, situation.now_s)
+            return False
+        if situation.now_s - self._anchor[2] > self.limit_s:
+            self._anchor = None
+            return True
+        return False

@@ -3,7 +3,10 @@
 The Kinect sees 57° at a time and a scan is ~0.4 s old when it arrives, so a navigator that
 wants a wider view than the newest scan keeps what earlier scans showed: each scan, placed at
 the pose it was taken from, lowers the log-odds of the cells its rays crossed (free) and
-raises the cell each ray hit (occupied). A ray with no return (``inf``) is free to the scan's
+raises the cell each ray hit (occupied). Freeing is conservative: a cell is freed only when
+every ray of the bins it spans went past it (:meth:`OccupancyGrid._seen_past`), so a ray
+beside a thin pole or a box's corner seen edge-on, or at the fan's edge, does not free the
+cell the obstacle stands in. A ray with no return (``inf``) is free to the scan's
 maximum range; an unknown ray (``nan``) changes nothing — unknown stays unknown, and a cell
 never crossed keeps log-odds 0 (:meth:`OccupancyGrid.known`).
 
@@ -21,6 +24,20 @@ import numpy as np
 from slamio.scan import Scan
 
 __all__ = ["OccupancyGrid"]
+
+
+def _range_min(values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """min(values[lo_i..hi_i]) for each pair (inclusive, lo ≤ hi), by a sparse table."""
+    table = [np.asarray(values, dtype=float)]
+    while 2 ** len(table) <= len(values):
+        previous, width = table[-1], 2 ** (len(table) - 1)
+        table.append(np.minimum(previous[:-width], previous[width:]))
+    level = np.floor(np.log2(hi - lo + 1)).astype(int)
+    out = np.empty(len(lo))
+    for k in np.unique(level):
+        pick = level == k
+        out[pick] = np.minimum(table[k][lo[pick]], table[k][hi[pick] - 2**k + 1])
+    return out
 
 
 class OccupancyGrid:
@@ -59,8 +76,9 @@ class OccupancyGrid:
 
     # ------------------------------------------------------------------ updates
 
-    def add_scan(self, scan: Scan, scan_pose) -> None:
-        """Integrate one scan taken at ``scan_pose`` (module docstring)."""
+    def add_scan(self, scan: Scan, scan_pose, free_range_m: float | None = None) -> None:
+        """Integrate one scan taken at ``scan_pose`` (module docstring); ``free_range_m``:
+        free only the cells that near (hits are marked at any range)."""
         known = scan.known
         if not known.any():
             return
@@ -68,6 +86,8 @@ class OccupancyGrid:
         ranges = scan.ranges_m[known]
         hit = np.isfinite(ranges)
         free_to = np.where(hit, ranges - 0.5 * self.resolution_m, scan.max_range_m)
+        if free_range_m is not None:
+            free_to = np.minimum(free_to, free_range_m)
         step = 0.7 * self.resolution_m
         samples = np.arange(0.0, scan.max_range_m + step, step)
         along = samples[None, :] <= free_to[:, None]  # (rays, samples)
@@ -76,13 +96,37 @@ class OccupancyGrid:
         xy = np.column_stack([scan_pose[0] + distance * np.cos(angles[ray]),
                               scan_pose[1] + distance * np.sin(angles[ray])])
         row, col, inside = self.index(xy)
-        flat = row[inside] * self.cells + col[inside]  # repeats write the same value: once per scan
+        flat = np.unique(row[inside] * self.cells + col[inside])
+        flat = flat[self._seen_past(flat, scan, scan_pose)]
         grid = self.log_odds.reshape(-1)
         grid[flat] = np.maximum(grid[flat] + self.free, -self.limit)
         if hit.any():
             ends = np.column_stack([scan_pose[0] + ranges[hit] * np.cos(angles[hit]),
                                     scan_pose[1] + ranges[hit] * np.sin(angles[hit])])
             self.mark_occupied(ends)
+
+    def _seen_past(self, flat: np.ndarray, scan: Scan, scan_pose) -> np.ndarray:
+        """Which cells (flat indices) every ray through them went past: each ray of the bins
+        the cell's disc (half its diagonal) spans from ``scan_pose`` reached beyond it. A ray
+        beside a thin obstacle (a pole, a box's corner seen edge-on) crosses its cell without
+        freeing it; a cell partly outside the fan is not freed."""
+        centre = self.centres(flat // self.cells, flat % self.cells) - np.asarray(scan_pose[:2], dtype=float)
+        distance = np.hypot(centre[:, 0], centre[:, 1])
+        half_m = self.resolution_m / math.sqrt(2.0)
+        angles = scan.angles_rad
+        step = (angles[-1] - angles[0]) / max(len(angles) - 1, 1)
+        if len(angles) < 2 or step <= 0:
+            return np.zeros(len(flat), bool)
+        bearing = (np.arctan2(centre[:, 1], centre[:, 0]) - scan_pose[2] + np.pi) % (2 * np.pi) - np.pi
+        half = np.arcsin(np.clip(half_m / np.maximum(distance, 1e-9), 0.0, 1.0))
+        lo = np.ceil((bearing - half - angles[0]) / step - 1e-9).astype(int)
+        hi = np.floor((bearing + half - angles[0]) / step + 1e-9).astype(int)
+        nearest = np.rint((bearing - angles[0]) / step).astype(int)
+        lo, hi = np.where(lo > hi, nearest, lo), np.where(lo > hi, nearest, hi)
+        ok = (distance > half_m) & (lo >= 0) & (hi < len(angles))
+        reach = np.where(np.isnan(scan.ranges_m), -1.0, np.where(np.isinf(scan.ranges_m), np.inf, scan.ranges_m))
+        return ok & (_range_min(reach, np.clip(lo, 0, len(angles) - 1), np.clip(hi, 0, len(angles) - 1))
+                     >= distance + half_m)
 
     def mark_occupied(self, xy, log_odds: float | None = None) -> None:
         """Raise the cells holding ``xy`` (a hit, or where the bumper was pressed)."""

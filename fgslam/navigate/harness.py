@@ -6,10 +6,19 @@ error on each step's distance and turn, blind to sliding along walls; the landma
 told of stay at their true places, so that option only tests a drifting pose). Each step
 of ``dt_s``:
 
-* every ``scan_every_s`` a range scan is ray-cast from the true pose
-  (:func:`slamio.scan.ray_cast_scan`, the Kinect's 57° by default, 4 m) and the landmarks in
-  the camera's view are *sighted*: within ``camera_fov_rad`` of the heading, within
-  ``camera_range_m`` and not hidden (:func:`slamio.obstacles.line_of_sight`);
+* every ``scan_every_s`` (0.4 s: one Kinect frame of the live loop) a range scan is made
+  from the true pose, and the landmarks in the camera's view are *sighted*: within
+  ``camera_fov_rad`` of the heading, within ``camera_range_m``, not hidden
+  (:func:`slamio.obstacles.line_of_sight`) and, for a landmark with a facing (a tag: its
+  face's yaw in ``landmark_yaws``), seen from within ``facing_limit_rad`` (70°) of its face's
+  normal, as the tag detector needs. The scan (``scan``):
+
+  - ``"depth"`` — what the live loop's depth scan gives
+    (:func:`slamio.camera.depth_scan.ray_cast_depth_scan`: rays from the Kinect 0.13 m ahead
+    of the centre over its 57°, binned by bearing from the centre every 0.5°: a fan of only
+    ±21°), the default when the world is a :class:`slamio.clutter.ClutterWorld`;
+  - ``"rays"`` — ``rays`` rays over ``fov_rad`` from the centre (:func:`slamio.scan.ray_cast_scan`),
+    the default for bare :class:`~slamio.obstacles.Obstacles`;
 * the bumper: the disc touching an obstacle (:func:`slamio.obstacles.disc_contacts`) in its
   front half (bearing within ±90° of the heading) presses it. The first step of a press is a
   *bump* (counted) and its command is cut to zero, as the Create's safety monitor stops the
@@ -44,13 +53,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fgslam.navigate.common import ROBOT_RADIUS_M, Navigator, Situation
+from slamio.camera.depth_scan import ray_cast_depth_scan
 from slamio.camera.kinect import KINECT_HFOV_RAD
 from slamio.geometry import wrap_angle
 from slamio.obstacles import Obstacles, box_segments, disc_contacts, line_of_sight, push_disc_out, room_segments
+from slamio.errors import FgslamError
 from slamio.scan import ray_cast_scan
 from slamio.sim_models import wheel_speeds_m_s, WHEEL_BASE_M
 
-__all__ = ["drive", "DriveResult", "six_metre_room", "bump_side"]
+__all__ = ["drive", "DriveResult", "six_metre_room", "bump_side", "world_landmarks"]
 
 CELL_M = 0.25
 
@@ -97,6 +108,11 @@ def six_metre_room() -> tuple[Obstacles, dict[int, tuple[float, float]]]:
             landmarks[k] = xy
             k += 1
     return obstacles, landmarks
+
+
+def world_landmarks(world) -> tuple[dict[int, tuple[float, float]], dict[int, float]]:
+    """A :class:`slamio.clutter.ClutterWorld`'s tags: ({id: (x, y)}, {id: yaw of the face})."""
+    return ({t.tag_id: (t.x_m, t.y_m) for t in world.tags}, {t.tag_id: t.yaw_rad for t in world.tags})
 
 
 def bump_side(contact_bearings_rad) -> str:
@@ -150,8 +166,10 @@ def _longest_stuck_s(path_xy: np.ndarray, dt_s: float, radius_m: float = 0.1) ->
 class _Sightings:
     """Landmark sightings and visits (a new visit after ``gap_s`` unseen)."""
 
-    def __init__(self, landmarks, fov_rad: float, range_m: float, gap_s: float):
+    def __init__(self, landmarks, fov_rad: float, range_m: float, gap_s: float, yaws=None,
+                 facing_limit_rad: float = math.radians(70)):
         self.landmarks = dict(landmarks or {})
+        self.yaws, self.facing_limit_rad = dict(yaws or {}), facing_limit_rad
         self.fov_rad, self.range_m, self.gap_s = fov_rad, range_m, gap_s
         self.count: dict[int, int] = {}
         self.last_s: dict[int, float] = {}
@@ -162,6 +180,8 @@ class _Sightings:
             dx, dy = lx - pose[0], ly - pose[1]
             if math.hypot(dx, dy) > self.range_m or abs(wrap_angle(math.atan2(dy, dx) - pose[2])) > 0.5 * self.fov_rad:
                 continue
+            if key in self.yaws and abs(wrap_angle(math.atan2(-dy, -dx) - self.yaws[key])) > self.facing_limit_rad:
+                continue  # seen from behind or too obliquely
             if not line_of_sight(obstacles, pose[:2], (lx, ly)):
                 continue
             if key in self.last_s and now_s - self.last_s[key] >= self.gap_s:
@@ -170,17 +190,31 @@ class _Sightings:
             self.last_s[key] = now_s
 
 
-def drive(obstacles: Obstacles, navigator: Navigator, start_pose, *, duration_s: float, dt_s: float = 0.05,
-          scan_every_s: float = 0.4, fov_rad: float = KINECT_HFOV_RAD, rays: int = 58, max_range_m: float = 4.0,
-          landmarks=None, camera_fov_rad: float = KINECT_HFOV_RAD, camera_range_m: float = 3.5,
-          revisit_gap_s: float = 20.0, odometry_noise: float = 0.0, seed: int = 0) -> DriveResult:
-    """Drive ``navigator`` from ``start_pose`` for ``duration_s`` of simulated time (module docstring)."""
+def drive(obstacles, navigator: Navigator, start_pose=None, *, duration_s: float, dt_s: float = 0.05,
+          scan_every_s: float = 0.4, scan: str | None = None, fov_rad: float = KINECT_HFOV_RAD, rays: int = 58,
+          max_range_m: float = 4.0, landmarks=None, landmark_yaws=None, camera_fov_rad: float = KINECT_HFOV_RAD,
+          camera_range_m: float = 3.5, revisit_gap_s: float = 20.0, odometry_noise: float = 0.0,
+          seed: int = 0) -> DriveResult:
+    """Drive ``navigator`` from ``start_pose`` for ``duration_s`` of simulated time (module
+    docstring). ``obstacles`` may be a :class:`slamio.clutter.ClutterWorld`: then the start
+    pose, the landmarks (its tags) and their facings default to the world's, and the scan to
+    ``"depth"``."""
+    if hasattr(obstacles, "tags"):  # a ClutterWorld
+        world = obstacles
+        obstacles, scan = world.obstacles, scan or "depth"
+        start_pose = world.start_pose if start_pose is None else start_pose
+        if landmarks is None:
+            landmarks, landmark_yaws = world_landmarks(world)
+    scan = scan or "rays"
+    if scan not in ("depth", "rays") or start_pose is None:
+        raise FgslamError(f"drive: scan must be 'depth' or 'rays' (got {scan!r}) and a start pose is needed "
+                          "(only a ClutterWorld has its own)")
     rng = np.random.default_rng(seed)
     steps = int(round(duration_s / dt_s))
     pose, estimate = tuple(map(float, start_pose)), tuple(map(float, start_pose))
-    scan = scan_pose = None
+    kind, scan, scan_pose = scan, None, None
     next_scan_s, pressed_before, bumps = 0.0, False, 0
-    sight = _Sightings(landmarks, camera_fov_rad, camera_range_m, revisit_gap_s)
+    sight = _Sightings(landmarks, camera_fov_rad, camera_range_m, revisit_gap_s, landmark_yaws)
     path, states, step_us, cpu_us, seen_cells, state_time = [], [], np.zeros(steps), np.zeros(steps), set(), {}
     for i in range(steps):
         now = i * dt_s
@@ -189,7 +223,9 @@ def drive(obstacles: Obstacles, navigator: Navigator, start_pose, *, duration_s:
         pressed = len(front) > 0
         bumps += int(pressed and not pressed_before)
         if now + 1e-9 >= next_scan_s:
-            scan, scan_pose = ray_cast_scan(obstacles, pose, fov_rad, rays, max_range_m), estimate
+            scan = (ray_cast_depth_scan(obstacles, pose, max_range_m=max_range_m) if kind == "depth"
+                    else ray_cast_scan(obstacles, pose, fov_rad, rays, max_range_m))
+            scan_pose = estimate
             seen_cells.update(_cells_of_scan(scan, pose).tolist())
             sight.look(obstacles, pose, now)
             next_scan_s += scan_every_s

@@ -4,26 +4,33 @@ that make it usable with a narrow, slow depth camera.
 From the occupancy grid the scans build (:mod:`fgslam.navigate.grid`, our histogram grid),
 each step:
 
-1. the *active window* — occupied cells within ``d_max`` of the robot — votes into a polar
-   histogram of ``sectors`` sectors (world frame). A cell of certainty ``c`` at distance ``d``
-   adds ``m = c²·(a − b·d)`` with ``a = b·d_max`` (:func:`cell_magnitudes`), enlarged over
-   every sector within ``asin((robot radius + margin)/d)`` of its bearing (VFH+), so a free
-   sector means the robot's disc fits that way (:func:`polar_histogram`);
-2. the histogram is smoothed with the paper's triangular window of half-width ``l``
-   (:func:`smooth_histogram`) and thresholded with hysteresis (two thresholds, VFH+;
-   :func:`blocked_sectors`) into blocked and free sectors. A sector whose near cells were
-   never seen is *unknown*: not free;
+1. the *active window* — occupied cells within ``d_max`` of the robot — makes a polar
+   histogram of ``sectors`` sectors (world frame) holding, per sector, how far the robot's
+   disc enlarged to ``robot radius + half a cell's diagonal + margin`` (0.17 + 0.07 + 0.03 m:
+   an occupied cell means an obstacle somewhere in it) can go that way before it covers a
+   cell (:func:`free_distances_m`). This is VFH+'s binary histogram with the obstacle's
+   distance for its magnitude: the paper's summed ``c²·(a − b·d)`` magnitudes against a fixed
+   threshold blocked every sector in the clutter room (80 occupied cells within 1.6 m sum far
+   above any threshold that still stops for one), while a distance means the same in any room;
+2. a sector is blocked when its free distance is below ``block_m`` (0.3 m), free again above
+   ``clear_m`` (0.45 m), as before in between (VFH+ hysteresis; :func:`blocked_sectors`). A
+   sector whose corridor (out to where it is blocked: what lies behind a wall is never seen)
+   was never seen is *unknown*: not free;
 3. runs of free, known sectors are the candidate valleys (:func:`valleys`). A wide valley
    (more than ``s_max`` sectors) offers the directions ``s_max/2`` in from each border, and the
    goal direction itself when it lies well inside; a narrow one its middle (the paper's
    k_n/k_f rule; :func:`candidate_directions`). The robot takes the candidate that costs least
    in turning from the goal, its heading and its previous choice (VFH+'s cost with
    hysteresis, so it does not dither or turn round; :func:`choose_direction`);
-4. speed falls with the smoothed density ahead and with the turn still to make, and is 0
-   when an occupied cell lies in the corridor ahead within the stopping distance.
+4. speed rises with the free distance ahead (cruise at 0.8 m) and falls with the turn still
+   to make (0 beyond 25°: arcs sweep sides the ±21° camera has not seen), and is 0 when an
+   occupied cell lies in the corridor ahead within the stopping distance.
 
 When the goal direction was never seen the robot turns to look at it before it commits;
-with no valley at all it turns toward the nearest unknown sector (or in place when boxed in).
+with no valley at all it turns toward the nearest unknown sector for up to a full circle,
+then backs off and takes the opposite heading — never "blocked" for ever
+(:meth:`Vfh._boxed_in`). A robot that stays 7 s within 0.15 m of one spot (two ways that
+each close when looked at) does the same (:class:`~fgslam.navigate.common.SpotWatch`).
 Without a goal point it wanders: the goal heading is kept and changed by a random turn every
 ``wander_period_s``. On a bump it backs off ~0.15 m and turns away (:class:`BackOff`), and
 marks where it hit in the grid (something the scan did not show).
@@ -35,12 +42,15 @@ import math
 
 import numpy as np
 
-from fgslam.navigate.common import (CRUISE_SPEED_M_S, ROBOT_RADIUS_M, BackOff, Command, Situation, heading_error_rad,
-                                    limited_command, turn_towards)
+from fgslam.navigate.common import (CRUISE_SPEED_M_S, ROBOT_RADIUS_M, BackOff, Command, Situation, SpotWatch,
+                                    heading_error_rad, limited_command, turn_towards)
 from fgslam.navigate.grid import OccupancyGrid
 from slamio.geometry import wrap_angle
 
-__all__ = ["Vfh", "cell_magnitudes", "polar_histogram", "smooth_histogram", "blocked_sectors", "valleys",
+OCCUPIED_LOG_ODDS = 0.5  # a cell above this is an obstacle (one hit: 0.9)
+ESCAPE_REVERSE_M = 0.25  # leaving a spot: back the way it came, well out of a 0.1 m circle
+
+__all__ = ["Vfh", "free_distances_m", "blocked_sectors", "valleys",
            "candidate_directions", "choose_direction", "sector_angles_rad"]
 
 
@@ -49,44 +59,22 @@ def sector_angles_rad(sectors: int) -> np.ndarray:
     return -math.pi + (np.arange(sectors) + 0.5) * (2 * math.pi / sectors)
 
 
-def cell_magnitudes(certainty, distance_m, d_max_m: float, b: float = 1.0) -> np.ndarray:
-    """The paper's obstacle vector magnitude ``c²·(a − b·d)`` with ``a = b·d_max`` (0 beyond d_max)."""
-    certainty, distance = np.asarray(certainty, dtype=float), np.asarray(distance_m, dtype=float)
-    return certainty**2 * np.maximum(b * d_max_m - b * distance, 0.0)
-
-
-def polar_histogram(cells_xy, certainty, robot_xy, sectors: int, d_max_m: float, enlarge_m: float) -> np.ndarray:
-    """Obstacle density per world-frame sector (module docstring, step 1)."""
+def free_distances_m(cells_xy, robot_xy, angles_rad, radius_m: float, d_max_m: float) -> np.ndarray:
+    """Per world-frame direction, how far the robot's disc enlarged to ``radius_m`` can go
+    straight before it covers an occupied cell's centre (``d_max_m`` when no cell is in the
+    way; 0 when one is already inside the enlarged disc ahead). Cells behind the centre (on
+    the way's far side) do not count: going on moves away from them."""
     offset = np.asarray(cells_xy, dtype=float).reshape(-1, 2) - np.asarray(robot_xy, dtype=float)
-    distance = np.hypot(offset[:, 0], offset[:, 1])
-    near = distance < d_max_m
-    offset, distance, certainty = offset[near], distance[near], np.asarray(certainty, dtype=float)[near]
-    if len(distance) == 0:
-        return np.zeros(sectors)
-    bearing = np.arctan2(offset[:, 1], offset[:, 0])
-    magnitude = cell_magnitudes(certainty, distance, d_max_m)
-    spread = np.arcsin(np.clip(enlarge_m / np.maximum(distance, 1e-9), 0.0, 1.0))
-    spread = np.where(distance <= enlarge_m, math.pi / 2, spread)  # inside the margin: the whole half-plane
-    # each cell adds its magnitude to the sectors whose centre lies within spread + α/2 of
-    # its bearing: a run of sectors [first, last] (unwrapped), summed with a difference array
-    alpha = 2 * math.pi / sectors
-    reach = spread + 0.5 * alpha
-    first = np.ceil((bearing - reach + math.pi) / alpha - 0.5 - 1e-12).astype(int)
-    last = np.floor((bearing + reach + math.pi) / alpha - 0.5 + 1e-12).astype(int)
-    last = np.minimum(last, first + sectors - 1)
-    difference = np.zeros(3 * sectors + 1)
-    np.add.at(difference, first + sectors, magnitude)
-    np.add.at(difference, last + sectors + 1, -magnitude)
-    return np.cumsum(difference[:-1]).reshape(3, sectors).sum(axis=0)
-
-
-def smooth_histogram(histogram, half_width: int) -> np.ndarray:
-    """The paper's smoothing ``h'_k = Σ_{i=−l..l} (l + 1 − |i|)·h_{k+i} / (2l + 1)``, circular."""
-    h = np.asarray(histogram, dtype=float)
-    if half_width == 0:
-        return h.copy()
-    weights = (half_width + 1 - np.abs(np.arange(-half_width, half_width + 1))) / (2 * half_width + 1)
-    return np.convolve(np.concatenate([h[-half_width:], h, h[:half_width]]), weights, mode="valid")
+    angles = np.asarray(angles_rad, dtype=float)
+    free = np.full(len(angles), float(d_max_m))
+    if len(offset) == 0:
+        return free
+    c, s = np.cos(angles)[:, None], np.sin(angles)[:, None]
+    along = c * offset[:, 0] + s * offset[:, 1]  # (directions, cells)
+    lateral = -s * offset[:, 0] + c * offset[:, 1]
+    in_way = (np.abs(lateral) < radius_m) & (along > 0)
+    reach = np.where(in_way, along - np.sqrt(np.maximum(radius_m**2 - lateral**2, 0.0)), np.inf)
+    return np.clip(np.minimum(free, reach.min(axis=1)), 0.0, None)
 
 
 def blocked_sectors(smoothed, low: float, high: float, previous=None) -> np.ndarray:
@@ -164,14 +152,17 @@ class Vfh:
     name = "vfh"
 
     def __init__(self, *, seed: int = 0, goal_xy=None, grid: OccupancyGrid | None = None, sectors: int = 72,
-                 d_max_m: float = 1.6, margin_m: float = 0.1, smoothing: int = 2, low: float = 1.0, high: float = 2.5,
+                 d_max_m: float = 1.6, margin_m: float = 0.03, block_m: float = 0.3, clear_m: float = 0.45,
                  s_max: int = 16, wander_period_s: float = 20.0, look_m=(0.45, 0.7, 0.95), look_side_m=0.2,
-                 relook_s: float = 5.0, near_m: float = ROBOT_RADIUS_M + 0.1):
+                 relook_s: float = 5.0, near_m: float = ROBOT_RADIUS_M + 0.12, stuck_s: float = 6.0,
+                 progress_m: float = 0.2, free_range_m: float | None = None):
         self.rng = np.random.default_rng(seed)
         self.goal_xy = goal_xy
         self.grid = grid if grid is not None else OccupancyGrid()
-        self.sectors, self.d_max_m, self.enlarge_m = sectors, d_max_m, ROBOT_RADIUS_M + margin_m
-        self.smoothing, self.low, self.high, self.s_max = smoothing, low, high, s_max
+        # an occupied cell means an obstacle somewhere in it: up to half its diagonal from its centre
+        cell_m = self.grid.resolution_m / math.sqrt(2.0)
+        self.sectors, self.d_max_m, self.enlarge_m = sectors, d_max_m, ROBOT_RADIUS_M + cell_m + margin_m
+        self.block_m, self.clear_m, self.s_max = block_m, clear_m, s_max
         self.wander_period_s = wander_period_s
         self._angles = angles = sector_angles_rad(sectors)
         look = np.asarray(look_m, dtype=float)
@@ -181,6 +172,7 @@ class Vfh:
         along, side = along.ravel(), side.ravel()
         c, s = np.cos(angles)[:, None], np.sin(angles)[:, None]
         self._probes = np.stack([along * c - side * s, along * s + side * c], axis=2).reshape(-1, 2)
+        self._probe_along_m = along
         self.backoff = BackOff()
         self._last_scan = None
         self._blocked = None
@@ -192,6 +184,11 @@ class Vfh:
         self.relook_s, self.near_m = relook_s, near_m
         self._looked_s = np.full(sectors, -math.inf)  # when each sector was last in a scan's view
         self._window = (np.zeros((0, 2)), np.zeros(0))
+        self._boxed_turned = 0.0  # how far it has turned since no way was open
+        self._boxed_heading: float | None = None
+        self._histogram = None
+        self.spot = SpotWatch(stuck_s, progress_m)
+        self.free_range_m = free_range_m
 
     # ------------------------------------------------------------------ memory
 
@@ -204,7 +201,7 @@ class Vfh:
             self._cleared_xy = (x, y)
         fresh = situation.scan is not None and situation.scan is not self._last_scan and situation.scan_pose is not None
         if fresh:
-            self.grid.add_scan(situation.scan, situation.scan_pose)
+            self.grid.add_scan(situation.scan, situation.scan_pose, self.free_range_m)
             bearings = wrap_angle(self._angles - situation.scan_pose[2])
             scan = situation.scan
             self._looked_s[(bearings >= scan.angles_rad[0]) & (bearings <= scan.angles_rad[-1])] = situation.now_s
@@ -217,15 +214,21 @@ class Vfh:
                                     self.grid.limit)
         return fresh
 
-    def histogram(self, pose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(smoothed density, blocked, known) per sector at ``pose``."""
+    def histogram(self, pose, reuse: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(free distance, blocked, known) per sector at ``pose`` (module docstring, steps 1–2);
+        ``reuse``: the previous step's (world-frame, so still right after a turn; at most a
+        step's travel, ~1 cm, old), when the caller already did a heavy job this step."""
+        if reuse and self._histogram is not None:
+            return self._histogram
         cells, log_odds = self._window = self.grid.window(pose[:2], self.d_max_m)
-        certainty = np.clip(log_odds / self.grid.hit, 0.0, self.grid.limit / self.grid.hit)
-        raw = polar_histogram(cells, certainty, pose[:2], self.sectors, self.d_max_m, self.enlarge_m)
-        smoothed = smooth_histogram(raw, self.smoothing)
-        self._blocked = blocked_sectors(smoothed, self.low, self.high, self._blocked)
-        seen = (self.grid.values_at(self._probes + np.asarray(pose[:2])) != 0).reshape(self.sectors, -1).all(axis=1)
-        return smoothed, self._blocked.copy(), seen | self._blocked
+        free = free_distances_m(cells[log_odds > OCCUPIED_LOG_ODDS], pose[:2], self._angles, self.enlarge_m,
+                                self.d_max_m)
+        self._blocked = blocked_sectors(-free, -self.clear_m, -self.block_m, self._blocked)
+        # known: its corridor was seen, up to where it is blocked (what lies behind a wall never is)
+        seen = (self.grid.values_at(self._probes + np.asarray(pose[:2])) != 0).reshape(self.sectors, -1)
+        seen |= self._probe_along_m[None, :] > free[:, None] + 0.5 * self.grid.resolution_m
+        self._histogram = (free, self._blocked.copy(), seen.all(axis=1) | self._blocked)
+        return self._histogram
 
     def _gap_ahead_m(self, pose) -> float:
         """Free distance in the corridor the disc sweeps straight ahead, or 0 when an occupied
@@ -233,7 +236,7 @@ class Vfh:
         beside an obstacle it turns in place first). Occupied cells of the active window
         :meth:`histogram` last read."""
         cells, log_odds = self._window
-        cells = cells[log_odds > 0.5]
+        cells = cells[log_odds > OCCUPIED_LOG_ODDS]
         if len(cells) == 0:
             return math.inf
         c, s = math.cos(pose[2]), math.sin(pose[2])
@@ -241,15 +244,16 @@ class Vfh:
         ahead, side = c * dx + s * dy, -s * dx + c * dy
         if np.any((ahead > 0.5 * np.abs(side)) & (np.hypot(ahead, side) < self.near_m)):
             return 0.0
-        inside = (ahead > 0) & (np.abs(side) < ROBOT_RADIUS_M + 0.03)
+        inside = (ahead > 0) & (np.abs(side) < self.enlarge_m)
         return float(ahead[inside].min() - ROBOT_RADIUS_M) if inside.any() else math.inf
 
     # ------------------------------------------------------------------ steering
 
-    def steer(self, situation: Situation, goal_rad: float) -> Command:
-        """One VFH decision toward the world-frame heading ``goal_rad``."""
+    def steer(self, situation: Situation, goal_rad: float, reuse: bool = False) -> Command:
+        """One VFH decision toward the world-frame heading ``goal_rad`` (``reuse``: the
+        previous step's histogram, :meth:`histogram`)."""
         pose = situation.pose
-        smoothed, blocked, known = self.histogram(pose)
+        free, blocked, known = self.histogram(pose, reuse)
         angles = self._angles
         goal_sector = int(np.argmin(np.abs(wrap_angle(angles - goal_rad))))
         unlooked = situation.now_s - self._looked_s > self.relook_s  # not in the camera's view lately
@@ -258,23 +262,49 @@ class Vfh:
         direction = choose_direction(candidate_directions(valleys(~blocked & known), self.sectors, goal_rad, self.s_max),
                                      goal_rad, pose[2], self._previous)
         if direction is None:
-            if self._previous is not None:  # a new search: toward the nearest sector not looked at lately
-                todo = np.nonzero(~known & unlooked)[0]
-                if len(todo):
-                    nearest = todo[np.argmin(np.abs(wrap_angle(angles[todo] - pose[2])))]
-                    self._look_sign = math.copysign(1.0, heading_error_rad(pose, angles[nearest]) or 1.0)
-            self._previous = None  # keep turning the same way until a valley opens
-            return limited_command(0.0, self._look_sign, "look" if (~known).any() else "blocked")
+            return self._boxed_in(situation, known, unlooked)
+        self._boxed_heading = None
         self._previous = direction
         if self.goal_xy is None and abs(wrap_angle(direction - goal_rad)) > 0.5 * math.pi:
             self._wander_heading = direction  # the wander goal is out of reach: wander where the way is open
         error = heading_error_rad(pose, direction)
         heading_sector = int(np.argmin(np.abs(wrap_angle(angles - pose[2]))))
-        density = min(smoothed[heading_sector], 3 * self.high) / (3 * self.high)
-        speed = CRUISE_SPEED_M_S * (1.0 - density) * max(0.0, 1.0 - abs(error) / math.radians(35))
+        room = min(max((free[heading_sector] - self.block_m) / 0.5, 0.0), 1.0)  # cruise with 0.8 m free
+        # arcs sweep the sides the narrow camera has not seen: turn mostly on the spot
+        speed = CRUISE_SPEED_M_S * (0.3 + 0.7 * room) * max(0.0, 1.0 - abs(error) / math.radians(25))
         if self._gap_ahead_m(pose) < 0.08 + speed**2 / (2 * 0.5) + speed * 0.2:
             speed = 0.0
         return limited_command(speed, turn_towards(error), "drive" if speed > 0 else "turn")
+
+    def _boxed_in(self, situation: Situation, known, unlooked) -> Command:
+        """No way open: turn (toward the nearest sector not looked at lately) for up to a full
+        circle, so the narrow camera sees all round; still none: back off, turn away and take
+        a new wander heading, so the robot never sits turning on one spot."""
+        pose = situation.pose
+        if self._boxed_heading is None:  # a new search
+            self._boxed_turned, self._boxed_heading = 0.0, pose[2]
+            todo = np.nonzero(~known & unlooked)[0]
+            if len(todo):
+                nearest = todo[np.argmin(np.abs(wrap_angle(self._angles[todo] - pose[2])))]
+                self._look_sign = math.copysign(1.0, heading_error_rad(pose, self._angles[nearest]) or 1.0)
+        self._boxed_turned += abs(wrap_angle(pose[2] - self._boxed_heading))
+        self._boxed_heading = pose[2]
+        self._previous = None
+        if self._boxed_turned < 2 * math.pi:
+            return limited_command(0.0, self._look_sign, "look" if (~known).any() else "blocked")
+        self._boxed_heading = None
+        self.backoff.start(situation, prefer_left=bool(self.rng.integers(2)), distance_m=self.escape_reverse_m(pose))
+        self._wander_heading = float(wrap_angle(pose[2] + math.pi))
+        self._wander_until_s = situation.now_s + self.wander_period_s
+        return self.backoff.step(situation)
+
+    def escape_reverse_m(self, pose) -> float:
+        """How far to reverse when leaving a spot: :data:`ESCAPE_REVERSE_M`, less when the map
+        shows something nearer behind (the robot has no eyes there; its own path is free)."""
+        if self._histogram is None:
+            return ESCAPE_REVERSE_M
+        behind = int(np.argmin(np.abs(wrap_angle(self._angles - (pose[2] + math.pi)))))
+        return float(np.clip(self._histogram[0][behind] - 0.05, 0.05, ESCAPE_REVERSE_M))
 
     def goal_heading_rad(self, situation: Situation) -> float:
         """The world-frame heading toward the goal point, or the wander heading (module docstring)."""
@@ -289,9 +319,15 @@ class Vfh:
         return self._wander_heading
 
     def step(self, situation: Situation) -> Command:
-        self.observe(situation)
+        fresh = self.observe(situation)  # a scan integrated: one heavy job is enough for a step
+        if self.spot.update(situation) and not self.backoff.active:
+            # dithering on one spot (two ways that each close when looked at): leave it
+            self.backoff.start(situation, prefer_left=bool(self.rng.integers(2)),
+                               distance_m=self.escape_reverse_m(situation.pose))
+            self._wander_heading = float(wrap_angle(situation.pose[2] + math.pi))
+            self._wander_until_s = situation.now_s + self.wander_period_s
         if situation.bumped:
             self.backoff.start(situation, prefer_left=bool(self.rng.integers(2)))
         if self.backoff.active:
             return self.backoff.step(situation)
-        return self.steer(situation, self.goal_heading_rad(situation))
+        return self.steer(situation, self.goal_heading_rad(situation), reuse=fresh)
