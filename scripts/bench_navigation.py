@@ -15,7 +15,9 @@ Per run, from the log (truth poses, observations, event records) and from ``fgsl
 * ``seen`` / ``revisited`` — landmarks observed at all, and observed again after 20 s of not
   being seen (a loop closure for the smoother), as shares of the room's tags;
 * ``map_m`` / ``ate_m`` — map RMSE and trajectory ATE of the EKF and of iSAM2 (final and
-  online) against the simulator's truth.
+  online) against the simulator's truth;
+* ``isam2_p99_ms`` — the live smoother's 99th-percentile step (its ``live_step`` records),
+  ``nav_p99_us`` — the navigator's, from the run's printed summary (wall clock, in the loop).
 
 Each run's log and results stay in ``--work`` (a run already there is reused), so the numbers
 can be checked. Every run is the same on any machine: the live loop runs in lockstep with
@@ -34,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from slamio.log import Event, Observation, TruthPose, read_log
+from slamio.log import Event, LiveStep, Observation, TruthPose, read_log
 
 NAVIGATORS = ("vfh-s000", "vfh", "explore-s001", "explore")
 CELL_M = 0.25
@@ -96,6 +98,7 @@ def _live(name: str, seed: int, args, log: Path) -> None:
     done = subprocess.run(command, capture_output=True, text=True)
     if done.returncode != 0:
         raise RuntimeError(f"{' '.join(command)} exited {done.returncode}:\n{done.stderr[-2000:]}")
+    log.with_suffix(".out").write_text(done.stdout)  # its summary: the navigator's step times
 
 
 def _compare(log: Path, out: Path) -> dict:
@@ -126,13 +129,26 @@ def one_run(name: str, seed: int, args) -> dict:
         "ekf_ate_m": metrics["ekf"]["ate_rmse_m"], "isam2_ate_m": metrics["isam2"]["ate_rmse_m"],
         "isam2_online_ate_m": metrics["isam2"]["ate_online_rmse_m"],
         "ekf_map_m": metrics["ekf"]["map_rmse_m"], "isam2_map_m": metrics["isam2"]["map_rmse_m"],
+        "isam2_p99_ms": 1e3 * float(np.percentile([r.latency_s for r in records if isinstance(r, LiveStep)], 99)),
+        "nav_p99_us": _navigator_p99_us(log.with_suffix(".out")),
         "path": xy,
     }
 
 
+def _navigator_p99_us(summary: Path) -> float:
+    """The navigator's p99 step (wall, in the live loop) from the run's printed summary; nan
+    when the summary was not kept."""
+    import re
+
+    if not summary.exists():
+        return math.nan
+    found = re.search(r"navigator: \d+ steps, median \d+ µs, p99 (\d+) µs", summary.read_text())
+    return float(found.group(1)) if found else math.nan
+
+
 def _print(rows: list[dict]) -> None:
     head = ("navigator", "seed", "bumps", "stuck_s", "area_m2", "seen", "revisited", "ekf_ate_m", "isam2_ate_m",
-            "isam2_online_ate_m", "ekf_map_m", "isam2_map_m")
+            "isam2_online_ate_m", "ekf_map_m", "isam2_map_m", "isam2_p99_ms", "nav_p99_us")
     print(" ".join(f"{h:>12s}" for h in head))
     for r in rows:
         print(" ".join(f"{r[h]:>12}" if isinstance(r[h], (str, int)) else f"{r[h]:12.3f}" for h in head))
@@ -147,7 +163,7 @@ def _print(rows: list[dict]) -> None:
               f"min seen {100 * min(r['seen'] for r in mine):5.1f} %  min revisited "
               f"{100 * min(r['revisited'] for r in mine):5.1f} %  "
               f"ATE {med['ekf_ate_m']:.3f} / {med['isam2_ate_m']:.3f} m  map {med['ekf_map_m']:.3f} / "
-              f"{med['isam2_map_m']:.3f} m")
+              f"{med['isam2_map_m']:.3f} m  iSAM2 step p99 max {max(r['isam2_p99_ms'] for r in mine):.2f} ms")
 
 
 def _figure(rows: list[dict], seed: int, png: str) -> None:
