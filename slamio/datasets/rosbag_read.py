@@ -375,3 +375,78 @@ def read_bag(path: str, bag: Path, ros_version: int, odom_topic: str | None, det
         return messages
     finally:
         reader.close()
+
+
+def _path_keys(tf: dict[tuple[str, str], np.ndarray], parent: str, child: str) -> list[tuple[str, str]] | None:
+    """The (parent, child) keys of ``tf`` on the chain between two frames (either direction), or None."""
+    edges: dict[str, list[tuple[str, tuple[str, str]]]] = {}
+    for a, b in tf:
+        edges.setdefault(a, []).append((b, (a, b)))
+        edges.setdefault(b, []).append((a, (a, b)))
+    came: dict[str, tuple[str, tuple[str, str]] | None] = {parent: None}
+    stack = [parent]
+    while stack:
+        frame = stack.pop()
+        if frame == child:
+            keys = []
+            while came[frame] is not None:
+                frame, key = came[frame]  # type: ignore[misc]
+                keys.append(key)
+            return keys
+        for nxt, key in edges.get(frame, []):
+            if nxt not in came:
+                came[nxt] = (frame, key)
+                stack.append(nxt)
+    return None
+
+
+def read_tf_poses(path: str, parent: str, child: str, use_header_stamps: bool = True
+                  ) -> tuple[list[tuple[int, Any, Any]], str, dict[tuple[str, str], np.ndarray]]:
+    """The pose of frame ``child`` in frame ``parent`` through the chain of transforms on the
+    bag's /tf and /tf_static (``--truth-frames map:rig``): (stamp ns, position, quaternion),
+    one each time a /tf message moves a transform of the chain, stamped with that
+    transform's header stamp, the others held at their latest value; with ``parent`` and the
+    last value of every transform (the tag map), as :func:`read_pose_topic` gives them. A chain that never joins the two frames is an error
+    naming the frames the bag has."""
+    from rosbags.highlevel import AnyReader
+
+    from slamio.datasets.rosbag_observe import _chain
+    from slamio.se3 import quaternion_from_rotation
+
+    parent, child = parent.lstrip("/"), child.lstrip("/")
+    bag, ros_version = bag_paths(path)
+    try:
+        reader = AnyReader([bag], default_typestore=apriltag_typestore(ros_version))
+        reader.open()
+    except Exception as exc:
+        raise InputFileError(f"{path}: cannot read as a ROS {ros_version} bag ({type(exc).__name__}: {exc})") from None
+    latest: dict[tuple[str, str], np.ndarray] = {}
+    out: dict[int, tuple[Any, Any]] = {}
+    try:
+        connections = [c for c in reader.connections if c.topic in ("/tf", "/tf_static") and c.msgtype in TF_TYPES]
+        if not connections:
+            raise BagFormatError(path, "/tf", f"not in this bag; --truth-frames {parent}:{child} reads the truth "
+                                 "from tf2_msgs/TFMessage on /tf (and /tf_static)")
+        keys: list[tuple[str, str]] | None = None
+        for connection, bag_time, raw in reader.messages(connections=connections):
+            msg = reader.deserialize(raw, connection.msgtype)
+            moved = _transforms(path, connection.topic, msg)
+            grew = not set(moved) <= set(latest)
+            latest.update(moved)
+            if grew or keys is None:
+                keys = _path_keys(latest, parent, child)
+            on_chain = [x for x in msg.transforms if keys is not None
+                        and (str(x.header.frame_id).lstrip("/"), str(x.child_frame_id).lstrip("/")) in keys]
+            if not on_chain or connection.topic == "/tf_static":
+                continue
+            T = _chain({k: latest[k] for k in keys}, parent, child)  # type: ignore[union-attr]
+            stamp = max(_stamp_ns(x, bag_time, use_header_stamps) for x in on_chain)
+            out[stamp] = (tuple(float(v) for v in T[:3, 3]), tuple(quaternion_from_rotation(T[:3, :3])))
+    finally:
+        reader.close()
+    if not out:
+        frames = sorted({f for key in latest for f in key})
+        raise BagFormatError(path, "/tf", f"has no chain of transforms from {parent!r} to {child!r} that moves "
+                             f"(frames on /tf and /tf_static: {', '.join(frames[:12]) or 'none'}"
+                             f"{' ...' if len(frames) > 12 else ''}); give --truth-frames PARENT:CHILD of two of them")
+    return [(t, *out[t]) for t in sorted(out)], parent, latest
