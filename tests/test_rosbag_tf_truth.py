@@ -111,3 +111,4 @@ def test_truth_frames_option_errors(tmp_path, capsys):
         assert "--truth-frames" in capsys.readouterr().err
     with pytest.raises(FgslamError, match=r"truth topic \(--truth-topic\) or the /tf frames"):
         import_rosbag(bag, odom_topic="/odom", truth_bag=bag)
+

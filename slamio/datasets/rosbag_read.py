@@ -118,6 +118,30 @@ def _check_topic(path: str, topics, topic: str, accepted: tuple[str, ...], what:
         raise BagFormatError(path, topic, f"has type {msgtype}, expected {what} ({' or '.join(accepted)})")
 
 
+#: Topics a camera gives: images, camera info and tag detections (with or without a pose).
+_CAMERA_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage", "sensor_msgs/msg/CameraInfo",
+                 CORNERS_TYPE, _DETECTION_ARRAY_TYPE)
+
+
+def no_odometry_error(path: str, topics, asked: str | None) -> BagFormatError:
+    """The refusal of a bag with no odometry topic (a camera-only bag): what is missing, what
+    the bag has instead, and what to do."""
+    camera = sorted(n for n, i in topics.items() if i.msgtype in _CAMERA_TYPES or i.msgtype.endswith("DetectionArray"))
+    poses = _topics_of_type(topics, _POSE_TYPES)
+    listed = ", ".join(sorted(topics)[:12]) + (" ..." if len(topics) > 12 else "") or "(none)"
+    return BagFormatError(
+        path, asked or "(odometry)",
+        ("not in the bag, and " if asked else "") + "the bag has no odometry: no nav_msgs/msg/Odometry topic"
+        + (f" (it has camera topics {', '.join(camera)}: a camera-only bag)" if camera else "")
+        + f"; its topics: {listed}. The estimators need the robot's motion between camera frames as well as the "
+        "landmark sightings. Record or merge the rig's odometry into the bag (wheel odometry, or a VIO such as a "
+        "RealSense T265's /camera/odom/sample) and name it with --odom-topic"
+        + (f"; the pose topics here ({', '.join(poses)}) are not read as odometry: republish one as "
+           "nav_msgs/msg/Odometry" if poses else "")
+        + ". A bag fgslam export wrote needs no topic (it carries /fgslam/run_log). Camera-only bags: "
+        "docs/datasets-mrclam-rosbag.md, 'Camera-only bags'")
+
+
 def _read_run_log(path: str, reader, connections) -> tuple[Header, list[Record]]:
     lines: list[str] = []
     for connection, _, raw in reader.messages(connections=connections):
@@ -143,6 +167,8 @@ def _checked_topics(path: str, topics, odom_topic: str, detections_topic: str | 
                     truth_topic: str | None) -> dict[str, int]:
     """Check that every topic asked for is in the bag with a type we read; the tag pose
     topics found under ``tag_pose_topic`` with their tag ids."""
+    if odom_topic not in topics and not _topics_of_type(topics, _ODOMETRY_TYPES):
+        raise no_odometry_error(path, topics, odom_topic)
     _check_topic(path, topics, odom_topic, _ODOMETRY_TYPES, "the robot's odometry")
     if detections_topic is not None:
         # any package's AprilTagDetectionArray with apriltag_ros's fields (forks add fields)
@@ -363,6 +389,8 @@ def read_bag(path: str, bag: Path, ros_version: int, odom_topic: str | None, det
             return _read_run_log(path, reader, connections)
         if odom_topic is None:
             candidates = _topics_of_type(topics, _ODOMETRY_TYPES)
+            if not candidates:
+                raise no_odometry_error(path, topics, None)
             raise BagFormatError(
                 path, "(odometry)",
                 f"no {RUN_LOG_TOPIC} topic (the bag was not written by fgslam export), so name the "
