@@ -13,7 +13,7 @@ import pytest
 from fgslam.record_cli import add_calibrate_parser, add_record_parser, main
 from slamio.noise.errors import NoiseModelError, NoiseModelFileError
 from slamio.noise.trials import calibrate_from_trials, load_calibration, motion_errors, read_trials, simulated_trials
-from slamio.log import read_log
+from slamio.log import Odometry, read_log
 
 ROOT = Path(__file__).resolve().parents[1]
 BUNDLED = ROOT / "data" / "calibration_trials_s001.csv"
@@ -148,12 +148,13 @@ def test_record_verb_on_the_simulator_with_a_calibration(tmp_path, capsys):
     assert log.header.noise["observation"]["sigma_range_m"] > 0
     assert log.header.source["command"].startswith("fgslam record --port sim")
     status = json.loads((tmp_path / "runs" / "square.jsonl.status.json").read_text())
-    assert status["reason"]["kind"] == "completed" and status["records"] == len(log.records)
+    odometry = [r for r in log.records if isinstance(r, Odometry)]  # the simulator's truth_pose records too
+    assert status["reason"]["kind"] == "completed" and status["records"] == len(odometry)
     # What the encoders counted, the recorder wrote: exact up to a count (0.44 mm) per record,
     # whatever the timing. (Σ|distance| against the true path would not do: how many records a
     # busy machine makes changes the sum of the noise's absolute values, a 1-3 % bias.)
     simulator = status["simulator"]
-    signed = sum(r.distance_m for r in log.records)
+    signed = sum(r.distance_m for r in odometry)
     assert signed == pytest.approx(simulator["encoder_distance_m"], abs=1e-3)
     truth = simulator["true_path_length_m"]
     assert 1.9 < truth < 2.1 and signed == pytest.approx(truth, rel=0.05)  # 4 × 0.5 m, the calibrated noise

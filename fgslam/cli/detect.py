@@ -241,7 +241,24 @@ def _frames(args):
             if not device.isdigit():
                 raise DetectError(f"{source!r}: the device after '{prefix}' is a number, e.g. {prefix}0")
             return live(int(device), max_frames=args.max_frames)
+    _say_depth_left_out(source)
     return open_frames(source, fps=args.fps, depth_scale_per_m=args.depth_scale)
+
+
+def _say_depth_left_out(source: str) -> None:
+    """A plain image folder's depth images are not colour frames: say how many were left out."""
+    from slamio.camera.sources import is_tum_folder, split_depth_images
+
+    if not Path(source).is_dir() or is_tum_folder(source):
+        return
+    try:
+        colour, depth = split_depth_images(source)
+    except OSError:  # an unreadable folder is said by the frame source
+        return
+    if depth and colour:
+        first, why = next(iter(depth.items()))
+        print(f"fgslam: note: {len(depth)} depth images in {source} are not colour frames and are left out "
+              f"(e.g. {first.name}: {why}); {len(colour)} colour frames")
 
 
 def _remove(files: list[Path], folders: list[Path]) -> None:

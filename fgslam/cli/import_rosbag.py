@@ -18,6 +18,7 @@ ROSBAG_OPTIONS = (
     ("--camera-pose", "camera_pose"), ("--camera-poses", "camera_poses"), ("--tags", "tags"),
     ("--tag-size", "tag_size"), ("--pixel-sigma-px", "pixel_sigma_px"), ("--max-reprojection-px", "max_reprojection_px"),
     ("--level", "level"), ("--truth-bag", "truth_bag"), ("--truth-pose-of", "truth_pose_of"),
+    ("--truth-frames", "truth_frames"),
 )
 
 
@@ -49,6 +50,9 @@ def add_rosbag_options(imp: argparse.ArgumentParser) -> None:
     imp.add_argument("--truth-bag", default=None, metavar="BAG",
                      help="rosbag: read --truth-topic from this bag (e.g. TagSLAM's reference.bag); its /tf tag "
                           "frames tag_<id> become the truth map")
+    imp.add_argument("--truth-frames", default=None, metavar="PARENT:CHILD",
+                     help="rosbag: the truth is the chain of /tf transforms from PARENT to CHILD (e.g. map:rig), in "
+                          "--truth-bag or else in this bag, instead of a --truth-topic")
     imp.add_argument("--truth-pose-of", default=None, choices=("body", "camera"),
                      help="rosbag: the truth poses are the odometry body's (default) or the camera's (TagSLAM's "
                           "body_rig of a rig whose body is the camera)")
@@ -72,6 +76,15 @@ def parse_camera_pose(text: str) -> np.ndarray:
     T[:3, :3] = rotation_from_quaternion(*(q / np.linalg.norm(q)))
     T[:3, 3] = values[:3]
     return T
+
+
+def parse_truth_frames(text: str) -> tuple[str, str]:
+    """``map:rig`` → ("map", "rig"); one error line naming the option."""
+    parent, sep, child = text.partition(":")
+    if not sep or not parent.strip("/") or not child.strip("/") or ":" in child or parent == child:
+        raise FgslamError(f"--truth-frames {text!r}: give two different /tf frame names as PARENT:CHILD, e.g. map:rig "
+                          "(the truth is CHILD's pose in PARENT)")
+    return parent, child
 
 
 def _mount(args: argparse.Namespace, tags) -> np.ndarray | None:
@@ -106,6 +119,7 @@ def import_rosbag_cli(args: argparse.Namespace, source: str, standard_topics_onl
         from slamio.camera.camera_files import load_camera_file
 
         camera = load_camera_file(args.camera, args.camera_name)
+    truth_frames = parse_truth_frames(args.truth_frames) if args.truth_frames is not None else None
     tags = None
     if args.tags is not None:
         from slamio.datasets.tagslam_files import load_tags_file
@@ -117,8 +131,8 @@ def import_rosbag_cli(args: argparse.Namespace, source: str, standard_topics_onl
         standard_topics_only=standard_topics_only, camera=camera, camera_info_topic=args.camera_info_topic,
         tag_sizes=tags, tag_size_m=args.tag_size, pixel_sigma_px=args.pixel_sigma_px,
         T_robot_camera=_mount(args, tags), level=args.level or "auto",
-        truth_bag=args.truth_bag, truth_pose_of=args.truth_pose_of or "body",
-        start_from="truth" if args.truth_bag is not None else "odom",
+        truth_bag=args.truth_bag, truth_pose_of=args.truth_pose_of or "body", truth_frames=truth_frames,
+        start_from="truth" if args.truth_bag is not None or truth_frames is not None else "odom",
         **({"max_reprojection_px": args.max_reprojection_px} if args.max_reprojection_px is not None else {}),
     )
     for warning in header.source.get("warnings", []):

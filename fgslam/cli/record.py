@@ -46,7 +46,9 @@ paths (counter-clockwise, turning left in place at each corner, from where the r
   teleop    keyboard: w/s faster/slower, a/d turn, space stop, q quit
 
 --port sim drives the built-in simulated Create (a pseudo-terminal speaking the same bytes)
-in seed 004's 10 ft arena, starting at (0.75 m, 0.75 m) facing +x; see docs/create.md.
+in seed 004's 10 ft arena, starting at (0.75 m, 0.75 m) facing +x, and writes its true pose
+as truth_pose records (the arena frame; with --save-frames, the arena's tags as truth_landmark
+records too), so `fgslam run` scores against it; see docs/create.md.
 """
 
 def _positive(kind):
@@ -127,8 +129,10 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     return p
 
 
-def _frame_saver(args, sim, settings):
-    """A :class:`fgslam.record_frames.FrameSaver` for --save-frames (the simulated camera with --port sim)."""
+def _frame_saver(args, sim, settings, truth=None):
+    """A :class:`fgslam.record_frames.FrameSaver` for --save-frames (the simulated camera with --port
+    sim: each frame rendered at the pose ``truth``, a :class:`fgslam.record_truth.TruthWriter`, has
+    just written, and the arena's tags given to it as truth landmarks)."""
     from fgslam.record_frames import FrameSaver
 
     folder = Path(args.save_frames)
@@ -141,7 +145,13 @@ def _frame_saver(args, sim, settings):
         from fgslam.live import simulated_camera
         from slamio.camera.model import save_camera
 
-        grab_for, front_end, _ = simulated_camera(sim, seed=args.sim_seed)
+        render_at, front_end, tags = simulated_camera(sim, seed=args.sim_seed)
+
+        def grab_for(index, odometry):  # the very pose written as truth for this record
+            return render_at(index, odometry, true_pose=truth.last_pose if truth is not None else None)
+
+        if truth is not None:
+            truth.truth_landmarks = tuple(tags)
         folder.mkdir(parents=True, exist_ok=True)
         save_camera(folder / "camera.yaml", front_end.camera, comment="the simulated camera of fgslam record")
     else:
@@ -213,8 +223,14 @@ def _record_run(args, out: Path, settings, noise, observation, trials, source, s
         port, clock = sim.port, sim.clock
         source["simulator"] = {"seed": args.sim_seed, "time_scale": args.sim_time_scale,
                                "corrupt_fraction": args.sim_corrupt, "drop_fraction": args.sim_drop}
-    saver = link = None
+    saver = link = truth = None
     status = status_path(out)
+    if sim is not None:  # the simulator knows where the robot really is: the log gets its truth
+        from fgslam.record_truth import TRUTH_NOTE, TruthWriter
+        from slamio.create.sim import DEFAULT_START_POSE
+
+        truth = TruthWriter(lambda: sim.true_pose, record_period_s=settings.record_period_s)
+        source["truth"] = TRUTH_NOTE
 
     def placed():  # the new log is in place: a status file of the log it replaced no longer fits
         for stale in stale_status_files(out):
@@ -222,14 +238,19 @@ def _record_run(args, out: Path, settings, noise, observation, trials, source, s
 
     try:
         if args.save_frames:
-            saver = _frame_saver(args, sim, settings)
+            saver = _frame_saver(args, sim, settings, truth)
             source["frames"] = str(args.save_frames)
+        if truth is not None:
+            truth.inner = saver
         link = CreateLink(port, args.model, baud=args.baud)
         link.open()  # a port that does not open is a user error (exit 1), before the log exists
         kwargs = dict(settings=settings, noise=noise, source=source, observation_noise=observation,
-                      calibration=trials, hooks=saver, overwrite=args.overwrite, signals=signals, on_placed=placed)
+                      calibration=trials, hooks=truth or saver, overwrite=args.overwrite, signals=signals,
+                      on_placed=placed)
         if clock is not None:
             kwargs["clock"] = clock
+        if sim is not None:  # the world frame is the arena's, where the truth is
+            kwargs["start_pose"] = DEFAULT_START_POSE
         if args.path == "teleop":
             with TerminalKeys() as keys:
                 print(TELEOP_HELP, file=sys.stderr)
@@ -246,10 +267,10 @@ def _record_run(args, out: Path, settings, noise, observation, trials, source, s
             if sim is not None:
                 sim.close()
     with signals.held(raise_after=False):  # the robot is stopped: what is left is to say so
-        return _report(args, out, result, sim, saver, status)
+        return _report(args, out, result, sim, saver, status, truth)
 
 
-def _report(args, out: Path, result, sim, saver, status: Path) -> int:
+def _report(args, out: Path, result, sim, saver, status: Path, truth=None) -> int:
     from fgslam.atomic import write_text_whole
     from slamio.create.record_settings import status_of
 
@@ -266,6 +287,10 @@ def _report(args, out: Path, result, sim, saver, status: Path) -> int:
     if result.log_placed:
         say(f"wrote {out}: {result.records} odometry records over {result.duration_s:.1f} s, "
             f"{result.distance_m:.3f} m driven, {result.angle_rad:.2f} rad turned ({quality})", sys.stdout)
+        if truth is not None:
+            say(f"  with {truth.written} truth_pose records (the simulator's true pose, arena frame)"
+                + (f" and {len(truth.truth_landmarks)} truth_landmark records (the arena's tags)"
+                   if truth.truth_landmarks else ""), sys.stdout)
     if saver is not None:
         say(f"saved {saver.saved} camera frames to {args.save_frames}/ ({saver.skipped} skipped: the writer was "
             f"behind; {saver.missing} without an image)", sys.stdout)

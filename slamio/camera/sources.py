@@ -15,7 +15,11 @@ itself (a missing folder, a malformed ``rgb.txt`` line, a camera that cannot be 
   (TUM names files by their stamp).
 - :func:`folder_frames` — a folder of plain images (png, jpg, bmp, pgm, ppm, tif), in name
   order; a file name that is a number (``1305031102.175304.png``) is its stamp in seconds,
-  otherwise frame k is stamped ``start_s + k/fps``.
+  otherwise frame k is stamped ``start_s + k/fps``. Depth images lying among the colour
+  frames are not frames (:func:`depth_image_reason`: a 16-bit single-channel image, as every
+  Kinect-class dataset stores depth, or a file name with the word "depth" in it); they are
+  left out and :func:`split_depth_images` says which. A folder called ``depth``, or one of
+  depth images only, is refused, naming the colour folder beside it (``rgb/``, ``color/``).
 - :func:`video_frames` — ``cv2.VideoCapture`` on a device number or a video file/URL; a
   device's frames are stamped with the wall clock, a file's with its position.
 - :func:`kinect_frames` — a live Kinect v1 through libfreenect's Python binding
@@ -26,6 +30,7 @@ itself (a missing folder, a malformed ``rgb.txt`` line, a camera that cannot be 
 from __future__ import annotations
 
 import os
+import re
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -110,6 +115,52 @@ def _stamp_from_name(path: Path) -> float | None:
 
 def _image_files(folder: Path) -> list[Path]:
     return sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+
+
+#: Folder names that hold the colour half of an RGB-D recording (TUM: rgb/; Open3D: color/).
+COLOUR_FOLDERS = ("rgb", "color", "colour", "image", "images")
+
+
+def _name_says_depth(name: str) -> bool:
+    """The word "depth" in a file or folder name, between separators: ``depth``,
+    ``SUN_depth.png``, ``frame-000000.depth.png``, ``0001-depth.png`` (not ``indepth.png``)."""
+    return "depth" in re.split(r"[^a-z0-9]+", name.lower())
+
+
+def depth_image_reason(path: str | os.PathLike[str]) -> str | None:
+    """Why the image file ``path`` is a depth image rather than a colour frame, or None.
+
+    Either sign is enough: the file name has the word "depth" in it, or the image is 16-bit
+    single-channel — how depth is stored by TUM RGB-D (5000 per metre), Open3D, SUN RGB-D and
+    7-Scenes (millimetres) and by ``fgslam record --save-frames``, while a colour camera
+    writes 8-bit images. Only the header is read (Pillow), never the pixels; a file Pillow
+    cannot read is left to the frame reader, which reports it as a corrupt frame."""
+    path = Path(path)
+    if _name_says_depth(path.stem):
+        return "its name says depth"
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(path) as image:
+            mode = image.mode
+    except (OSError, UnidentifiedImageError, ValueError):
+        return None
+    if mode.startswith("I;16") or mode == "I":  # 16- or 32-bit integer grey: depth, not a camera's colour
+        return f"a 16-bit single-channel image (Pillow mode {mode})"
+    return None
+
+
+def split_depth_images(folder: str | os.PathLike[str]) -> tuple[list[Path], dict[Path, str]]:
+    """The image files of ``folder`` in name order, split into colour frames and depth
+    images (each with :func:`depth_image_reason`)."""
+    colour, depth = [], {}
+    for path in _image_files(Path(folder)):
+        reason = depth_image_reason(path)
+        if reason is None:
+            colour.append(path)
+        else:
+            depth[path] = reason
+    return colour, depth
 
 
 def _tum_listing(root: Path, name: str) -> list[tuple[float, str]] | None:
@@ -198,12 +249,10 @@ def folder_frames(folder: str | os.PathLike[str], *, fps: float = 30.0, start_s:
     root = Path(folder)
     if not root.is_dir():
         raise FrameSourceError(f"{root}: no such folder")
-    files = _image_files(root)
+    _refuse_a_depth_folder(root)
+    files, depth = split_depth_images(root)
     if not files:
-        folders = sorted(p.name + "/" for p in root.iterdir() if p.is_dir())
-        hint = (f"; it holds the folders {', '.join(folders[:5])}: give the folder of the images, or lay out an "
-                "RGB-D recording as TUM RGB-D does (rgb/ and depth/ with rgb.txt and depth.txt)") if folders else ""
-        raise FrameSourceError(f"{root}: no images ({', '.join(IMAGE_SUFFIXES)}) in this folder{hint}")
+        _refuse_no_colour(root, depth)
     stamps = [_stamp_from_name(p) for p in files]
     if all(s is not None for s in stamps):
         order = sorted(range(len(files)), key=lambda i: stamps[i])
@@ -215,6 +264,38 @@ def folder_frames(folder: str | os.PathLike[str], *, fps: float = 30.0, start_s:
     for index, (path, stamp) in enumerate(zip(files, stamps)):
         bgr, error = read_image(path)
         yield Frame(float(stamp), index, path.name, bgr, None, error)
+
+
+def _colour_folder_beside(folder: Path) -> Path | None:
+    return next((folder / n for n in COLOUR_FOLDERS if (folder / n).is_dir()), None)
+
+
+def _give_the_colour_folder(root: Path) -> str:
+    beside = _colour_folder_beside(root.resolve().parent)
+    return f"give {beside}" if beside is not None else "give the folder of the colour frames"
+
+
+def _refuse_a_depth_folder(root: Path) -> None:
+    """A folder called ``depth`` (TUM RGB-D's, Open3D's) holds the depth half of a recording."""
+    if root.resolve().name.lower() == "depth":
+        raise FrameSourceError(f"{root}: a folder of depth images, not colour frames: {_give_the_colour_folder(root)} "
+                               "(a TUM RGB-D folder, rgb/ and depth/ with rgb.txt and depth.txt, pairs colour with depth)")
+
+
+def _refuse_no_colour(root: Path, depth: dict[Path, str]) -> None:
+    """The error for a folder without colour frames, saying what it does hold."""
+    if depth:
+        first, why = next(iter(depth.items()))
+        raise FrameSourceError(f"{root}: no colour images, only {len(depth)} depth images ({first.name}: {why}); "
+                               f"{_give_the_colour_folder(root)}")
+    folders = sorted(p.name + "/" for p in root.iterdir() if p.is_dir())
+    hint = ""
+    if folders:
+        beside = _colour_folder_beside(root)
+        hint = (f"; it holds the folders {', '.join(folders[:5])}: give the folder of the images"
+                + (f" ({beside} for the colour frames)" if beside is not None else "")
+                + ", or lay out an RGB-D recording as TUM RGB-D does (rgb/ and depth/ with rgb.txt and depth.txt)")
+    raise FrameSourceError(f"{root}: no images ({', '.join(IMAGE_SUFFIXES)}) in this folder{hint}")
 
 
 def open_frames(path: str | os.PathLike[str], *, fps: float = 30.0,

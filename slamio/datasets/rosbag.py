@@ -87,7 +87,8 @@ from slamio.datasets.rosbag_messages import (
 from slamio.datasets.rosbag_corners import DEFAULT_MAX_REPROJECTION_PX
 from slamio.datasets.rosbag_level import DEFAULT_LEVEL_THRESHOLD_DEG, LEVEL_MODES, Attitudes, levelling_rotation, out_of_plane
 from slamio.datasets.rosbag_observe import camera_mount, sighting_observations, tag_map_from_tf, truth_from_bag
-from slamio.datasets.rosbag_read import CORNERS_TYPE, BagFormatError, Messages, bag_paths, read_bag, read_pose_topic
+from slamio.datasets.rosbag_read import (CORNERS_TYPE, BagFormatError, Messages, bag_paths, read_bag, read_pose_topic,
+                                         read_tf_poses)
 from slamio.errors import FgslamError
 from slamio.geometry import between_pose, wrap_angle
 from slamio.log import Header, Observation, Odometry, Record, TruthLandmark, TruthPose, as_matrix3
@@ -216,6 +217,7 @@ def import_rosbag(
     level_threshold_deg: float = DEFAULT_LEVEL_THRESHOLD_DEG,
     truth_bag: str | os.PathLike[str] | None = None,
     truth_pose_of: str = "body",
+    truth_frames: tuple[str, str] | None = None,
 ) -> tuple[Header, list[Record]]:
     """Convert a ROS 1 ``.bag`` file or a ROS 2 bag folder into a run-log header and records.
 
@@ -235,15 +237,19 @@ def import_rosbag(
     (default: the tags file's ``pixel_noise``, else 1 px). ``level`` and ``level_threshold_deg``:
     :mod:`slamio.datasets.rosbag_level`. ``truth_bag``: read ``truth_topic`` from that bag
     instead (``truth_pose_of="camera"`` when its poses are the camera's), with its /tf tag
-    map as truth landmarks. What was assumed is in ``header.source["warnings"]``.
+    map as truth landmarks. ``truth_frames`` ``(parent, child)``: the truth is the chain of
+    transforms on /tf from ``parent`` to ``child`` instead of a topic (in ``truth_bag``, else
+    in this bag; :func:`~slamio.datasets.rosbag_read.read_tf_poses`). What was assumed is in
+    ``header.source["warnings"]``.
     """
     _rosbags()
     path = os.fspath(path)
     bag, ros_version = bag_paths(path)
-    _check_options(tag_normal_axis, start_from, truth_topic, odom_min_period_s,
+    _check_options(tag_normal_axis, start_from, truth_topic or (truth_frames and ":".join(truth_frames)),
+                   odom_min_period_s,
                    sigma_range_m=sigma_range_m, sigma_bearing_rad=sigma_bearing_rad,
                    sigma_tag_yaw_rad=sigma_tag_yaw_rad, sigma_height_m=sigma_height_m, max_truth_gap_s=max_truth_gap_s)
-    _check_level_and_truth(level, truth_pose_of, truth_bag, truth_topic)
+    _check_level_and_truth(level, truth_pose_of, truth_bag, truth_topic, truth_frames)
     messages = read_bag(path, bag, ros_version, odom_topic, detections_topic, tag_pose_topic,
                         truth_topic if truth_bag is None else None, use_header_stamps, standard_topics_only,
                         camera_info_topic)
@@ -263,20 +269,25 @@ def import_rosbag(
         covariance_from_message, odom_min_period_s, interpolate_detections, max_truth_gap_s, start_from,
         camera, tag_sizes, tag_size_m, pixel_sigma_px or 1.0, max_reprojection_px, mount_source,
     )
-    return _convert(o, messages, warnings, level, level_threshold_deg, truth_bag, truth_pose_of)
+    return _convert(o, messages, warnings, level, level_threshold_deg, truth_bag, truth_pose_of, truth_frames)
 
 
-def _check_level_and_truth(level: str, truth_pose_of: str, truth_bag, truth_topic) -> None:
+def _check_level_and_truth(level: str, truth_pose_of: str, truth_bag, truth_topic, truth_frames=None) -> None:
     if level not in LEVEL_MODES:
         raise FgslamError(f"level must be one of {', '.join(LEVEL_MODES)}, got {level!r}")
     if truth_pose_of not in ("body", "camera"):
         raise FgslamError(f"truth_pose_of must be 'body' or 'camera', got {truth_pose_of!r}")
-    if truth_bag is not None and truth_topic is None:
-        raise FgslamError("a truth bag needs its truth topic (--truth-topic)")
+    if truth_frames is not None and truth_topic is not None:
+        raise FgslamError("--truth-topic and --truth-frames both give the truth; give one of them")
+    if truth_frames is not None and (len(truth_frames) != 2 or not all(truth_frames)):
+        raise FgslamError(f"truth frames must be two frame names (--truth-frames map:rig), got {truth_frames!r}")
+    if truth_bag is not None and truth_topic is None and truth_frames is None:
+        raise FgslamError("a truth bag needs its truth topic (--truth-topic) or the /tf frames of the truth "
+                          "(--truth-frames PARENT:CHILD)")
 
 
 def _convert(o: "_Options", messages: Messages, warnings: list[str], level: str, level_threshold_deg: float,
-             truth_bag, truth_pose_of: str) -> tuple[Header, list[Record]]:
+             truth_bag, truth_pose_of: str, truth_frames=None) -> tuple[Header, list[Record]]:
     """:func:`import_rosbag` once the bag is read and the options checked: level the
     odometry, place the detections, read the truth, and make the header and records."""
     attitudes, level_report = _level(o, messages, level, level_threshold_deg, warnings)
@@ -287,8 +298,9 @@ def _convert(o: "_Options", messages: Messages, warnings: list[str], level: str,
     observed = sighting_observations(o, messages, attitudes, odometry[0][0], messages.dropped)
     at_pose, inside = _observations_by_pose(o, observed, [m[0] for m in odometry], messages.dropped)
     landmarks: list[TruthLandmark] = []
-    if truth_bag is not None:
-        poses, frame, tf = read_pose_topic(os.fspath(truth_bag), o.truth_topic)  # type: ignore[arg-type]
+    if truth_frames is not None or truth_bag is not None:  # a /tf chain (this bag or the truth bag), or a topic
+        poses, frame, tf = (read_tf_poses(os.fspath(truth_bag or o.path), *truth_frames) if truth_frames
+                            else read_pose_topic(os.fspath(truth_bag), o.truth_topic))  # type: ignore[arg-type]
         messages.truth = truth_from_bag(poses, truth_pose_of, o.T_rc)
         landmarks = tag_map_from_tf(tf, frame)
     truth = _Truth(messages.truth, odometry[0][0], o.max_truth_gap_s)
@@ -298,7 +310,9 @@ def _convert(o: "_Options", messages: Messages, warnings: list[str], level: str,
     _warn_counts(o, messages, counts, n_observations, warnings)
     header = _header(o, messages, start_pose, odometry[0][0], n_odometry_messages, counts, n_observations)
     header.source.update({"warnings": warnings, "levelling": level_report, "camera_mount": o.mount_source,
-                          **({"truth_bag": os.fspath(truth_bag), "truth_pose_of": truth_pose_of} if truth_bag else {})})
+                          **({"truth_bag": os.fspath(truth_bag), "truth_pose_of": truth_pose_of} if truth_bag else {}),
+                          **({"truth_frames": ":".join(truth_frames), "truth_pose_of": truth_pose_of}
+                             if truth_frames else {})})
     return header, list(check_records(o.path, header, [*landmarks, *records]))  # never a log the reader refuses
 
 
@@ -469,7 +483,7 @@ def _start_pose(o: _Options, odometry: list, truth: _Truth) -> tuple[float, floa
         return (0.0, 0.0, 0.0)
     start_pose = truth.at(0.0)
     if start_pose is None:
-        raise BagFormatError(o.path, o.truth_topic, "has no ground truth at the first odometry message, so start_from='truth' cannot be used")
+        raise BagFormatError(o.path, o.truth_topic or "/tf", "has no ground truth at the first odometry message, so start_from='truth' cannot be used")
     return start_pose
 
 

@@ -118,6 +118,30 @@ def _check_topic(path: str, topics, topic: str, accepted: tuple[str, ...], what:
         raise BagFormatError(path, topic, f"has type {msgtype}, expected {what} ({' or '.join(accepted)})")
 
 
+#: Topics a camera gives: images, camera info and tag detections (with or without a pose).
+_CAMERA_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage", "sensor_msgs/msg/CameraInfo",
+                 CORNERS_TYPE, _DETECTION_ARRAY_TYPE)
+
+
+def no_odometry_error(path: str, topics, asked: str | None) -> BagFormatError:
+    """The refusal of a bag with no odometry topic (a camera-only bag): what is missing, what
+    the bag has instead, and what to do."""
+    camera = sorted(n for n, i in topics.items() if i.msgtype in _CAMERA_TYPES or i.msgtype.endswith("DetectionArray"))
+    poses = _topics_of_type(topics, _POSE_TYPES)
+    listed = ", ".join(sorted(topics)[:12]) + (" ..." if len(topics) > 12 else "") or "(none)"
+    return BagFormatError(
+        path, asked or "(odometry)",
+        ("not in the bag, and " if asked else "") + "the bag has no odometry: no nav_msgs/msg/Odometry topic"
+        + (f" (it has camera topics {', '.join(camera)}: a camera-only bag)" if camera else "")
+        + f"; its topics: {listed}. The estimators need the robot's motion between camera frames as well as the "
+        "landmark sightings. Record or merge the rig's odometry into the bag (wheel odometry, or a VIO such as a "
+        "RealSense T265's /camera/odom/sample) and name it with --odom-topic"
+        + (f"; the pose topics here ({', '.join(poses)}) are not read as odometry: republish one as "
+           "nav_msgs/msg/Odometry" if poses else "")
+        + ". A bag fgslam export wrote needs no topic (it carries /fgslam/run_log). Camera-only bags: "
+        "docs/datasets-mrclam-rosbag.md, 'Camera-only bags'")
+
+
 def _read_run_log(path: str, reader, connections) -> tuple[Header, list[Record]]:
     lines: list[str] = []
     for connection, _, raw in reader.messages(connections=connections):
@@ -143,6 +167,8 @@ def _checked_topics(path: str, topics, odom_topic: str, detections_topic: str | 
                     truth_topic: str | None) -> dict[str, int]:
     """Check that every topic asked for is in the bag with a type we read; the tag pose
     topics found under ``tag_pose_topic`` with their tag ids."""
+    if odom_topic not in topics and not _topics_of_type(topics, _ODOMETRY_TYPES):
+        raise no_odometry_error(path, topics, odom_topic)
     _check_topic(path, topics, odom_topic, _ODOMETRY_TYPES, "the robot's odometry")
     if detections_topic is not None:
         # any package's AprilTagDetectionArray with apriltag_ros's fields (forks add fields)
@@ -363,6 +389,8 @@ def read_bag(path: str, bag: Path, ros_version: int, odom_topic: str | None, det
             return _read_run_log(path, reader, connections)
         if odom_topic is None:
             candidates = _topics_of_type(topics, _ODOMETRY_TYPES)
+            if not candidates:
+                raise no_odometry_error(path, topics, None)
             raise BagFormatError(
                 path, "(odometry)",
                 f"no {RUN_LOG_TOPIC} topic (the bag was not written by fgslam export), so name the "
@@ -375,3 +403,78 @@ def read_bag(path: str, bag: Path, ros_version: int, odom_topic: str | None, det
         return messages
     finally:
         reader.close()
+
+
+def _path_keys(tf: dict[tuple[str, str], np.ndarray], parent: str, child: str) -> list[tuple[str, str]] | None:
+    """The (parent, child) keys of ``tf`` on the chain between two frames (either direction), or None."""
+    edges: dict[str, list[tuple[str, tuple[str, str]]]] = {}
+    for a, b in tf:
+        edges.setdefault(a, []).append((b, (a, b)))
+        edges.setdefault(b, []).append((a, (a, b)))
+    came: dict[str, tuple[str, tuple[str, str]] | None] = {parent: None}
+    stack = [parent]
+    while stack:
+        frame = stack.pop()
+        if frame == child:
+            keys = []
+            while came[frame] is not None:
+                frame, key = came[frame]  # type: ignore[misc]
+                keys.append(key)
+            return keys
+        for nxt, key in edges.get(frame, []):
+            if nxt not in came:
+                came[nxt] = (frame, key)
+                stack.append(nxt)
+    return None
+
+
+def read_tf_poses(path: str, parent: str, child: str, use_header_stamps: bool = True
+                  ) -> tuple[list[tuple[int, Any, Any]], str, dict[tuple[str, str], np.ndarray]]:
+    """The pose of frame ``child`` in frame ``parent`` through the chain of transforms on the
+    bag's /tf and /tf_static (``--truth-frames map:rig``): (stamp ns, position, quaternion),
+    one each time a /tf message moves a transform of the chain, stamped with that
+    transform's header stamp, the others held at their latest value; with ``parent`` and the
+    last value of every transform (the tag map), as :func:`read_pose_topic` gives them. A chain that never joins the two frames is an error
+    naming the frames the bag has."""
+    from rosbags.highlevel import AnyReader
+
+    from slamio.datasets.rosbag_observe import _chain
+    from slamio.se3 import quaternion_from_rotation
+
+    parent, child = parent.lstrip("/"), child.lstrip("/")
+    bag, ros_version = bag_paths(path)
+    try:
+        reader = AnyReader([bag], default_typestore=apriltag_typestore(ros_version))
+        reader.open()
+    except Exception as exc:
+        raise InputFileError(f"{path}: cannot read as a ROS {ros_version} bag ({type(exc).__name__}: {exc})") from None
+    latest: dict[tuple[str, str], np.ndarray] = {}
+    out: dict[int, tuple[Any, Any]] = {}
+    try:
+        connections = [c for c in reader.connections if c.topic in ("/tf", "/tf_static") and c.msgtype in TF_TYPES]
+        if not connections:
+            raise BagFormatError(path, "/tf", f"not in this bag; --truth-frames {parent}:{child} reads the truth "
+                                 "from tf2_msgs/TFMessage on /tf (and /tf_static)")
+        keys: list[tuple[str, str]] | None = None
+        for connection, bag_time, raw in reader.messages(connections=connections):
+            msg = reader.deserialize(raw, connection.msgtype)
+            moved = _transforms(path, connection.topic, msg)
+            grew = not set(moved) <= set(latest)
+            latest.update(moved)
+            if grew or keys is None:
+                keys = _path_keys(latest, parent, child)
+            on_chain = [x for x in msg.transforms if keys is not None
+                        and (str(x.header.frame_id).lstrip("/"), str(x.child_frame_id).lstrip("/")) in keys]
+            if not on_chain or connection.topic == "/tf_static":
+                continue
+            T = _chain({k: latest[k] for k in keys}, parent, child)  # type: ignore[union-attr]
+            stamp = max(_stamp_ns(x, bag_time, use_header_stamps) for x in on_chain)
+            out[stamp] = (tuple(float(v) for v in T[:3, 3]), tuple(quaternion_from_rotation(T[:3, :3])))
+    finally:
+        reader.close()
+    if not out:
+        frames = sorted({f for key in latest for f in key})
+        raise BagFormatError(path, "/tf", f"has no chain of transforms from {parent!r} to {child!r} that moves "
+                             f"(frames on /tf and /tf_static: {', '.join(frames[:12]) or 'none'}"
+                             f"{' ...' if len(frames) > 12 else ''}); give --truth-frames PARENT:CHILD of two of them")
+    return [(t, *out[t]) for t in sorted(out)], parent, latest
