@@ -65,6 +65,17 @@ Pose 0 is the first odometry pose (``start_from="odom"``), the ground truth at t
 Export, the exact round trip and the topics an exported bag holds: :mod:`slamio.datasets.rosbag_export`
 (:func:`export_rosbag` is importable from here too). What both share (topic names, message
 definitions, the typestore, :class:`MessageFactory`, tag geometry): :mod:`slamio.datasets.rosbag_messages`.
+
+**Options of a rig's own bag.** Tag corners (``apriltag_msgs/ApriltagArrayStamped`` on ``detections_topic``) need a
+camera (``camera``: a :class:`~slamio.camera.model.CameraModel`, or ``camera_info_topic``)
+and tag sizes (``tag_sizes``: a :class:`~slamio.datasets.tagslam_files.TagsFile`, and/or
+``tag_size_m`` for every tag it does not list); ``pixel_sigma_px`` is the corners' noise
+(default: the tags file's ``pixel_noise``, else 1 px). ``level`` and ``level_threshold_deg``:
+:mod:`slamio.datasets.rosbag_level`. ``truth_bag``: read ``truth_topic`` from that bag
+instead (``truth_pose_of="camera"`` when its poses are the camera's), with its /tf tag
+map as truth landmarks. ``truth_frames`` ``(parent, child)``: the truth is the chain of
+transforms on /tf from ``parent`` to ``child`` instead of a topic (in ``truth_bag``, else
+in this bag; :func:`~slamio.datasets.rosbag_read.read_tf_poses`).
 """
 
 from __future__ import annotations
@@ -230,17 +241,8 @@ def import_rosbag(
     a wrong message type, an unusable message), :class:`~slamio.errors.FgslamError` for an
     unreadable bag or a bad option.
 
-    Tag corners (``apriltag_msgs/ApriltagArrayStamped`` on ``detections_topic``) need a
-    camera (``camera``: a :class:`~slamio.camera.model.CameraModel`, or ``camera_info_topic``)
-    and tag sizes (``tag_sizes``: a :class:`~slamio.datasets.tagslam_files.TagsFile`, and/or
-    ``tag_size_m`` for every tag it does not list); ``pixel_sigma_px`` is the corners' noise
-    (default: the tags file's ``pixel_noise``, else 1 px). ``level`` and ``level_threshold_deg``:
-    :mod:`slamio.datasets.rosbag_level`. ``truth_bag``: read ``truth_topic`` from that bag
-    instead (``truth_pose_of="camera"`` when its poses are the camera's), with its /tf tag
-    map as truth landmarks. ``truth_frames`` ``(parent, child)``: the truth is the chain of
-    transforms on /tf from ``parent`` to ``child`` instead of a topic (in ``truth_bag``, else
-    in this bag; :func:`~slamio.datasets.rosbag_read.read_tf_poses`). What was assumed is in
-    ``header.source["warnings"]``.
+    Tag corners, levelling, truth from a second bag or /tf: the module docstring's "Options
+    of a rig's own bag". What was assumed is in ``header.source["warnings"]``.
     """
     _rosbags()
     path = os.fspath(path)
