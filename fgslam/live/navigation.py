@@ -143,14 +143,13 @@ class NavigatingController:
         return self._ramp((1000.0 * left, 1000.0 * right), now_s)
 
 
-def navigating_camera(front_end, grab_for, estimate: Callable[[], tuple[float, float, float]],
-                      scans: ScanSlot | None, scan_camera):
-    """The camera worker's parts: ``(grab_for, process)``.
+def navigating_camera(front_end, grab_for, estimate: Callable[[], tuple[float, float, float]], scans: ScanSlot,
+                      scan_camera):
+    """The camera worker's parts when a navigator drives: ``(grab_for, process)``.
 
     ``grab_for`` notes the pose estimate each frame is asked for at (the control loop's
     :class:`~fgslam.live.steering.PoseTracker`, ``estimate``); ``process`` runs the landmark
-    front-end on the frame and, when a navigator drives (``scans`` given) and the frame has a
-    registered depth image, offers its obstacle scan
+    front-end on the frame and, when the frame has a registered depth image, offers its obstacle scan
     (from ``scan_camera``'s intrinsics and mount) with that pose to ``scans``. The frames are
     the landmarks' frames: one grab, both uses.
     """
@@ -170,7 +169,7 @@ def navigating_camera(front_end, grab_for, estimate: Callable[[], tuple[float, f
         observations = front_end.process(frame).observations
         with lock:
             pose = asked_at.pop(frame.index, None)
-        if scans is not None and pose is not None and getattr(frame, "depth_m", None) is not None:
+        if pose is not None and getattr(frame, "depth_m", None) is not None:
             scans.offer(depth_scan(frame.depth_m, scan_camera), pose)
         return observations
 

@@ -240,8 +240,11 @@ def _camera(front_end, grab_for, lockstep, tracker: PoseTracker, scanning):
     frame's obstacle scan for a navigator."""
     if grab_for is None or front_end is None:
         return None, grab_for
-    scans, scan_camera = scanning if scanning is not None else (None, None)
-    grab_for, process = navigating_camera(front_end, grab_for, tracker.current, scans, scan_camera)
+    if scanning is None:
+        def process(frame):
+            return front_end.process(frame).observations
+    else:
+        grab_for, process = navigating_camera(front_end, grab_for, tracker.current, *scanning)
     return CameraWorker(process, lockstep=lockstep), grab_for
 
 
