@@ -10,8 +10,8 @@ Per run, from the log (truth poses, observations, event records) and from ``fgsl
 
 * ``bumps`` — event records of kind ``bump`` (each one stopped the wheels; the run went on);
 * ``stuck_s`` — the longest time the robot's true position stayed within 0.1 m of one spot
-  (turning in place counts as stuck);
-* ``area_m2`` — floor the robot's disc swept (0.25 m cells it overlapped);
+  (turning in place counts as stuck), and ``area_m2`` — floor the robot's disc swept (0.25 m
+  cells it overlapped): the harness's definitions (:mod:`fgslam.navigate.harness`);
 * ``seen`` / ``revisited`` — landmarks observed at all, and observed again after 20 s of not
   being seen (a loop closure for the smoother), as shares of the room's tags;
 * ``map_m`` / ``ate_m`` — map RMSE and trajectory ATE of the EKF and of iSAM2 (final and
@@ -36,12 +36,10 @@ from pathlib import Path
 
 import numpy as np
 
+from fgslam.navigate.harness import longest_stuck_s, visited_area_m2
 from slamio.log import Event, LiveStep, Observation, TruthPose, read_log
 
 NAVIGATORS = ("vfh-s000", "vfh", "explore-s001", "explore")
-CELL_M = 0.25
-ROBOT_RADIUS_M = 0.17
-STUCK_RADIUS_M = 0.1
 REVISIT_GAP_S = 20.0
 #: ``fgslam`` in this interpreter (the console script's entry point)
 FGSLAM = [sys.executable, "-c", "import sys; from fgslam.cli import main; sys.exit(main(sys.argv[1:]))"]
@@ -50,30 +48,6 @@ FGSLAM = [sys.executable, "-c", "import sys; from fgslam.cli import main; sys.ex
 def _seeds(text: str) -> list[int]:
     first, _, last = text.partition("-")
     return list(range(int(first), int(last or first) + 1))
-
-
-def longest_stuck_s(stamps_s: np.ndarray, xy: np.ndarray, radius_m: float = STUCK_RADIUS_M) -> float:
-    """The longest stretch of time over which every position stayed within ``radius_m`` of
-    the stretch's first one."""
-    longest, start = 0.0, 0
-    for i in range(1, len(xy)):
-        if np.hypot(*(xy[i] - xy[start])) > radius_m:
-            start = i
-        longest = max(longest, float(stamps_s[i] - stamps_s[start]))
-    return longest
-
-
-def swept_area_m2(xy: np.ndarray, cell_m: float = CELL_M, radius_m: float = ROBOT_RADIUS_M) -> float:
-    """Area of the cells of ``cell_m`` whose centre came within ``radius_m`` of the path."""
-    cells = set()
-    reach = int(math.ceil(radius_m / cell_m))
-    for x, y in xy:
-        i0, j0 = int(x // cell_m), int(y // cell_m)
-        for i in range(i0 - reach, i0 + reach + 1):
-            for j in range(j0 - reach, j0 + reach + 1):
-                if math.hypot((i + 0.5) * cell_m - x, (j + 0.5) * cell_m - y) <= radius_m + 0.5 * cell_m:
-                    cells.add((i, j))
-    return len(cells) * cell_m * cell_m
 
 
 def sightings(observations: list[Observation], gap_s: float = REVISIT_GAP_S) -> tuple[set[int], set[int]]:
@@ -124,7 +98,7 @@ def one_run(name: str, seed: int, args) -> dict:
     return {
         "navigator": name, "seed": seed,
         "bumps": sum(isinstance(r, Event) and r.kind == "bump" for r in records),
-        "stuck_s": longest_stuck_s(stamps, xy), "area_m2": swept_area_m2(xy),
+        "stuck_s": longest_stuck_s(stamps, xy), "area_m2": visited_area_m2(xy),
         "seen": len(seen & tags) / len(tags), "revisited": len(revisited & tags) / len(tags),
         "ekf_ate_m": metrics["ekf"]["ate_rmse_m"], "isam2_ate_m": metrics["isam2"]["ate_rmse_m"],
         "isam2_online_ate_m": metrics["isam2"]["ate_online_rmse_m"],

@@ -141,6 +141,11 @@ def _cells_of_scan(scan, pose) -> np.ndarray:
     return np.unique(cells[:, 0] * 1_000_003 + cells[:, 1])  # one key per cell (worlds < 250 km)
 
 
+def visited_area_m2(path_xy: np.ndarray) -> float:
+    """Floor the robot's disc overlapped along ``path_xy``: the cells of :data:`CELL_M` it touched."""
+    return _visited_cells(path_xy) * CELL_M**2
+
+
 def _visited_cells(path_xy: np.ndarray) -> int:
     lo = np.floor((path_xy.min(axis=0) - ROBOT_RADIUS_M) / CELL_M).astype(int)
     hi = np.floor((path_xy.max(axis=0) + ROBOT_RADIUS_M) / CELL_M).astype(int)
@@ -154,13 +159,15 @@ def _visited_cells(path_xy: np.ndarray) -> int:
     return int(visited.sum())
 
 
-def _longest_stuck_s(path_xy: np.ndarray, dt_s: float, radius_m: float = 0.1) -> float:
-    longest, anchor, start = 0, path_xy[0], 0
+def longest_stuck_s(stamps_s: np.ndarray, path_xy: np.ndarray, radius_m: float = 0.1) -> float:
+    """The longest stretch of time over which the centre stayed within ``radius_m`` of where
+    the stretch began (turning in place counts as stuck)."""
+    longest, anchor, start = 0.0, path_xy[0], 0
     for i, xy in enumerate(path_xy):
         if (xy[0] - anchor[0]) ** 2 + (xy[1] - anchor[1]) ** 2 > radius_m**2:
             anchor, start = xy, i
-        longest = max(longest, i - start)
-    return longest * dt_s
+        longest = max(longest, float(stamps_s[i] - stamps_s[start]))
+    return longest
 
 
 class _Sightings:
@@ -248,6 +255,6 @@ def drive(obstacles, navigator: Navigator, start_pose=None, *, duration_s: float
         states.append(command.state)
         state_time[command.state] = state_time.get(command.state, 0.0) + dt_s
     path_xy = np.asarray(path)[:, :2]
-    return DriveResult(np.asarray(path), states, bumps, _longest_stuck_s(path_xy, dt_s), len(seen_cells) * CELL_M**2,
-                       _visited_cells(path_xy) * CELL_M**2, set(sight.count), set(sight.revisited), dict(sight.count),
+    return DriveResult(np.asarray(path), states, bumps, longest_stuck_s(dt_s * np.arange(len(path_xy)), path_xy),
+                       len(seen_cells) * CELL_M**2, visited_area_m2(path_xy), set(sight.count), set(sight.revisited), dict(sight.count),
                        step_us, cpu_us, len(sight.landmarks), state_time)
