@@ -55,7 +55,7 @@ import numpy as np
 from fgslam.navigate.common import ROBOT_RADIUS_M, Navigator, Situation
 from slamio.camera.depth_scan import ray_cast_depth_scan
 from slamio.camera.kinect import KINECT_HFOV_RAD
-from slamio.geometry import wrap_angle
+from slamio.geometry import arc_increment, compose_pose, wrap_angle
 from slamio.obstacles import Obstacles, box_segments, disc_contacts, line_of_sight, push_disc_out, room_segments
 from slamio.errors import FgslamError
 from slamio.scan import ray_cast_scan
@@ -119,16 +119,6 @@ def bump_side(contact_bearings_rad) -> str:
     """"left", "right" or "front" from the robot-frame bearings of the pressing contacts."""
     mean = float(np.arctan2(np.mean(np.sin(contact_bearings_rad)), np.mean(np.cos(contact_bearings_rad))))
     return "left" if mean > 0.35 else "right" if mean < -0.35 else "front"
-
-
-def _arc(pose, speed_m_s: float, turn_rad_s: float, dt_s: float):
-    x, y, theta = pose
-    if abs(turn_rad_s) < 1e-9:
-        return x + speed_m_s * dt_s * math.cos(theta), y + speed_m_s * dt_s * math.sin(theta), theta
-    radius = speed_m_s / turn_rad_s
-    new_theta = theta + turn_rad_s * dt_s
-    return (x + radius * (math.sin(new_theta) - math.sin(theta)), y - radius * (math.cos(new_theta) - math.cos(theta)),
-            float(wrap_angle(new_theta)))
 
 
 def _cells_of_scan(scan, pose) -> np.ndarray:
@@ -246,11 +236,11 @@ def drive(obstacles, navigator: Navigator, start_pose=None, *, duration_s: float
         if pressed and (not pressed_before or speed > 0):
             speed, turn = 0.0, (0.0 if not pressed_before else turn)
         pressed_before = pressed
-        moved = _arc(pose, speed, turn, dt_s)
+        moved = compose_pose(pose, arc_increment(speed * dt_s, turn * dt_s))
         pose = (*push_disc_out(obstacles, moved[:2], ROBOT_RADIUS_M), moved[2])
         if odometry_noise:
             speed, turn = speed * (1 + odometry_noise * rng.standard_normal()), turn * (1 + odometry_noise * rng.standard_normal())
-        estimate = _arc(estimate, speed, turn, dt_s) if odometry_noise else pose
+        estimate = compose_pose(estimate, arc_increment(speed * dt_s, turn * dt_s)) if odometry_noise else pose
         path.append(pose)
         states.append(command.state)
         state_time[command.state] = state_time.get(command.state, 0.0) + dt_s
