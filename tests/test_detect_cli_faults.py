@@ -385,3 +385,42 @@ def test_a_log_whose_readings_are_a_sensors_own_is_refused_before_detecting(tmp_
     status, _, err = _detect(capsys, frames, "--camera", camera, "--tag-size", "0.065", "--out", log)
     assert status == 1
     assert "sensor.pose_on_robot [0.2, 0.0, 0.0]" in _one_error(err) and log.read_bytes() == content
+
+
+# --------------------------------------------------------------------------- 9. a Kalibr camera file
+
+KALIBR_YAML = """\
+cam0:
+  camera_model: pinhole
+  intrinsics: [500.0, 500.0, 320.0, 240.0]
+  distortion_model: none
+  distortion_coeffs: []
+  resolution: [640, 480]
+cam1:
+  camera_model: pinhole
+  intrinsics: [338.563277422543, 338.939280638548, 336.45495347495824, 230.486982216255]
+  distortion_model: radtan
+  distortion_coeffs: [0.0, 0.0, 0.0, 0.0]
+  resolution: [640, 480]
+"""
+
+
+def test_a_kalibr_camera_file_detects_as_its_camera_info_twin(tmp_path, capsys):
+    """detect reads a Kalibr cameras.yaml (camera chosen with --camera-name) through the same
+    reader as import rosbag: the same tags at the same ranges as the equal camera_info file."""
+    frames = _frames(tmp_path)
+    kalibr = tmp_path / "cameras.yaml"
+    kalibr.write_text(KALIBR_YAML)
+    results = []
+    for name, camera in (("info", ["--camera", _camera(tmp_path)]),
+                         ("kalibr", ["--camera", kalibr, "--camera-name", "cam1"])):
+        out = tmp_path / f"{name}.jsonl"
+        status, _, err = _detect(capsys, frames, *camera, "--tag-size", "0.065", "--out", out, "--static")
+        assert status == 0, err
+        results.append(sorted((o.landmark_id, o.range_m, o.bearing_rad)
+                              for o in read_log(out).records if isinstance(o, Observation)))
+    assert [r[0] for r in results[0]] == PUPIL_IDS[1]
+    np.testing.assert_allclose(np.array(results[1]), np.array(results[0]), rtol=1e-9, atol=1e-12)
+    status, _, err = _detect(capsys, frames, "--camera", kalibr, "--tag-size", "0.065",
+                             "--out", tmp_path / "two.jsonl", "--static")
+    assert status == 2 and "cam0, cam1" in err and "--camera-name" in err

@@ -360,7 +360,7 @@ def cmd_detect(args: argparse.Namespace) -> int:
     from slamio.camera.model import load_camera
 
     _check_options(args)  # before anything is read, opened or written
-    camera = load_camera(args.camera)
+    camera = load_camera(args.camera, args.camera_name)
     config = _config_from_args(args)
     front = FrontEnd(camera, config)
     out = Path(args.out)
@@ -447,7 +447,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
             "(rgb/, depth/, rgb.txt, depth.txt), a folder of images (stamps from numeric file names,\n"
             "else --fps), a video file, camera:N (a live cv2.VideoCapture device) or kinect:N (a live\n"
             "Kinect through the optional freenect package). CAM.yaml is a ROS camera_info file with an\n"
-            "optional robot_mount (fgslam calibrate-camera writes one).\n\n"
+            "optional robot_mount (fgslam calibrate-camera writes one) or a Kalibr cameras.yaml.\n\n"
             "Observations go into the pose current at each frame's stamp (the last odometry record at or\n"
             "before it); a frame with no pose within --max-pose-gap is dropped and counted. Frames that\n"
             "cannot be used (corrupt, over-exposed, no landmark, no depth) are counted by reason, never\n"
@@ -460,7 +460,10 @@ def add_parser(verbs) -> argparse.ArgumentParser:
         ),
     )
     detect.add_argument("frames", metavar="FRAMES", help="frame folder, video file, camera:N or kinect:N")
-    detect.add_argument("--camera", required=True, metavar="CAM.yaml", help="camera_info YAML (intrinsics, mount)")
+    detect.add_argument("--camera", required=True, metavar="CAM.yaml", help="camera file: a ROS camera_info YAML (intrinsics, mount) "
+                        "or a Kalibr cameras.yaml")
+    detect.add_argument("--camera-name", default=None, metavar="NAME",
+                        help="the camera of a Kalibr file holding several (cam0, cam1, ...)")
     detect.add_argument("--out", required=True, metavar="LOG", help="run log to add the observations to")
     detect.add_argument("--show", default=None, metavar="DIR", help="write annotated frames (PNG) to DIR (a folder outside FRAMES)")
     detect.add_argument("--kind", choices=("apriltag", "colour"), default="apriltag",

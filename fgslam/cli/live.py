@@ -77,7 +77,10 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     live.add_argument("--start-pose", type=_floats(3), default=None, metavar="X,Y,THETA",
                       help="where the robot starts in the map frame (default: last corner, facing the first)")
     live.add_argument("--speed", type=float, default=0.2, metavar="M_S", help="cruising speed (default 0.2)")
-    live.add_argument("--camera", default=None, metavar="CAM.yaml", help="camera_info YAML (real camera)")
+    live.add_argument("--camera", default=None, metavar="CAM.yaml", help="camera file of a real camera: a ROS camera_info YAML "
+                           "or a Kalibr cameras.yaml")
+    live.add_argument("--camera-name", default=None, metavar="NAME",
+                      help="the camera of a Kalibr file holding several (cam0, cam1, ...)")
     live.add_argument("--frames", default=None,
                       help="frame source: camera:N or kinect:N (default camera:0; with --port sim the camera is "
                            "simulated)")
@@ -340,7 +343,7 @@ def _real_camera(args):
     from slamio.camera.model import load_camera
     from slamio.camera.sources import kinect_frames, video_frames
 
-    camera = load_camera(args.camera)
+    camera = load_camera(args.camera, args.camera_name)
     frames_source = args.frames or "camera:0"
     kind, _, number = frames_source.partition(":")
     if kind not in ("camera", "kinect") or not number.isdigit():

@@ -48,7 +48,10 @@ def add_parser(verbs) -> argparse.ArgumentParser:
         epilog="example:\n  fgslam tune-colours run/frames --camera kinect.yaml --out landmarks.yaml --show run/tuning",
     )
     p.add_argument("frames", metavar="FRAMES", help="RGB-D frames: a TUM RGB-D folder (rgb/, depth/)")
-    p.add_argument("--camera", required=True, metavar="CAM.yaml", help="camera_info YAML (intrinsics, mount)")
+    p.add_argument("--camera", required=True, metavar="CAM.yaml", help="camera file: a ROS camera_info YAML (intrinsics, mount) "
+                   "or a Kalibr cameras.yaml")
+    p.add_argument("--camera-name", default=None, metavar="NAME",
+                   help="the camera of a Kalibr file holding several (cam0, cam1, ...)")
     p.add_argument("--out", required=True, metavar="FILE", help="the tuned landmark file (.yaml, or .json)")
     p.add_argument("--landmarks", default=None, metavar="FILE",
                    help="the landmark file to start from (default seed 000's red/green/blue cylinders)")
@@ -99,7 +102,7 @@ def cmd_tune_colours(args: argparse.Namespace) -> int:
     check_number("--depth-scale", args.depth_scale, above=0,  # 0 would divide every depth by zero
                  what="depth PNG units per metre: TUM 5000, millimetre PNGs 1000")
     out = check_new_file(args.out, overwrite=args.overwrite, example="landmarks.yaml")
-    camera = load_camera(args.camera)
+    camera = load_camera(args.camera, args.camera_name)
     start = load_landmarks(args.landmarks) if args.landmarks else ColourOptions()
     show = Path(args.show) if args.show else None
     if show is not None:

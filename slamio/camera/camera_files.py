@@ -37,8 +37,9 @@ def load_camera_file(path: str | os.PathLike[str], name: str | None = None) -> C
     """A Kalibr ``cameras.yaml`` (camera ``name``, or its only camera) or a ROS camera_info
     YAML, whichever the file is; :class:`CameraConfigError` naming the file, line and key."""
     path = os.fspath(path)
-    text = read_text(path, "camera file", "a camera file is a UTF-8 YAML file: a ROS camera_info file or a "
-                     "Kalibr cameras.yaml (docs/datasets-mrclam-rosbag.md)", CameraConfigError)
+    text = read_text(path, "camera file", "a camera file is a UTF-8 YAML file: a ROS camera_info file (fgslam "
+                     "calibrate-camera writes one; docs/camera.md) or a Kalibr cameras.yaml "
+                     "(docs/datasets-mrclam-rosbag.md)", CameraConfigError)
     doc = parse_yaml(path, text, error=CameraConfigError, fix="write a ROS camera_info or Kalibr cameras.yaml file")
     data = doc.data
     if isinstance(data, dict) and "image_width" in data:

@@ -46,8 +46,8 @@ from typing import Any
 
 import numpy as np
 
-from slamio.errors import InputFileError, read_text
-from slamio.safe_input import Document, parse_yaml
+from slamio.errors import InputFileError
+from slamio.safe_input import Document
 
 #: Rotation taking optical-frame vectors (x right, y down, z forward) into a body frame
 #: (x forward, y left, z up): columns are the optical axes expressed in the body frame.
@@ -362,13 +362,13 @@ def camera_from_dict(d: Any, path: str = "<camera>", doc: Document | None = None
     return CameraModel(width, height, K, D, model, _mount(mount, d), str(d.get("camera_name", "camera")))
 
 
-def load_camera(path: str | os.PathLike[str]) -> CameraModel:
-    """Read a ROS camera_info YAML (plus the optional mount) into a :class:`CameraModel`."""
-    path = os.fspath(path)
-    text = read_text(path, "camera file", "a camera file is a UTF-8 ROS camera_info YAML (write one with "
-                     "fgslam calibrate-camera; see docs/camera.md)", CameraConfigError)
-    doc = parse_yaml(path, text, error=CameraConfigError, fix="write a ROS camera_info file")
-    return camera_from_dict(doc.data, path, doc)
+def load_camera(path: str | os.PathLike[str], name: str | None = None) -> CameraModel:
+    """Read a camera file into a :class:`CameraModel`: a ROS camera_info YAML (plus the
+    optional mount) or a Kalibr ``cameras.yaml`` (camera ``name``, or its only camera). One
+    reader for both: :func:`slamio.camera.camera_files.load_camera_file`."""
+    from slamio.camera.camera_files import load_camera_file  # it builds on this module
+
+    return load_camera_file(path, name)
 
 
 def camera_to_dict(camera: CameraModel) -> dict[str, Any]:
