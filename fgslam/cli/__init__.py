@@ -83,11 +83,20 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="fgslam", description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--version", action="version", version=f"fgslam {_version()}")
+    parser.add_argument("--version", action=_VersionAction, nargs=0, help="show the version and exit")
     verbs = parser.add_subparsers(dest="verb", metavar="VERB", required=True)
     for module in VERBS:
         module.add_parser(verbs)
     return parser
+
+
+class _VersionAction(argparse.Action):
+    """``--version``, reading the installed version only when asked: importlib.metadata costs
+    ~30 ms of every start-up otherwise."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"fgslam {_version()}")  # on stdout, as argparse's own version action
+        parser.exit(0)
 
 
 def _version() -> str:

@@ -57,7 +57,7 @@ def _mount(text: str):
 
 
 def add_parser(verbs) -> argparse.ArgumentParser:
-    from slamio.camera.chessboard import MODELS
+    from slamio.camera.model import DISTORTION_MODELS as MODELS  # not chessboard's: it loads OpenCV
 
     p = add_verb(
         verbs, "calibrate-camera",

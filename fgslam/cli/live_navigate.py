@@ -19,10 +19,13 @@ WORLDS = ("arena", "clutter")
 LOCKSTEP_WATCHDOG_S = 30.0
 
 
-def add_options(live: argparse.ArgumentParser) -> None:
-    from fgslam.navigate import NAVIGATORS
+#: The names of fgslam.navigate.NAVIGATORS (a test keeps them equal): the parser needs the
+#: names only, and importing the navigators (scipy.ndimage) would cost every verb ~0.2 s.
+NAVIGATORS = ("vfh-s000", "vfh", "explore-s001", "explore")
 
-    live.add_argument("--navigate", default=None, choices=tuple(NAVIGATORS), metavar="NAME",
+
+def add_options(live: argparse.ArgumentParser) -> None:
+    live.add_argument("--navigate", default=None, choices=NAVIGATORS, metavar="NAME",
                       help="let a navigator drive instead of --path, steering by the obstacle scan of the camera's "
                       f"depth: {', '.join(NAVIGATORS)} (docs/navigate.md). Bumps stop the wheels, are logged and "
                       "counted, and the navigator backs off; the run goes on")

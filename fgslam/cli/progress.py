@@ -23,12 +23,21 @@ from __future__ import annotations
 import sys
 import threading
 import time
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
-from tqdm import tqdm
+if TYPE_CHECKING:
+    from tqdm import tqdm
 
 DEFAULT_INTERVAL_S = 5.0  # a plain line this often when not on a terminal
 TTY_INTERVAL_S = 0.5  # at most this often on a terminal
+
+
+def _tqdm() -> type[tqdm]:
+    """tqdm's class, imported at the first progress shown: importing tqdm costs ~30 ms of the
+    command line's start-up, which a short verb (``fgslam validate``) should not pay."""
+    from tqdm import tqdm
+
+    return tqdm
 
 
 def _is_terminal(stream) -> bool:
@@ -102,7 +111,7 @@ class Progress:
         self._lines_in_stage = 0
         if self.tty and total is not None:
             sized = _has_size(self.stream)  # tqdm shows nothing on a terminal of size 0x0 (a bare pty)
-            bar = tqdm(total=total, desc=label, unit=" " + self.unit, file=self.stream, leave=True,
+            bar = _tqdm()(total=total, desc=label, unit=" " + self.unit, file=self.stream, leave=True,
                        dynamic_ncols=sized, ncols=None if sized else 100, nrows=None if sized else 24,
                        mininterval=self.tty_interval_s, smoothing=0.1)
             bar._time = self.clock  # one clock for all figures (and a fake one in tests)
@@ -123,7 +132,7 @@ class Progress:
         self._label = self._total = None
 
     def _line(self, now: float) -> None:
-        text = tqdm.format_meter(n=self._done, total=self._total, elapsed=now - self._started, ncols=0,
+        text = _tqdm().format_meter(n=self._done, total=self._total, elapsed=now - self._started, ncols=0,
                                  prefix=self._label or "", unit=" " + self.unit)
         self._write(text + "\n")
         self._last_line = now
@@ -146,12 +155,12 @@ class Progress:
             if now - self._last_line < due:
                 return
             self._last_line = now
-            meter = tqdm.format_meter(n=count, total=None, elapsed=now - self._started, ncols=0,
+            meter = _tqdm().format_meter(n=count, total=None, elapsed=now - self._started, ncols=0,
                                       unit=" " + self.unit, bar_format="[{elapsed}, {rate_fmt}]")
             line = f"{make_text()}  {meter}"
             if self.tty:  # redrawn in place, padded over the longer line before it
                 if self._printer is None:
-                    self._printer = tqdm.status_printer(self.stream)
+                    self._printer = _tqdm().status_printer(self.stream)
                 try:
                     self._printer(line)
                 except (OSError, ValueError):

@@ -16,11 +16,11 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from slamio.camera.model import CameraModel, T_robot_camera_from_mount
+from slamio.camera.model import DISTORTION_MODELS, CameraModel, T_robot_camera_from_mount
 from slamio.errors import FgslamError
 
 #: The distortion models :func:`calibrate` fits (ROS ``distortion_model`` names).
-MODELS = ("plumb_bob", "rational_polynomial", "equidistant")
+MODELS = DISTORTION_MODELS
 
 
 class CalibrationError(FgslamError):
