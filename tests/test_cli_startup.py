@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-HEAVY = ("cv2", "scipy", "gtsam", "matplotlib", "tqdm", "fgslam.navigate", "fgslam.smoother", "ekf",
+HEAVY = ("slamio.sim", "cv2", "scipy", "gtsam", "matplotlib", "tqdm", "fgslam.navigate", "fgslam.smoother", "ekf",
          "importlib.metadata")
 
 _CHILD = """

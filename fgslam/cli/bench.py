@@ -16,8 +16,7 @@ OWN_NAMES = ("montecarlo.json", "nees.png", "ate.png")
 
 
 def add_parser(verbs) -> argparse.ArgumentParser:
-    from slamio.sim import SCENARIOS
-    from slamio.sim3d import STEREO_LOOP
+    from fgslam.cli.sim import SCENARIOS, STEREO_LOOP  # names only: the simulators load when used
 
     scenarios = (*SCENARIOS, STEREO_LOOP)
     bench = add_verb(

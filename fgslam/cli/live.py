@@ -63,7 +63,7 @@ def _floats(count: int):
 
 
 def add_parser(verbs) -> argparse.ArgumentParser:
-    from slamio.sim import ARENA_PATH_WIDTH_M, ARENA_SIDE_M
+    from slamio.sim_worlds import ARENA_PATH_WIDTH_M, ARENA_SIDE_M
 
     live = add_verb(verbs, "live", description=DESCRIPTION,
                     help="drive the Create on the iSAM2 pose with the camera in the loop; record it all")
