@@ -222,3 +222,26 @@ def test_after_a_rebuild_the_cap_still_falls_on_gtsams_checks():
     for step in steps[:20]:
         plain.step(step)
     assert sum(recording.moved) > 0
+
+
+def test_after_a_window_slide_the_cap_still_falls_on_gtsams_checks():
+    """The fresh iSAM2 a slide starts (fgslam/smoother/window.py) has had one update, the
+    window's: counted as GTSAM counts it, no capped check moves a linearisation point."""
+    from test_smoother import make_loop_log
+
+    header, steps, _, _ = make_loop_log(n_steps=80)
+    smoother = Isam2Smoother(header, update_every=1, relinearize_skip=3, relinearize_threshold=0.0,
+                             relinearize_max_variables=0, window_poses=10)
+    records = []
+
+    def recorded(isam):
+        records.append(_LinearisationPoints(isam))
+        return records[-1]
+
+    smoother._isam_wrapper = recorded
+    smoother._isam = smoother._new_isam(smoother._isam)
+    for step in steps:
+        smoother.step(step)
+    assert smoother.window_slides >= 2 and smoother.update_failures == 0
+    assert all(len(r.moved) >= 4 for r in records[1:-1])  # checks ran on each fresh iSAM2
+    assert sum(sum(r.moved) for r in records) == 0
