@@ -9,8 +9,9 @@ Usage::
     .venv/bin/python -m scripts.bench_long_steps victoria-park --top 10 --consistency
 
 Each log (``victoria-park``: the file shipped with gtsam; ``mrclam:K``: robot K of
-``../shared/data/mrclam/MRCLAM_Dataset6`` imported as ``fgslam import`` does; ``grid:N``: the
-``fgslam sim grid`` scenario with N landmarks, seed 1; or a run-log path) is run through the
+``../shared/data/mrclam/MRCLAM_Dataset6`` imported as ``fgslam import`` does; ``grid:N`` or
+``grid:N:LAPS``: the ``fgslam sim grid`` scenario with N landmarks, seed 1 (its own laps, or
+LAPS as ``bench_scaling --laps``); or a run-log path) is run through the
 default ``isam2`` (``fgslam run``'s factory, one process, BLAS on one thread) with
 :func:`fgslam.runner.run_estimator`, so the step times are the ones ``fgslam run`` reports
 (``--consistency`` also does its NIS/NEES work between the steps). Each step's CPU time
@@ -60,7 +61,8 @@ def load(name: str):
     if name.startswith("grid:"):
         from slamio.sim import simulate
 
-        return simulate("grid", 1, landmarks=int(name.split(":")[1]))
+        _, n, *laps = name.split(":")
+        return simulate("grid", 1, landmarks=int(n), laps=int(laps[0]) if laps else None)
     log = read_log(name)
     return log.header, log.records
 
@@ -206,7 +208,7 @@ def report(name: str, top: int, consistency: bool) -> None:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("logs", nargs="+", help="victoria-park, mrclam:K, grid:N or a run-log path")
+    ap.add_argument("logs", nargs="+", help="victoria-park, mrclam:K, grid:N[:LAPS] or a run-log path")
     ap.add_argument("--top", type=int, default=8, help="how many of the longest steps to take apart")
     ap.add_argument("--consistency", action="store_true", help="do fgslam run's NIS/NEES work between steps")
     args = ap.parse_args(argv)
