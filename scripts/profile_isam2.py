@@ -17,7 +17,9 @@ region and one for the consistency work outside it, and each is summed into cate
 * GTSAM calls by name: ``ISAM2.update``; reading the estimate (``calculateEstimate*``,
   ``calculateBestEstimate``); marginals (``marginalCovariance``,
   ``jointMarginalCovariance``); ``graph.error`` (the convergence test of ``finish()``);
-  the final Gauss–Newton steps of ``finish()`` (``GaussNewtonOptimizer.iterate``);
+  the final Gauss–Newton steps of ``finish()`` (``linearize``, ``optimize``, ``retract``,
+  ``orderingCOLAMD``: :func:`fgslam.smoother.batch.gauss_newton_steps`; until issue 43's
+  step round they were missing here and their time counted as smoother bookkeeping);
 * Python by module: factor building (``fgslam/smoother/factors.py``: records → factors and
   noise models), update assembly (``update_batch``: copying the held factors and ``Values``
   into one update), odometry chains (``chain.py``), NIS/NEES propagation (the marginal
@@ -57,8 +59,14 @@ GTSAM_CALLS = {
     "calculateBestEstimate": "reading the estimate",
     "marginalCovariance": "marginals",
     "jointMarginalCovariance": "marginals",
+    "getDelta": "reading the estimate",  # the lazy back-substitution, when the relinearisation cap asks first
     "error": "graph.error (finish)",
-    "iterate": "finish's Gauss–Newton steps (GaussNewtonOptimizer.iterate)",
+    # finish()'s Gauss–Newton steps (fgslam/smoother/batch.py: gauss_newton_steps); before
+    # they were named here their time went to "smoother bookkeeping (Python)", their caller's
+    "linearize": "finish's Gauss–Newton steps",
+    "optimize": "finish's Gauss–Newton steps",
+    "orderingCOLAMD": "finish's Gauss–Newton steps",
+    "retract": "finish's Gauss–Newton steps",
 }
 
 

@@ -189,3 +189,59 @@ def test_a_negative_cap_is_refused():
     header, _ = simulate("arena-octagon", 2)
     with pytest.raises(FgslamError, match="relinearize_max_variables"):
         Isam2Smoother(header, relinearize_max_variables=-1)
+
+
+def test_after_a_rebuild_the_cap_still_falls_on_gtsams_checks():
+    """A failed update rebuilds iSAM2 with one update of its own; GTSAM counts it, so the
+    smoother must too, or its cap is computed on updates GTSAM does not check and GTSAM's
+    checks run uncapped. With every variable past a zero threshold and a cap of 0, no check
+    may move a linearisation point (read from GTSAM before and after each update), before
+    or after the rebuild."""
+    from test_smoother import junk, make_loop_log, with_extra
+
+    header, steps, _, _ = make_loop_log(n_steps=60)
+    smoother = Isam2Smoother(header, update_every=1, relinearize_skip=3, relinearize_threshold=0.0,
+                             relinearize_max_variables=0)
+    records = []
+
+    def recorded(isam):
+        records.append(_LinearisationPoints(isam))
+        return records[-1]
+
+    smoother._isam_wrapper = recorded
+    smoother._isam = smoother._new_isam(smoother._isam)
+    for step in steps:
+        smoother.step(with_extra(step, junk(step, 99)) if step.index == 20 else step)
+    assert smoother.update_failures == 1 and len(records) == 2  # the first ISAM2 and the rebuilt one
+    assert len(records[1].moved) >= 3 * 3  # several checks after the rebuild
+    assert sum(records[0].moved) == 0 and sum(records[1].moved) == 0
+    # the independent half: without the cap GTSAM's checks do move them, on both objects
+    plain = Isam2Smoother(header, update_every=1, relinearize_skip=3, relinearize_threshold=0.0,
+                          relinearize_max_variables=None)
+    recording = plain._isam = _LinearisationPoints(plain._isam)
+    for step in steps[:20]:
+        plain.step(step)
+    assert sum(recording.moved) > 0
+
+
+def test_after_a_window_slide_the_cap_still_falls_on_gtsams_checks():
+    """The fresh iSAM2 a slide starts (fgslam/smoother/window.py) has had one update, the
+    window's: counted as GTSAM counts it, no capped check moves a linearisation point."""
+    from test_smoother import make_loop_log
+
+    header, steps, _, _ = make_loop_log(n_steps=80)
+    smoother = Isam2Smoother(header, update_every=1, relinearize_skip=3, relinearize_threshold=0.0,
+                             relinearize_max_variables=0, window_poses=10)
+    records = []
+
+    def recorded(isam):
+        records.append(_LinearisationPoints(isam))
+        return records[-1]
+
+    smoother._isam_wrapper = recorded
+    smoother._isam = smoother._new_isam(smoother._isam)
+    for step in steps:
+        smoother.step(step)
+    assert smoother.window_slides >= 2 and smoother.update_failures == 0
+    assert all(len(r.moved) >= 4 for r in records[1:-1])  # checks ran on each fresh iSAM2
+    assert sum(sum(r.moved) for r in records) == 0

@@ -107,7 +107,7 @@ class Isam2Updates:
             self._window.stopped = True
             return
         self._window.commit(kept, estimate)
-        self._isam, self._isam_updates = fresh, 0
+        self._isam, self._isam_updates = fresh, 1  # its first update, counted as GTSAM counts it
         self._online.forget_marginal()
         self._landmark_xy.clear()
 
@@ -156,6 +156,10 @@ class Isam2Updates:
                 f"GTSAM said: {' '.join(self.last_failure.split('Thrown when')[0].split())}"
             )
         self._isam = self._new_isam(rebuilt.isam)
-        self._isam_updates = 0  # counted from the rebuild on (its own updates are not)
+        # the rebuild's own update counts: GTSAM checks on its n-th update when n is a multiple
+        # of relinearize_skip, and the cap must be computed for those (counted from 0 here,
+        # every check after a rebuild ran uncapped: MRCLAM Dataset 6 robot 5, two rebuilds,
+        # then checks of up to 2 604 variables; docs/performance.md)
+        self._isam_updates = 1
         self._accept(rebuilt.factors, rebuilt.values)
         self._pending.withhold(rebuilt.withheld)
