@@ -36,6 +36,15 @@ Gauss–Newton steps make its own).
 Everything is also kept in one ``NonlinearFactorGraph`` and the initial ``Values``;
 :func:`batch_solve` runs Levenberg–Marquardt on it from iSAM2's full estimate — the
 smoothed reference.
+
+Bounded on long drives: once iSAM2 holds more than ``max_held_factors`` factors
+(:data:`MAX_HELD_FACTORS`), the old poses and the landmarks only they saw are marginalised
+out of it into a fresh iSAM2 (:mod:`fgslam.window3d`), so its memory and its steps stay
+bounded however long the drive. A run that never reaches the bound (the seed's real drives)
+is exactly the unbounded one, and :meth:`StereoIsam2.finish` still ends at the whole graph's
+optimum; after a slide the final estimate is the fixed-lag one (the window's estimate, and
+what left at its estimate then), and only the batch solve, which always sees the whole
+graph, refines it.
 """
 
 from __future__ import annotations
@@ -83,9 +92,11 @@ class StereoIsam2:
     """Online iSAM2 on the stereo + IMU graph (implements the ``ekf.drive3d`` step protocol).
 
     ``StereoIsam2(K, baseline_m, cam_T_imu, noise=StereoImuNoise(), robust="huber",
-    huber_k=1.345, min_disparity_px=4.0, start_sigma=1e-6, landmark_prior_sigma_m=1000.0)``.
+    huber_k=1.345, min_disparity_px=4.0, start_sigma=1e-6, landmark_prior_sigma_m=1000.0,
+    max_held_factors=MAX_HELD_FACTORS)`` (None: iSAM2 keeps every variable).
     Counters: ``landmarks_added``, ``stereo_factors``, ``skipped_small_disparity``;
-    ``update_seconds`` lists the wall time of each ``ISAM2.update``.
+    ``update_seconds`` lists the wall time of each ``ISAM2.update`` (a slide of the window
+    included); ``window`` (:class:`fgslam.window3d.StereoWindow`) has ``slides``, ``re_entered``.
     """
 
     name = "isam2-vio"
@@ -266,7 +277,8 @@ class StereoIsam2:
         not enough: with the robust stereo kernel a Gauss–Newton step can raise the error,
         and on seed 003 drive 0020 the final error stayed 6.7× the optimum. The online
         trajectory is left as it was; ``estimate()`` is the refined one. LM is restarted
-        until a restart no longer lowers the error (:data:`MAX_RESTARTS`)."""
+        until a restart no longer lowers the error (:data:`MAX_RESTARTS`). Once the window has
+        slid, the final estimate is the fixed-lag one (the whole graph's solve is the batch's)."""
         if self._t < 0:
             return
         if self.window is not None and self.window.slides > 0:  # bounded: the fixed-lag estimate
