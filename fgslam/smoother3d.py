@@ -36,6 +36,15 @@ Gauss–Newton steps make its own).
 Everything is also kept in one ``NonlinearFactorGraph`` and the initial ``Values``;
 :func:`batch_solve` runs Levenberg–Marquardt on it from iSAM2's full estimate — the
 smoothed reference.
+
+Bounded on long drives: once iSAM2 holds more than ``max_held_factors`` factors
+(:data:`MAX_HELD_FACTORS`), the old poses and the landmarks only they saw are marginalised
+out of it into a fresh iSAM2 (:mod:`fgslam.window3d`), so its memory and its steps stay
+bounded however long the drive. A run that never reaches the bound (the seed's real drives)
+is exactly the unbounded one, and :meth:`StereoIsam2.finish` still ends at the whole graph's
+optimum; after a slide the final estimate is the fixed-lag one (the window's estimate, and
+what left at its estimate then), and only the batch solve, which always sees the whole
+graph, refines it.
 """
 
 from __future__ import annotations
@@ -51,6 +60,7 @@ from slamio.se3 import exp_se3, inverse
 from slamio.stereo import point_from_stereo
 from ekf.vio import right_jacobian_se3
 from slamio.datasets.seed003 import StereoImuNoise
+from fgslam.window3d import StereoWindow
 
 __all__ = ["BatchResult", "StereoIsam2", "batch_solve", "gtsam_covariance", "imu_increment_covariance"]
 
@@ -59,6 +69,11 @@ ROBUST = ("huber", "none")
 #: robust stereo kernel one run can stop where its damping tops out while a fresh one goes on
 #: (seed 003 drive 0042 with the noise learned from it: 372 089 after one run, 349 899 after more).
 MAX_RESTARTS = 10
+#: iSAM2 holds at most about this many factors (:class:`fgslam.window3d.StereoWindow`): the
+#: seed's real drives (≤ 4 800 factors) and the default simulated stereo loop (~7 400) stay
+#: whole, so their final estimate is the batch optimum as before; the long dense simulated
+#: drive (45 000) is bounded (docs/performance.md, "A bounded isam2-3d").
+MAX_HELD_FACTORS = 12000
 
 
 def gtsam_covariance(cov_rho_phi) -> np.ndarray:
@@ -78,9 +93,11 @@ class StereoIsam2:
     """Online iSAM2 on the stereo + IMU graph (implements the ``ekf.drive3d`` step protocol).
 
     ``StereoIsam2(K, baseline_m, cam_T_imu, noise=StereoImuNoise(), robust="huber",
-    huber_k=1.345, min_disparity_px=4.0, start_sigma=1e-6, landmark_prior_sigma_m=1000.0)``.
+    huber_k=1.345, min_disparity_px=4.0, start_sigma=1e-6, landmark_prior_sigma_m=1000.0,
+    max_held_factors=MAX_HELD_FACTORS)`` (None: iSAM2 keeps every variable).
     Counters: ``landmarks_added``, ``stereo_factors``, ``skipped_small_disparity``;
-    ``update_seconds`` lists the wall time of each ``ISAM2.update``.
+    ``update_seconds`` lists the wall time of each ``ISAM2.update`` (a slide of the window
+    included); ``window`` (:class:`fgslam.window3d.StereoWindow`) has ``slides``, ``re_entered``.
     """
 
     name = "isam2-vio"
@@ -97,6 +114,7 @@ class StereoIsam2:
         min_disparity_px: float = 4.0,
         start_sigma: float = 1e-6,
         landmark_prior_sigma_m: float = 1000.0,
+        max_held_factors: int | None = MAX_HELD_FACTORS,
     ):
         if robust not in ROBUST:
             raise ValueError(f"robust must be one of {ROBUST}, got {robust!r}")
@@ -131,11 +149,13 @@ class StereoIsam2:
         self.update_seconds: list[float] = []
         self._final: gtsam.Values | None = None  # finish()'s estimate
         self.rebuilds = 0  # times iSAM2 was started again after an update it could not solve
+        # what iSAM2 holds, bounded (fgslam/window3d.py); None: every variable stays in it
+        self.window = None if max_held_factors is None else StereoWindow(max_held_factors)
 
     # ------------------------------------------------------------------ protocol
 
     def step(self, dt_s, twist, ids, pixels) -> None:
-        factors = gtsam.NonlinearFactorGraph()
+        factors = gtsam.NonlinearFactorGraph()  # for the whole graph
         values = gtsam.Values()
         self._t += 1
         t = self._t
@@ -152,6 +172,34 @@ class StereoIsam2:
             )
             seed = self._pose @ increment
         values.insert(X(t), gtsam.Pose3(seed))
+        held, held_values, seen = self._sightings(t, seed, ids, pixels, factors, values)
+        start = time.perf_counter()
+        try:
+            self._isam.update(held, held_values)
+        except RuntimeError:  # gtsam.IndeterminantLinearSystemException: start iSAM2 again (_rebuild)
+            self._rebuild(held, held_values)
+        if self.window is not None:
+            self.window.entered(t, held, held_values, seen)
+            if self.window.due():
+                self._slide()
+        self.update_seconds.append(time.perf_counter() - start)
+        self.graph.push_back(factors)
+        self.initial.insert(values)
+        self._pose = self._isam.calculateEstimatePose3(X(t)).matrix()
+        self._trajectory.append(self._pose.copy())
+
+    def _sightings(self, t: int, seed, ids, pixels, factors, values):
+        """Add step ``t``'s stereo factors (and new landmarks) to ``factors`` / ``values``, the
+        whole graph's. Returns what iSAM2 is to take (the same graph without a window; with
+        one, a landmark that left iSAM2 enters again under a new key) and, for the window,
+        each sighted landmark's key in iSAM2."""
+        if self.window is None:
+            held, held_values = factors, values
+        else:
+            held, held_values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+            held.push_back(factors)
+            held_values.insert(values)
+        seen: dict[int, int] = {}
         for lid, z in zip(np.asarray(ids, dtype=int), np.asarray(pixels, dtype=float).reshape(-1, 4)):
             lid = int(lid)
             if lid not in self._landmarks:
@@ -164,33 +212,59 @@ class StereoIsam2:
                 factors.add(gtsam.PriorFactorPoint3(L(lid), gtsam.Point3(m), self._landmark_prior))
                 self._landmarks.add(lid)
                 self.landmarks_added += 1
+                if held is not factors:
+                    held_values.insert(L(lid), gtsam.Point3(m))
+                    held.add(factors.at(factors.size() - 1))
+                    seen[lid] = L(lid)
+            elif held is not factors and lid not in seen:
+                seen[lid] = self._held_key(lid, held, held_values)
             measured = gtsam.StereoPoint2(z[0], z[2], 0.5 * (z[1] + z[3]))
-            factors.add(
-                gtsam.GenericStereoFactor3D(
-                    measured, self._stereo_noise, X(t), L(lid), self._calibration, self._body_P_sensor
-                )
+            factor = gtsam.GenericStereoFactor3D(
+                measured, self._stereo_noise, X(t), L(lid), self._calibration, self._body_P_sensor
             )
+            factors.add(factor)
+            if held is not factors:
+                key = seen[lid]
+                held.add(factor if key == L(lid) else gtsam.GenericStereoFactor3D(
+                    measured, self._stereo_noise, X(t), key, self._calibration, self._body_P_sensor))
             self.stereo_factors += 1
-        start = time.perf_counter()
+        return held, held_values, seen
+
+    def _held_key(self, lid: int, held, held_values) -> int:
+        """Landmark ``lid``'s key in iSAM2; one that left it enters again (at the estimate it
+        left with, the same weak prior) under a new key."""
+        key, new = self.window.landmark_key(lid)
+        if new:
+            point = self.window.left_estimate(lid)
+            held_values.insert(key, point)
+            held.add(gtsam.PriorFactorPoint3(key, point, self._landmark_prior))
+        return key
+
+    def _slide(self) -> None:
+        """Marginalise the old poses and the landmarks only they saw out of iSAM2 into a
+        fresh one (:class:`fgslam.window3d.StereoWindow`). If the fresh iSAM2 cannot take it,
+        the old one goes on and nothing leaves any more (``window.stopped``)."""
+        estimate = self._isam.calculateEstimate()
+        kept = self.window.slide(estimate)
+        fresh = gtsam.ISAM2(gtsam.ISAM2Params())
         try:
-            self._isam.update(factors, values)
-        except RuntimeError:  # gtsam.IndeterminantLinearSystemException: start iSAM2 again (_rebuild)
-            self._rebuild(factors, values)
-        self.update_seconds.append(time.perf_counter() - start)
-        self.graph.push_back(factors)
-        self.initial.insert(values)
-        self._pose = self._isam.calculateEstimatePose3(X(t)).matrix()
-        self._trajectory.append(self._pose.copy())
+            fresh.update(kept.factors, kept.values)
+        except RuntimeError:  # gtsam.IndeterminantLinearSystemException
+            self.window.stopped = True
+            return
+        self.window.commit(kept, estimate)
+        self._isam = fresh
 
     def _rebuild(self, factors: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> None:
         """After an update iSAM2 could not solve (a step's linear system singular under its
         relinearisation): Levenberg–Marquardt (damped, so it solves what Gauss–Newton cannot)
-        on the whole graph with this step's factors, from the earlier variables' first guesses
-        and this step's, then a new iSAM2 holding the whole graph at that solution. Counted in
-        ``rebuilds``."""
-        graph = gtsam.NonlinearFactorGraph(self.graph)
+        on what iSAM2 held (the whole graph, or the window's) with this step's factors, from
+        their first guesses and this step's, then a new iSAM2 holding that graph at that
+        solution. Counted in ``rebuilds``."""
+        held = self.graph if self.window is None else self.window.factors
+        graph = gtsam.NonlinearFactorGraph(held)
         graph.push_back(factors)
-        start = gtsam.Values(self.initial)
+        start = gtsam.Values(self.initial if self.window is None else self.window.values)
         start.insert(values)
         solved = levenberg_marquardt(graph, start, 50)
         self._isam = gtsam.ISAM2(gtsam.ISAM2Params())
@@ -204,8 +278,12 @@ class StereoIsam2:
         not enough: with the robust stereo kernel a Gauss–Newton step can raise the error,
         and on seed 003 drive 0020 the final error stayed 6.7× the optimum. The online
         trajectory is left as it was; ``estimate()`` is the refined one. LM is restarted
-        until a restart no longer lowers the error (:data:`MAX_RESTARTS`)."""
+        until a restart no longer lowers the error (:data:`MAX_RESTARTS`). Once the window has
+        slid, the final estimate is the fixed-lag one (the whole graph's solve is the batch's)."""
         if self._t < 0:
+            return
+        if self.window is not None and self.window.slides > 0:  # bounded: the fixed-lag estimate
+            self._final = self.estimate()
             return
         values = self._isam.calculateEstimate()
         error = self.graph.error(values)
@@ -238,8 +316,14 @@ class StereoIsam2:
         return np.array(self._trajectory).reshape(-1, 4, 4)
 
     def estimate(self) -> gtsam.Values:
-        """The estimate of every variable: iSAM2's, or after :meth:`finish` the refined one."""
-        return self._final if self._final is not None else self._isam.calculateEstimate()
+        """The estimate of every variable (``X(t)``, ``L(id)``): iSAM2's (with a window, what
+        it holds and what left it at their estimate then), or after :meth:`finish` the final one."""
+        if self._final is not None:
+            return self._final
+        held = self._isam.calculateEstimate()
+        if self.window is None or self.window.slides == 0:
+            return held
+        return self.window.whole_estimate(held, self.n_steps, self.landmark_ids())
 
     def smoothed_trajectory(self) -> np.ndarray:
         values = self.estimate()
