@@ -82,7 +82,9 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from typing import Any
+from typing import Any, Callable
+
+import numpy as np
 
 from slamio.datasets.mrclam_motion import CommandOdometryNoise
 from slamio.datasets.rosbag_export import export_rosbag
@@ -93,13 +95,18 @@ from slamio.datasets.rosbag_messages import (
 )
 from slamio.datasets.rosbag_corners import DEFAULT_MAX_REPROJECTION_PX
 from slamio.datasets.rosbag_level import DEFAULT_LEVEL_THRESHOLD_DEG
-from slamio.datasets.rosbag_observe import camera_mount, sighting_observations, tag_map_from_tf, truth_from_bag
+from slamio.datasets.rosbag_cameras import (
+    camera_mounts, camera_names as names_of_cameras, per_camera, require_image_cameras, resolve_cameras,
+)
+from slamio.datasets.rosbag_images import BagImageTags
+from slamio.datasets.rosbag_observe import sighting_observations, tag_map_from_tf, truth_from_bag
 from slamio.datasets.rosbag_options import (
     DEFAULT_MAX_TRUTH_GAP_S, DEFAULT_SIGMA_BEARING_RAD, DEFAULT_SIGMA_HEIGHT_M, DEFAULT_SIGMA_RANGE_M,
     DEFAULT_SIGMA_TAG_YAW_RAD, ImportOptions, check_level_and_truth, check_options, corner_inputs,
-    robot_camera_transform,
+    require_tag_sizes, robot_camera_transform,
 )
-from slamio.datasets.rosbag_read import BagFormatError, Messages, bag_paths, read_bag, read_pose_topic, read_tf_poses
+from slamio.datasets.rosbag_read import (BagFormatError, CameraTopics, Messages, bag_paths, read_bag, read_pose_topic,
+                                         read_tf_poses)
 from slamio.datasets.rosbag_records import (
     TruthTrack, default_increment_covariance, increment_covariance_from_poses, interpolate_se2, observations_by_pose,
     pose_records, start_pose_of, thinned,
@@ -135,7 +142,7 @@ def import_rosbag(
     path: str | os.PathLike[str],
     *,
     odom_topic: str | None = None,
-    detections_topic: str | None = None,
+    detections_topic: str | list[str] | None = None,
     tag_pose_topic: str | None = None,
     truth_topic: str | None = None,
     T_robot_camera: Any = None,
@@ -154,7 +161,7 @@ def import_rosbag(
     start_from: str = "odom",
     standard_topics_only: bool = False,
     camera: Any = None,
-    camera_info_topic: str | None = None,
+    camera_info_topic: str | list[str | None] | None = None,
     tag_sizes: Any = None,
     tag_size_m: float | None = None,
     pixel_sigma_px: float | None = None,
@@ -164,49 +171,114 @@ def import_rosbag(
     truth_bag: str | os.PathLike[str] | None = None,
     truth_pose_of: str = "body",
     truth_frames: tuple[str, str] | None = None,
+    image_topic: str | list[str] | None = None,
+    camera_names: list[str] | None = None,
+    tag_family: str = "tag36h11",
+    progress: Callable[[int, int, str], None] | None = None,
 ) -> tuple[Header, list[Record]]:
     """Convert a ROS 1 ``.bag`` file or a ROS 2 bag folder into a run-log header and records.
 
-    A bag written by :func:`export_rosbag` (it has ``/fgslam/run_log``) gives back the
-    exported log exactly, whatever topics are named, unless ``standard_topics_only``.
-    Otherwise ``odom_topic`` is required and the other topics are optional; see the module
-    docstring for every conversion rule and option. Write the result with ``write_log``.
+    A bag written by :func:`export_rosbag` (it has ``/fgslam/run_log``) gives back the exported
+    log exactly, unless ``standard_topics_only``. Otherwise ``odom_topic`` is required; every
+    conversion rule and option: the module docstring ("Options of a rig's own bag": corners,
+    images, several cameras, levelling, truth). Write the result with ``write_log``.
 
-    Raises :class:`BagFormatError` naming the topic and what was expected (a missing topic,
-    a wrong message type, an unusable message), :class:`~slamio.errors.FgslamError` for an
-    unreadable bag or a bad option.
-
-    Tag corners, levelling, truth from a second bag or /tf: the module docstring's "Options
-    of a rig's own bag". What was assumed is in ``header.source["warnings"]``.
-    """
+    Raises :class:`BagFormatError` naming the topic (and message) and what was expected,
+    :class:`~slamio.errors.FgslamError` for an unreadable bag or a bad option. What was
+    assumed is in ``header.source["warnings"]``."""
     _rosbags()
-    path = os.fspath(path)
-    bag, ros_version = bag_paths(path)
+    bag, ros_version = bag_paths(path := os.fspath(path))
     check_options(tag_normal_axis, start_from, truth_topic or (truth_frames and ":".join(truth_frames)),
-                   odom_min_period_s,
-                   sigma_range_m=sigma_range_m, sigma_bearing_rad=sigma_bearing_rad,
-                   sigma_tag_yaw_rad=sigma_tag_yaw_rad, sigma_height_m=sigma_height_m, max_truth_gap_s=max_truth_gap_s)
+                  odom_min_period_s, sigma_range_m=sigma_range_m, sigma_bearing_rad=sigma_bearing_rad,
+                  sigma_tag_yaw_rad=sigma_tag_yaw_rad, sigma_height_m=sigma_height_m, max_truth_gap_s=max_truth_gap_s)
     check_level_and_truth(level, truth_pose_of, truth_bag, truth_topic, truth_frames)
-    messages = read_bag(path, bag, ros_version, odom_topic, detections_topic, tag_pose_topic,
+    topics = _camera_topics(detections_topic, image_topic, camera_info_topic)
+    warnings: list[str] = []
+    images = _ImageStep(path, camera, tag_sizes, tag_size_m, tag_family, progress, warnings)
+    messages = read_bag(path, bag, ros_version, odom_topic, topics, tag_pose_topic,
                         truth_topic if truth_bag is None else None, use_header_stamps, standard_topics_only,
-                        camera_info_topic)
+                        images, find_images=tag_sizes is not None or tag_size_m is not None)
     if not isinstance(messages, Messages):  # a bag fgslam exported: its run log, as it was
         return messages
     if not messages.odometry:
         raise BagFormatError(path, odom_topic, "has no messages; expected nav_msgs/Odometry poses of the robot")
-    warnings: list[str] = []
-    T_rc, mount_source = camera_mount(None if T_robot_camera is None else robot_camera_transform(T_robot_camera),
-                                      messages.tf_static, messages.body_frame, messages.detections_frame, warnings)
-    camera, pixel_sigma_px = corner_inputs(path, detections_topic, messages, camera, camera_info_topic, tag_sizes,
-                                            tag_size_m, pixel_sigma_px, warnings)
+    names, cameras, mounts, mount_sources = _rig(path, messages, images, camera, camera_names, T_robot_camera,
+                                                 warnings)
+    pixel_sigma_px = corner_inputs(path, messages, cameras or [None], tag_sizes, tag_size_m, pixel_sigma_px, warnings)
+    _warn_unused_images(messages, warnings)
     o = ImportOptions(
-        path, ros_version, odom_topic, detections_topic, tag_pose_topic, truth_topic,  # type: ignore[arg-type]
-        T_rc, tag_normal_axis, sigma_range_m, sigma_bearing_rad, sigma_tag_yaw_rad,
+        path, ros_version, odom_topic, messages.cameras, tag_pose_topic, truth_topic,  # type: ignore[arg-type]
+        tuple(mounts), tag_normal_axis, sigma_range_m, sigma_bearing_rad, sigma_tag_yaw_rad,
         with_height, sigma_height_m, odometry_noise if odometry_noise is not None else CommandOdometryNoise(),
         covariance_from_message, odom_min_period_s, interpolate_detections, max_truth_gap_s, start_from,
-        camera, tag_sizes, tag_size_m, pixel_sigma_px or 1.0, max_reprojection_px, mount_source,
+        tuple(cameras or [None]), tag_sizes, tag_size_m, pixel_sigma_px or 1.0, max_reprojection_px,
+        tuple(mount_sources), names,
     )
-    return _convert(o, messages, warnings, level, level_threshold_deg, truth_bag, truth_pose_of, truth_frames)
+    header, records = _convert(o, messages, warnings, level, level_threshold_deg, truth_bag, truth_pose_of, truth_frames)
+    header.source.update({"images": images.tags.summary()} if images.tags is not None else {})
+    return header, records
+
+
+def _as_tuple(topics) -> tuple[str, ...]:
+    return () if topics is None else (topics,) if isinstance(topics, str) else tuple(topics)
+
+
+def _camera_topics(detections_topic, image_topic, camera_info_topic) -> CameraTopics:
+    detections, images = _as_tuple(detections_topic), _as_tuple(image_topic)
+    infos = per_camera(camera_info_topic, len(detections + images), "camera_info topic", lambda v: isinstance(v, str))
+    return CameraTopics(detections, images, tuple(infos))
+
+
+def _rig(path: str, messages: Messages, images: "_ImageStep", camera, camera_names, T_robot_camera,
+         warnings: list[str]):
+    """(names, calibrations, mounts, where each mount came from) of the cameras read
+    (:mod:`slamio.datasets.rosbag_cameras`)."""
+    names = names_of_cameras(messages.cameras, camera_names)
+    cameras = images.cameras if images.cameras is not None else resolve_cameras(
+        path, messages.cameras, per_camera(camera, len(messages.cameras.topics), "camera", _is_camera),
+        messages.camera_infos, warnings)
+    given_mounts = [None if T is None else robot_camera_transform(T)
+                    for T in per_camera(T_robot_camera, len(names), "camera pose", _is_matrix)]
+    mounts, sources = camera_mounts(given_mounts, messages, names, warnings)
+    return names, cameras, mounts, sources
+
+
+def _is_matrix(value) -> bool:
+    return isinstance(value, np.ndarray) or (isinstance(value, (list, tuple)) and len(value) == 4
+                                             and all(isinstance(row, (list, tuple, np.ndarray)) for row in value))
+
+
+def _is_camera(value) -> bool:
+    return hasattr(value, "K") and hasattr(value, "width_px")
+
+
+def _warn_unused_images(messages: Messages, warnings: list[str]) -> None:
+    if messages.unused_images and not messages.cameras.topics and not messages.sightings:
+        warnings.append(f"images: the bag has image topics ({', '.join(messages.unused_images)}) and no detections "
+                        "were read: give --image-topic T and --tag-size M (or --tags FILE) to detect tags in them")
+
+
+class _ImageStep:
+    """What :func:`~slamio.datasets.rosbag_read.read_bag` calls once the camera topics and their
+    CameraInfo are known: the cameras resolved, tag sizes checked, and the image detector made."""
+
+    def __init__(self, path, camera, tag_sizes, tag_size_m, family, progress, warnings):
+        self.path, self.camera, self.tag_sizes, self.tag_size_m = path, camera, tag_sizes, tag_size_m
+        self.family, self.progress, self.warnings = family, progress, warnings
+        self.cameras: list | None = None
+        self.tags: BagImageTags | None = None
+
+    def __call__(self, topics: CameraTopics, infos: dict, reader) -> BagImageTags:
+        given = per_camera(self.camera, len(topics.topics), "camera", _is_camera)
+        self.cameras = resolve_cameras(self.path, topics, given, infos, self.warnings)
+        for topic in topics.images:
+            require_tag_sizes(self.path, topic, self.tag_sizes, self.tag_size_m, "images to detect tags in")
+        total = sum(c.msgcount for c in reader.connections if c.topic in topics.images)
+        self.tags = BagImageTags(self.path, require_image_cameras(self.path, topics, self.cameras), self.family,
+                                 total, self.progress)
+        return self.tags
+
+
 
 
 def _convert(o: ImportOptions, messages: Messages, warnings: list[str], level: str, level_threshold_deg: float,
@@ -232,7 +304,8 @@ def _convert(o: ImportOptions, messages: Messages, warnings: list[str], level: s
     n_observations = sum(isinstance(r, Observation) for r in records)
     warn_counts(o, messages, counts, n_observations, warnings)
     header = make_header(o, messages, start_pose, odometry[0][0], n_odometry_messages, counts, n_observations)
-    header.source.update({"warnings": warnings, "levelling": level_report, "camera_mount": o.mount_source,
+    header.source.update({"warnings": warnings, "levelling": level_report, "camera_mount": o.mount_sources[0] if len(o.mount_sources) == 1
+                          else dict(zip(o.camera_names, o.mount_sources)),
                           **({"truth_bag": os.fspath(truth_bag), "truth_pose_of": truth_pose_of} if truth_bag else {}),
                           **({"truth_frames": ":".join(truth_frames), "truth_pose_of": truth_pose_of}
                              if truth_frames else {})})

@@ -73,7 +73,7 @@ def make_header(o: ImportOptions, messages: Messages, start_pose, t0: int, n_odo
             "landmark_kind": "apriltag",
             "detections_topic": o.detections_topic,
             "tag_pose_topics": sorted(messages.tag_topics),
-            **camera_mount_fields(o.T_rc),  # each tag placed through the camera's mount: at the robot's centre
+            **camera_fields(o),  # each tag placed through its camera's mount: at the robot's centre
             "tag_normal_axis": o.tag_normal_axis,
         },
         noise={
@@ -102,6 +102,7 @@ def make_header(o: ImportOptions, messages: Messages, start_pose, t0: int, n_odo
             "converted_by": "fgslam import rosbag",
             "tag_corner_detections": len(messages.corners),
             "topics": {"odometry": o.odom_topic, "detections": o.detections_topic,
+                       **({"images": list(o.camera_topics.images)} if o.camera_topics.images else {}),
                        "tag_pose_prefix": o.tag_pose_topic, "truth": o.truth_topic},
             "time_origin_ns": t0,
             "stamps": "seconds since the first odometry message (header stamps, or bag time when zero)",
@@ -125,8 +126,31 @@ def corner_noise(o: ImportOptions, messages: Messages) -> dict:
                  "height (slamio.datasets.rosbag_corners); each observation carries its own sigmas",
         "pixel_sigma_px": o.pixel_sigma_px,
         "max_reprojection_px": o.max_reprojection_px,
-        "camera": {"name": o.camera.name, "width_px": o.camera.width_px, "height_px": o.camera.height_px,
-                   "K": [[float(v) for v in row] for row in o.camera.K], "distortion_model": o.camera.distortion_model,
-                   "dist_coeffs": [float(v) for v in o.camera.dist_coeffs]},
-        "tag_sizes_m": {str(i): o.tag_size_of(i) for i in sorted({i for _, i, _ in messages.corners})},
+        **({"camera": _camera_dict(o.cameras[0])} if len(o.cameras) == 1 else
+           {"cameras": {name: _camera_dict(c) for name, c in zip(o.camera_names, o.cameras) if c is not None}}),
+        "tag_sizes_m": {str(i): o.tag_size_of(i) for i in sorted({i for _, i, *_ in messages.corners})},
     }
+
+
+def _camera_dict(camera) -> dict:
+    return {"name": camera.name, "width_px": camera.width_px, "height_px": camera.height_px,
+            "K": [[float(v) for v in row] for row in camera.K], "distortion_model": camera.distortion_model,
+            "dist_coeffs": [float(v) for v in camera.dist_coeffs]}
+
+
+#: The header's ``sensor.readings_at`` of a rig of several cameras.
+READINGS_AT_EACH_CAMERA = ("the robot's centre: each detection is placed through its own camera's T_robot_camera "
+                           "(sensor.cameras), so the header states no pose_on_robot")
+
+
+def camera_fields(o: ImportOptions) -> dict:
+    """The header ``sensor`` fields of the cameras: one camera as ``fgslam detect`` states it
+    (``T_robot_camera``, ``readings_at``), and every camera by name with its topic, mount and
+    where the mount came from (``cameras``)."""
+    topics = o.camera_topics.topics
+    listed = [{"name": name, "topic": topics[k], "T_robot_camera": [[round(float(v), 9) for v in row] for row in T],
+               "mount": o.mount_sources[k]} for k, (name, T) in enumerate(zip(o.camera_names, o.mounts))
+              if k < len(topics)]
+    if len(o.mounts) == 1:
+        return {**camera_mount_fields(o.T_rc), **({"cameras": listed} if listed else {})}
+    return {"cameras": listed, "readings_at": READINGS_AT_EACH_CAMERA}

@@ -17,12 +17,12 @@ from slamio.datasets.mrclam_motion import CommandOdometryNoise
 from slamio.datasets.rosbag_corners import DEFAULT_MAX_REPROJECTION_PX
 from slamio.datasets.rosbag_level import LEVEL_MODES
 from slamio.datasets.rosbag_messages import T_ROBOT_OPTICAL
-from slamio.datasets.rosbag_read import CORNERS_TYPE, BagFormatError, Messages
+from slamio.datasets.rosbag_read import CORNERS_TYPE, BagFormatError, CameraTopics, Messages
 from slamio.errors import FgslamError
 
 __all__ = ["DEFAULT_MAX_TRUTH_GAP_S", "DEFAULT_SIGMA_BEARING_RAD", "DEFAULT_SIGMA_HEIGHT_M", "DEFAULT_SIGMA_RANGE_M",
            "DEFAULT_SIGMA_TAG_YAW_RAD", "ImportOptions", "check_level_and_truth", "check_options", "corner_inputs",
-           "robot_camera_transform"]
+           "require_tag_sizes", "robot_camera_transform"]
 
 DEFAULT_SIGMA_RANGE_M = 0.05
 DEFAULT_SIGMA_BEARING_RAD = 0.02
@@ -77,10 +77,10 @@ class ImportOptions:
     path: str
     ros_version: int
     odom_topic: str
-    detections_topic: str | None
+    camera_topics: CameraTopics
     tag_pose_topic: str | None
     truth_topic: str | None
-    T_rc: np.ndarray
+    mounts: tuple  # T_robot_camera (4×4) of each camera
     tag_normal_axis: str
     sigma_range_m: float
     sigma_bearing_rad: float
@@ -93,12 +93,24 @@ class ImportOptions:
     interpolate_detections: bool
     max_truth_gap_s: float
     start_from: str
-    camera: Any = None
+    cameras: tuple = (None,)  # the CameraModel of each camera (None: not known)
     tag_sizes: Any = None
     tag_size_m: float | None = None
     pixel_sigma_px: float = 1.0
     max_reprojection_px: float = DEFAULT_MAX_REPROJECTION_PX
-    mount_source: str = ""
+    mount_sources: tuple = ("",)
+    camera_names: tuple = ("cam0",)
+
+    @property
+    def T_rc(self) -> np.ndarray:
+        """The first camera's mount (the camera a truth of ``truth_pose_of="camera"`` tracks)."""
+        return self.mounts[0]
+
+    @property
+    def detections_topic(self):
+        """The detection topic (one), their list (several) or None."""
+        topics = self.camera_topics.detections
+        return topics[0] if len(topics) == 1 else (list(topics) if topics else None)
 
     def tag_size_of(self, tag_id: int) -> float | None:
         listed = self.tag_sizes.sizes_m.get(tag_id) if self.tag_sizes is not None else None
@@ -109,31 +121,34 @@ class ImportOptions:
         return self.tag_sizes.default_size_m if self.tag_sizes is not None else None
 
 
-def corner_inputs(path: str, topic: str | None, messages: Messages, camera: Any, camera_info_topic: str | None,
-                   tag_sizes: Any, tag_size_m: float | None, pixel_sigma_px: float | None, warnings: list[str]):
-    """The camera and the corner σ for tag-corner detections (refusing what is missing)."""
-    if camera is None and messages.camera_info is not None:
-        from slamio.camera.camera_files import camera_from_camera_info_message
-
-        camera = camera_from_camera_info_message(messages.camera_info, f"{path}: topic {camera_info_topic}")
-    if not messages.corners:
-        return camera, pixel_sigma_px
-    if camera is None:
-        raise BagFormatError(path, topic, f"holds tag corners ({CORNERS_TYPE}) and no camera was given: give "
-                             "--camera FILE (a Kalibr cameras.yaml or ROS camera_info YAML) or --camera-info-topic")
+def require_tag_sizes(path: str, topic: str, tag_sizes: Any, tag_size_m: float | None, what: str) -> None:
     if tag_sizes is None and tag_size_m is None:
-        raise BagFormatError(path, topic, "holds tag corners and no tag size was given: give --tags FILE "
+        raise BagFormatError(path, topic, f"holds {what} and no tag size was given: give --tags FILE "
                              "(TagSLAM's tagslam.yaml or default_tag_size/tags) or --tag-size M")
+
+
+def corner_inputs(path: str, messages: Messages, cameras: list, tag_sizes: Any, tag_size_m: float | None,
+                  pixel_sigma_px: float | None, warnings: list[str]) -> float | None:
+    """The corner σ for tag-corner detections (refusing a camera with corners and no
+    calibration, or no tag size), with warnings for what was assumed."""
+    if not messages.corners:
+        return pixel_sigma_px
+    for k in sorted({k for *_, k in messages.corners}):
+        topic = messages.cameras.topics[k]
+        if cameras[k] is None:
+            raise BagFormatError(path, topic, f"holds tag corners ({CORNERS_TYPE}) and no camera was given: give "
+                                 "--camera FILE (a Kalibr cameras.yaml or ROS camera_info YAML) or --camera-info-topic")
+        require_tag_sizes(path, topic, tag_sizes, tag_size_m, "tag corners")
     if pixel_sigma_px is None:
         from_file = tag_sizes.pixel_noise_px if tag_sizes is not None else None
         pixel_sigma_px = from_file if from_file is not None else 1.0
         if from_file is None:
             warnings.append("corner noise: assumed 1.0 px per corner coordinate (no --pixel-sigma, no pixel_noise in "
                             "a tags file); each tag's range, bearing and yaw sigma follow from it")
-    ids = sorted({i for _, i, _ in messages.corners})
+    ids = sorted({i for _, i, *_ in messages.corners})
     unsized = [i for i in ids if (tag_sizes is None or i not in tag_sizes.sizes_m)]
     if unsized:
         default = tag_size_m if tag_size_m is not None else (tag_sizes.default_size_m if tag_sizes else None)
         warnings.append(f"tag size: tags {', '.join(map(str, unsized))} are not listed in a tags file; "
                         + (f"used {default:g} m for them" if default is not None else "their detections are dropped"))
-    return camera, pixel_sigma_px
+    return pixel_sigma_px
