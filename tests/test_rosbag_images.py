@@ -230,3 +230,17 @@ def test_a_camera_left_unplaced_is_said_and_its_tags_land_elsewhere(tmp_path):
     with pytest.raises(Exception, match="one camera pose was given for 2 cameras"):
         import_rosbag(bag, odom_topic="/odom", image_topic=["/cam0/image_raw", "/cam1/image_raw"], tag_size_m=0.3,
                       T_robot_camera=MOUNT1)
+
+
+def test_camera_pose_names_on_the_command_line():
+    from fgslam.cli.import_rosbag import camera_poses_by_name
+    from slamio.errors import FgslamError
+
+    one = camera_poses_by_name(["0.1,0,0.35,0,0,0,1"], ["/cam0/image_raw"])
+    assert one[:3, 3] == pytest.approx([0.1, 0.0, 0.35])
+    two = camera_poses_by_name(["/cam1/image_raw=0,0.15,0.3,0,0,0,1"], ["/cam0/image_raw", "/cam1/image_raw"])
+    assert two[0] is None and two[1][1, 3] == pytest.approx(0.15)
+    with pytest.raises(FgslamError, match="with 2 cameras say which: NAME=x,y,z"):
+        camera_poses_by_name(["0,0,0,0,0,0,1"], ["/a", "/b"])
+    with pytest.raises(FgslamError, match="no camera 'cam5'; the cameras are cam0, cam1"):
+        camera_poses_by_name(["cam5=0,0,0,0,0,0,1"], ["/a", "/b"])

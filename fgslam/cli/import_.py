@@ -40,6 +40,8 @@ def add_parser(verbs) -> argparse.ArgumentParser:
             "  rosbag         a ROS 1 .bag or ROS 2 bag folder (SOURCE) through the rosbags package:\n"
             "                 --odom-topic, --detections-topic or --tag-pose-topic, --truth-topic;\n"
             "                 tag corners (apriltag_msgs) with --camera and --tags/--tag-size;\n"
+            "                 --image-topic: tags found in raw/compressed images by fgslam's own\n"
+            "                 detector; repeat the topics for several cameras (--camera-pose NAME=);\n"
             "                 --camera-pose, --level, --truth-bag, --truth-frames map:rig (truth from\n"
             "                 /tf): docs/datasets-mrclam-rosbag.md; a bag with no odometry is refused;\n"
             "                 a bag from `fgslam export rosbag` needs no topics (topics named are\n"

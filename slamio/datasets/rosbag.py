@@ -76,6 +76,18 @@ instead (``truth_pose_of="camera"`` when its poses are the camera's), with its /
 map as truth landmarks. ``truth_frames`` ``(parent, child)``: the truth is the chain of
 transforms on /tf from ``parent`` to ``child`` instead of a topic (in ``truth_bag``, else
 in this bag; :func:`~slamio.datasets.rosbag_read.read_tf_poses`).
+
+**Images.** ``image_topic`` (``sensor_msgs/Image`` mono8/bgr8/rgb8 or ``CompressedImage``
+jpeg/png): tags are found in every frame by fgslam's own detector and take the corners' path
+above (:mod:`slamio.datasets.rosbag_images`; depth images are refused); ``tag_family``
+(default tag36h11); ``progress(done, total, "images")`` after each frame. With a tag size
+and no detection topic, the bag's only image topic is read.
+
+**Several cameras.** ``detections_topic`` and ``image_topic`` take lists: one camera per
+topic (detections first, then images), named ``camera_names`` (default cam0, cam1, ...);
+``camera``, ``camera_info_topic`` and ``T_robot_camera`` then take one entry per camera
+(None: its camera_info / ``/tf_static`` chain to its messages' frame_id). Each detection is
+placed through its own camera's mount: :mod:`slamio.datasets.rosbag_cameras`.
 """
 
 from __future__ import annotations
