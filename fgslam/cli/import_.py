@@ -40,6 +40,8 @@ def add_parser(verbs) -> argparse.ArgumentParser:
             "  rosbag         a ROS 1 .bag or ROS 2 bag folder (SOURCE) through the rosbags package:\n"
             "                 --odom-topic, --detections-topic or --tag-pose-topic, --truth-topic;\n"
             "                 tag corners (apriltag_msgs) with --camera and --tags/--tag-size;\n"
+            "                 --image-topic: tags found in raw/compressed images by fgslam's own\n"
+            "                 detector; repeat the topics for several cameras (--camera-pose NAME=);\n"
             "                 --camera-pose, --level, --truth-bag, --truth-frames map:rig (truth from\n"
             "                 /tf): docs/datasets-mrclam-rosbag.md; a bag with no odometry is refused;\n"
             "                 a bag from `fgslam export rosbag` needs no topics (topics named are\n"
@@ -83,8 +85,9 @@ def add_parser(verbs) -> argparse.ArgumentParser:
                      help="write observations without landmark ids (the estimators must associate them); "
                           "the dataset's id is kept in truth_landmark_id to score the association")
     imp.add_argument("--odom-topic", default=None, help="rosbag: nav_msgs/Odometry topic")
-    imp.add_argument("--detections-topic", default=None,
-                     help="rosbag: apriltag_ros/AprilTagDetectionArray topic")
+    imp.add_argument("--detections-topic", default=None, action="append", metavar="TOPIC",
+                     help="rosbag: tag detections of one camera: apriltag_ros/AprilTagDetectionArray (poses) or "
+                          "apriltag_msgs/ApriltagArrayStamped (corners); repeat it for each camera of a rig")
     imp.add_argument("--tag-pose-topic", default=None,
                      help="rosbag: prefix of one geometry_msgs/PoseStamped topic per tag, e.g. /tags/tag_")
     imp.add_argument("--truth-topic", default=None, help="rosbag: ground-truth pose topic (optional)")
@@ -181,7 +184,7 @@ def _import(args: argparse.Namespace, source: str | None, out: str) -> int:
     elif args.dataset == "rosbag":
         from fgslam.cli.import_rosbag import import_rosbag_cli
 
-        topics = (args.odom_topic, args.detections_topic, args.tag_pose_topic, args.truth_topic)
+        topics = (args.odom_topic, args.detections_topic, args.tag_pose_topic, args.truth_topic, args.image_topic)
         # topics named: read them, also from a bag fgslam export wrote
         header, records = import_rosbag_cli(args, source, standard_topics_only=any(t is not None for t in topics))
     else:  # plaza1, plaza2

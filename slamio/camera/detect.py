@@ -217,6 +217,21 @@ def corners_near_border(corners_px: np.ndarray, width_px: int, height_px: int, m
                 or np.any(c[:, 1] < margin_px - 0.5) or np.any(c[:, 1] > height_px - 0.5 - margin_px))
 
 
+def tag_corners_for_pose(grey: np.ndarray, det: TagDetection, camera: CameraModel) -> tuple[np.ndarray | None, str]:
+    """The corners a detected tag's pose is solved from, and a reason or note: ``(None,
+    "tag_at_image_border")`` for a tag within a cell and a pixel of the border; else its corners
+    refined on ``grey`` when its cells are at least 1.5 px (``refine_tag_corners``), the
+    detector's own with the note ``"corners_not_refined"`` when that fails, and ``""`` as note
+    otherwise. ``fgslam detect`` and ``fgslam import rosbag --image-topic`` both use it."""
+    cell_px = det.side_px / 8.0
+    if corners_near_border(det.corners_px, camera.width_px, camera.height_px, cell_px + 1.0):
+        return None, "tag_at_image_border"
+    if cell_px < 1.5:  # smaller tags keep the detector's corners
+        return det.corners_px, ""
+    refined = refine_tag_corners(grey, det.corners_px, camera)
+    return (det.corners_px, "corners_not_refined") if refined is None else (refined, "")
+
+
 # --------------------------------------------------------------------------- the front-end
 
 
@@ -287,17 +302,12 @@ class FrontEnd:
             if cfg.tag_ids is not None and det.tag_id not in cfg.tag_ids:
                 result.rejections.append(Rejection("tag_not_allowed", what))
                 continue
-            cell_px = det.side_px / 8.0
-            if corners_near_border(det.corners_px, cam.width_px, cam.height_px, cell_px + 1.0):
-                result.rejections.append(Rejection("tag_at_image_border", what))
+            corners, note = tag_corners_for_pose(grey, det, cam)
+            if corners is None:
+                result.rejections.append(Rejection(note, what))
                 continue
-            corners = det.corners_px
-            if cell_px >= 1.5:  # smaller tags keep the detector's corners
-                refined = refine_tag_corners(grey, det.corners_px, cam)
-                if refined is None:
-                    result.notes.append("corners_not_refined")
-                else:
-                    corners = refined
+            if note:
+                result.notes.append(note)
             tag.corners_px = corners
             size = cfg.tag_sizes_m.get(det.tag_id, cfg.tag_size_m)
             poses = estimate_tag_pose(corners, size, cam)

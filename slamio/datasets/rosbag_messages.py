@@ -63,7 +63,8 @@ def _rosbags():
 
 
 def apriltag_typestore(ros_version: int = 2):
-    """A rosbags typestore (ROS 2 Humble or ROS 1 Noetic) with apriltag_ros's messages added."""
+    """A rosbags typestore (ROS 2 Humble or ROS 1 Noetic) with apriltag_ros's messages added (and
+    tf2_msgs/TFMessage to Noetic's, which lacks it)."""
     _rosbags()
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -73,6 +74,8 @@ def apriltag_typestore(ros_version: int = 2):
     types: dict[str, Any] = {}
     types.update(get_types_from_msg(APRILTAG_DETECTION_MSG, _DETECTION_TYPE))
     types.update(get_types_from_msg(APRILTAG_DETECTION_ARRAY_MSG, _DETECTION_ARRAY_TYPE))
+    if "tf2_msgs/msg/TFMessage" not in store.types:  # rosbags' Noetic store lacks it (/tf, /tf_static)
+        types.update(get_types_from_msg("geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"))
     store.register(types)
     return store
 

@@ -75,11 +75,12 @@ def _level_camera(tilt: np.ndarray, T_rc: np.ndarray) -> np.ndarray:
 def sighting_observations(o: Any, messages: Any, attitudes: Any, t0_ns: int, dropped: dict[str, int]
                           ) -> list[tuple[int, Observation]]:
     """Every tag pose and tag-corner detection as (stamp ns, observation), σ from the options
-    (poses) or from the corner geometry (corners); refused corners are counted in ``dropped``."""
+    (poses) or from the corner geometry (corners), each placed through its own camera's mount
+    (``o.mounts[k]``); refused corners are counted in ``dropped``."""
     normal_sign = 1.0 if o.tag_normal_axis == "+z" else -1.0
     out: list[tuple[int, Observation]] = []
-    for t, tag_id, position, quaternion in messages.sightings:
-        T = _level_camera(attitudes.tilt_at(t), o.T_rc)
+    for t, tag_id, position, quaternion, k in messages.sightings:
+        T = _level_camera(attitudes.tilt_at(t), o.mounts[k])
         range_m, bearing_rad, yaw, height = tag_observation_geometry(position, quaternion, T, normal_sign)
         if not range_m > 0.0:
             dropped["zero_range"] += 1
@@ -88,13 +89,13 @@ def sighting_observations(o: Any, messages: Any, attitudes: Any, t0_ns: int, dro
             (t - t0_ns) / 1e9, tag_id, range_m, bearing_rad, o.sigma_range_m, o.sigma_bearing_rad,
             height_m=height if o.with_height else None, sigma_height_m=o.sigma_height_m if o.with_height else None,
             tag_yaw_rad=yaw, sigma_tag_yaw_rad=o.sigma_tag_yaw_rad if yaw is not None else None)))
-    for t, tag_id, corners in messages.corners:
+    for t, tag_id, corners, k in messages.corners:
         size = o.tag_size_of(tag_id)
         if size is None:
             dropped["corners_unknown_tag_size"] = dropped.get("corners_unknown_tag_size", 0) + 1
             continue
-        T = _level_camera(attitudes.tilt_at(t), o.T_rc)
-        seen = corner_observation(corners, size, o.camera, T, o.pixel_sigma_px, o.max_reprojection_px)
+        T = _level_camera(attitudes.tilt_at(t), o.mounts[k])
+        seen = corner_observation(corners, size, o.cameras[k], T, o.pixel_sigma_px, o.max_reprojection_px)
         if isinstance(seen, str):
             dropped[f"corners_{seen}"] = dropped.get(f"corners_{seen}", 0) + 1
             continue

@@ -24,7 +24,8 @@ from slamio.errors import MAX_TEXT_BYTES, FgslamError, InputFileError, check_reg
 from slamio.log import Header, LogFormatError, Record, read_log
 from slamio.se3 import yaw_from_quaternion
 
-__all__ = ["BagFormatError", "CORNERS_TYPE", "Messages", "bag_paths", "read_bag", "read_extras", "read_pose_topic"]
+__all__ = ["BagFormatError", "CORNERS_TYPE", "CameraTopics", "IMAGE_TYPES", "Messages", "bag_paths", "read_bag",
+           "read_extras", "read_pose_topic"]
 
 _ODOMETRY_TYPES = ("nav_msgs/msg/Odometry",)
 _POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/PoseWithCovarianceStamped")
@@ -33,6 +34,25 @@ _TRUTH_TYPES = _POSE_TYPES + _ODOMETRY_TYPES
 CORNERS_TYPE = "apriltag_msgs/msg/ApriltagArrayStamped"
 CAMERA_INFO_TYPES = ("sensor_msgs/msg/CameraInfo",)
 TF_TYPES = ("tf2_msgs/msg/TFMessage", "tf/msg/tfMessage")
+IMAGE_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
+
+
+@dataclass(frozen=True)
+class CameraTopics:
+    """The camera topics asked for: one camera per topic, detections first then images, in the
+    order given (camera k is ``topics[k]``); ``camera_info[k]`` the CameraInfo topic of camera k
+    (None: the sibling ``camera_info`` of its topic's namespace, when the bag has one)."""
+
+    detections: tuple[str, ...] = ()
+    images: tuple[str, ...] = ()
+    camera_info: tuple[str | None, ...] = ()
+
+    @property
+    def topics(self) -> tuple[str, ...]:
+        return (*self.detections, *self.images)
+
+    def info_topic(self, k: int) -> str | None:
+        return self.camera_info[k] if k < len(self.camera_info) else None
 
 
 class BagFormatError(DatasetFormatError):
@@ -163,19 +183,21 @@ def _read_run_log(path: str, reader, connections) -> tuple[Header, list[Record]]
 
 
 
-def _checked_topics(path: str, topics, odom_topic: str, detections_topic: str | None, tag_pose_topic: str | None,
+def _checked_topics(path: str, topics, odom_topic: str, cameras: CameraTopics, tag_pose_topic: str | None,
                     truth_topic: str | None) -> dict[str, int]:
     """Check that every topic asked for is in the bag with a type we read; the tag pose
     topics found under ``tag_pose_topic`` with their tag ids."""
     if odom_topic not in topics and not _topics_of_type(topics, _ODOMETRY_TYPES):
         raise no_odometry_error(path, topics, odom_topic)
     _check_topic(path, topics, odom_topic, _ODOMETRY_TYPES, "the robot's odometry")
-    if detections_topic is not None:
+    for detections_topic in cameras.detections:
         # any package's AprilTagDetectionArray with apriltag_ros's fields (forks add fields)
         msgtype = topics[detections_topic].msgtype if detections_topic in topics else None
         accepted = (msgtype,) if msgtype and msgtype.endswith("/AprilTagDetectionArray") else (_DETECTION_ARRAY_TYPE,)
         accepted = accepted + (CORNERS_TYPE,)
         _check_topic(path, topics, detections_topic, accepted, "tag detections")
+    for image_topic in cameras.images:
+        _check_topic(path, topics, image_topic, IMAGE_TYPES, "camera images")
     tag_topics: dict[str, int] = {}
     if tag_pose_topic is not None:
         pattern = re.compile(re.escape(tag_pose_topic) + r"\D*?(\d+)\Z")
@@ -193,8 +215,9 @@ def _checked_topics(path: str, topics, odom_topic: str, detections_topic: str | 
             )
     if truth_topic is not None:
         _check_topic(path, topics, truth_topic, _TRUTH_TYPES, "ground-truth poses")
-    named = {"odometry": odom_topic, "detections": detections_topic, "truth": truth_topic}
-    given = [(role, topic) for role, topic in named.items() if topic is not None]
+    named = [("odometry", odom_topic), *(("detections", t) for t in cameras.detections),
+             *(("image", t) for t in cameras.images), ("truth", truth_topic)]
+    given = [(role, topic) for role, topic in named if topic is not None]
     for i, (role, topic) in enumerate(given):
         for other, same in given[i + 1:]:
             if same == topic:
@@ -211,22 +234,26 @@ class Messages:
 
     odometry: list[tuple[int, tuple[float, float, float], np.ndarray]]  # (stamp, pose, 3×3 covariance of x, y, yaw)
     truth: list[tuple[int, tuple[float, float, float]]]
-    sightings: list[tuple[int, int, Any, Any]]  # (stamp, tag id, position, quaternion) in the camera frame
+    sightings: list[tuple[int, int, Any, Any, int]]  # (stamp, tag id, position, quaternion in camera k's frame, k)
     dropped: dict[str, int]
     tag_topics: dict[str, int]  # tag pose topic -> tag id
     odometry_3d: list[tuple[int, Any, Any]] = dataclasses.field(default_factory=list)  # (stamp, position, quaternion)
-    corners: list[tuple[int, int, np.ndarray]] = dataclasses.field(default_factory=list)  # (stamp, id, 4×2 px)
-    camera_info: Any = None  # the first sensor_msgs/CameraInfo of camera_info_topic
+    corners: list[tuple[int, int, np.ndarray, int]] = dataclasses.field(default_factory=list)  # (stamp, id, 4×2 px, k)
+    camera_infos: dict[int, tuple[str, Any]] = dataclasses.field(default_factory=dict)  # k -> (topic, CameraInfo)
     tf_static: dict[tuple[str, str], np.ndarray] = dataclasses.field(default_factory=dict)  # (parent, child) -> 4×4
-    detections_frame: str | None = None  # the detections' header frame_id
+    frames: dict[int, str] = dataclasses.field(default_factory=dict)  # camera k -> its messages' header frame_id
     body_frame: str | None = None  # the odometry's child_frame_id
+    cameras: CameraTopics = CameraTopics()  # the camera topics read (one camera each)
+    unused_images: tuple[str, ...] = ()  # image topics the bag has and nobody asked for
 
 
-def _read_messages(path: str, reader, odom_topic: str, detections_topic: str | None, truth_topic: str | None,
-                   tag_topics: dict[str, int], use_header_stamps: bool) -> Messages:
+def _read_messages(path: str, reader, odom_topic: str, cameras: CameraTopics, truth_topic: str | None,
+                   tag_topics: dict[str, int], use_header_stamps: bool, image_corners=None) -> Messages:
     """Decode every message of the topics used; a message that cannot be used is a
-    :class:`BagFormatError` naming its topic and index."""
-    wanted = {odom_topic, detections_topic, truth_topic, *tag_topics} - {None}
+    :class:`BagFormatError` naming its topic and index. ``image_corners(topic, index, msg)``
+    gives the tags of an image message as (id, 4×2 corners in the MIT order)."""
+    camera_of = {t: k for k, t in enumerate(cameras.topics)}
+    wanted = {odom_topic, truth_topic, *camera_of, *tag_topics} - {None}
     connections = [c for c in reader.connections if c.topic in wanted]
     odometry: list[tuple[int, tuple[float, float, float], np.ndarray]] = []
     truth: list[tuple[int, tuple[float, float, float]]] = []
@@ -235,7 +262,8 @@ def _read_messages(path: str, reader, odom_topic: str, detections_topic: str | N
     counts = {t: 0 for t in wanted}
     odometry_3d: list = []
     corners: list = []
-    detections_frame = body_frame = None
+    body_frame = None
+    frames: dict[int, str] = {}
     for connection, bag_time, raw in reader.messages(connections=connections):
         topic = connection.topic
         counts[topic] += 1
@@ -255,12 +283,18 @@ def _read_messages(path: str, reader, odom_topic: str, detections_topic: str | N
             odometry.append((stamp, pose, C))
         elif topic == truth_topic:
             truth.append((stamp, _planar(_pose_of(msg))))
-        elif topic == detections_topic and connection.msgtype == CORNERS_TYPE:
-            detections_frame = str(msg.header.frame_id)
+        elif topic in camera_of and connection.msgtype in IMAGE_TYPES:
+            k = camera_of[topic]
+            frames.setdefault(k, str(msg.header.frame_id))
+            corners.extend((stamp, i, c, k) for i, c in image_corners(topic, index, msg))
+        elif topic in camera_of and connection.msgtype == CORNERS_TYPE:
+            k = camera_of[topic]
+            frames.setdefault(k, str(msg.header.frame_id))
             for tag in msg.apriltags:
-                corners.append((stamp, int(tag.id), np.array([[c.x, c.y] for c in tag.corners], dtype=float)))
-        elif topic == detections_topic:
-            detections_frame = str(msg.header.frame_id)
+                corners.append((stamp, int(tag.id), np.array([[c.x, c.y] for c in tag.corners], dtype=float), k))
+        elif topic in camera_of:
+            k = camera_of[topic]
+            frames.setdefault(k, str(msg.header.frame_id))
             detections = getattr(msg, "detections", None)
             if detections is None or (detections and not hasattr(detections[0], "pose")):
                 raise BagFormatError(
@@ -278,11 +312,11 @@ def _read_messages(path: str, reader, odom_topic: str, detections_topic: str | N
                     continue
                 p = d.pose.pose.pose
                 sightings.append((stamp, ids[0], (p.position.x, p.position.y, p.position.z),
-                                  (p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)))
+                                  (p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w), k))
         else:
             p = _pose_of(msg)
             sightings.append((stamp, tag_topics[topic], (p.position.x, p.position.y, p.position.z),
-                              (p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)))
+                              (p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w), 0))
     for messages in (odometry, truth, sightings, odometry_3d, corners):
         messages.sort(key=lambda m: m[0])
     bad = [i for i, (_, p, q) in enumerate(odometry_3d) if not np.all(np.isfinite(p + q)) or abs(np.linalg.norm(q) - 1) > 0.01]
@@ -290,25 +324,41 @@ def _read_messages(path: str, reader, odom_topic: str, detections_topic: str | N
         raise BagFormatError(path, odom_topic, f"orientation {odometry_3d[bad[0]][2]} is not a unit quaternion",
                              bad[0] + 1)
     return Messages(odometry, truth, sightings, dropped, tag_topics, odometry_3d, corners,
-                    detections_frame=detections_frame, body_frame=body_frame)
+                    frames=frames, body_frame=body_frame, cameras=cameras)
 
 
-def read_extras(path: str, reader, camera_info_topic: str | None) -> tuple[Any, dict]:
-    """The first ``sensor_msgs/CameraInfo`` of ``camera_info_topic`` (None when not asked) and
-    every transform on ``/tf_static`` (``(parent, child) -> 4×4``; empty when the bag has none)."""
+def sibling_camera_info(topics, topic: str) -> str | None:
+    """The ``sensor_msgs/CameraInfo`` topic next to a camera topic (``/cam1/image_raw`` or
+    ``/cam1/image_raw/compressed`` → ``/cam1/camera_info``), when the bag has it."""
+    parts = topic.rstrip("/").split("/")
+    for cut in (1, 2):
+        candidate = "/".join(parts[:-cut]) + "/camera_info"
+        if len(parts) > cut and candidate in topics and topics[candidate].msgtype in CAMERA_INFO_TYPES:
+            return candidate
+    return None
+
+
+def read_extras(path: str, reader, cameras: CameraTopics) -> tuple[dict[int, tuple[str, Any]], dict]:
+    """The first ``sensor_msgs/CameraInfo`` of each camera k (its ``camera_info`` topic asked for,
+    else its sibling's, :func:`sibling_camera_info`; k -> (topic, message)) and every transform on
+    ``/tf_static`` (``(parent, child) -> 4×4``; empty when the bag has none)."""
     topics = reader.topics
-    info = None
-    if camera_info_topic is not None:
-        _check_topic(path, topics, camera_info_topic, CAMERA_INFO_TYPES, "the camera's calibration")
-        for connection, _, raw in reader.messages(connections=[c for c in reader.connections
-                                                               if c.topic == camera_info_topic]):
-            info = reader.deserialize(raw, connection.msgtype)
+    infos: dict[int, tuple[str, Any]] = {}
+    for k, camera_topic in enumerate(cameras.topics):
+        info_topic = cameras.info_topic(k)
+        if info_topic is not None:
+            _check_topic(path, topics, info_topic, CAMERA_INFO_TYPES, "the camera's calibration")
+        else:
+            info_topic = sibling_camera_info(topics, camera_topic)
+        for connection, _, raw in (reader.messages(connections=[c for c in reader.connections
+                                                                if c.topic == info_topic]) if info_topic else ()):
+            infos[k] = (info_topic, reader.deserialize(raw, connection.msgtype))
             break
     tf: dict[tuple[str, str], np.ndarray] = {}
     connections = [c for c in reader.connections if c.topic == "/tf_static" and c.msgtype in TF_TYPES]
     for connection, _, raw in (reader.messages(connections=connections) if connections else ()):  # [] = all
         tf.update(_transforms(path, "/tf_static", reader.deserialize(raw, connection.msgtype)))
-    return info, tf
+    return infos, tf
 
 
 def read_pose_topic(path: str, topic: str, use_header_stamps: bool = True
@@ -365,13 +415,18 @@ def _transforms(path: str, topic: str, msg) -> dict[tuple[str, str], np.ndarray]
     return tf
 
 
-def read_bag(path: str, bag: Path, ros_version: int, odom_topic: str | None, detections_topic: str | None,
+def read_bag(path: str, bag: Path, ros_version: int, odom_topic: str | None, cameras: CameraTopics,
              tag_pose_topic: str | None, truth_topic: str | None, use_header_stamps: bool,
-             standard_topics_only: bool, camera_info_topic: str | None = None
+             standard_topics_only: bool, image_detector=None, find_images: bool = False
              ) -> Messages | tuple[Header, list[Record]]:
     """The messages of the topics asked for (:class:`Messages`); or, for a bag fgslam
     exported (it has :data:`RUN_LOG_TOPIC`) unless ``standard_topics_only``, the run log it
-    holds as (header, records). ``bag`` and ``ros_version`` are :func:`bag_paths`'s."""
+    holds as (header, records). ``bag`` and ``ros_version`` are :func:`bag_paths`'s.
+
+    ``image_detector(cameras, camera_infos, reader)`` makes the ``image_corners`` of
+    :func:`_read_messages` once the camera topics and their CameraInfo are known. With
+    ``find_images`` and no camera topic named, the bag's only image topic is read (more than
+    one is an error listing them)."""
     from rosbags.highlevel import AnyReader
 
     try:
@@ -396,13 +451,29 @@ def read_bag(path: str, bag: Path, ros_version: int, odom_topic: str | None, det
                 f"no {RUN_LOG_TOPIC} topic (the bag was not written by fgslam export), so name the "
                 f"odometry topic (nav_msgs/Odometry); candidates: {', '.join(candidates) or '(none)'}",
             )
-        tag_topics = _checked_topics(path, topics, odom_topic, detections_topic, tag_pose_topic, truth_topic)
-        messages = _read_messages(path, reader, odom_topic, detections_topic, truth_topic, tag_topics,
-                                  use_header_stamps)
-        messages.camera_info, messages.tf_static = read_extras(path, reader, camera_info_topic)
+        images = _topics_of_type(topics, IMAGE_TYPES)
+        if find_images and images and not cameras.topics and tag_pose_topic is None:
+            cameras = dataclasses.replace(cameras, images=(_only_image_topic(path, images),))
+        tag_topics = _checked_topics(path, topics, odom_topic, cameras, tag_pose_topic, truth_topic)
+        infos, tf_static = read_extras(path, reader, cameras)
+        image_corners = image_detector(cameras, infos, reader) if cameras.images else None
+        messages = _read_messages(path, reader, odom_topic, cameras, truth_topic, tag_topics, use_header_stamps,
+                                  image_corners)
+        messages.camera_infos, messages.tf_static = infos, tf_static
+        messages.unused_images = tuple(t for t in images if t not in cameras.images)
         return messages
     finally:
         reader.close()
+
+
+def _only_image_topic(path: str, images: list[str]) -> str:
+    """The bag's one image topic that is not depth by its name (tags are looked for in it)."""
+    colour = [t for t in images if "depth" not in t.lower()]
+    if len(colour) != 1:
+        raise BagFormatError(path, "(images)", f"no detection topic was named, and the bag has {len(colour)} image "
+                             f"topics ({', '.join(colour or images)}): name the one(s) to detect tags in with "
+                             "--image-topic T (repeat it for each camera)")
+    return colour[0]
 
 
 def _path_keys(tf: dict[tuple[str, str], np.ndarray], parent: str, child: str) -> list[tuple[str, str]] | None:
