@@ -174,10 +174,10 @@ def _smoother(ready: Log3d, theta: np.ndarray):
 
 def with_noise(log: RunLog, noise: StereoImuNoise) -> RunLog:
     """``log`` with every stereo observation's σ and every velocity record's covariance
-    replaced by ``noise``'s."""
+    replaced by ``noise``'s (a stated 4×4 pixel covariance gives way to the one fitted σ)."""
     cov = tuple(tuple(float(v) for v in row) for row in noise.velocity_cov())
     records = tuple(
-        dataclasses.replace(r, sigma_px=noise.sigma_px) if isinstance(r, StereoObservation)
+        dataclasses.replace(r, sigma_px=noise.sigma_px, covariance_px2=None) if isinstance(r, StereoObservation)
         else dataclasses.replace(r, covariance=cov) if isinstance(r, VelocityOdometry) else r
         for r in log.records)
     header_noise = {**log.header.noise, "learned_without_truth": {

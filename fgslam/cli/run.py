@@ -281,7 +281,8 @@ def _stated_3d(log) -> str:
 
     n = noise_of(log)
     cov = n.velocity_cov()
-    return (f"{n.sigma_px:g} px, {float(np.sqrt(np.mean(np.diag(cov)[:3]))):g} m/s, "
+    pixels = f"{n.sigma_px:g} px" if n.pixel_covariance is None else f"a 4×4 pixel covariance (RMS {n.sigma_px:.3g} px)"
+    return (f"{pixels}, {float(np.sqrt(np.mean(np.diag(cov)[:3]))):g} m/s, "
             f"{float(np.sqrt(np.mean(np.diag(cov)[3:]))):g} rad/s")
 
 
