@@ -160,3 +160,24 @@ def test_a_logs_pixel_covariance_reaches_the_estimators_and_must_be_one(tmp_path
         noise_of(RunLog("mixed.jsonl", header, tuple(mixed)))
     with pytest.raises(ValueError, match="exactly one"):
         StereoObservation(**{**records[i].__dict__, "sigma_px": 1.0})
+
+
+def test_fgslam_import_seed003_states_a_pixel_covariance(tmp_path, capsys):
+    from fgslam.cli import main
+    from slamio.datasets.seed003 import save_drive
+
+    npz = tmp_path / "drive.npz"
+    save_drive(npz, simulate_drive(4, DriveScenario(straight_m=20.0, side_m=10.0, turn_radius_m=5.0)))
+    assert main(["import", "seed003", str(npz), str(tmp_path / "a.jsonl"), "--pixel-covariance", "0.3", "1", "0.95"]) == 0
+    expected = rectified_pixel_covariance(0.3, 1.0, 0.95)
+    assert np.array_equal(noise_of(read_log(tmp_path / "a.jsonl")).pixel_cov(), expected)
+    full = [repr(float(v)) for v in SIGMA.ravel()]
+    assert main(["import", "seed003", str(npz), str(tmp_path / "b.jsonl"), "--pixel-covariance", *full]) == 0
+    assert np.array_equal(noise_of(read_log(tmp_path / "b.jsonl")).pixel_cov(), SIGMA)
+    for extra, words in ((["--pixel-covariance", "1", "2"], "takes 3 numbers"),
+                         (["--pixel-covariance", "1", "2", "1.5"], "RHO"),
+                         (["--pixel-covariance", *(["1"] * 16)], "'covariance_px2' must be positive definite"),
+                         (["--pixel-covariance", "1", "2", "0.5", "--pixel-sigma", "1"], "give one of them")):
+        assert main(["import", "seed003", str(npz), str(tmp_path / "x.jsonl"), *extra]) == 1
+        assert words in capsys.readouterr().err
+    assert not (tmp_path / "x.jsonl").exists()
