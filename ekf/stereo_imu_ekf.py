@@ -27,7 +27,8 @@ What is reproduced *as written* (the keyword that switches each one; defaults = 
   innovation covariance, the text calls it "the process noise". ``"measurement"`` follows
   eq. 21 (it is also what §IV varies "in the update step"); ``"process"`` takes the name
   at its word: 3000·I is the process noise W of eq. 17 and the update's pixel noise is
-  the drive's σ_px² (the paper gives no other value).
+  the drive's pixel covariance (σ_px² I, or the 4×4 a log states; the paper gives no
+  other value).
 * **Eq. 11's missing minus and S⁻¹** (``covariance_update="eq23"``): §II's generic update
   prints ``Σ_{t+1|t+1} = Σ K S⁻¹ Kᵀ`` (for ``Σ − K S Kᵀ``); §III's mapping, the filter
   the paper runs, uses eq. 23 ``(I − K H) Σ`` — the default. ``"eq11"`` applies eq. 11
@@ -134,7 +135,8 @@ class EkfS003:
             self._V = v_paper * np.eye(4)
         else:
             self._W = v_paper * np.eye(6)
-            self._V = noise.sigma_px**2 * np.eye(4)
+            V = noise.pixel_cov()  # over the data's order (u_L, v_L, u_R, v_R)
+            self._V = V[np.ix_(LABEL_ORDER, LABEL_ORDER)] if stereo_rows == "labels" else V
         self._new_cov = np.eye(3) if new_landmark_cov is None else np.asarray(new_landmark_cov, dtype=float)
 
         self._U = np.eye(4)  # μ: imu_T_world, the paper's inverse IMU pose

@@ -18,7 +18,9 @@ metres). Covariance over ``(δ, m_1, …, m_n)`` with ``δ = (ρ, φ)`` the *rig
   ``Σ_mm = A Σ_δδ Aᵀ + B R Bᵀ``, ``Σ_mx = A Σ_δx``, ``A = R_wi [I, −p^]``,
   ``B = R_wi R_ic ∂(back-projection)/∂z``.
 
-The pixel noise is ``σ_px²`` on each of (u_L, v_L, u_R, v_R) (StereoImuNoise).
+The pixel noise R is the 4×4 covariance of (u_L, v_L, u_R, v_R) (``StereoImuNoise.pixel_cov``:
+σ_px² I, or a stated covariance with σ_u ≠ σ_v and v_L, v_R correlated); a stacked update
+uses R on each landmark's block.
 
 **First-estimate Jacobians** (``first_estimates=True``, the estimator ``ekf-vio-fej``;
 Huang, Mourikis & Roumeliotis' FEJ-EKF carried to this right-perturbation SE(3) state).
@@ -182,7 +184,7 @@ class VioEkf:
         self.noise = noise
         self.min_disparity_px = float(min_disparity_px)
         self.gate = gate
-        self._R = noise.sigma_px**2 * np.eye(4)
+        self._R = noise.pixel_cov()
         self._T = np.eye(4)
         self._x = np.zeros(0)  # landmark coordinates, 3 per landmark in slot order
         self._P = start_sigma**2 * np.eye(POSE_DIM)
@@ -332,7 +334,7 @@ class VioEkf:
         cols = np.flatnonzero(np.any(H != 0.0, axis=0))  # the pose and the landmarks seen
         Hc = H[:, cols]
         PHt = self._P[:, cols] @ Hc.T  # n × m: H is sparse, so this is O(n m)
-        S = Hc @ PHt[cols] + self.noise.sigma_px**2 * np.eye(H.shape[0])
+        S = Hc @ PHt[cols] + np.kron(np.eye(len(rows_H)), self._R)
         K = np.linalg.solve(S, PHt.T).T
         dx = K @ r
         # Σ − K S Kᵀ (= the Joseph form for this optimal gain), O(n² m), kept symmetric

@@ -32,6 +32,7 @@ from fgslam.compare import TOP_LEVEL_KEYS, nees_band
 from fgslam.compare.metrics import OPTIONAL_TOP_LEVEL_KEYS
 from fgslam.failure import EstimatorFailed, EstimatorFailure, StepWatch, check_finite, failed_cell, reason_of
 from fgslam.memory import PeakMemory
+from fgslam.noise3d import noise_of  # noqa: F401  (re-exported: read with the log)
 from fgslam.registry import DEFAULTS, REGISTRY, build, names_for, parse_names
 from fgslam.runner import pinned_threads
 from slamio.datasets.seed003 import StereoImuNoise
@@ -59,35 +60,6 @@ def make_estimator_3d(name: str, rig: StereoCalibration, noise: StereoImuNoise):
 def parse_estimator_names_3d(text: str | None) -> list[str]:
     """``"ekf-vio,isam2-3d"`` → names; unknown names and a missing isam2-3d are one-line errors."""
     return parse_names(text, 3)
-
-
-def noise_of(log: RunLog, steps=None) -> StereoImuNoise:
-    """The one noise level the 3-D estimators assume, read from the log's records.
-
-    Every ``stereo_observation`` must carry the same ``sigma_px`` and every
-    ``velocity_odometry`` the same covariance: any symmetric positive-definite 6×6, per axis
-    or correlated, as the dataset states it (``fgslam import seed003`` and ``fgslam sim
-    stereo-loop`` write one σ for the three linear and one for the three angular axes).
-    ``steps``: the log's steps when the caller has grouped them already.
-    """
-    steps = group_steps(log.header, log.records) if steps is None else steps
-    sigmas = {o.sigma_px for s in steps for o in s.observations}
-    covs = {s.odometry.covariance for s in steps if s.odometry is not None}
-    if len(sigmas) > 1 or len(covs) > 1:
-        raise FgslamError(
-            f"{log.path}: the 3-D estimators assume one noise level, but the records carry {len(sigmas)} pixel σ "
-            f"and {len(covs)} velocity covariances; write the same σ and covariance on every record"
-        )
-    sigma_px = sigmas.pop() if sigmas else StereoImuNoise().sigma_px
-    if not covs:
-        return StereoImuNoise(sigma_px=sigma_px)
-    cov = np.array(covs.pop())
-    diag = np.diag(cov)
-    if np.all(cov == np.diag(diag)) and np.ptp(diag[:3]) == 0 and np.ptp(diag[3:]) == 0:
-        return StereoImuNoise(sigma_px=sigma_px, sigma_v_mps=math.sqrt(diag[0]), sigma_w_radps=math.sqrt(diag[3]))
-    if not np.allclose(cov, cov.T) or np.any(np.linalg.eigvalsh(0.5 * (cov + cov.T)) <= 0.0):
-        raise FgslamError(f"{log.path}: the velocity covariance {cov.tolist()} is not symmetric positive definite")
-    return StereoImuNoise(sigma_px=sigma_px, velocity_covariance=tuple(tuple(float(v) for v in row) for row in cov))
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,8 @@
 """Noise learned from a 3-D run itself (``fgslam run LOG --noise self`` on a stereo + IMU log).
 
 The three variance components of the 3-D estimators' noise (:class:`StereoImuNoise`): the
-stereo pixel variance σ_px², and the IMU's speed and turn-rate variances σ_v², σ_ω² (the
+stereo pixel variance σ_px² (when the log states a 4×4 pixel covariance, the factor that
+scales it: its correlations and σ_u : σ_v are kept, its size is fitted), and the IMU's speed and turn-rate variances σ_v², σ_ω² (the
 same on the three axes of each). Each IMU factor's 6×6 covariance is linear in the last two,
 ``Σ_k = σ_v² Q_v,k + σ_ω² Q_ω,k`` (``fgslam.smoother3d.imu_increment_covariance`` of the twist
 held over the step), so in the factor's whitened coordinates each component owns a block
@@ -57,8 +58,22 @@ class SelfCalibration3d:
     outlier_rate: float = 0.0  # share of the stereo observations left out beyond the gate
 
 
-def _noise(theta: np.ndarray) -> StereoImuNoise:
-    return StereoImuNoise(*(float(math.sqrt(v)) for v in theta))
+def _noise(theta: np.ndarray, shape: np.ndarray | None = None) -> StereoImuNoise:
+    """The noise of the components ``theta``; with a pixel covariance ``shape`` (trace 4) the
+    stereo component scales it (θ_px · shape: the log's correlations kept, its size fitted)."""
+    sigmas = [float(math.sqrt(v)) for v in theta]
+    if shape is None:
+        return StereoImuNoise(*sigmas)
+    pixels = tuple(tuple(float(theta[0] * v) for v in row) for row in shape)
+    return StereoImuNoise(*sigmas, pixel_covariance=pixels)
+
+
+def _pixel_shape(noise: StereoImuNoise) -> np.ndarray | None:
+    """The log's 4×4 pixel covariance scaled to trace 4 (RMS σ 1 px); None for one σ."""
+    if noise.pixel_covariance is None:
+        return None
+    cov = noise.pixel_cov()
+    return cov * (4.0 / float(np.trace(cov)))
 
 
 def _component_blocks(graph: gtsam.NonlinearFactorGraph, inputs, theta: np.ndarray) -> list[sp.csr_matrix]:
@@ -100,12 +115,13 @@ def fit_without_truth_3d(ready: Log3d, progress=None) -> SelfCalibration3d:
     start = StereoImuNoise()  # the round defaults, not the log's σ: a σ stated far too small
     # would leave its component too small a share of the residuals to be updated
     theta = np.array([start.sigma_px**2, start.sigma_v_mps**2, start.sigma_w_radps**2])
+    shape = _pixel_shape(ready.noise)  # a stated 4×4 keeps its shape; θ_px scales it
     inputs = list(ready.inputs)
     observations = sum(len(a.ids) for a in ready.inputs)
     dropped: set[tuple[int, int]] = set()
     step, converged, iteration = None, False, 0
     for iteration in range(1, MAX_ITERATIONS + 1):
-        smoother = _smoother(ready, theta)
+        smoother = _smoother(ready, _noise(theta, shape))
         try:
             run_estimator_3d(smoother, inputs, covariances=False)
         except RuntimeError as exc:  # gtsam: an indeterminate system at these σ
@@ -131,7 +147,7 @@ def fit_without_truth_3d(ready: Log3d, progress=None) -> SelfCalibration3d:
         if converged:
             break
     assert step is not None
-    return SelfCalibration3d(_noise(theta), step.ratio, step.redundancy, iteration, converged,
+    return SelfCalibration3d(_noise(theta, shape), step.ratio, step.redundancy, iteration, converged,
                              len(dropped) / max(observations, 1))
 
 
@@ -163,24 +179,27 @@ def _without(inputs, dropped: set[tuple[int, int]]):
     return out
 
 
-def _smoother(ready: Log3d, theta: np.ndarray):
+def _smoother(ready: Log3d, noise: StereoImuNoise):
     from fgslam.smoother3d import StereoIsam2
 
     rig = ready.rig
-    smoother = StereoIsam2(rig.K, rig.baseline_m, rig.cam_T_imu, _noise(theta))
+    smoother = StereoIsam2(rig.K, rig.baseline_m, rig.cam_T_imu, noise)
     smoother.name = "isam2-3d"
     return smoother
 
 
 def with_noise(log: RunLog, noise: StereoImuNoise) -> RunLog:
-    """``log`` with every stereo observation's σ and every velocity record's covariance
-    replaced by ``noise``'s."""
+    """``log`` with every stereo observation's pixel noise (σ, or the 4×4 covariance) and every
+    velocity record's covariance replaced by ``noise``'s."""
     cov = tuple(tuple(float(v) for v in row) for row in noise.velocity_cov())
+    pixels = ({"sigma_px": noise.sigma_px, "covariance_px2": None} if noise.pixel_covariance is None
+              else {"sigma_px": None, "covariance_px2": noise.pixel_covariance})
     records = tuple(
-        dataclasses.replace(r, sigma_px=noise.sigma_px) if isinstance(r, StereoObservation)
+        dataclasses.replace(r, **pixels) if isinstance(r, StereoObservation)
         else dataclasses.replace(r, covariance=cov) if isinstance(r, VelocityOdometry) else r
         for r in log.records)
     header_noise = {**log.header.noise, "learned_without_truth": {
         "sigma_px": noise.sigma_px, "sigma_v_mps": noise.sigma_v_mps, "sigma_w_radps": noise.sigma_w_radps,
+        **({} if noise.pixel_covariance is None else {"covariance_px2": [list(row) for row in noise.pixel_covariance]}),
         "method": "fgslam.self_calibration3d (variance components on the batch solution)"}}
     return dataclasses.replace(log, header=dataclasses.replace(log.header, noise=header_noise), records=records)

@@ -22,7 +22,8 @@ The factor graph
 * ``GenericStereoFactor3D(StereoPoint2(u_L, u_R, v), X(t), L(j), Cal3_S2Stereo, body_P_sensor
   = imu_T_cam)`` for every sighting of a created landmark (the first one included). GTSAM's
   rectified model has one v; the seed's data has v_L and v_R with independent noise, so
-  ``v = (v_L + v_R)/2`` with σ/√2 carries exactly their information. With ``robust="huber"``
+  ``v = (v_L + v_R)/2`` with σ/√2 carries exactly their information (with a 4×4 pixel
+  covariance Σ: ``A Σ Aᵀ``, :func:`fgslam.noise3d.stereo_factor_noise`). With ``robust="huber"``
   (default) the stereo noise model is ``noiseModel.Robust(Huber(huber_k), Gaussian)``.
 
 How it runs
@@ -49,7 +50,6 @@ graph, refines it.
 
 from __future__ import annotations
 
-import math
 import time
 
 import gtsam
@@ -61,6 +61,7 @@ from slamio.stereo import point_from_stereo
 from ekf.vio import right_jacobian_se3
 from slamio.datasets.seed003 import StereoImuNoise
 from fgslam.window3d import StereoWindow
+from fgslam.noise3d import stereo_factor_noise
 
 __all__ = ["BatchResult", "StereoIsam2", "batch_solve", "gtsam_covariance", "imu_increment_covariance"]
 
@@ -127,8 +128,7 @@ class StereoIsam2:
         self._calibration = gtsam.Cal3_S2Stereo(K[0, 0], K[1, 1], K[0, 1], K[0, 2], K[1, 2], self.baseline_m)
         self._imu_T_cam = inverse(self.cam_T_imu)
         self._body_P_sensor = gtsam.Pose3(self._imu_T_cam)
-        sigma = noise.sigma_px
-        gaussian = gtsam.noiseModel.Diagonal.Sigmas(np.array([sigma, sigma, sigma / math.sqrt(2.0)]))
+        gaussian = stereo_factor_noise(noise)  # σ, σ, σ/√2; or A Σ Aᵀ of a 4×4 pixel covariance
         self._stereo_noise = (
             gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Huber.Create(huber_k), gaussian)
             if robust == "huber"

@@ -26,7 +26,8 @@ How a drive is made
    [``min_depth_m``, ``max_depth_m``] (5 px from the border), is dropped with probability ``dropout``, and at most
    ``max_features`` are kept per step (those with the longest running tracks first, so
    tracks stay contiguous like the seed's). Each of u_L, v_L, u_R, v_R gets independent
-   N(0, σ_px²) noise; with ``outlier_rate`` > 0 that fraction of the measurements is moved
+   N(0, σ_px²) noise, or with ``noise.pixel_covariance`` the four get correlated noise
+   N(0, Σ) (drawn as L·n, L the Cholesky factor of Σ, n four standard normals); with ``outlier_rate`` > 0 that fraction of the measurements is moved
    by U(±``outlier_px``) in all four pixels (a wrong track; a value may then leave the
    image, as a bad track can). Measurements with a non-positive noisy disparity are kept
    (the seed's data has them too).
@@ -144,6 +145,7 @@ def simulate_drive(seed: int, scenario: DriveScenario = DriveScenario(), noise: 
 
     # ---- camera
     M = stereo_matrix(KITTI_LIKE_K, KITTI_LIKE_BASELINE_M)
+    pixel_factor = None if noise.pixel_covariance is None else np.linalg.cholesky(noise.pixel_cov())
     features = np.full((n_steps, n_landmarks, 4), np.nan)
     track_length = np.zeros(n_landmarks, dtype=int)
     homogeneous = np.hstack([landmarks, np.ones((n_landmarks, 1))])
@@ -160,7 +162,10 @@ def simulate_drive(seed: int, scenario: DriveScenario = DriveScenario(), noise: 
         kept = candidates[: sc.max_features]
         seen_now = np.zeros(n_landmarks, dtype=bool)
         for j, z in kept:
-            z = z + rng_cam.normal(0.0, noise.sigma_px, size=4)
+            if pixel_factor is None:
+                z = z + rng_cam.normal(0.0, noise.sigma_px, size=4)
+            else:
+                z = z + pixel_factor @ rng_cam.standard_normal(4)
             if sc.outlier_rate > 0.0 and rng_cam.random() < sc.outlier_rate:
                 z = np.abs(z + rng_cam.uniform(-sc.outlier_px, sc.outlier_px, size=4))
             features[t, j] = z

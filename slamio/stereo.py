@@ -14,7 +14,10 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
+    "MEAN_ROW",
     "disparity_depth_m",
+    "mean_row_covariance",
+    "rectified_pixel_covariance",
     "point_from_stereo",
     "point_from_stereo_jacobian",
     "projection",
@@ -99,3 +102,38 @@ def point_from_stereo_jacobian(z, K, baseline_m: float) -> np.ndarray:
     J[1, 0] = (vL - cv) / fsv * dz_duL
     J[1, 2] = (vL - cv) / fsv * (-dz_duL)
     return J
+
+
+#: A: (u_L, v_L, u_R, v_R) → (u_L, u_R, (v_L + v_R)/2), what a one-row stereo model (GTSAM's
+#: ``StereoPoint2``) measures.
+MEAN_ROW = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.5, 0.0, 0.5]])
+
+
+def mean_row_covariance(pixel_cov) -> np.ndarray:
+    """3×3 covariance of (u_L, u_R, v) with v = (v_L + v_R)/2, from the 4×4 covariance of
+    (u_L, v_L, u_R, v_R) in px²: ``A Σ Aᵀ`` (:data:`MEAN_ROW`). With Σ = σ² I it is diag(σ², σ², σ²/2).
+
+    The difference d = v_L − v_R is 0 whatever the point (rectified rows): the mean row keeps
+    all the information of the four pixels when d is uncorrelated with (u_L, u_R, v) — equal
+    variances of v_L and v_R and no u–v correlation, the usual case. Otherwise the part of
+    their errors that d would reveal (conditioning on it) is given up: the model stays
+    consistent, only slightly less precise than the full 4-D one.
+    """
+    return MEAN_ROW @ np.asarray(pixel_cov, dtype=float) @ MEAN_ROW.T
+
+
+def rectified_pixel_covariance(sigma_u_px: float, sigma_v_px: float, row_correlation: float,
+                               column_correlation: float = 0.0) -> np.ndarray:
+    """4×4 covariance of (u_L, v_L, u_R, v_R) in px² for rectified stereo: σ_u on both u, σ_v
+    on both v, v_L and v_R correlated ``row_correlation`` (read on one row), u_L and u_R
+    ``column_correlation``; u and v uncorrelated."""
+    if not (sigma_u_px > 0.0 and sigma_v_px > 0.0 and abs(row_correlation) < 1.0 and abs(column_correlation) < 1.0):
+        raise ValueError(f"need σ_u, σ_v > 0 and correlations in (−1, 1), got {sigma_u_px}, {sigma_v_px}, "
+                         f"{row_correlation}, {column_correlation}")
+    u, v = sigma_u_px**2, sigma_v_px**2
+    return np.array([
+        [u, 0.0, column_correlation * u, 0.0],
+        [0.0, v, 0.0, row_correlation * v],
+        [column_correlation * u, 0.0, u, 0.0],
+        [0.0, row_correlation * v, 0.0, v],
+    ])

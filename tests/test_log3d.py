@@ -79,6 +79,13 @@ def covariances6(draw):
 
 
 @st.composite
+def covariances4(draw):
+    L = np.array([[draw(st.floats(min_value=-3.0, max_value=3.0)) for _ in range(4)] for _ in range(4)])
+    m = L @ L.T + draw(st.floats(min_value=1e-6, max_value=1.0)) * np.eye(4)
+    return tuple(tuple(float(v) for v in row) for row in (m + m.T) / 2.0)
+
+
+@st.composite
 def records_3d(draw):
     stamp = draw(st.floats(min_value=0.0, max_value=1e3))
     kind = draw(st.sampled_from(["vel", "obs", "truth", "point"]))
@@ -87,8 +94,10 @@ def records_3d(draw):
                                 (draw(small), draw(small), draw(small)), (draw(small), draw(small), draw(small)),
                                 draw(covariances6()))
     if kind == "obs":
-        return StereoObservation(stamp, draw(st.integers(0, 2**31 - 1)), draw(pixel), draw(pixel), draw(pixel),
-                                 draw(pixel), draw(st.floats(min_value=SIGMA_PIXEL_PX[0], max_value=SIGMA_PIXEL_PX[1])))
+        where = (stamp, draw(st.integers(0, 2**31 - 1)), draw(pixel), draw(pixel), draw(pixel), draw(pixel))
+        if draw(st.booleans()):
+            return StereoObservation(*where, covariance_px2=draw(covariances4()))
+        return StereoObservation(*where, draw(st.floats(min_value=SIGMA_PIXEL_PX[0], max_value=SIGMA_PIXEL_PX[1])))
     if kind == "truth":
         return TruthPose3(stamp, draw(small), draw(small), draw(small), *draw(unit_quaternions()))
     return TruthLandmark3(draw(st.integers(0, 2**31 - 1)), draw(small), draw(small), draw(small))
@@ -166,11 +175,39 @@ def test_bad_velocity_records(tmp_path, mutate, words):
         (lambda d: {**d, "sigma_px": 0.0}, ["'sigma_px' must be > 0"]),
         (lambda d: {**d, "sigma_px": 1e5}, ["'sigma_px'", "outside"]),
         (lambda d: {**d, "u_l_px": 1.0}, ["unknown field(s) u_l_px"]),
+        (lambda d: {k: v for k, v in d.items() if k != "sigma_px"}, ["missing field 'sigma_px'", "'covariance_px2'"]),
+        (lambda d: {**d, "covariance_px2": COV4}, ["both 'sigma_px' and 'covariance_px2'", "keep one"]),
+        (lambda d: {**_no_sigma(d), "covariance_px2": [[1.0] * 4] * 4}, ["'covariance_px2' must be positive definite"]),
+        (lambda d: {**_no_sigma(d), "covariance_px2": [[1.0, 0.5, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]},
+         ["'covariance_px2' must be symmetric"]),
+        (lambda d: {**_no_sigma(d), "covariance_px2": [[2e8, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]},
+         ["'covariance_px2' holds 200000000.0", "px²"]),
+        (lambda d: {**_no_sigma(d), "covariance_px2": [[1.0] * 4] * 3}, ["'covariance_px2' must be a 4×4"]),
     ],
 )
 def test_bad_stereo_observations(tmp_path, mutate, words):
     record = json.loads(format_line(OBS))
     expect_error(write(tmp_path / "o.jsonl", header_dict(), mutate(record)), 2, *words)
+
+
+COV4 = [[0.04, 0.0, 0.01, 0.0], [0.0, 0.25, 0.0, 0.24], [0.01, 0.0, 0.04, 0.0], [0.0, 0.24, 0.0, 0.25]]
+
+
+def _no_sigma(d: dict) -> dict:
+    return {k: v for k, v in d.items() if k != "sigma_px"}
+
+
+def test_a_stereo_observation_with_a_pixel_covariance_reads_back_and_validates(tmp_path, capsys):
+    from fgslam.cli import main
+
+    record = {**_no_sigma(json.loads(format_line(OBS))), "covariance_px2": COV4}
+    path = write(tmp_path / "c.jsonl", header_dict(), record)
+    (obs,) = read_log(path).records
+    assert obs.sigma_px is None and obs.covariance_px2 == tuple(tuple(row) for row in COV4)
+    np.testing.assert_array_equal(obs.pixel_covariance(), COV4)
+    np.testing.assert_array_equal(OBS.pixel_covariance(), np.eye(4))  # sigma_px 1.0: σ² I
+    assert main(["validate", str(path)]) == 0
+    assert "1 observation" in capsys.readouterr().out
 
 
 def test_bad_truth_and_header(tmp_path):

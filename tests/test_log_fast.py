@@ -29,7 +29,8 @@ DECODERS = {False: FastDecoder(False), True: FastDecoder(True)}
 EDGES = [F.STAMP_S, F.MAX_ID, F.MAX_POSE_INDEX, F.COORDINATE_M, F.WORLD_ANGLE_RAD, F.INCREMENT_M, F.INCREMENT_RAD,
          math.pi, *F.SIGMA_LENGTH_M, *F.SIGMA_ANGLE_RAD, *F.RANGE_M, F.MAX_POSITION_VARIANCE_M2,
          F.MAX_HEADING_VARIANCE_RAD2, F.MIN_COVARIANCE_EIGENVALUE, R3.MAX_PIXEL_PX, *R3.SIGMA_PIXEL_PX, R3.MAX_DT_S,
-         R3.MAX_SPEED_MPS, R3.MAX_TWIST_VARIANCE, R3.MIN_TWIST_EIGENVALUE, 1.0, 0.0]
+         R3.MAX_SPEED_MPS, R3.MAX_TWIST_VARIANCE, R3.MIN_TWIST_EIGENVALUE, R3.MAX_PIXEL_VARIANCE_PX2,
+         R3.MIN_PIXEL_EIGENVALUE_PX2, 1.0, 0.0]
 
 
 def _near(edge: float):
@@ -73,6 +74,9 @@ def field_values(name: str):
     if name == "covariance":
         return st.one_of(covariances(3), covariances(6), st.lists(st.lists(numbers, min_size=3, max_size=3),
                                                                      min_size=3, max_size=3))
+    if name == "covariance_px2":  # the stereo pixel covariance, 4×4 (or a wrong size)
+        return st.one_of(covariances(4), covariances(4), covariances(3),
+                         st.lists(st.lists(numbers, min_size=4, max_size=4), min_size=4, max_size=4), oddities)
     if name in ("v_mps", "w_radps"):
         return st.lists(numbers, min_size=2, max_size=4)
     if name in ("kind", "side"):  # an event's words: right ones mostly, near misses and other types too
@@ -169,3 +173,29 @@ def test_the_fast_path_reads_every_record_of_a_real_log_as_the_slow_path(path):
         record = DECODERS[False].record(raw)
         assert record is not None and _same(record, slow(raw.decode(), False)), raw
     assert len(read_log(path).records) == len(lines)
+
+
+@pytest.mark.parametrize("noise", [
+    '"sigma_px": 0.7',
+    '"covariance_px2": [[0.04, 0, 0.01, 0], [0, 0.25, 0, 0.24], [0.01, 0, 0.04, 0], [0, 0.24, 0, 0.25]]',
+    '"sigma_px": null, "covariance_px2": [[1, 0, 0, 0], [0, 1, 0, 0.5], [0, 0, 1, 0], [0, 0.5, 0, 1]]',
+])
+def test_the_fast_path_reads_a_stereo_observations_sigma_or_covariance_as_the_slow_path(noise):
+    """Either noise of a stereo observation goes through the fast path (not only the slow one)."""
+    line = ('{"type": "stereo_observation", "stamp_s": 1, "track_id": 4, "u_left_px": 100.5, "v_left_px": 80, '
+            f'"u_right_px": 90, "v_right_px": 80.25, {noise}}}')
+    record = DECODERS[True].record(line.encode())
+    assert record is not None and _same(record, slow(line, True)), line
+
+
+@pytest.mark.parametrize("noise", [
+    '"sigma_px": 0.7, "covariance_px2": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]',
+    '"covariance_px2": [[1, 0, 0, 0], [0, 1, 0, 1], [0, 0, 1, 0], [0, 1, 0, 1]]',
+    '"covariance_px2": [[1, 0, 0, 0], [0, 1, 0, 0.5], [0, 0, 1, 0], [0, 0.4, 0, 1]]',
+    '"sigma_px": null',
+])
+def test_stereo_noise_lines_the_fast_path_leaves_to_the_slow_path_which_refuses_them(noise):
+    """Both noises, a singular or asymmetric covariance, no noise at all: refused by both."""
+    line = ('{"type": "stereo_observation", "stamp_s": 1, "track_id": 4, "u_left_px": 100.5, "v_left_px": 80, '
+            f'"u_right_px": 90, "v_right_px": 80.25, {noise}}}')
+    assert DECODERS[True].record(line.encode()) is None and slow(line, True) is None

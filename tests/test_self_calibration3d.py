@@ -52,3 +52,26 @@ def test_run_noise_self_on_a_3d_log(tmp_path, capsys, misstated):
     metrics = json.loads((tmp_path / "r" / "metrics.json").read_text())
     assert all(v["fits"] for v in metrics["noise_verdict"].values())
     assert np.isfinite(metrics["isam2-3d"]["ate_rmse_m"])
+
+
+def test_a_stated_pixel_covariance_keeps_its_shape_and_its_size_is_learned(tmp_path):
+    """The log states the right correlations (σ_u 0.3, σ_v 1 px, ρ 0.95) at 3× the σ: the fit
+    scales the 4×4 back (below the drawn size, as the one σ above, for the Huber kernel) and
+    ``with_noise`` writes it on every stereo observation."""
+    from fgslam.runner3d import noise_of
+    from slamio.log import read_log, write_log
+    from slamio.stereo import rectified_pixel_covariance
+
+    true_cov = rectified_pixel_covariance(0.3, 1.0, 0.95)
+    as_tuples = lambda m: tuple(tuple(float(v) for v in row) for row in m)  # noqa: E731
+    drive = simulate_drive(5, DriveScenario(straight_m=25.0, side_m=15.0), StereoImuNoise(pixel_covariance=as_tuples(true_cov)))
+    header, records = drive_to_log(drive, StereoImuNoise(pixel_covariance=as_tuples(9.0 * true_cov)))
+    log = RunLog("scaled", header, tuple(records))
+    fit = fit_without_truth_3d(prepare_log3d(log))
+    fitted = fit.noise.pixel_cov()
+    scale = fitted[0, 0] / true_cov[0, 0]
+    assert np.allclose(fitted, scale * true_cov, rtol=1e-12)  # the shape kept
+    assert 0.3 < scale < 1.0
+    assert fit.noise.sigma_px == pytest.approx(np.sqrt(np.trace(fitted) / 4.0))
+    write_log(tmp_path / "fitted.jsonl", *(lambda l: (l.header, l.records))(with_noise(log, fit.noise)))
+    np.testing.assert_array_equal(noise_of(read_log(tmp_path / "fitted.jsonl")).pixel_cov(), fitted)

@@ -93,6 +93,10 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     imp.add_argument("--truth-topic", default=None, help="rosbag: ground-truth pose topic (optional)")
     imp.add_argument("--pixel-sigma", type=float, default=None, metavar="PX",
                      help="seed003: σ of each stereo pixel coordinate (default 1 px)")
+    imp.add_argument("--pixel-covariance", type=float, nargs="+", default=None, metavar="PX",
+                     help="seed003: the stereo pixels' covariance instead of one sigma: SIGMA_U SIGMA_V RHO (px, px, "
+                          "the correlation of v_L and v_R on one row) or the 16 entries of the 4x4 over "
+                          "(u_L, v_L, u_R, v_R), px^2, row by row")
     imp.add_argument("--speed-sigma", type=float, default=None, metavar="M/S",
                      help="seed003: σ of each axis of the IMU's linear velocity (default 0.05 m/s)")
     imp.add_argument("--turn-rate-sigma", type=float, default=None, metavar="RAD/S",
@@ -116,6 +120,7 @@ DATASET_OPTIONS = (
     ("--tag-pose-topic", "tag_pose_topic", ("rosbag",), None),
     ("--truth-topic", "truth_topic", ("rosbag",), None),
     ("--pixel-sigma", "pixel_sigma", ("seed003",), 1.0),
+    ("--pixel-covariance", "pixel_covariance", ("seed003",), None),
     ("--speed-sigma", "speed_sigma", ("seed003",), 0.05),
     ("--turn-rate-sigma", "turn_rate_sigma", ("seed003",), 0.005),
     *((option, name, ("rosbag",), None) for option, name in ROSBAG_OPTIONS),
@@ -136,6 +141,8 @@ def _source_and_out(args: argparse.Namespace) -> tuple[str | None, str]:
 def _check_dataset_options(args: argparse.Namespace) -> None:
     """Refuse an option of another dataset (it would be ignored), check the values, then fill in
     the defaults of those left out."""
+    if getattr(args, "pixel_sigma", None) is not None and getattr(args, "pixel_covariance", None) is not None:
+        raise FgslamError("--pixel-sigma and --pixel-covariance both state the pixel noise; give one of them")
     for option, name, datasets, default in DATASET_OPTIONS:
         value = getattr(args, name)
         if value is not None and args.dataset not in datasets:
@@ -216,9 +223,34 @@ def _import_seed003(source: str, args: argparse.Namespace):
                         ("--turn-rate-sigma", args.turn_rate_sigma)):
         if not (value > 0.0 and value < 1e3):
             raise FgslamError(f"{flag} {value!r} must be a standard deviation > 0 (and below 1000)")
-    noise = StereoImuNoise(sigma_px=args.pixel_sigma, sigma_v_mps=args.speed_sigma, sigma_w_radps=args.turn_rate_sigma)
+    noise = StereoImuNoise(sigma_px=args.pixel_sigma, sigma_v_mps=args.speed_sigma, sigma_w_radps=args.turn_rate_sigma,
+                           pixel_covariance=_pixel_covariance_option(args.pixel_covariance))
     drive = load_drive(source)
     return drive_to_log(drive, noise, source={"dataset": "seed003", "file": str(source), "command": command_line(args)})
+
+
+def _pixel_covariance_option(values: list[float] | None):
+    """``--pixel-covariance``: σ_u σ_v ρ (rectified stereo) or the 16 entries of the 4×4, checked
+    as the log's ``covariance_px2`` is; None when not given."""
+    if values is None:
+        return None
+    import slamio.log.records3d as records3d
+    from slamio.stereo import rectified_pixel_covariance
+
+    if len(values) == 3:
+        try:
+            matrix = rectified_pixel_covariance(*values)
+        except ValueError:
+            raise FgslamError(f"--pixel-covariance {' '.join(f'{v:g}' for v in values)}: SIGMA_U and SIGMA_V must be "
+                              "> 0 px and RHO (the correlation of v_L and v_R) within (-1, 1)") from None
+        values = [float(v) for v in matrix.ravel()]
+    if len(values) != 16:
+        raise FgslamError(f"--pixel-covariance takes 3 numbers (SIGMA_U SIGMA_V RHO) or 16 (the 4x4 over u_L, v_L, "
+                          f"u_R, v_R, row by row), got {len(values)}")
+    try:
+        return records3d._pixel_covariance([values[i:i + 4] for i in range(0, 16, 4)])
+    except records3d._Bad as bad:
+        raise FgslamError(f"--pixel-covariance: {bad}") from None
 
 
 def hide_landmark_ids(header, records):

@@ -267,7 +267,9 @@ def _self_fitted_3d(log):
     n = fit.noise
     print(f"learned without truth in {fit.iterations} iterations"
           + ("" if fit.converged else " (NOT converged: the last iteration's values)")
-          + f": stereo sigma {n.sigma_px:.3f} px, IMU speed sigma {n.sigma_v_mps:.4f} m/s, "
+          + f": stereo {'' if n.pixel_covariance is None else 'RMS '}sigma {n.sigma_px:.3f} px"
+          + ("" if n.pixel_covariance is None else " (the log's 4x4 pixel covariance, scaled)")
+          + f", IMU speed sigma {n.sigma_v_mps:.4f} m/s, "
           f"turn-rate sigma {n.sigma_w_radps:.5f} rad/s (the log said {_stated_3d(log)}); "
           f"{100 * fit.outlier_rate:.1f} % of the stereo observations beyond the fit's gate")
     print("applied the noise learned from this log (without truth)")
@@ -281,7 +283,8 @@ def _stated_3d(log) -> str:
 
     n = noise_of(log)
     cov = n.velocity_cov()
-    return (f"{n.sigma_px:g} px, {float(np.sqrt(np.mean(np.diag(cov)[:3]))):g} m/s, "
+    pixels = f"{n.sigma_px:g} px" if n.pixel_covariance is None else f"a 4×4 pixel covariance (RMS {n.sigma_px:.3g} px)"
+    return (f"{pixels}, {float(np.sqrt(np.mean(np.diag(cov)[:3]))):g} m/s, "
             f"{float(np.sqrt(np.mean(np.diag(cov)[3:]))):g} rad/s")
 
 

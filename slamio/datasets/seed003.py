@@ -65,12 +65,27 @@ class StereoImuNoise:
     #: a full 6×6 covariance of the twist (per-axis or correlated, as a dataset states it);
     #: when given it replaces the two σ above
     velocity_covariance: tuple[tuple[float, ...], ...] | None = None
+    #: a full 4×4 covariance of the stereo pixels (u_L, v_L, u_R, v_R) in px² (rectified
+    #: stereo: v_L and v_R correlated, σ_u ≠ σ_v); when given it replaces ``sigma_px``
+    pixel_covariance: tuple[tuple[float, ...], ...] | None = None
 
     def velocity_cov(self) -> np.ndarray:
         """6×6 covariance of the twist u = (v, ω)."""
         if self.velocity_covariance is not None:
             return np.array(self.velocity_covariance, dtype=float)
         return np.diag([self.sigma_v_mps**2] * 3 + [self.sigma_w_radps**2] * 3)
+
+    def pixel_cov(self) -> np.ndarray:
+        """4×4 covariance of the stereo pixels (u_L, v_L, u_R, v_R): σ_px² I without ``pixel_covariance``."""
+        if self.pixel_covariance is not None:
+            return np.array(self.pixel_covariance, dtype=float)
+        return self.sigma_px**2 * np.eye(4)
+
+    def pixel_rms_sigma_px(self) -> float:
+        """One σ summing up the pixel noise: √(trace/4) of :meth:`pixel_cov` (``sigma_px`` without a covariance)."""
+        if self.pixel_covariance is None:
+            return self.sigma_px
+        return float(np.sqrt(np.trace(self.pixel_cov()) / 4.0))
 
 
 @dataclass(frozen=True)

@@ -34,7 +34,8 @@ START_SIGMA3 = (1e-6,) * 6
 
 
 def drive_to_log(drive: StereoImuDrive, noise: StereoImuNoise = StereoImuNoise(), source: dict | None = None):
-    """``(Header, records)`` of a 3-D run log holding ``drive``, with ``noise`` as every record's σ."""
+    """``(Header, records)`` of a 3-D run log holding ``drive``, with ``noise`` as every record's σ
+    (its 4×4 ``pixel_covariance`` as every stereo observation's ``covariance_px2`` when given)."""
     start = np.eye(4) if drive.truth_world_T_imu is None else drive.truth_world_T_imu[0]
     header = Header(
         stamp_s=float(drive.stamps_s[0]),
@@ -45,7 +46,12 @@ def drive_to_log(drive: StereoImuDrive, noise: StereoImuNoise = StereoImuNoise()
         noise={
             "odometry": {"model": "white noise on each axis of the IMU twist",
                          "sigma_v_mps": noise.sigma_v_mps, "sigma_w_radps": noise.sigma_w_radps},
-            "observation": {"model": "white noise on each stereo pixel coordinate", "sigma_px": noise.sigma_px},
+            "observation": (
+                {"model": "white noise on each stereo pixel coordinate", "sigma_px": noise.sigma_px}
+                if noise.pixel_covariance is None else
+                {"model": "white noise on the stereo pixels (u_L, v_L, u_R, v_R), correlated",
+                 "covariance_px2": [list(row) for row in noise.pixel_covariance]}
+            ),
         },
         source=dict(source or {}),
         version=2,
@@ -53,6 +59,10 @@ def drive_to_log(drive: StereoImuDrive, noise: StereoImuNoise = StereoImuNoise()
         start_sigma3=START_SIGMA3,
     )
     covariance = tuple(tuple(float(v) for v in row) for row in noise.velocity_cov())
+    pixel_noise: dict = (
+        {"sigma_px": noise.sigma_px} if noise.pixel_covariance is None
+        else {"covariance_px2": tuple(tuple(float(v) for v in row) for row in noise.pixel_covariance)}
+    )
     records: list = []
     if drive.truth_landmarks_m is not None:
         ids = drive.ids(np.arange(drive.n_landmarks))
@@ -70,7 +80,7 @@ def drive_to_log(drive: StereoImuDrive, noise: StereoImuNoise = StereoImuNoise()
         columns = drive.seen(t)
         for j, landmark_id in zip(columns, drive.ids(columns)):
             u_l, v_l, u_r, v_r = (float(v) for v in drive.features_px[t, j])
-            records.append(StereoObservation(stamp, int(landmark_id), u_l, v_l, u_r, v_r, noise.sigma_px))
+            records.append(StereoObservation(stamp, int(landmark_id), u_l, v_l, u_r, v_r, **pixel_noise))
         if drive.truth_world_T_imu is not None:
             records.append(TruthPose3(stamp, *pose3_from_matrix(drive.truth_world_T_imu[t])))
     return header, records

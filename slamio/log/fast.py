@@ -14,7 +14,8 @@ What msgspec does not check by itself is checked here:
 * a key given twice (msgspec keeps the last): every ``:`` of an accepted line separates a
   key from its value (keys and the type name hold none), so the line's ``:`` count must be
   one more (``type``) than the fields present;
-* pairs that go together (``height_m``/``sigma_height_m``, ...), the Create's reading;
+* pairs that go together (``height_m``/``sigma_height_m``, ...), the Create's reading, and
+  a stereo observation's one noise (``sigma_px`` or ``covariance_px2``, not both);
 * covariances: exactly symmetric and positive definite with a margin of 1e-12 of their
   largest entry above the smallest eigenvalue allowed (a pure-Python LDLᵀ), so that
   numpy's checks on the slow path agree whatever their rounding; anything closer goes to
@@ -56,6 +57,8 @@ _ROW3 = tuple[_VAR, _VAR, _VAR]
 _TWIST_VAR = _beyond_not(R3.MAX_TWIST_VARIANCE)
 _ROW6 = tuple[(_TWIST_VAR,) * 6]  # type: ignore[misc]
 _PIXEL = _beyond_not(R3.MAX_PIXEL_PX)
+_PIXEL_VAR = _beyond_not(R3.MAX_PIXEL_VARIANCE_PX2)
+_ROW4 = tuple[(_PIXEL_VAR,) * 4]  # type: ignore[misc]
 #: Looser than any unit quaternion: the norm check decides.
 _QUAT = _beyond_not(2.0)
 
@@ -91,7 +94,8 @@ SPEC: dict[str, tuple[type, tuple[tuple[str, Any, bool], ...]]] = {
     "stereo_observation": (R3.StereoObservation, (
         ("stamp_s", _STAMP, True), ("track_id", _ID, True), ("u_left_px", _PIXEL, True),
         ("v_left_px", _PIXEL, True), ("u_right_px", _PIXEL, True), ("v_right_px", _PIXEL, True),
-        ("sigma_px", _within(*R3.SIGMA_PIXEL_PX), True))),
+        ("sigma_px", _within(*R3.SIGMA_PIXEL_PX), False),
+        ("covariance_px2", tuple[(_ROW4,) * 4], False))),  # type: ignore[misc]
     "truth_pose3": (R3.TruthPose3, (
         ("stamp_s", _STAMP, True), ("x_m", _COORD, True), ("y_m", _COORD, True), ("z_m", _COORD, True),
         ("qx", _QUAT, True), ("qy", _QUAT, True), ("qz", _QUAT, True), ("qw", _QUAT, True))),
@@ -186,6 +190,13 @@ def _velocity_ok(v: dict) -> bool:
     return covariance_ok(v["covariance"], R3.MIN_TWIST_EIGENVALUE)
 
 
+def _stereo_ok(v: dict) -> bool:
+    c = v["covariance_px2"]
+    if c is None:
+        return v["sigma_px"] is not None
+    return v["sigma_px"] is None and covariance_ok(c, R3.MIN_PIXEL_EIGENVALUE_PX2)
+
+
 def _quaternion_ok(v: dict) -> bool:
     norm = math.sqrt(sum(v[k] * v[k] for k in ("qx", "qy", "qz", "qw")))  # records3d.check_quaternion's sum
     return not abs(norm - 1.0) > R3.QUATERNION_NORM_TOLERANCE
@@ -193,7 +204,7 @@ def _quaternion_ok(v: dict) -> bool:
 
 _CHECKS: dict[type, Callable[[dict], bool]] = {
     Observation: _observation_ok, Odometry: _odometry_ok, R3.VelocityOdometry: _velocity_ok,
-    R3.TruthPose3: _quaternion_ok,
+    R3.TruthPose3: _quaternion_ok, R3.StereoObservation: _stereo_ok,
 }
 
 #: The margin, relative to a covariance's largest entry, by which its smallest eigenvalue

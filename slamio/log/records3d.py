@@ -9,7 +9,7 @@ records are:
   pose to a new one (``T_new = T_prev · exp(dt_s · û)``), with its 6×6 covariance; like
   ``odometry`` in a planar log it starts a new pose;
 * ``stereo_observation`` — one feature track seen now at rectified stereo pixels
-  (u_L, v_L, u_R, v_R), each with σ ``sigma_px``;
+  (u_L, v_L, u_R, v_R), with one σ ``sigma_px`` on each or a 4×4 ``covariance_px2``;
 * ``truth_pose3``       — optional ground truth of the current pose (world_T_imu);
 * ``truth_landmark3``   — optional ground truth of one landmark (a world point);
 * ``live_step``         — as in a planar log.
@@ -48,6 +48,7 @@ Vector3 = tuple[float, float, float]
 #: A pose as written: ``(x_m, y_m, z_m, qx, qy, qz, qw)`` (TUM's order).
 Pose3 = tuple[float, float, float, float, float, float, float]
 Matrix6 = tuple[tuple[float, ...], ...]
+Matrix4 = tuple[tuple[float, ...], ...]
 
 #: A quaternion's norm may differ from 1 by at most this (a written unit quaternion reads
 #: back within 1e-15; more means it was never normalised, or is not a rotation at all).
@@ -67,6 +68,10 @@ MAX_TURN_RATE_RADPS = 1e4
 #: The twist covariance: entries ≤ 1e6, smallest eigenvalue ≥ 1e-12 (as for planar odometry).
 MAX_TWIST_VARIANCE = 1e6
 MIN_TWIST_EIGENVALUE = 1e-12
+#: The pixel covariance: entries ≤ (1e4 px)², smallest eigenvalue ≥ (1e-6 px)² (the bounds of
+#: ``sigma_px`` squared).
+MAX_PIXEL_VARIANCE_PX2 = SIGMA_PIXEL_PX[1] ** 2
+MIN_PIXEL_EIGENVALUE_PX2 = SIGMA_PIXEL_PX[0] ** 2
 
 
 # --------------------------------------------------------------------------- records
@@ -97,9 +102,12 @@ class VelocityOdometry:
 class StereoObservation:
     """Feature track ``track_id`` seen from the current pose at rectified stereo pixels.
 
-    (u, v) in the left and right images, origin at the top-left pixel, u right, v down;
-    ``sigma_px`` is the standard deviation of each of the four coordinates. A track id is
-    the landmark's id (one physical point per track).
+    (u, v) in the left and right images, origin at the top-left pixel, u right, v down.
+    The noise is one of: ``sigma_px``, the standard deviation of each of the four coordinates
+    (independent), or ``covariance_px2``, their 4×4 covariance over (u_L, v_L, u_R, v_R) in px²
+    (rectified stereo: v_L and v_R are read on one row, so strongly correlated, and u and v
+    need not share a σ). A record holds exactly one of the two. A track id is the landmark's
+    id (one physical point per track).
     """
 
     stamp_s: float
@@ -108,11 +116,22 @@ class StereoObservation:
     v_left_px: float
     u_right_px: float
     v_right_px: float
-    sigma_px: float
+    sigma_px: float | None = None
+    covariance_px2: Matrix4 | None = None
+
+    def __post_init__(self) -> None:
+        if (self.sigma_px is None) == (self.covariance_px2 is None):
+            raise ValueError("a stereo observation holds exactly one of sigma_px and covariance_px2")
 
     def pixels(self) -> np.ndarray:
         """``(u_L, v_L, u_R, v_R)`` as a 4-vector."""
         return np.array([self.u_left_px, self.v_left_px, self.u_right_px, self.v_right_px])
+
+    def pixel_covariance(self) -> np.ndarray:
+        """4×4 covariance of :meth:`pixels` (px²): ``covariance_px2``, or σ² I."""
+        if self.covariance_px2 is not None:
+            return np.array(self.covariance_px2, dtype=float)
+        return float(self.sigma_px) ** 2 * np.eye(4)  # type: ignore[arg-type]
 
 
 @dataclass(frozen=True)
@@ -243,20 +262,36 @@ def _matrix(value: Any, n: int, what: str) -> np.ndarray:
 
 
 def _twist_covariance(value: Any) -> Matrix6:
-    m = _matrix(value, 6, "'covariance'")
+    return _spd_matrix(
+        value, 6, "covariance", MAX_TWIST_VARIANCE, MIN_TWIST_EIGENVALUE,
+        "write variances of (v, ω) in m²/s² and rad²/s² (a σ of 1000 m/s says nothing)",
+        "no IMU is that certain; put a realistic variance on each diagonal entry",
+    )
+
+
+def _pixel_covariance(value: Any) -> Matrix4:
+    return _spd_matrix(
+        value, 4, "covariance_px2", MAX_PIXEL_VARIANCE_PX2, MIN_PIXEL_EIGENVALUE_PX2,
+        "write variances of (u_L, v_L, u_R, v_R) in px² (a σ of 1e4 px is wider than any image)",
+        "no detector is that certain (σ ≥ 1e-6 px); put a realistic variance on each diagonal entry",
+    )
+
+
+def _spd_matrix(value: Any, n: int, key: str, largest_allowed: float, smallest_allowed: float,
+                why_large: str, why_small: str) -> tuple[tuple[float, ...], ...]:
+    """An n×n symmetric matrix with entries ≤ ``largest_allowed`` and its smallest eigenvalue
+    ≥ ``smallest_allowed`` (field ``key``), as nested tuples."""
+    m = _matrix(value, n, f"'{key}'")
     largest = float(np.max(np.abs(m)))
-    if largest > MAX_TWIST_VARIANCE:
-        raise _Bad(
-            f"'covariance' holds {largest!r}, above {MAX_TWIST_VARIANCE:g}: write variances of (v, ω) in m²/s² and "
-            "rad²/s² (a σ of 1000 m/s says nothing)"
-        )
+    if largest > largest_allowed:
+        raise _Bad(f"'{key}' holds {largest!r}, above {largest_allowed:g}: {why_large}")
     if not np.allclose(m, m.T, rtol=1e-9, atol=1e-15):
-        raise _Bad("'covariance' must be symmetric")
+        raise _Bad(f"'{key}' must be symmetric")
     smallest = float(np.linalg.eigvalsh(m)[0])
-    if not smallest >= MIN_TWIST_EIGENVALUE:
+    if not smallest >= smallest_allowed:
         raise _Bad(
-            f"'covariance' must be positive definite with its smallest eigenvalue ≥ {MIN_TWIST_EIGENVALUE:g} "
-            f"(got {smallest:.3g}): no IMU is that certain; put a realistic variance on each diagonal entry"
+            f"'{key}' must be positive definite with its smallest eigenvalue ≥ {smallest_allowed:g} "
+            f"(got {smallest:.3g}): {why_small}"
         )
     return tuple(tuple(float(v) for v in row) for row in m)
 
@@ -294,10 +329,7 @@ def parse_record3(kind: str, d: dict):
             v_left_px=_pixel(d, "v_left_px"),
             u_right_px=_pixel(d, "u_right_px"),
             v_right_px=_pixel(d, "v_right_px"),
-            sigma_px=_fields._within(
-                "sigma_px", _fields._number(d, "sigma_px"), SIGMA_PIXEL_PX, "px",
-                "no detector resolves below 1e-6 px and no image is 1e4 px wide; write σ in pixels",
-            ),  # type: ignore[arg-type]
+            **_pixel_noise(d),
         )
     if kind == "truth_pose3":
         values = {k: _fields._finite(d, k) for k in ("qx", "qy", "qz", "qw")}
@@ -310,6 +342,24 @@ def parse_record3(kind: str, d: dict):
         y_m=_coordinate(d, "y_m"),
         z_m=_coordinate(d, "z_m"),
     )
+
+
+def _pixel_noise(d: dict) -> dict:
+    """A stereo observation's ``sigma_px`` or ``covariance_px2`` (exactly one of them)."""
+    has_sigma = d.get("sigma_px") is not None
+    has_covariance = d.get("covariance_px2") is not None
+    if has_sigma == has_covariance:
+        raise _Bad(
+            ("both 'sigma_px' and 'covariance_px2' are given: keep one" if has_sigma else "missing field 'sigma_px'")
+            + " ('sigma_px': one σ in px on each of u_L, v_L, u_R, v_R; or 'covariance_px2': their 4×4 "
+            "covariance in px²)"
+        )
+    if has_covariance:
+        return {"covariance_px2": _pixel_covariance(d["covariance_px2"])}
+    return {"sigma_px": _fields._within(
+        "sigma_px", _fields._number(d, "sigma_px"), SIGMA_PIXEL_PX, "px",
+        "no detector resolves below 1e-6 px and no image is 1e4 px wide; write σ in pixels",
+    )}
 
 
 def _coordinate(d: dict, key: str) -> float:

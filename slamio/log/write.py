@@ -40,7 +40,7 @@ def record_to_dict(record: Record) -> dict[str, Any]:
     out: dict[str, Any] = {"type": kind}
     for name in record.__dataclass_fields__:
         value = getattr(record, name)
-        if name == "covariance":
+        if name in ("covariance", "covariance_px2") and value is not None:
             value = [list(row) for row in value]
         elif isinstance(value, tuple):
             value = list(value)

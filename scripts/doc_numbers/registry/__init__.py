@@ -11,7 +11,8 @@ quote them.
 from __future__ import annotations
 
 from scripts.doc_numbers.quotes import Quote
-from scripts.doc_numbers.registry import camera, estimators, live, mrclam_consistency, plaza, readme, seeds
+from scripts.doc_numbers.registry import (camera, estimators, live, mrclam_consistency, plaza, readme, seeds,
+                                          stereo_covariance)
 
 QUOTES: list[Quote] = [*readme.QUOTES, *seeds.QUOTES, *estimators.QUOTES, *camera.QUOTES, *plaza.QUOTES,
-                      *live.QUOTES, *mrclam_consistency.QUOTES]
+                      *live.QUOTES, *mrclam_consistency.QUOTES, *stereo_covariance.QUOTES]

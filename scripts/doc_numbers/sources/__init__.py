@@ -10,7 +10,7 @@ from scripts.doc_numbers.sources.experiments import (MRCLAM6, RGBD_REAL, SEED003
                                              mrclam_dataset6_motor_lens,
                                              plaza_range_model,
                                              real_corner_sigma, seed001_association, seed002_shapes, seed003_drives,
-                                             seed004_paths)
+                                             seed004_paths, stereo_pixel_covariance)
 from scripts.doc_numbers.sources.runs import (ASSOCIATING, DEFAULT, OUTLIERS, PAPERS, ROBUST, against_truth, bundled,
                                       check_smoothed, ekf_without_gate, flaw_costs, hidden_ids, live_replay, monte_carlo_octagon,
                                       seed_sweep, sim_then_run, trial_calibration, victoria_park, window_arena)
@@ -87,4 +87,6 @@ SOURCES = [
            seed003_drives(("0020", "0027", "0042"), shared=True), shared=SEED003),
     Source("seed003-sim", "python -m scripts.seed003_drives --seeds 1-10 (simulated drives)", "long",
            seed003_drives(range(1, 11), shared=False)),
+    Source("stereo-pixel-covariance", "python -m scripts.stereo_pixel_covariance --seeds 1 2 3 4 5", "long",
+           stereo_pixel_covariance),
 ]

@@ -309,3 +309,12 @@ def live_band(context: Context) -> dict:
         out[factor] = run_nees_band(with_stated_noise_scaled(log, factor), EkfSlam, draws=30)
     return out
 
+
+
+def stereo_pixel_covariance(context: Context) -> dict:
+    """``scripts/stereo_pixel_covariance.py``'s table with its defaults (σ_u 0.3 px, σ_v 1 px,
+    ρ 0.95, seeds 1–5): told → estimator → key → median over the drives."""
+    from scripts import stereo_pixel_covariance as script
+    from slamio.stereo import rectified_pixel_covariance
+
+    return script.medians([1, 2, 3, 4, 5], rectified_pixel_covariance(0.3, 1.0, 0.95))
