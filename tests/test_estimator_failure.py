@@ -286,9 +286,12 @@ def test_a_failed_batch_solve_is_a_row_against_truth_and_one_line_without(monkey
     no_truth = tmp_path / "no_truth.jsonl"
     write_log(no_truth, log.header, [r for r in log.records if not isinstance(r, TruthPose)])
     assert main(["run", str(no_truth), "--out", str(tmp_path / "b"), "--estimators", "ekf,isam2"]) == 1
-    err = capsys.readouterr().err.strip()
-    assert err.startswith(f"fgslam: error: {no_truth}: the batch solve from isam2's result failed: gtsam "
-                          "IndeterminateSystemException near variable x1") and "\n" not in err
+    err = capsys.readouterr().err
+    # one error line; a slow machine may also show progress lines (every 5 s when not on a terminal)
+    errors = [line for line in err.splitlines() if line.startswith("fgslam:")]
+    assert len(errors) == 1 and "Traceback" not in err
+    assert errors[0].startswith(f"fgslam: error: {no_truth}: the batch solve from isam2's result failed: gtsam "
+                                "IndeterminateSystemException near variable x1")
 
 
 # --------------------------------------------------------------------------- the pieces
