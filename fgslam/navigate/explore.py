@@ -315,6 +315,9 @@ class Explore:
         return situation.now_s - goal.improved_s <= self.stuck_s
 
     def step(self, situation: Situation) -> Command:
+        return self.vfh.noted(situation, self._decide(situation))  # the pose jumps, for vfh's stop test
+
+    def _decide(self, situation: Situation) -> Command:
         fresh_scan = self.vfh.observe(situation)
         self.visits.update(situation.sightings, situation.now_s, situation.landmarks, situation.pose[:2])
         if situation.bumped and not self.vfh.backoff.active:

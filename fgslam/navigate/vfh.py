@@ -42,16 +42,16 @@ import math
 
 import numpy as np
 
-from fgslam.navigate.common import (CRUISE_SPEED_M_S, ROBOT_RADIUS_M, BackOff, Command, Situation, SpotWatch,
+from fgslam.navigate.common import (CRUISE_SPEED_M_S, MAX_TURN_RATE_RAD_S, ROBOT_RADIUS_M, BackOff, Command, Situation, SpotWatch,
                                     heading_error_rad, limited_command, turn_towards)
 from fgslam.navigate.grid import OccupancyGrid
-from slamio.geometry import wrap_angle
+from slamio.geometry import arc_increment, compose_pose, wrap_angle
 
 OCCUPIED_LOG_ODDS = 0.5  # a cell above this is an obstacle (one hit: 0.9)
 ESCAPE_REVERSE_M = 0.25  # leaving a spot: back the way it came, well out of a 0.1 m circle
 
-__all__ = ["Vfh", "free_distances_m", "blocked_sectors", "valleys",
-           "candidate_directions", "choose_direction", "sector_angles_rad"]
+__all__ = ["Vfh", "free_distances_m", "blocked_sectors", "valleys", "candidate_directions",
+           "choose_direction", "sector_angles_rad", "arc_poses", "arc_free_m", "pose_jump_m", "PoseJumps"]
 
 
 def sector_angles_rad(sectors: int) -> np.ndarray:
@@ -75,6 +75,84 @@ def free_distances_m(cells_xy, robot_xy, angles_rad, radius_m: float, d_max_m: f
     in_way = (np.abs(lateral) < radius_m) & (along > 0)
     reach = np.where(in_way, along - np.sqrt(np.maximum(radius_m**2 - lateral**2, 0.0)), np.inf)
     return np.clip(np.minimum(free, reach.min(axis=1)), 0.0, None)
+
+
+def arc_poses(pose, speed_m_s: float, turn_rate_rad_s: float, distance_m: float, step_m: float = 0.02) -> np.ndarray:
+    """Poses (n, 3) every ``step_m`` of travel along the arc the command ``(speed, turn rate)``
+    drives from ``pose``, out to ``distance_m`` (the start itself excluded; none when the
+    command does not move the centre forward)."""
+    if speed_m_s <= 0 or distance_m <= 0:
+        return np.zeros((0, 3))
+    s = np.arange(1, int(math.ceil(distance_m / step_m)) + 1) * step_m
+    turned = s * (turn_rate_rad_s / speed_m_s)  # heading change after s of travel (curvature · s)
+    small = np.abs(turned) < 1e-6
+    safe = np.where(small, 1.0, turned)
+    along = np.where(small, s, s * np.sin(safe) / safe)  # slamio.geometry.arc_increment, vectorised
+    aside = np.where(small, 0.5 * s * turned, s * (1 - np.cos(safe)) / safe)
+    c, si = math.cos(pose[2]), math.sin(pose[2])
+    return np.column_stack([pose[0] + c * along - si * aside, pose[1] + si * along + c * aside, pose[2] + turned])
+
+
+def arc_free_m(cells_xy, pose, speed_m_s: float, turn_rate_rad_s: float, radius_m: float, distance_m: float,
+               step_m: float = 0.02) -> float:
+    """How far the robot's disc enlarged to ``radius_m`` goes along the commanded arc
+    (:func:`arc_poses`) before it comes within ``radius_m`` of an occupied cell's centre
+    *and nearer to it than at the start* (``distance_m`` when it does not within that). A cell
+    already inside the enlarged disc only counts once the arc goes nearer to it: the robot may
+    move along or away from what it passes, never into it. Every cell given counts, in the
+    camera's view or not: the remembered ones are what a ±21° view does not show while it
+    turns past a corner."""
+    cells = np.asarray(cells_xy, dtype=float).reshape(-1, 2)
+    poses = arc_poses(pose, speed_m_s, turn_rate_rad_s, distance_m, step_m)
+    if len(cells) == 0 or len(poses) == 0:
+        return float(distance_m)
+    start = np.hypot(cells[:, 0] - pose[0], cells[:, 1] - pose[1])
+    near = start < radius_m + distance_m  # the only cells the swept disc can reach
+    cells, start = cells[near], start[near]
+    if len(cells) == 0:
+        return float(distance_m)
+    reach = np.hypot(poses[:, None, 0] - cells[None, :, 0], poses[:, None, 1] - cells[None, :, 1])
+    hit = ((reach < radius_m) & (reach < start[None, :] - 1e-3)).any(axis=1)
+    return float(np.argmax(hit) * step_m) if hit.any() else float(distance_m)
+
+
+def pose_jump_m(previous_pose, pose, speed_m_s: float, turn_rate_rad_s: float, dt_s: float,
+                lever_m: float = 0.5, slack_m: float = 0.005, slack_rad: float = math.radians(1.0)) -> float:
+    """How far the pose estimate moved between two steps beyond what the wheels could have
+    driven in ``dt_s`` under the command ``(speed, turn rate)`` (0 when within ``slack_m`` plus a
+    cruise speed's travel in ``dt_s`` and ``slack_rad`` plus a full turn rate's: the wheel ramps
+    may lag the command by that much): the translation beyond it plus the heading beyond it
+    times ``lever_m``, the reach at which a turned frame moves a nearby cell. A smoother's
+    correction does this (the live loop steers on the newest smoothed pose ⊕ the odometry
+    since); the grid, placed with the poses before it, is then that far off around the robot."""
+    moved = compose_pose(previous_pose, arc_increment(speed_m_s * dt_s, turn_rate_rad_s * dt_s))
+    offset = max(math.hypot(pose[0] - moved[0], pose[1] - moved[1]) - slack_m - CRUISE_SPEED_M_S * dt_s, 0.0)
+    turned = max(abs(float(wrap_angle(pose[2] - moved[2]))) - slack_rad - MAX_TURN_RATE_RAD_S * dt_s, 0.0)
+    return offset + lever_m * turned
+
+
+class PoseJumps:
+    """The pose jumps of the last ``memory_s`` (:func:`pose_jump_m`), summed: a bound on how far
+    the grid around the robot, built from scans of that time, may be off from where the
+    robot now thinks it is (``cap_m`` at most). 0 when the pose is exact (the harness)."""
+
+    def __init__(self, memory_s: float = 30.0, cap_m: float = 0.08):
+        self.memory_s, self.cap_m = memory_s, cap_m
+        self._jumps: list[tuple[float, float]] = []
+        self._previous: tuple[float, tuple, float, float] | None = None  # time, pose, command
+
+    def update(self, now_s: float, pose, speed_m_s: float, turn_rate_rad_s: float) -> None:
+        """Note the step's pose and the command given at it."""
+        if self._previous is not None and now_s > self._previous[0]:
+            then, before, speed, turn = self._previous
+            jump = pose_jump_m(before, pose, speed, turn, now_s - then)
+            if jump > 0:
+                self._jumps.append((now_s, jump))
+        self._jumps = [j for j in self._jumps if now_s - j[0] <= self.memory_s]
+        self._previous = (now_s, tuple(pose), speed_m_s, turn_rate_rad_s)
+
+    def misregistration_m(self) -> float:
+        return min(sum(j for _, j in self._jumps), self.cap_m)
 
 
 def blocked_sectors(smoothed, low: float, high: float, previous=None) -> np.ndarray:
@@ -189,6 +267,7 @@ class Vfh:
         self._histogram = None
         self.spot = SpotWatch(stuck_s, progress_m)
         self.free_range_m = free_range_m
+        self.jumps = PoseJumps()
 
     # ------------------------------------------------------------------ memory
 
@@ -272,9 +351,19 @@ class Vfh:
         room = min(max((free[heading_sector] - self.block_m) / 0.5, 0.0), 1.0)  # cruise with 0.8 m free
         # arcs sweep the sides the narrow camera has not seen: turn mostly on the spot
         speed = CRUISE_SPEED_M_S * (0.3 + 0.7 * room) * max(0.0, 1.0 - abs(error) / math.radians(25))
-        if self._gap_ahead_m(pose) < 0.08 + speed**2 / (2 * 0.5) + speed * 0.2:
+        turn = turn_towards(error)
+        stopping_m = 0.08 + speed**2 / (2 * 0.5) + speed * 0.2
+        if self._gap_ahead_m(pose) < stopping_m or self._arc_free_m(pose, speed, turn, stopping_m) < stopping_m:
             speed = 0.0
-        return limited_command(speed, turn_towards(error), "drive" if speed > 0 else "turn")
+        return limited_command(speed, turn, "drive" if speed > 0 else "turn")
+
+    def _arc_free_m(self, pose, speed_m_s: float, turn_rate_rad_s: float, distance_m: float) -> float:
+        """:func:`arc_free_m` on the occupied cells of the active window (remembered ones too),
+        the disc enlarged as for the histogram plus how far the grid may be off after the pose
+        estimate's recent jumps (:class:`PoseJumps`)."""
+        cells, log_odds = self._window
+        return arc_free_m(cells[log_odds > OCCUPIED_LOG_ODDS], pose, speed_m_s, turn_rate_rad_s,
+                          self.enlarge_m + self.jumps.misregistration_m(), distance_m)
 
     def _boxed_in(self, situation: Situation, known, unlooked) -> Command:
         """No way open: turn (toward the nearest sector not looked at lately) for up to a full
@@ -328,6 +417,11 @@ class Vfh:
             self._wander_until_s = situation.now_s + self.wander_period_s
         if situation.bumped:
             self.backoff.start(situation, prefer_left=bool(self.rng.integers(2)))
-        if self.backoff.active:
-            return self.backoff.step(situation)
-        return self.steer(situation, self.goal_heading_rad(situation), reuse=fresh)
+        command = (self.backoff.step(situation) if self.backoff.active
+                   else self.steer(situation, self.goal_heading_rad(situation), reuse=fresh))
+        return self.noted(situation, command)
+
+    def noted(self, situation: Situation, command: Command) -> Command:
+        """``command``, after noting it and the step's pose (:class:`PoseJumps`)."""
+        self.jumps.update(situation.now_s, situation.pose, command.speed_m_s, command.turn_rate_rad_s)
+        return command
