@@ -24,7 +24,13 @@ each step:
    hysteresis, so it does not dither or turn round; :func:`choose_direction`);
 4. speed rises with the free distance ahead (cruise at 0.8 m) and falls with the turn still
    to make (0 beyond 25°: arcs sweep sides the ±21° camera has not seen), and is 0 when an
-   occupied cell lies in the corridor ahead within the stopping distance.
+   occupied cell lies in the corridor ahead within the stopping distance, or when the disc,
+   enlarged as for the histogram, would come nearer than that to an occupied cell — in view
+   or remembered — anywhere along the arc the command drives within the stopping distance
+   (:func:`arc_free_m`). That margin grows by how far the grid may be off around the robot:
+   the sum of the pose estimate's jumps of the last 30 s, up to 8 cm (:class:`PoseJumps`; in
+   ``fgslam live`` the pose is the newest smoothed pose ⊕ the odometry since, and each
+   smoother correction moves the robot, not the grid its scans built).
 
 When the goal direction was never seen the robot turns to look at it before it commits;
 with no valley at all it turns toward the nearest unknown sector for up to a full circle,
@@ -97,7 +103,8 @@ def arc_free_m(cells_xy, pose, speed_m_s: float, turn_rate_rad_s: float, radius_
                step_m: float = 0.02) -> float:
     """How far the robot's disc enlarged to ``radius_m`` goes along the commanded arc
     (:func:`arc_poses`) before it comes within ``radius_m`` of an occupied cell's centre
-    *and nearer to it than at the start* (``distance_m`` when it does not within that). A cell
+    *and nearer to it than at the start* (the last sample before that, every ``step_m``;
+    ``distance_m`` when it does not within that). A cell
     already inside the enlarged disc only counts once the arc goes nearer to it: the robot may
     move along or away from what it passes, never into it. Every cell given counts, in the
     camera's view or not: the remembered ones are what a ±21° view does not show while it
