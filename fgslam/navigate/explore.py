@@ -280,6 +280,8 @@ class Explore:
         if self.goal is not None:
             self._ban(self.goal.xy, situation.now_s)
         self.goal = None
+        if distance_m is None:  # a bump's back-off, only as far as the grid is free behind
+            distance_m = self.vfh.escape_reverse_m(situation.pose, self.vfh.backoff.distance_m)
         self.vfh.backoff.start(situation, prefer_left=bool(self.rng.integers(2)), distance_m=distance_m)
 
     def _look_around(self, situation: Situation) -> Command | None:
@@ -315,9 +317,6 @@ class Explore:
         return situation.now_s - goal.improved_s <= self.stuck_s
 
     def step(self, situation: Situation) -> Command:
-        return self.vfh.noted(situation, self._decide(situation))  # the pose jumps, for vfh's stop test
-
-    def _decide(self, situation: Situation) -> Command:
         fresh_scan = self.vfh.observe(situation)
         self.visits.update(situation.sightings, situation.now_s, situation.landmarks, situation.pose[:2])
         if situation.bumped and not self.vfh.backoff.active:
@@ -326,7 +325,8 @@ class Explore:
             if self.goal is not None and self.goal.bumps >= 2:
                 self._abandon(situation)
             else:
-                self.vfh.backoff.start(situation, prefer_left=bool(self.rng.integers(2)))
+                self.vfh.backoff.start(situation, prefer_left=bool(self.rng.integers(2)),
+                                       distance_m=self.vfh.escape_reverse_m(situation.pose, self.vfh.backoff.distance_m))
         if self.vfh.spot.update(situation) and not self.vfh.backoff.active:
             self._abandon(situation, self.vfh.escape_reverse_m(situation.pose))  # goal after goal and still on one spot: leave it
         if self.vfh.backoff.active:

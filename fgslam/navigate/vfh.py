@@ -27,10 +27,7 @@ each step:
    occupied cell lies in the corridor ahead within the stopping distance, or when the disc,
    enlarged as for the histogram, would come nearer than that to an occupied cell — in view
    or remembered — anywhere along the arc the command drives within the stopping distance
-   (:func:`arc_free_m`). That margin grows by how far the grid may be off around the robot:
-   the sum of the pose estimate's jumps of the last 30 s, up to 8 cm (:class:`PoseJumps`; in
-   ``fgslam live`` the pose is the newest smoothed pose ⊕ the odometry since, and each
-   smoother correction moves the robot, not the grid its scans built).
+   (:func:`arc_free_m`).
 
 When the goal direction was never seen the robot turns to look at it before it commits;
 with no valley at all it turns toward the nearest unknown sector for up to a full circle,
@@ -48,16 +45,16 @@ import math
 
 import numpy as np
 
-from fgslam.navigate.common import (CRUISE_SPEED_M_S, MAX_TURN_RATE_RAD_S, ROBOT_RADIUS_M, BackOff, Command, Situation, SpotWatch,
+from fgslam.navigate.common import (CRUISE_SPEED_M_S, ROBOT_RADIUS_M, BackOff, Command, Situation, SpotWatch,
                                     heading_error_rad, limited_command, turn_towards)
 from fgslam.navigate.grid import OccupancyGrid
-from slamio.geometry import arc_increment, compose_pose, wrap_angle
+from slamio.geometry import wrap_angle
 
 OCCUPIED_LOG_ODDS = 0.5  # a cell above this is an obstacle (one hit: 0.9)
 ESCAPE_REVERSE_M = 0.25  # leaving a spot: back the way it came, well out of a 0.1 m circle
 
 __all__ = ["Vfh", "free_distances_m", "blocked_sectors", "valleys", "candidate_directions",
-           "choose_direction", "sector_angles_rad", "arc_poses", "arc_free_m", "pose_jump_m", "PoseJumps"]
+           "choose_direction", "sector_angles_rad", "arc_poses", "arc_free_m", "known_free_behind_m"]
 
 
 def sector_angles_rad(sectors: int) -> np.ndarray:
@@ -123,43 +120,22 @@ def arc_free_m(cells_xy, pose, speed_m_s: float, turn_rate_rad_s: float, radius_
     return float(np.argmax(hit) * step_m) if hit.any() else float(distance_m)
 
 
-def pose_jump_m(previous_pose, pose, speed_m_s: float, turn_rate_rad_s: float, dt_s: float,
-                lever_m: float = 0.5, slack_m: float = 0.005, slack_rad: float = math.radians(1.0)) -> float:
-    """How far the pose estimate moved between two steps beyond what the wheels could have
-    driven in ``dt_s`` under the command ``(speed, turn rate)`` (0 when within ``slack_m`` plus a
-    cruise speed's travel in ``dt_s`` and ``slack_rad`` plus a full turn rate's: the wheel ramps
-    may lag the command by that much): the translation beyond it plus the heading beyond it
-    times ``lever_m``, the reach at which a turned frame moves a nearby cell. A smoother's
-    correction does this (the live loop steers on the newest smoothed pose ⊕ the odometry
-    since); the grid, placed with the poses before it, is then that far off around the robot."""
-    moved = compose_pose(previous_pose, arc_increment(speed_m_s * dt_s, turn_rate_rad_s * dt_s))
-    offset = max(math.hypot(pose[0] - moved[0], pose[1] - moved[1]) - slack_m - CRUISE_SPEED_M_S * dt_s, 0.0)
-    turned = max(abs(float(wrap_angle(pose[2] - moved[2]))) - slack_rad - MAX_TURN_RATE_RAD_S * dt_s, 0.0)
-    return offset + lever_m * turned
-
-
-class PoseJumps:
-    """The pose jumps of the last ``memory_s`` (:func:`pose_jump_m`), summed: a bound on how far
-    the grid around the robot, built from scans of that time, may be off from where the
-    robot now thinks it is (``cap_m`` at most). 0 when the pose is exact (the harness)."""
-
-    def __init__(self, memory_s: float = 30.0, cap_m: float = 0.08):
-        self.memory_s, self.cap_m = memory_s, cap_m
-        self._jumps: list[tuple[float, float]] = []
-        self._previous: tuple[float, tuple, float, float] | None = None  # time, pose, command
-
-    def update(self, now_s: float, pose, speed_m_s: float, turn_rate_rad_s: float) -> None:
-        """Note the step's pose and the command given at it."""
-        if self._previous is not None and now_s > self._previous[0]:
-            then, before, speed, turn = self._previous
-            jump = pose_jump_m(before, pose, speed, turn, now_s - then)
-            if jump > 0:
-                self._jumps.append((now_s, jump))
-        self._jumps = [j for j in self._jumps if now_s - j[0] <= self.memory_s]
-        self._previous = (now_s, tuple(pose), speed_m_s, turn_rate_rad_s)
-
-    def misregistration_m(self) -> float:
-        return min(sum(j for _, j in self._jumps), self.cap_m)
+def known_free_behind_m(grid: OccupancyGrid, pose, radius_m: float, distance_m: float, step_m: float = 0.02) -> float:
+    """How far the disc of ``radius_m`` can go straight back from ``pose`` with every cell it
+    would newly cover known and not occupied (``distance_m`` at most): the floor behind the
+    robot is only free where a scan or the robot's own footprint has shown it."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    lateral = np.linspace(-radius_m, radius_m, 9)
+    for k in range(1, int(math.ceil(distance_m / step_m)) + 1):
+        back = k * step_m
+        # the disc's rear half-circle at this reverse: its back rim, points along it
+        arc = np.arcsin(np.clip(lateral / radius_m, -1.0, 1.0))
+        rim_along = -back - radius_m * np.cos(arc)
+        points = np.column_stack([pose[0] + c * rim_along - s * lateral, pose[1] + s * rim_along + c * lateral])
+        values = grid.values_at(points)
+        if np.any(values == 0) or np.any(values > OCCUPIED_LOG_ODDS):
+            return (k - 1) * step_m
+    return float(distance_m)
 
 
 def blocked_sectors(smoothed, low: float, high: float, previous=None) -> np.ndarray:
@@ -274,7 +250,6 @@ class Vfh:
         self._histogram = None
         self.spot = SpotWatch(stuck_s, progress_m)
         self.free_range_m = free_range_m
-        self.jumps = PoseJumps()
 
     # ------------------------------------------------------------------ memory
 
@@ -366,11 +341,10 @@ class Vfh:
 
     def _arc_free_m(self, pose, speed_m_s: float, turn_rate_rad_s: float, distance_m: float) -> float:
         """:func:`arc_free_m` on the occupied cells of the active window (remembered ones too),
-        the disc enlarged as for the histogram plus how far the grid may be off after the pose
-        estimate's recent jumps (:class:`PoseJumps`)."""
+        the disc enlarged as for the histogram."""
         cells, log_odds = self._window
-        return arc_free_m(cells[log_odds > OCCUPIED_LOG_ODDS], pose, speed_m_s, turn_rate_rad_s,
-                          self.enlarge_m + self.jumps.misregistration_m(), distance_m)
+        return arc_free_m(cells[log_odds > OCCUPIED_LOG_ODDS], pose, speed_m_s, turn_rate_rad_s, self.enlarge_m,
+                          distance_m)
 
     def _boxed_in(self, situation: Situation, known, unlooked) -> Command:
         """No way open: turn (toward the nearest sector not looked at lately) for up to a full
@@ -394,13 +368,14 @@ class Vfh:
         self._wander_until_s = situation.now_s + self.wander_period_s
         return self.backoff.step(situation)
 
-    def escape_reverse_m(self, pose) -> float:
-        """How far to reverse when leaving a spot: :data:`ESCAPE_REVERSE_M`, less when the map
-        shows something nearer behind (the robot has no eyes there; its own path is free)."""
-        if self._histogram is None:
-            return ESCAPE_REVERSE_M
-        behind = int(np.argmin(np.abs(wrap_angle(self._angles - (pose[2] + math.pi)))))
-        return float(np.clip(self._histogram[0][behind] - 0.05, 0.05, ESCAPE_REVERSE_M))
+    def escape_reverse_m(self, pose, most_m: float = ESCAPE_REVERSE_M) -> float:
+        """How far to reverse (leaving a spot: :data:`ESCAPE_REVERSE_M`; after a bump: the
+        back-off's 0.15 m): at most as far as the robot's disc goes
+        straight back over floor the grid knows is free (:func:`known_free_behind_m`), less
+        5 cm; 0 when that is less. The robot has no eyes or bumper behind: a reverse into a
+        corner it never saw, then a turn, brings that corner onto its bumper."""
+        free = known_free_behind_m(self.grid, pose, ROBOT_RADIUS_M, most_m + 0.05)
+        return float(np.clip(free - 0.05, 0.0, most_m))
 
     def goal_heading_rad(self, situation: Situation) -> float:
         """The world-frame heading toward the goal point, or the wander heading (module docstring)."""
@@ -423,12 +398,8 @@ class Vfh:
             self._wander_heading = float(wrap_angle(situation.pose[2] + math.pi))
             self._wander_until_s = situation.now_s + self.wander_period_s
         if situation.bumped:
-            self.backoff.start(situation, prefer_left=bool(self.rng.integers(2)))
-        command = (self.backoff.step(situation) if self.backoff.active
-                   else self.steer(situation, self.goal_heading_rad(situation), reuse=fresh))
-        return self.noted(situation, command)
-
-    def noted(self, situation: Situation, command: Command) -> Command:
-        """``command``, after noting it and the step's pose (:class:`PoseJumps`)."""
-        self.jumps.update(situation.now_s, situation.pose, command.speed_m_s, command.turn_rate_rad_s)
-        return command
+            self.backoff.start(situation, prefer_left=bool(self.rng.integers(2)),
+                               distance_m=self.escape_reverse_m(situation.pose, self.backoff.distance_m))
+        if self.backoff.active:
+            return self.backoff.step(situation)
+        return self.steer(situation, self.goal_heading_rad(situation), reuse=fresh)
