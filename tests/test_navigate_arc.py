@@ -1,15 +1,12 @@
-"""vfh's stop test along the commanded arc, and the pose jumps that grow its margin (issue 44:
+"""vfh's stop test along the commanded arc, and its reverse over known floor only (issue 44:
 the live benchmark's one vfh bump, a box corner met while turning past it)."""
-
-import math
 
 import numpy as np
 import pytest
 
 from fgslam.navigate.grid import OccupancyGrid
-from fgslam.navigate.vfh import PoseJumps, Vfh, arc_free_m, arc_poses, pose_jump_m
+from fgslam.navigate.vfh import Vfh, arc_free_m, arc_poses, known_free_behind_m
 from slamio.geometry import arc_increment, compose_pose
-
 
 def _disc_path(pose, speed, turn, distance_m, step_m=0.001):
     """Reference: the centre's positions every millimetre along the arc, by slamio.geometry."""
@@ -56,25 +53,19 @@ def test_a_box_corner_met_on_a_right_arc_stops_the_new_rule_not_the_old():
     assert nav._arc_free_m((0.0, 0.0, 0.0), speed, turn, stopping) < stopping
 
 
-def test_a_pose_jump_is_what_the_wheels_could_not_have_driven():
-    dt = 0.015
-    moved = compose_pose((0.0, 0.0, 0.0), arc_increment(0.25 * dt, 0.5 * dt))
-    assert pose_jump_m((0.0, 0.0, 0.0), moved, 0.25, 0.5, dt) == 0.0  # as commanded
-    # a smoother's correction of 6 cm sideways: 6 cm less the slack (5 mm + 0.25 m/s · 15 ms)
-    jumped = (moved[0], moved[1] + 0.06, moved[2])
-    assert pose_jump_m((0.0, 0.0, 0.0), jumped, 0.25, 0.5, dt) == pytest.approx(0.06 - 0.005 - 0.00375, abs=1e-4)
-    # a heading correction of 5°: beyond the slack (1° + 1 rad/s · 15 ms) times the 0.5 m lever
-    turned = (moved[0], moved[1], moved[2] + math.radians(5))
-    assert pose_jump_m((0.0, 0.0, 0.0), turned, 0.25, 0.5, dt) == pytest.approx(
-        0.5 * (math.radians(4) - dt), abs=1e-6)
-
-
-def test_pose_jumps_add_up_for_their_memory_then_are_forgotten_and_are_capped():
-    jumps = PoseJumps(memory_s=30.0, cap_m=0.08)
-    jumps.update(0.0, (0.0, 0.0, 0.0), 0.0, 0.0)
-    jumps.update(0.015, (0.0, 0.03, 0.0), 0.0, 0.0)  # 3 cm while standing: 3 − 0.5 − 0.375 cm
-    assert jumps.misregistration_m() == pytest.approx(0.02125)
-    jumps.update(0.03, (0.0, 0.11, 0.0), 0.0, 0.0)  # another 8 cm: the sum (9.25 cm) capped at 8 cm
-    assert jumps.misregistration_m() == pytest.approx(0.08)
-    jumps.update(31.0, (0.0, 0.11, 0.0), 0.0, 0.0)  # both older than 30 s
-    assert jumps.misregistration_m() == 0.0
+def test_reverse_only_over_floor_known_free_behind():
+    grid = OccupancyGrid(half_size_m=2.0, resolution_m=0.1)
+    pose = (0.0, 0.0, 0.0)
+    # nothing known behind: no reverse at all (the camera never looked there)
+    assert known_free_behind_m(grid, pose, 0.17, 0.3) == 0.0
+    # the strip the robot came along (x from −1 to 0, 0.2 m either side) known free: the whole 0.3 m
+    xs, ys = np.meshgrid(np.arange(-0.95, 0.0, 0.1), np.arange(-0.15, 0.2, 0.1))
+    grid.mark_occupied(np.column_stack([xs.ravel(), ys.ravel()]), -1.0)
+    assert known_free_behind_m(grid, pose, 0.17, 0.3) == pytest.approx(0.3)
+    # a corner remembered 0.5 m behind: the rear rim (0.17 m behind the centre) meets its cell
+    # (x −0.5…−0.4) after 0.24 m of reverse; the sample before is 0.22 m
+    grid.mark_occupied([[-0.45, 0.05]], 2.0)
+    assert known_free_behind_m(grid, pose, 0.17, 0.3) == pytest.approx(0.22)
+    nav = Vfh(grid=grid)
+    assert nav.escape_reverse_m(pose) == pytest.approx(0.17)  # less 5 cm
+    assert nav.escape_reverse_m(pose, 0.15) == pytest.approx(0.15)
