@@ -8,6 +8,7 @@ from fgslam.navigate.grid import OccupancyGrid
 from fgslam.navigate.vfh import Vfh, arc_free_m, arc_poses, known_free_behind_m
 from slamio.geometry import arc_increment, compose_pose
 
+
 def _disc_path(pose, speed, turn, distance_m, step_m=0.001):
     """Reference: the centre's positions every millimetre along the arc, by slamio.geometry."""
     s = np.arange(step_m, distance_m + 1e-12, step_m)
