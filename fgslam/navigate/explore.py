@@ -185,7 +185,8 @@ class Explore:
         self.rng = np.random.default_rng(seed)
         self.grid = grid if grid is not None else OccupancyGrid()
         # the floor counts as explored only where the tag detector could have read a tag
-        self.vfh = Vfh(seed=int(self.rng.integers(2**31)), grid=self.grid, free_range_m=explored_range_m)
+        self.vfh = Vfh(seed=int(self.rng.integers(2**31)), grid=self.grid, free_range_m=explored_range_m,
+                       careful=False)
         self.replan_s, self.reach_m, self.stuck_s, self.progress_m = replan_s, reach_m, stuck_s, progress_m
         self.visits_wanted, self.landmark_weight, self.turn_cost = visits_wanted, landmark_weight, turn_cost_m_per_rad
         self.visits = _Visits(revisit_gap_s)
@@ -280,8 +281,6 @@ class Explore:
         if self.goal is not None:
             self._ban(self.goal.xy, situation.now_s)
         self.goal = None
-        if distance_m is None:  # a bump's back-off, only as far as the grid is free behind
-            distance_m = self.vfh.escape_reverse_m(situation.pose, self.vfh.backoff.distance_m)
         self.vfh.backoff.start(situation, prefer_left=bool(self.rng.integers(2)), distance_m=distance_m)
 
     def _look_around(self, situation: Situation) -> Command | None:
@@ -325,8 +324,7 @@ class Explore:
             if self.goal is not None and self.goal.bumps >= 2:
                 self._abandon(situation)
             else:
-                self.vfh.backoff.start(situation, prefer_left=bool(self.rng.integers(2)),
-                                       distance_m=self.vfh.escape_reverse_m(situation.pose, self.vfh.backoff.distance_m))
+                self.vfh.backoff.start(situation, prefer_left=bool(self.rng.integers(2)))
         if self.vfh.spot.update(situation) and not self.vfh.backoff.active:
             self._abandon(situation, self.vfh.escape_reverse_m(situation.pose))  # goal after goal and still on one spot: leave it
         if self.vfh.backoff.active:
