@@ -136,11 +136,17 @@ def test_choice_weighs_goal_heading_and_previous_and_does_not_turn_back():
 
 def test_vfh_backs_off_and_turns_away_from_a_bump():
     nav = make_navigator("vfh", seed=0)
-    situation = Situation(0.0, (1.0, 1.0, 0.0), None, None, bumped=True, bump_side="left")
+    xs, ys = np.meshgrid(np.arange(0.45, 1.0, 0.1), np.arange(0.75, 1.3, 0.1))  # the floor it came over, seen free
+    nav.grid.mark_occupied(np.column_stack([xs.ravel(), ys.ravel()]), -1.0)
+    situation = Situation(2.0, (1.0, 1.0, 0.0), None, None, bumped=True, bump_side="left")
     assert nav.step(situation).speed_m_s < 0
-    after = Situation(2.0, (0.84, 1.0, 0.0), None, None)  # backed off 0.16 m: now turn right
+    after = Situation(4.0, (0.84, 1.0, 0.0), None, None)  # backed off 0.16 m: now turn right
     command = nav.step(after)
     assert command.state == "turn-away" and command.turn_rate_rad_s < 0
+    # nothing known behind (no footprints, no scan there): no reverse, only the turn away
+    blind = make_navigator("vfh", seed=0)
+    first = blind.step(Situation(0.0, (1.0, 1.0, 0.0), None, None, bumped=True, bump_side="left"))
+    assert first.speed_m_s == 0 and first.state == "turn-away" and first.turn_rate_rad_s < 0
 
 
 # --------------------------------------------------------------------------- grid and explore

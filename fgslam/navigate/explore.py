@@ -185,7 +185,8 @@ class Explore:
         self.rng = np.random.default_rng(seed)
         self.grid = grid if grid is not None else OccupancyGrid()
         # the floor counts as explored only where the tag detector could have read a tag
-        self.vfh = Vfh(seed=int(self.rng.integers(2**31)), grid=self.grid, free_range_m=explored_range_m)
+        self.vfh = Vfh(seed=int(self.rng.integers(2**31)), grid=self.grid, free_range_m=explored_range_m,
+                       careful=False)
         self.replan_s, self.reach_m, self.stuck_s, self.progress_m = replan_s, reach_m, stuck_s, progress_m
         self.visits_wanted, self.landmark_weight, self.turn_cost = visits_wanted, landmark_weight, turn_cost_m_per_rad
         self.visits = _Visits(revisit_gap_s)

@@ -24,7 +24,10 @@ each step:
    hysteresis, so it does not dither or turn round; :func:`choose_direction`);
 4. speed rises with the free distance ahead (cruise at 0.8 m) and falls with the turn still
    to make (0 beyond 25°: arcs sweep sides the ±21° camera has not seen), and is 0 when an
-   occupied cell lies in the corridor ahead within the stopping distance.
+   occupied cell lies in the corridor ahead within the stopping distance, or when the disc,
+   enlarged as for the histogram, would come nearer than that to an occupied cell — in view
+   or remembered — anywhere along the arc the command drives within the stopping distance
+   (:func:`arc_free_m`).
 
 When the goal direction was never seen the robot turns to look at it before it commits;
 with no valley at all it turns toward the nearest unknown sector for up to a full circle,
@@ -50,8 +53,8 @@ from slamio.geometry import wrap_angle
 OCCUPIED_LOG_ODDS = 0.5  # a cell above this is an obstacle (one hit: 0.9)
 ESCAPE_REVERSE_M = 0.25  # leaving a spot: back the way it came, well out of a 0.1 m circle
 
-__all__ = ["Vfh", "free_distances_m", "blocked_sectors", "valleys",
-           "candidate_directions", "choose_direction", "sector_angles_rad"]
+__all__ = ["Vfh", "free_distances_m", "blocked_sectors", "valleys", "candidate_directions",
+           "choose_direction", "sector_angles_rad", "arc_poses", "arc_free_m", "known_free_behind_m"]
 
 
 def sector_angles_rad(sectors: int) -> np.ndarray:
@@ -75,6 +78,64 @@ def free_distances_m(cells_xy, robot_xy, angles_rad, radius_m: float, d_max_m: f
     in_way = (np.abs(lateral) < radius_m) & (along > 0)
     reach = np.where(in_way, along - np.sqrt(np.maximum(radius_m**2 - lateral**2, 0.0)), np.inf)
     return np.clip(np.minimum(free, reach.min(axis=1)), 0.0, None)
+
+
+def arc_poses(pose, speed_m_s: float, turn_rate_rad_s: float, distance_m: float, step_m: float = 0.02) -> np.ndarray:
+    """Poses (n, 3) every ``step_m`` of travel along the arc the command ``(speed, turn rate)``
+    drives from ``pose``, out to ``distance_m`` (the start itself excluded; none when the
+    command does not move the centre forward)."""
+    if speed_m_s <= 0 or distance_m <= 0:
+        return np.zeros((0, 3))
+    s = np.arange(1, int(math.ceil(distance_m / step_m)) + 1) * step_m
+    turned = s * (turn_rate_rad_s / speed_m_s)  # heading change after s of travel (curvature · s)
+    small = np.abs(turned) < 1e-6
+    safe = np.where(small, 1.0, turned)
+    along = np.where(small, s, s * np.sin(safe) / safe)  # slamio.geometry.arc_increment, vectorised
+    aside = np.where(small, 0.5 * s * turned, s * (1 - np.cos(safe)) / safe)
+    c, si = math.cos(pose[2]), math.sin(pose[2])
+    return np.column_stack([pose[0] + c * along - si * aside, pose[1] + si * along + c * aside, pose[2] + turned])
+
+
+def arc_free_m(cells_xy, pose, speed_m_s: float, turn_rate_rad_s: float, radius_m: float, distance_m: float,
+               step_m: float = 0.02) -> float:
+    """How far the robot's disc enlarged to ``radius_m`` goes along the commanded arc
+    (:func:`arc_poses`) before it comes within ``radius_m`` of an occupied cell's centre
+    *and nearer to it than at the start* (the last sample before that, every ``step_m``;
+    ``distance_m`` when it does not within that). A cell
+    already inside the enlarged disc only counts once the arc goes nearer to it: the robot may
+    move along or away from what it passes, never into it. Every cell given counts, in the
+    camera's view or not: the remembered ones are what a ±21° view does not show while it
+    turns past a corner."""
+    cells = np.asarray(cells_xy, dtype=float).reshape(-1, 2)
+    poses = arc_poses(pose, speed_m_s, turn_rate_rad_s, distance_m, step_m)
+    if len(cells) == 0 or len(poses) == 0:
+        return float(distance_m)
+    start = np.hypot(cells[:, 0] - pose[0], cells[:, 1] - pose[1])
+    near = start < radius_m + distance_m  # the only cells the swept disc can reach
+    cells, start = cells[near], start[near]
+    if len(cells) == 0:
+        return float(distance_m)
+    reach = np.hypot(poses[:, None, 0] - cells[None, :, 0], poses[:, None, 1] - cells[None, :, 1])
+    hit = ((reach < radius_m) & (reach < start[None, :] - 1e-3)).any(axis=1)
+    return float(np.argmax(hit) * step_m) if hit.any() else float(distance_m)
+
+
+def known_free_behind_m(grid: OccupancyGrid, pose, radius_m: float, distance_m: float, step_m: float = 0.02) -> float:
+    """How far the disc of ``radius_m`` can go straight back from ``pose`` with every cell it
+    would newly cover known and not occupied (``distance_m`` at most): the floor behind the
+    robot is only free where a scan or the robot's own footprint has shown it."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    lateral = np.linspace(-radius_m, radius_m, 9)
+    for k in range(1, int(math.ceil(distance_m / step_m)) + 1):
+        back = k * step_m
+        # the disc's rear half-circle at this reverse: its back rim, points along it
+        arc = np.arcsin(np.clip(lateral / radius_m, -1.0, 1.0))
+        rim_along = -back - radius_m * np.cos(arc)
+        points = np.column_stack([pose[0] + c * rim_along - s * lateral, pose[1] + s * rim_along + c * lateral])
+        values = grid.values_at(points)
+        if np.any(values == 0) or np.any(values > OCCUPIED_LOG_ODDS):
+            return (k - 1) * step_m
+    return float(distance_m)
 
 
 def blocked_sectors(smoothed, low: float, high: float, previous=None) -> np.ndarray:
@@ -155,7 +216,7 @@ class Vfh:
                  d_max_m: float = 1.6, margin_m: float = 0.03, block_m: float = 0.3, clear_m: float = 0.45,
                  s_max: int = 16, wander_period_s: float = 20.0, look_m=(0.45, 0.7, 0.95), look_side_m=0.2,
                  relook_s: float = 5.0, near_m: float = ROBOT_RADIUS_M + 0.12, stuck_s: float = 6.0,
-                 progress_m: float = 0.2, free_range_m: float | None = None):
+                 progress_m: float = 0.2, free_range_m: float | None = None, careful: bool = True):
         self.rng = np.random.default_rng(seed)
         self.goal_xy = goal_xy
         self.grid = grid if grid is not None else OccupancyGrid()
@@ -189,6 +250,9 @@ class Vfh:
         self._histogram = None
         self.spot = SpotWatch(stuck_s, progress_m)
         self.free_range_m = free_range_m
+        # the arc stop test and the reverse over known floor only (module docstring); ``explore``
+        # runs without them until they are measured live for it (docs/navigate.md)
+        self.careful = careful
 
     # ------------------------------------------------------------------ memory
 
@@ -272,9 +336,19 @@ class Vfh:
         room = min(max((free[heading_sector] - self.block_m) / 0.5, 0.0), 1.0)  # cruise with 0.8 m free
         # arcs sweep the sides the narrow camera has not seen: turn mostly on the spot
         speed = CRUISE_SPEED_M_S * (0.3 + 0.7 * room) * max(0.0, 1.0 - abs(error) / math.radians(25))
-        if self._gap_ahead_m(pose) < 0.08 + speed**2 / (2 * 0.5) + speed * 0.2:
+        turn = turn_towards(error)
+        stopping_m = 0.08 + speed**2 / (2 * 0.5) + speed * 0.2
+        if self._gap_ahead_m(pose) < stopping_m or (
+                self.careful and self._arc_free_m(pose, speed, turn, stopping_m) < stopping_m):
             speed = 0.0
-        return limited_command(speed, turn_towards(error), "drive" if speed > 0 else "turn")
+        return limited_command(speed, turn, "drive" if speed > 0 else "turn")
+
+    def _arc_free_m(self, pose, speed_m_s: float, turn_rate_rad_s: float, distance_m: float) -> float:
+        """:func:`arc_free_m` on the occupied cells of the active window (remembered ones too),
+        the disc enlarged as for the histogram."""
+        cells, log_odds = self._window
+        return arc_free_m(cells[log_odds > OCCUPIED_LOG_ODDS], pose, speed_m_s, turn_rate_rad_s, self.enlarge_m,
+                          distance_m)
 
     def _boxed_in(self, situation: Situation, known, unlooked) -> Command:
         """No way open: turn (toward the nearest sector not looked at lately) for up to a full
@@ -298,13 +372,18 @@ class Vfh:
         self._wander_until_s = situation.now_s + self.wander_period_s
         return self.backoff.step(situation)
 
-    def escape_reverse_m(self, pose) -> float:
-        """How far to reverse when leaving a spot: :data:`ESCAPE_REVERSE_M`, less when the map
-        shows something nearer behind (the robot has no eyes there; its own path is free)."""
-        if self._histogram is None:
-            return ESCAPE_REVERSE_M
-        behind = int(np.argmin(np.abs(wrap_angle(self._angles - (pose[2] + math.pi)))))
-        return float(np.clip(self._histogram[0][behind] - 0.05, 0.05, ESCAPE_REVERSE_M))
+    def escape_reverse_m(self, pose, most_m: float = ESCAPE_REVERSE_M) -> float:
+        """How far to reverse (leaving a spot: :data:`ESCAPE_REVERSE_M`; after a bump: the
+        back-off's 0.15 m): at most as far as the robot's disc goes
+        straight back over floor the grid knows is free (:func:`known_free_behind_m`), less
+        5 cm; 0 when that is less. The robot has no eyes or bumper behind: a reverse into a
+        corner it never saw, then a turn, brings that corner onto its bumper."""
+        if not self.careful:  # as before: the histogram's free distance behind, at least 5 cm
+            behind = int(np.argmin(np.abs(wrap_angle(self._angles - (pose[2] + math.pi)))))
+            return (ESCAPE_REVERSE_M if self._histogram is None else
+                    float(np.clip(self._histogram[0][behind] - 0.05, 0.05, ESCAPE_REVERSE_M)))
+        free = known_free_behind_m(self.grid, pose, ROBOT_RADIUS_M, most_m + 0.05)
+        return float(np.clip(free - 0.05, 0.0, most_m))
 
     def goal_heading_rad(self, situation: Situation) -> float:
         """The world-frame heading toward the goal point, or the wander heading (module docstring)."""
@@ -327,7 +406,8 @@ class Vfh:
             self._wander_heading = float(wrap_angle(situation.pose[2] + math.pi))
             self._wander_until_s = situation.now_s + self.wander_period_s
         if situation.bumped:
-            self.backoff.start(situation, prefer_left=bool(self.rng.integers(2)))
+            self.backoff.start(situation, prefer_left=bool(self.rng.integers(2)),
+                               distance_m=self.escape_reverse_m(situation.pose, self.backoff.distance_m))
         if self.backoff.active:
             return self.backoff.step(situation)
         return self.steer(situation, self.goal_heading_rad(situation), reuse=fresh)
