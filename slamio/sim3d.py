@@ -100,16 +100,11 @@ def _curvature_at(pieces, s_m: float) -> float:
     return 0.0
 
 
-def simulate_drive(seed: int, scenario: DriveScenario = DriveScenario(), noise: StereoImuNoise = StereoImuNoise()) -> StereoImuDrive:
-    """One simulated drive with truth (see the module docstring)."""
-    sc = scenario
-    rng_world, rng_imu, rng_cam = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(3))
-    pieces, length_m = _curvature_profile(sc)
-    n_steps = int(round(length_m / (sc.speed_mps * sc.dt_s))) + 1
+def _true_twists_and_poses(sc: DriveScenario, pieces, length_m: float, n_steps: int, rng_world
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    """The true body twists (n, 6) and poses (n, 4, 4) along the curvature profile, with the
+    seeded roll / pitch wobble and climb."""
     tau = sc.dt_s
-    stamps = np.arange(n_steps) * tau
-
-    # ---- truth: body twists and poses
     phase = rng_world.uniform(0.0, 2.0 * math.pi, size=3)
     twists = np.zeros((n_steps, 6))
     poses = np.zeros((n_steps, 4, 4))
@@ -124,18 +119,34 @@ def simulate_drive(seed: int, scenario: DriveScenario = DriveScenario(), noise: 
         climb = sc.climb_mps * math.sin(2.0 * math.pi * s_mid / length_m + phase[2])
         twists[t] = [sc.speed_mps, 0.0, climb, roll_rate, pitch_rate, yaw_rate]
         T = T @ exp_se3(tau * twists[t])
+    return twists, poses
 
-    # ---- world: facade points along the path
+
+def _facade_landmarks(sc: DriveScenario, poses: np.ndarray, rng_world) -> np.ndarray:
+    """Facade points (m, 3) on both sides of the path, one pair every ``landmark_spacing_m``."""
     positions = poses[:, :3, 3]
     landmarks = []
-    for t in range(0, n_steps, max(1, int(round(sc.landmark_spacing_m / (sc.speed_mps * tau))))):
+    for t in range(0, len(poses), max(1, int(round(sc.landmark_spacing_m / (sc.speed_mps * sc.dt_s))))):
         R = poses[t, :3, :3]
         for side in (1.0, -1.0):
             lateral = side * (sc.road_half_width_m + rng_world.uniform(0.0, sc.facade_depth_m))
             ahead = rng_world.uniform(-sc.landmark_spacing_m, sc.landmark_spacing_m)
             up = rng_world.uniform(-1.0, sc.max_height_m)
             landmarks.append(positions[t] + R @ np.array([ahead, lateral, up]))
-    landmarks = np.array(landmarks)
+    return np.array(landmarks)
+
+
+def simulate_drive(seed: int, scenario: DriveScenario = DriveScenario(), noise: StereoImuNoise = StereoImuNoise()) -> StereoImuDrive:
+    """One simulated drive with truth (see the module docstring)."""
+    sc = scenario
+    rng_world, rng_imu, rng_cam = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(3))
+    pieces, length_m = _curvature_profile(sc)
+    n_steps = int(round(length_m / (sc.speed_mps * sc.dt_s))) + 1
+    tau = sc.dt_s
+    stamps = np.arange(n_steps) * tau
+
+    twists, poses = _true_twists_and_poses(sc, pieces, length_m, n_steps, rng_world)
+    landmarks = _facade_landmarks(sc, poses, rng_world)
     n_landmarks = landmarks.shape[0]
 
     # ---- IMU

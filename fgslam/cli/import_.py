@@ -48,7 +48,8 @@ def add_parser(verbs) -> argparse.ArgumentParser:
             "                 read from it too, in place of the run log it stores).\n"
             "  seed003        one of seed 003's stereo + IMU drives (SOURCE: its .npz): a 3-D log\n"
             "                 with one velocity record per step and the stereo feature tracks;\n"
-            "                 --pixel-sigma, --speed-sigma, --turn-rate-sigma set the noise.\n"
+            "                 --pixel-sigma (or --pixel-covariance), --speed-sigma, --turn-rate-sigma\n"
+            "                 set the noise.\n"
             "See docs/datasets.md for what is converted and how. An existing OUT is kept unless\n"
             "--overwrite. One dataset per command: SOURCE (or --source, not both) is optional for\n"
             "victoria-park, plaza1 and plaza2 (default: the gtsam wheel's copy). An option of one\n"
@@ -91,6 +92,14 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     imp.add_argument("--tag-pose-topic", default=None,
                      help="rosbag: prefix of one geometry_msgs/PoseStamped topic per tag, e.g. /tags/tag_")
     imp.add_argument("--truth-topic", default=None, help="rosbag: ground-truth pose topic (optional)")
+    _add_seed003_options(imp)
+    add_rosbag_options(imp)
+    imp.set_defaults(func=cmd_import, takes_extra_paths=True)
+    return imp
+
+
+def _add_seed003_options(imp: argparse.ArgumentParser) -> None:
+    """seed003's noise options: the stereo pixels' σ or 4×4 covariance, the IMU's σ."""
     imp.add_argument("--pixel-sigma", type=float, default=None, metavar="PX",
                      help="seed003: σ of each stereo pixel coordinate (default 1 px)")
     imp.add_argument("--pixel-covariance", type=float, nargs="+", default=None, metavar="PX",
@@ -101,9 +110,6 @@ def add_parser(verbs) -> argparse.ArgumentParser:
                      help="seed003: σ of each axis of the IMU's linear velocity (default 0.05 m/s)")
     imp.add_argument("--turn-rate-sigma", type=float, default=None, metavar="RAD/S",
                      help="seed003: σ of each axis of the IMU's angular velocity (default 0.005 rad/s)")
-    add_rosbag_options(imp)
-    imp.set_defaults(func=cmd_import, takes_extra_paths=True)
-    return imp
 
 
 PLAZA = ("plaza1", "plaza2")
