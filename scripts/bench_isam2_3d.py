@@ -35,7 +35,7 @@ import numpy as np  # noqa: E402
 from fgslam.memory import PeakMemory  # noqa: E402
 from fgslam.runner3d import Reference3d, in_world, position_rmse_m, prepare_log3d, truth_reference_3d  # noqa: E402
 from fgslam.smoother3d import MAX_HELD_FACTORS, StereoIsam2, batch_solve  # noqa: E402
-from scripts.bench_vio import full_run, load  # noqa: E402
+from scripts.bench_vio import full_run, load, print_full_runs  # noqa: E402
 
 
 class _Held:
@@ -121,11 +121,7 @@ def main(argv=None) -> int:
             del s, batch
         if args.full_run:
             full.append((name, *full_run(log)))
-    if full:
-        print()
-        print_table_head("log", "default fgslam run s (no report)", "peak MB")
-        for name, seconds, peak in full:
-            print_table_row(name, f"{seconds:.1f}", _fmt(peak, 0))
+    print_full_runs(full)
     return 0
 
 

@@ -160,12 +160,18 @@ def main(argv=None) -> int:
                                 r["marginalised"])
         if args.full_run:
             full.append((name, *full_run(log)))
+    print_full_runs(full)
+    return 0
+
+
+
+def print_full_runs(full: list) -> None:
+    """The table of default ``fgslam run`` figures, (log, seconds, peak MB) per row, if any."""
     if full:
         print()
         print_table_head("log", "default fgslam run s (no report)", "peak MB")
         for name, seconds, peak in full:
             print_table_row(name, f"{seconds:.1f}", _fmt(peak, 0))
-    return 0
 
 
 if __name__ == "__main__":
