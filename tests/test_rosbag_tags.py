@@ -189,3 +189,28 @@ def test_test_22_from_bag_to_report_against_tagslam(tmp_path):
     assert metrics["isam2"]["ate_aligned_rmse_m"] <= 0.15
     assert metrics["isam2"]["map_rmse_m"] <= 0.2
     assert metrics["ekf"]["nis_inside_95"] >= 0.85
+
+
+def test_without_a_truth_bag_the_tags_files_surveyed_tag_is_the_truth_map(tmp_path, capsys):
+    """test_22's tagslam.yaml surveys tag 3 (the yard's anchor, 1.5 m up, facing -x): imported
+    without reference.bag it is the log's truth landmark, at the place TagSLAM's optimised map
+    (reference.bag's /tf, anchored on that survey) holds it; with the truth bag the map is /tf's."""
+    from fgslam.cli import main
+    from slamio.log import TruthLandmark, read_log
+
+    common = ["import", "rosbag", str(DATA / "tag_detections.bag"), "--odom-topic", "/camera/odom/sample",
+              "--detections-topic", "/detector/tags/left", "--camera", str(DATA / "cameras.yaml"),
+              "--tags", str(DATA / "tagslam.yaml"), "--camera-poses", str(DATA / "camera_poses.yaml")]
+    surveyed, optimised = tmp_path / "surveyed.jsonl", tmp_path / "optimised.jsonl"
+    assert main([*common, str(surveyed)]) == 0
+    assert main([*common, str(optimised), "--truth-bag", str(DATA / "reference.bag"),
+                 "--truth-topic", "/tagslam/odom/body_rig", "--truth-pose-of", "camera"]) == 0
+    capsys.readouterr()
+    logs = {name: read_log(path) for name, path in (("surveyed", surveyed), ("optimised", optimised))}
+    assert logs["surveyed"].header.source["truth_landmarks"] == "tags file (surveyed poses)"
+    assert logs["optimised"].header.source["truth_landmarks"] == "tf"
+    (tag,) = [r for r in logs["surveyed"].records if isinstance(r, TruthLandmark)]
+    assert (tag.landmark_id, tag.x_m, tag.y_m) == (3, pytest.approx(0.0, abs=1e-9), pytest.approx(0.0, abs=1e-9))
+    assert tag.height_m == pytest.approx(1.5) and abs(abs(tag.yaw_rad) - math.pi) < 1e-4  # rotvec (0, -π/2, 0)
+    mapped = {r.landmark_id: r for r in logs["optimised"].records if isinstance(r, TruthLandmark)}
+    assert math.hypot(mapped[3].x_m - tag.x_m, mapped[3].y_m - tag.y_m) < 0.02

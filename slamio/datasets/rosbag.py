@@ -111,7 +111,7 @@ from slamio.datasets.rosbag_cameras import (
     camera_mounts, camera_names as names_of_cameras, per_camera, require_image_cameras, resolve_cameras,
 )
 from slamio.datasets.rosbag_images import BagImageTags
-from slamio.datasets.rosbag_observe import sighting_observations, tag_map_from_tf, truth_from_bag
+from slamio.datasets.rosbag_observe import sighting_observations, surveyed_tag_map, tag_map_from_tf, truth_from_bag
 from slamio.datasets.rosbag_options import (
     DEFAULT_MAX_TRUTH_GAP_S, DEFAULT_SIGMA_BEARING_RAD, DEFAULT_SIGMA_HEIGHT_M, DEFAULT_SIGMA_RANGE_M,
     DEFAULT_SIGMA_TAG_YAW_RAD, ImportOptions, check_level_and_truth, check_options, corner_inputs,
@@ -310,6 +310,10 @@ def _convert(o: ImportOptions, messages: Messages, warnings: list[str], level: s
                             else read_pose_topic(os.fspath(truth_bag), o.truth_topic))  # type: ignore[arg-type]
         messages.truth = truth_from_bag(poses, truth_pose_of, o.T_rc)
         landmarks = tag_map_from_tf(tf, frame)
+    landmarks_from = "tf" if landmarks else None
+    surveyed = getattr(o.tag_sizes, "surveyed", None)
+    if not landmarks and surveyed:  # the tags file's surveyed tags, in the same map frame as a truth from TagSLAM
+        landmarks, landmarks_from = surveyed_tag_map(surveyed), "tags file (surveyed poses)"
     truth = TruthTrack(messages.truth, odometry[0][0], o.max_truth_gap_s)
     start_pose = start_pose_of(o, odometry, truth)
     records, counts = pose_records(o, odometry, at_pose, inside, truth)
@@ -320,5 +324,6 @@ def _convert(o: ImportOptions, messages: Messages, warnings: list[str], level: s
                           else dict(zip(o.camera_names, o.mount_sources)),
                           **({"truth_bag": os.fspath(truth_bag), "truth_pose_of": truth_pose_of} if truth_bag else {}),
                           **({"truth_frames": ":".join(truth_frames), "truth_pose_of": truth_pose_of}
-                             if truth_frames else {})})
+                             if truth_frames else {}),
+                          **({"truth_landmarks": landmarks_from} if landmarks_from else {})})
     return header, list(check_records(o.path, header, [*landmarks, *records]))  # never a log the reader refuses

@@ -141,7 +141,18 @@ def tag_map_from_tf(transforms: dict[tuple[str, str], np.ndarray], root: str) ->
         T = _chain(transforms, root, frame)
         if T is None:
             continue
-        n = T[:3, 2]
-        yaw = math.atan2(n[1], n[0]) if math.hypot(n[0], n[1]) >= 0.5 else None
-        out.append(TruthLandmark(int(m.group(1)), float(T[0, 3]), float(T[1, 3]), float(T[2, 3]), yaw))
+        out.append(truth_landmark_of_tag(int(m.group(1)), T))
     return out
+
+
+def truth_landmark_of_tag(tag_id: int, T_map_tag: np.ndarray) -> TruthLandmark:
+    """A tag's 4×4 pose in the map as a truth landmark: position, height, and the yaw of its
+    face normal (+z; None when the tag faces up or down, more than 60° from the wall)."""
+    n = T_map_tag[:3, 2]
+    yaw = math.atan2(n[1], n[0]) if math.hypot(n[0], n[1]) >= 0.5 else None
+    return TruthLandmark(int(tag_id), float(T_map_tag[0, 3]), float(T_map_tag[1, 3]), float(T_map_tag[2, 3]), yaw)
+
+
+def surveyed_tag_map(surveyed: dict[int, np.ndarray]) -> list[TruthLandmark]:
+    """The surveyed tag poses of a tags file (TagSLAM's static bodies) as truth landmarks."""
+    return [truth_landmark_of_tag(tag_id, T) for tag_id, T in sorted(surveyed.items())]
