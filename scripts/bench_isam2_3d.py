@@ -35,7 +35,7 @@ import numpy as np  # noqa: E402
 from fgslam.memory import PeakMemory  # noqa: E402
 from fgslam.runner3d import Reference3d, in_world, position_rmse_m, prepare_log3d, truth_reference_3d  # noqa: E402
 from fgslam.smoother3d import MAX_HELD_FACTORS, StereoIsam2, batch_solve  # noqa: E402
-from scripts.bench_vio import full_run, load, print_full_runs  # noqa: E402
+from scripts.bench_vio import fmt_or_dash, full_run, load, print_full_runs  # noqa: E402
 
 
 class _Held:
@@ -88,10 +88,6 @@ def _moved(poses, ready):
     return in_world(Run3d("x", poses, poses, {}, None, 0.0), ready.world_T_start).final
 
 
-def _fmt(v, digits: int) -> str:
-    return "–" if v is None else f"{v:.{digits}f}"
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("logs", nargs="+", help="seed003:NAME, long-sim[:SEED] or a 3-D log path")
@@ -115,7 +111,7 @@ def main(argv=None) -> int:
             ate_final = position_rmse_m(_moved(s.smoothed_trajectory(), ready), reference.trajectory, 3,
                                         reference.mask)
             print_table_row(name, "every" if bound is None else bound, f"{r['steps_s']:.1f}", f"{r['finish_s']:.1f}",
-                            f"{r['cov_s']:.1f}", r["cpu"], f"{r['p99_ms']:.0f} / {r['max_ms']:.0f}", _fmt(r["peak_mb"], 0),
+                            f"{r['cov_s']:.1f}", r["cpu"], f"{r['p99_ms']:.0f} / {r['max_ms']:.0f}", fmt_or_dash(r["peak_mb"], 0),
                             r["held"], r["slides"], f"{ate_online:.3f}", f"{ate_final:.3f}",
                             f"{s.error() / batch.error:.4f}", reference.kind)
             del s, batch

@@ -130,7 +130,7 @@ def full_run(log: RunLog) -> tuple[float, float | None]:
     return seconds, None if memory.peak_bytes is None else memory.peak_bytes / 1e6
 
 
-def _fmt(v, digits: int) -> str:
+def fmt_or_dash(v, digits: int) -> str:
     return "–" if v is None else f"{v:.{digits}f}"
 
 
@@ -156,7 +156,7 @@ def main(argv=None) -> int:
             for label, after, cap in configs:
                 r = one_run(ready, reference, first_estimates, after, cap)
                 print_table_row(name, "ekf-vio-fej" if first_estimates else "ekf-vio", label, f"{r['time_s']:.2f}",
-                                f"{r['p99_ms']:.1f}", _fmt(r["peak_mb"], 0), r["largest"], f"{r['ate_m']:.3f}",
+                                f"{r['p99_ms']:.1f}", fmt_or_dash(r["peak_mb"], 0), r["largest"], f"{r['ate_m']:.3f}",
                                 r["marginalised"])
         if args.full_run:
             full.append((name, *full_run(log)))
@@ -171,7 +171,7 @@ def print_full_runs(full: list) -> None:
         print()
         print_table_head("log", "default fgslam run s (no report)", "peak MB")
         for name, seconds, peak in full:
-            print_table_row(name, f"{seconds:.1f}", _fmt(peak, 0))
+            print_table_row(name, f"{seconds:.1f}", fmt_or_dash(peak, 0))
 
 
 if __name__ == "__main__":
