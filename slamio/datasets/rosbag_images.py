@@ -19,7 +19,6 @@ cannot decode is skipped and counted (``images_undecodable``).
 
 from __future__ import annotations
 
-import time
 from collections import Counter
 from typing import Any, Callable
 
@@ -40,6 +39,11 @@ class ImageRefused(ValueError):
     """An image message that no frame of its topic can be read from (the reason names the fix)."""
 
 
+def _message_bytes(msg: Any) -> np.ndarray:
+    """An image message's ``data`` as uint8 (rosbags gives a numpy array or bytes)."""
+    return np.frombuffer(msg.data if isinstance(msg.data, np.ndarray) else bytes(msg.data), dtype=np.uint8)
+
+
 def _grey_from_raw(msg: Any) -> np.ndarray:
     encoding = str(msg.encoding)
     if encoding in DEPTH_ENCODINGS:
@@ -50,7 +54,7 @@ def _grey_from_raw(msg: Any) -> np.ndarray:
                            "e.g. with image_proc, as mono8 or bgr8)")
     channels = IMAGE_ENCODINGS[encoding]
     h, w, step = int(msg.height), int(msg.width), int(msg.step)
-    data = np.frombuffer(bytes(msg.data) if not isinstance(msg.data, np.ndarray) else msg.data, dtype=np.uint8)
+    data = _message_bytes(msg)
     if h <= 0 or w <= 0 or step < w * channels or data.size < h * step:
         raise ImageRefused(f"says {w}×{h} pixels, {step} bytes a row ({encoding}) but holds {data.size} bytes")
     pixels = data[:h * step].reshape(h, step)[:, :w * channels].reshape(h, w, channels)
@@ -73,14 +77,13 @@ def grey_from_image_message(msg: Any) -> np.ndarray | None:
     if "compressedDepth" in fmt or any(d in fmt for d in DEPTH_ENCODINGS):
         raise ImageRefused(f"is a compressed depth image (format {fmt!r}): tags are found in grey or colour images; "
                            "name the camera's colour or mono image topic with --image-topic")
-    data = np.frombuffer(bytes(msg.data) if not isinstance(msg.data, np.ndarray) else msg.data, dtype=np.uint8)
-    grey = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE) if data.size else None
-    return grey
+    data = _message_bytes(msg)
+    return cv2.imdecode(data, cv2.IMREAD_GRAYSCALE) if data.size else None
 
 
 class BagImageTags:
     """The tags of each image message of a bag's image topics (``cameras``: topic → camera),
-    counting frames, tags and skipped frames, and the time spent (``seconds``); ``progress(done,
+    counting frames, tags and skipped frames; ``progress(done,
     total, label)`` is called after every frame (``total``: the image messages of all topics)."""
 
     def __init__(self, path: str, cameras: dict[str, CameraModel], family: str = "tag36h11", total: int = 0,
@@ -90,14 +93,12 @@ class BagImageTags:
         self.path, self.cameras, self.total, self.progress = path, cameras, total, progress
         self.detector = front_end_detector(family)
         self.counts: dict[str, Counter] = {topic: Counter() for topic in cameras}
-        self.seconds = 0.0
         self.frames = 0
 
     def __call__(self, topic: str, index: int, msg: Any) -> list[tuple[int, np.ndarray]]:
         """(tag id, 4×2 corners in the MIT detector's order, as ``apriltag_msgs`` carries them)."""
         from slamio.camera.detect import tag_corners_for_pose
 
-        started = time.perf_counter()
         camera, counts = self.cameras[topic], self.counts[topic]
         try:
             grey = grey_from_image_message(msg)
@@ -121,7 +122,6 @@ class BagImageTags:
                     counts[note] += 1
                 counts["tags"] += 1
                 tags.append((det.tag_id, corners[::-1].copy()))  # OpenCV's TL, TR, BR, BL → MIT's BL, BR, TR, TL
-        self.seconds += time.perf_counter() - started
         self.frames += 1
         if self.progress is not None:
             self.progress(self.frames, self.total, "images")
