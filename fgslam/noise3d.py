@@ -16,7 +16,7 @@ import numpy as np
 from slamio.datasets.seed003 import StereoImuNoise
 from slamio.errors import FgslamError
 from slamio.log import RunLog, group_steps
-from slamio.stereo import mean_row_covariance
+from slamio.stereo import mean_row_covariance, rms_sigma_px
 
 __all__ = ["noise_of", "stereo_factor_noise"]
 
@@ -42,7 +42,7 @@ def noise_of(log: RunLog, steps=None) -> StereoImuNoise:
         )
     sigma_px, pixel_covariance = pixel_noises.pop() if pixel_noises else (StereoImuNoise().sigma_px, None)
     pixels = {"sigma_px": sigma_px} if pixel_covariance is None else {
-        "sigma_px": math.sqrt(float(np.trace(pixel_covariance)) / 4.0),  # a summary only: the covariance rules
+        "sigma_px": rms_sigma_px(pixel_covariance),  # a summary only: the covariance rules
         "pixel_covariance": pixel_covariance,
     }
     if not covs:

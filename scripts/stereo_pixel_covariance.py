@@ -37,13 +37,14 @@ TOLD = ("true", "diagonal", "isotropic")
 def told_noise(true_cov: np.ndarray, told: str):
     """The :class:`StereoImuNoise` an estimator is given: the true covariance, its diagonal, or one σ."""
     from slamio.datasets.seed003 import StereoImuNoise
+    from slamio.stereo import rms_sigma_px
 
     if told == "true":
         return StereoImuNoise(pixel_covariance=tuple(tuple(float(v) for v in row) for row in true_cov))
     if told == "diagonal":
         diagonal = np.diag(np.diag(true_cov))
         return StereoImuNoise(pixel_covariance=tuple(tuple(float(v) for v in row) for row in diagonal))
-    return StereoImuNoise(sigma_px=float(np.sqrt(np.trace(true_cov) / 4.0)))
+    return StereoImuNoise(sigma_px=rms_sigma_px(true_cov))
 
 
 def measure(seed: int, true_cov: np.ndarray, scenario=None) -> dict[str, dict[str, dict]]:

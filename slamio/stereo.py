@@ -17,6 +17,7 @@ __all__ = [
     "MEAN_ROW",
     "disparity_depth_m",
     "mean_row_covariance",
+    "rms_sigma_px",
     "rectified_pixel_covariance",
     "point_from_stereo",
     "point_from_stereo_jacobian",
@@ -120,6 +121,12 @@ def mean_row_covariance(pixel_cov) -> np.ndarray:
     consistent, only slightly less precise than the full 4-D one.
     """
     return MEAN_ROW @ np.asarray(pixel_cov, dtype=float) @ MEAN_ROW.T
+
+
+def rms_sigma_px(pixel_cov) -> float:
+    """One σ (px) summing up a 4×4 pixel covariance: √(trace / 4), the σ of an isotropic noise
+    of the same total variance."""
+    return float(np.sqrt(np.trace(np.asarray(pixel_cov, dtype=float)) / 4.0))
 
 
 def rectified_pixel_covariance(sigma_u_px: float, sigma_v_px: float, row_correlation: float,

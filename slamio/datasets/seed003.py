@@ -81,12 +81,6 @@ class StereoImuNoise:
             return np.array(self.pixel_covariance, dtype=float)
         return self.sigma_px**2 * np.eye(4)
 
-    def pixel_rms_sigma_px(self) -> float:
-        """One σ summing up the pixel noise: √(trace/4) of :meth:`pixel_cov` (``sigma_px`` without a covariance)."""
-        if self.pixel_covariance is None:
-            return self.sigma_px
-        return float(np.sqrt(np.trace(self.pixel_cov()) / 4.0))
-
 
 @dataclass(frozen=True)
 class StereoImuDrive:
