@@ -113,7 +113,9 @@ def _mount(args: argparse.Namespace, tags, topics: list[str]):
     T_rig_odom = tags.T_body_odom if tags is not None and tags.T_body_odom is not None else np.eye(4)
     if n == 1:
         return np.linalg.inv(T_rig_odom) @ load_camera_poses(args.camera_poses, args.camera_name)
-    return [np.linalg.inv(T_rig_odom) @ load_camera_poses(args.camera_poses, f"cam{k}") for k in range(n)]
+    from slamio.datasets.rosbag_cameras import default_camera_names
+
+    return [np.linalg.inv(T_rig_odom) @ load_camera_poses(args.camera_poses, name) for name in default_camera_names(n)]
 
 
 def camera_poses_by_name(values: list[str], topics: list[str]):
@@ -122,7 +124,9 @@ def camera_poses_by_name(values: list[str], topics: list[str]):
     n = max(1, len(topics))
     if n == 1 and len(values) == 1 and "=" not in values[0]:
         return parse_camera_pose(values[0])
-    names = [f"cam{k}" for k in range(n)]
+    from slamio.datasets.rosbag_cameras import default_camera_names
+
+    names = list(default_camera_names(n))
     out: list = [None] * n
     for value in values:
         name, sep, pose = value.rpartition("=")
@@ -154,7 +158,9 @@ def _cameras(args: argparse.Namespace, topics: list[str]):
             raise FgslamError(f"{len(files)} --camera files for one camera topic; give one")
         return load_camera_file(files[0], args.camera_name)
     if len(files) == 1:  # one Kalibr file holding cam0, cam1, ...
-        return [load_camera_file(files[0], f"cam{k}") for k in range(n)]
+        from slamio.datasets.rosbag_cameras import default_camera_names
+
+        return [load_camera_file(files[0], name) for name in default_camera_names(n)]
     if len(files) != n:
         raise FgslamError(f"{len(files)} --camera files for {n} camera topics ({', '.join(topics)}): give one per "
                           "topic in the same order, or one Kalibr file holding cam0, cam1, ...")

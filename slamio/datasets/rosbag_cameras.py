@@ -28,7 +28,12 @@ from slamio.datasets.rosbag_observe import camera_mount
 from slamio.datasets.rosbag_read import BagFormatError, CameraTopics
 from slamio.errors import FgslamError
 
-__all__ = ["camera_mounts", "camera_names", "per_camera", "resolve_cameras"]
+__all__ = ["camera_mounts", "camera_names", "default_camera_names", "per_camera", "resolve_cameras"]
+
+
+def default_camera_names(n: int) -> tuple[str, ...]:
+    """cam0, cam1, ...: the names of a rig's n cameras, as Kalibr and TagSLAM's files call them."""
+    return tuple(f"cam{k}" for k in range(n))
 
 
 def camera_names(cameras: CameraTopics, names: Any = None) -> tuple[str, ...]:
@@ -36,7 +41,7 @@ def camera_names(cameras: CameraTopics, names: Any = None) -> tuple[str, ...]:
     camera of tag pose topics when no camera topic is named)."""
     n = max(1, len(cameras.topics))
     if names is None:
-        return tuple(f"cam{k}" for k in range(n))
+        return default_camera_names(n)
     names = tuple(str(v) for v in names)
     if len(names) != n or len(set(names)) != n:
         raise FgslamError(f"camera names {list(names)} must be {n} different names, one per camera topic "
