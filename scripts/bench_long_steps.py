@@ -123,25 +123,17 @@ def _timed_held_back(events: Events):
     rebuild (a fresh iSAM2 from the whole graph after a failed update), timed."""
     from fgslam.smoother import updates
 
-    plain, plain_rebuild = updates.held_back, updates.rebuild
+    def timed(plain, into: list):
+        def call(*args):
+            start = time.perf_counter()
+            try:
+                return plain(*args)
+            finally:
+                into.append((start, time.perf_counter() - start))
+        return call
 
-    def rebuild(*args):
-        start = time.perf_counter()
-        try:
-            return plain_rebuild(*args)
-        finally:
-            events.rebuilds.append((start, time.perf_counter() - start))
-
-    updates.rebuild = rebuild
-
-    def held_back(*args):
-        start = time.perf_counter()
-        try:
-            return plain(*args)
-        finally:
-            events.checks.append((start, time.perf_counter() - start))
-
-    updates.held_back = held_back
+    updates.rebuild = timed(updates.rebuild, events.rebuilds)
+    updates.held_back = timed(updates.held_back, events.checks)
 
 
 def instrumented(header, events: Events):
