@@ -191,6 +191,23 @@ def test_a_negative_cap_is_refused():
         Isam2Smoother(header, relinearize_max_variables=-1)
 
 
+def _capped_at_zero_recording(header, **settings):
+    """A smoother checking every third update with every variable past a zero threshold and a
+    cap of 0, and the linearisation points of each ISAM2 it makes (the first, each rebuilt or
+    slid one), in order."""
+    smoother = Isam2Smoother(header, update_every=1, relinearize_skip=3, relinearize_threshold=0.0,
+                             relinearize_max_variables=0, **settings)
+    records = []
+
+    def recorded(isam):
+        records.append(_LinearisationPoints(isam))
+        return records[-1]
+
+    smoother._isam_wrapper = recorded
+    smoother._isam = smoother._new_isam(smoother._isam)
+    return smoother, records
+
+
 def test_after_a_rebuild_the_cap_still_falls_on_gtsams_checks():
     """A failed update rebuilds iSAM2 with one update of its own; GTSAM counts it, so the
     smoother must too, or its cap is computed on updates GTSAM does not check and GTSAM's
@@ -200,16 +217,7 @@ def test_after_a_rebuild_the_cap_still_falls_on_gtsams_checks():
     from test_smoother import junk, make_loop_log, with_extra
 
     header, steps, _, _ = make_loop_log(n_steps=60)
-    smoother = Isam2Smoother(header, update_every=1, relinearize_skip=3, relinearize_threshold=0.0,
-                             relinearize_max_variables=0)
-    records = []
-
-    def recorded(isam):
-        records.append(_LinearisationPoints(isam))
-        return records[-1]
-
-    smoother._isam_wrapper = recorded
-    smoother._isam = smoother._new_isam(smoother._isam)
+    smoother, records = _capped_at_zero_recording(header)
     for step in steps:
         smoother.step(with_extra(step, junk(step, 99)) if step.index == 20 else step)
     assert smoother.update_failures == 1 and len(records) == 2  # the first ISAM2 and the rebuilt one
@@ -230,16 +238,7 @@ def test_after_a_window_slide_the_cap_still_falls_on_gtsams_checks():
     from test_smoother import make_loop_log
 
     header, steps, _, _ = make_loop_log(n_steps=80)
-    smoother = Isam2Smoother(header, update_every=1, relinearize_skip=3, relinearize_threshold=0.0,
-                             relinearize_max_variables=0, window_poses=10)
-    records = []
-
-    def recorded(isam):
-        records.append(_LinearisationPoints(isam))
-        return records[-1]
-
-    smoother._isam_wrapper = recorded
-    smoother._isam = smoother._new_isam(smoother._isam)
+    smoother, records = _capped_at_zero_recording(header, window_poses=10)
     for step in steps:
         smoother.step(step)
     assert smoother.window_slides >= 2 and smoother.update_failures == 0
