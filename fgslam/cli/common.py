@@ -145,10 +145,15 @@ def add_overwrite_option(parser: argparse.ArgumentParser, what: str = "an existi
 
 def summary(log) -> str:
     """One line on what a run log holds."""
+    return tally_of(log).text()
+
+
+def tally_of(log) -> LogTally:
+    """The :class:`LogTally` of a log read whole (its records)."""
     tally = LogTally(log.header)
     for record in log.records:
         tally.add(record)
-    return tally.text()
+    return tally
 
 
 class LogTally:

@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 from fgslam.atomic import write_text_whole
-from fgslam.cli.common import LogTally, add_overwrite_option, add_verb, command_line, holds_outputs, read_counted
+from fgslam.cli.common import add_overwrite_option, add_verb, command_line, holds_outputs, read_counted, tally_of
 from fgslam.cli.estimators import ESTIMATOR_HELP, ESTIMATOR_HELP_3D
 from fgslam.cli.progress import Progress
 from fgslam.cli.results import ResultsFolder
@@ -141,9 +141,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if dimension == 2:
         log = _with_side_inputs(args, log)
     if tally is None:  # read whole: counted from its records (after --noise, as the estimators see it)
-        tally = LogTally(log.header)
-        for record in log.records:
-            tally.add(record)
+        tally = tally_of(log)
     print(f"{args.log}: {'3-D log, ' if dimension == 3 else ''}{tally.text()}")
     compare, compute_metrics, format_table, write_results = _pipeline(dimension)
     with Progress() as progress:
