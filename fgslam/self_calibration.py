@@ -235,7 +235,7 @@ def _iteration(graphs: list[RunGraph], theta: np.ndarray):
         A, b = whitened_system(graph, run.values)
         _, w = component_shares(theta, q)
         pairs = pair_weights(w)
-        hat = hat_traces(A, np.hstack([w, pairs]))
+        hat = hat_traces(A, np.hstack([w, pairs]), columns_ordered=True)
         shown += w.T @ (b * b)
         redundancy += w.sum(axis=0) - hat[:C]
         pair_sums += pairs.sum(axis=0)

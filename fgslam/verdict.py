@@ -144,7 +144,7 @@ def graph_verdict(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> di
     if not present:
         return {}
     onehot = np.stack([((groups == g) & ~outlier).astype(float) for g in present], axis=1)
-    hat = hat_traces(A, onehot)
+    hat = hat_traces(A, onehot, columns_ordered=True)
     out = {}
     for g, h in zip(present, hat):
         rows = groups == g
