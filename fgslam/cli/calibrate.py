@@ -213,9 +213,13 @@ def self_fit_notes(fit) -> str:
     if lag:
         lines.append(f"  odometry lag {lag['lag_s']:.2f} s: what {lag['pairs']} pairs of readings of the same "
                      "landmarks show")
+    camera = report.get("range_model_from_readings")
+    if camera:
+        lines.append(f"  camera range: {'depth along the axis (r cos b)' if camera['range_is_depth'] else 'Euclidean'}"
+                     f", reading {camera['range_bias_m']:+.3f} m long: what the whole run's readings agree on best")
     lines.append("  not learnable without truth (kept at scale 1, bias 0; pin them with `fgslam calibrate "
                  "TRIALS.csv` or a log with truth): forward and range scale (only their ratio shows), turn "
-                 "scale, biases, the camera's latency and the readings' correlation in time")
+                 "scale, bearing bias, the camera's latency and the readings' correlation in time")
     return "\n".join(lines)
 
 
