@@ -37,8 +37,9 @@ without truth: fgslam calibrate LOG.jsonl [LOG.jsonl ...] --without-truth --out 
   What a robot without motion capture can learn from its own runs: the variance rates of
   the odometry (per metre, per radian, per second) and the sigmas of range (growing with
   range) and bearing (growing with turn rate), and the outlier rate, by variance-component
-  estimation on the batch solution (fgslam.self_calibration). It cannot see scales, biases
-  or lags (they shift every measurement alike): those stay 1 and 0, and the summary lists
+  estimation on the batch solution (fgslam.self_calibration); the odometry's lag and the
+  camera's range model (range or depth along its axis, and its bias). It cannot see scales,
+  the bearing's bias or the camera's latency: those stay 1 and 0, and the summary lists
   them, and any rate the data cannot separate from another. fgslam run LOG --noise self
   fits on the log itself first. Planar logs only for now.
 
