@@ -36,12 +36,29 @@ def fill_reducing_columns(graph: gtsam.NonlinearFactorGraph, values: gtsam.Value
 
     Minimum degree on AᵀA (SuperLU's orderings) fills in very differently from one graph to
     the next: on a long stereo drive 74 M entries (44 s), on Plaza1 COLAMD 41 M; factorised in
-    this order 14 M (1.4 s) and 0.8 M (docs/performance.md)."""
-    keys = sorted(graph.keys())
+    this order 14 M (1.4 s) and 0.8 M (docs/performance.md). METIS is given only the factors
+    that join two or more variables: GTSAM's METIS crashes (a segmentation fault) on a
+    variable no such factor reaches, e.g. a landmark's height held by priors alone; those
+    variables, which cause no fill, come last."""
+    keys = sorted(graph.keyVector())
     zero = values.zeroVectors()
     dims = [len(zero.at(k)) for k in keys]
     first = dict(zip(keys, np.concatenate([[0], np.cumsum(dims)[:-1]]).astype(int)))
     dim = dict(zip(keys, dims))
-    order = gtsam.Ordering.MetisNonlinearFactorGraph(graph)
-    keyed = [order.at(i) for i in range(order.size())]
+    joining = gtsam.NonlinearFactorGraph()
+    for i in range(graph.size()):
+        factor = graph.at(i)
+        if factor is not None and len(set(factor.keys())) >= 2:
+            joining.push_back(factor)
+    keyed = []
+    if joining.size():
+        keyed = _ordered_keys(gtsam.Ordering.MetisNonlinearFactorGraph(joining))
+        if sorted(keyed) != sorted(joining.keyVector()):  # METIS failed (it says so on stderr)
+            keyed = _ordered_keys(gtsam.Ordering.ColamdNonlinearFactorGraph(joining))
+    placed = set(keyed)
+    keyed += [k for k in keys if k not in placed]
     return np.concatenate([np.arange(first[k], first[k] + dim[k]) for k in keyed]).astype(int)
+
+
+def _ordered_keys(order: gtsam.Ordering) -> list[int]:
+    return [order.at(i) for i in range(order.size())]

@@ -64,3 +64,26 @@ def test_hat_traces_in_the_fill_reducing_order_are_the_exact_ones():
     assert ordered == pytest.approx(groups.T @ exact, rel=0.05)
     # the same probes through SuperLU's own ordering give the same numbers to rounding
     assert hat_traces(sp.csr_matrix(A), groups, probes=4000) == pytest.approx(ordered, rel=1e-9)
+
+
+def test_variables_held_by_priors_alone_are_ordered_without_crashing_metis():
+    # a landmark's height with priors and no factor joining it to another variable (the
+    # cylinders scenario): GTSAM's METIS crashes on such a variable, so it is placed last
+    graph, values = small_slam_graph(poses=4, landmarks=2)
+    height = gtsam.symbol("h", 0)
+    values.insert(height, 0.4)
+    for reading in (0.38, 0.43):
+        graph.add(gtsam.PriorFactorDouble(height, reading, gtsam.noiseModel.Isotropic.Sigma(1, 0.02)))
+    columns = fill_reducing_columns(graph, values)
+    n = values.dim()
+    assert sorted(columns.tolist()) == list(range(n))
+    A, _ = whitened_system(graph, values)
+    reference, _ = graph.linearize(values).jacobian()
+    assert A.toarray() == pytest.approx(reference[:, columns], abs=1e-12)
+
+
+def test_a_graph_of_one_variable_has_its_columns():
+    graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+    values.insert(gtsam.symbol("x", 0), gtsam.Pose2())
+    graph.add(gtsam.PriorFactorPose2(gtsam.symbol("x", 0), gtsam.Pose2(), gtsam.noiseModel.Isotropic.Sigma(3, 0.1)))
+    assert fill_reducing_columns(graph, values).tolist() == [0, 1, 2]
