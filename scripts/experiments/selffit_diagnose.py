@@ -33,7 +33,7 @@ from concurrent.futures import ProcessPoolExecutor  # noqa: E402
 import numpy as np  # noqa: E402
 
 from fgslam.compare.errors import nis_summary  # noqa: E402
-from fgslam.runner import ESTIMATORS, run_estimator  # noqa: E402
+from fgslam.runner import ESTIMATORS, run_estimator, truth_trajectory  # noqa: E402
 from slamio.log import read_log  # noqa: E402
 from slamio.noise.apply import apply_noise_model  # noqa: E402
 from slamio.noise.model import NoiseModel, load_noise_model, save_noise_model  # noqa: E402
@@ -115,8 +115,8 @@ def variant_model(runs: str, cache: str, k: int, variant: str) -> NoiseModel:
 def score(log, model: NoiseModel) -> dict:
     log, _ = apply_noise_model(log, model)
     steps = log.steps()
-    mask = np.array([s.truth is not None for s in steps])
-    truth = np.array([[s.truth.x_m, s.truth.y_m] if s.truth else [np.nan] * 2 for s in steps])
+    truth, mask = truth_trajectory(steps)
+    truth = truth[:, :2]
     out = {}
     for name in ("ekf", "isam2"):
         run, _ = run_estimator(ESTIMATORS[name](log.header), steps, covariances=True)
