@@ -298,19 +298,22 @@ def _iteration(graphs: list[RunGraph], theta: np.ndarray):
 
 def fit_without_truth(logs: list[RunLog], progress=None, *,
                       lags_s: tuple[float, ...] = LAG_GRID_S, scales: bool = False,
-                      range_model: bool = True) -> SelfCalibration:
+                      range_model: bool = True, pinned: dict[str, float] | None = None) -> SelfCalibration:
     """Fit the odometry's lag among ``lags_s``, the variance terms of a :class:`NoiseModel`
     and (``range_model``) the camera's range model on ``logs`` alone (module docstring). The
     lag comes first, from the readings' bearings (:func:`slamio.noise.fit_self.lag_from_readings`,
     pooled over the logs); the variances are fitted on the odometry re-read with it, in turn
     with the range model (:func:`profile_range_model`) and, with ``scales``, the odometry's
     scales (:func:`profile_scales`). ``progress(done, total, label)``
-    (:class:`fgslam.cli.progress.Progress`) after each iteration."""
+    (:class:`fgslam.cli.progress.Progress`) after each iteration. ``pinned``: odometry scales
+    measured otherwise (:meth:`slamio.noise.trials.TrialCalibration.odometry_scales`: a taped
+    distance and turns in place), held while the rest is learned around them."""
     range_only = all(o.range_only for log in logs for o in log.records if isinstance(o, Observation))
     motion = None if range_only else pooled_lag(logs, lags_s)
     lag = 0.0 if motion is None else motion.lag_s
-    odometry = OdometryModel(lag_s=lag)
-    lagged = [log if motion is None else apply_noise_model(log, NoiseModel(odometry))[0] for log in logs]
+    odometry = OdometryModel(lag_s=lag, **(pinned or {}))
+    reread = motion is not None or bool(pinned)
+    lagged = [apply_noise_model(log, NoiseModel(odometry))[0] if reread else log for log in logs]
     graphs, theta, step, weights, iterations, converged = _fit_variances(lagged, progress, "noise fit: iterations")
     range_model = range_model and not range_only
     found, camera, costs = None, {}, {}
@@ -341,6 +344,10 @@ def fit_without_truth(logs: list[RunLog], progress=None, *,
             n for n in NOT_DETERMINED_WITHOUT_TRUTH if n not in ("observation.range_is_depth", "observation.range_bias_m")]
     if found:
         result.report["odometry_scales_from_the_run"] = dict(found)
+    if pinned:
+        result.report["odometry_scales_pinned"] = dict(pinned)
+        result.report["not_determined_without_truth"] = [
+            n for n in result.report["not_determined_without_truth"] if n.split(".")[-1] not in pinned]
     result.report["range_only"] = range_only
     result.report["lag_from_readings"] = None if motion is None else {
         "lag_s": lag, "pairs": motion.pairs, "lags_tried_s": [float(v) for v in lags_s],
