@@ -36,6 +36,12 @@ solution (which absorb a landmark's lasting error into its position) it came out
 with τ ≈ 3–6 s on MRCLAM (Vicon: 0.56, 16 s) and made the EKF worse on two robots of five
 (docs/results-datasets.md), so the model keeps white readings.
 
+With ``odometry_window_s`` the odometry's variance components are learned from its steps
+chained over stretches of that many seconds against the batch solution
+(:mod:`slamio.noise.odometry_windows`) rather than step by step; off by default (on MRCLAM
+Dataset 6, 15 s windows lifted NEES in band a little and made the online anchored ATE
+worse: docs/results-datasets.md).
+
 What it does not learn: the range scale (the gauge: only the odometry's scale against it
 shows), the odometry's scales (:func:`profile_scales` can, ``scales=True``: it recovers a
 simulated robot's and comes close to Vicon's on MRCLAM, but made the MRCLAM estimates worse:
