@@ -52,7 +52,8 @@ def test_windows_span_the_seconds_asked_and_a_short_tail_joins_the_last():
 def test_the_hat_matrix_seen_through_the_windows_maps_is_u_h_ut():
     """Hutchinson's estimate of ``U H Uᵀ``'s blocks against the exact dense product."""
     rng = np.random.default_rng(0)
-    A = sp.random(120, 30, density=0.15, random_state=2, format="csr") + sp.vstack([sp.eye(30), sp.csr_matrix((90, 30))])
+    A = sp.random(120, 30, density=0.15, random_state=2, format="csr") \
+        + sp.vstack([sp.eye(30), sp.csr_matrix((90, 30))])
     U = sp.csr_matrix(rng.normal(size=(6, 120)) * (rng.random((6, 120)) < 0.2))
     dense = A.toarray()
     H = dense @ np.linalg.solve(dense.T @ dense, dense.T)

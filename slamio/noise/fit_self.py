@@ -44,7 +44,8 @@ import scipy.sparse.linalg as spla
 
 from slamio.noise.errors import NoiseModelError
 
-__all__ = ["LagFromReadings", "VceStep", "component_shares", "hat_traces", "hat_traces_blocks", "hat_traces_projected", "lag_from_readings",
+__all__ = ["LagFromReadings", "VceStep", "component_shares", "hat_traces", "hat_traces_blocks", "hat_traces_projected",
+           "lag_from_readings",
            "parabola_minimum", "ranges_from_readings", "scaled_increments",
            "pair_weights", "relative_std", "scoring_step", "vce_from_sums", "vce_step"]
 

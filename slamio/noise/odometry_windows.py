@@ -23,7 +23,8 @@ sums of a window (generalised least-squares VCE, Koch / Teunissen's LS-VCE, with
 
     shown_c      = θ_c r_Wᵀ A_c r_W
     redundancy_c = θ_c (tr(Σ_W⁻¹ Q_Wc) − tr(A_c M_W))
-    pairs_cd     = θ_c θ_d tr(Σ_W⁻¹ Q_Wc Σ_W⁻¹ Q_Wd),   pair_hat_cd the same with Σ_W⁻¹ M_W Σ_W⁻¹ inside
+    pairs_cd     = θ_c θ_d tr(Σ_W⁻¹ Q_Wc Σ_W⁻¹ Q_Wd)
+    pair_hat_cd  = θ_c θ_d tr(Σ_W⁻¹ Q_Wc Σ_W⁻¹ M_W Σ_W⁻¹ Q_Wd)
 
 (:func:`window_sums`). For a window of one step they are exactly the per-row sums of
 :func:`slamio.noise.fit_self.scoring_step`'s inputs; over longer windows the rates are the
