@@ -12,6 +12,12 @@ import numpy as np
 from gtsam.symbol_shorthand import H, L, T, X
 
 
+#: A key is its symbol's character in the top 8 bits and its index in the 56 below (gtsam.Symbol).
+_INDEX_BITS = 56
+_INDEX_MASK = (1 << _INDEX_BITS) - 1
+_L, _T = ord("l"), ord("t")
+
+
 class LandmarkRegistry:
     """The landmarks seen so far: which are in iSAM2, which are tags, which have a height."""
 
@@ -29,12 +35,12 @@ class LandmarkRegistry:
     def enter(self, values: gtsam.Values) -> None:
         """Note the landmarks among ``values``, the new variables of an accepted update."""
         for key in values.keys():
-            symbol = gtsam.Symbol(key)
-            if chr(symbol.chr()) in "lt":
-                lid = int(symbol.index())
+            kind = key >> _INDEX_BITS  # gtsam.Symbol(key).chr(), without building the Symbol
+            if kind == _L or kind == _T:
+                lid = key & _INDEX_MASK  # its index()
                 self.known.add(lid)
                 self.ids.append(lid)
-                if chr(symbol.chr()) == "t":
+                if kind == _T:
                     self.tag_ids.add(lid)
 
     def positions(self, values: gtsam.Values) -> dict[int, tuple[float, float]]:
