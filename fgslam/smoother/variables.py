@@ -55,7 +55,15 @@ class LandmarkRegistry:
 
 
 def poses_of(values: gtsam.Values, n: int) -> np.ndarray:
-    """(n, 3): poses ``X(0)`` … ``X(n − 1)`` of ``values`` as (x_m, y_m, theta_rad)."""
+    """(n, 3): poses ``X(0)`` … ``X(n − 1)`` of ``values`` as (x_m, y_m, theta_rad).
+
+    Read in one call (``gtsam.utilities.extractPose2``: every ``Pose2`` of ``values`` in key
+    order, as ``x(), y(), theta()``) when those poses are the last n keys of ``values`` (the
+    smoother's other variables, ``H``, ``L`` and ``T``, sort before ``X``), else pose by pose."""
+    keys = np.asarray(values.keys(), dtype=np.uint64)
+    if len(keys) >= n and np.array_equal(keys[len(keys) - n :], np.uint64(X(0)) + np.arange(n, dtype=np.uint64)):
+        rows = np.asarray(gtsam.utilities.extractPose2(values), dtype=float).reshape(-1, 3)
+        return rows[len(rows) - n :]
     out = np.empty((n, 3))
     for i in range(n):
         p = values.atPose2(X(i))
