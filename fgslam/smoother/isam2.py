@@ -316,22 +316,25 @@ class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
         those it used (``(landmark_id, landmark_xy, range_m, bearing_rad, R)``). A landmark iSAM2 does
         not hold yet, or a surprising observation, makes the step urgent."""
         corrector = self._corrector
-        used = []
         corrector.predict((odo.dx_m, odo.dy_m, odo.dtheta_rad), odo.covariance)
+        if not observations:  # (most steps of a long log)
+            return gtsam.Pose2(*corrector.mean), ()
+        used = []
+        known, tag_ids, landmark_xy = self._landmarks.known, self._landmarks.tag_ids, self._landmark_xy
         for obs in observations:
             lid = obs.landmark_id
             if lid is None:
                 continue
-            if lid not in self._landmarks.known:
+            if lid not in known:
                 # a range-only landmark waits for its trilateration (pending.py), not for an update
                 self._held.urgent |= not obs.range_only
                 continue
-            if lid in self._landmarks.tag_ids:
+            if lid in tag_ids:
                 continue
-            xy = self._landmark_xy.get(lid)
+            xy = landmark_xy.get(lid)
             if xy is None:
                 point = self._isam.calculateEstimatePoint2(L(lid))
-                xy = self._landmark_xy[lid] = (float(point[0]), float(point[1]))
+                xy = landmark_xy[lid] = (float(point[0]), float(point[1]))
             if obs.range_only:
                 R = obs.sigma_range_m**2
                 bearing = None
