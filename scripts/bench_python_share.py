@@ -1,0 +1,128 @@
+"""Benchmark: Python's share of the default ``isam2``'s time, by CPU time, without a profiler.
+
+For each log (the sources of ``scripts/bench_online.py``: ``victoria-park``, ``plaza1``,
+``mrclam:FOLDER:1,2``, ``mrclam-fitted:…``, ``arena:1-3``, or a run log's path), in one
+process with BLAS on one thread, ``--repeats`` runs of ``Isam2Smoother`` (the defaults, or
+``--set key=value``) fed the way ``fgslam run --no-consistency`` feeds it: each step, then
+``current_pose()``; at the end ``finish()`` and ``trajectory()``. That is the timed region;
+its CPU time (``time.thread_time``) is set against the CPU time spent inside GTSAM's calls:
+every method of the smoother's ``ISAM2`` (wrapped: updates, the reads of the newest pose and
+of the landmarks, the relinearisation cap's reads) and the final Gauss–Newton steps of
+``finish()`` (:func:`fgslam.smoother.batch.gauss_newton_steps`, whose calls are all GTSAM's).
+"Python" is the rest: building factors, noise models and ``Values`` through GTSAM's
+bindings, the online correction, bookkeeping. CPU time, not wall time, because on a shared
+machine the wall time of a run moves with the load; CPU time still moves some (caches, the
+other hyperthread), so the table gives every repeat's share and the load average.
+
+Usage::
+
+    .venv/bin/python -m scripts.bench_python_share victoria-park plaza1 --repeats 3
+    .venv/bin/python -m scripts.bench_python_share mrclam:../shared/data/mrclam/MRCLAM_Dataset6:1,2,3,4,5
+"""
+
+from __future__ import annotations
+
+from scripts.common import one_blas_thread
+
+one_blas_thread()
+
+import argparse  # noqa: E402
+import os  # noqa: E402
+import time  # noqa: E402
+
+import fgslam.smoother.isam2 as isam2_module  # noqa: E402
+from fgslam.smoother import Isam2Smoother  # noqa: E402
+from scripts.bench_online import logs, parse_sets  # noqa: E402
+from slamio.log import group_steps, read_log  # noqa: E402
+
+clock = time.thread_time
+
+
+class CpuTimedIsam2:
+    """Forwards to an ``ISAM2``, adding the CPU time of every method call to ``seconds``."""
+
+    def __init__(self, isam, seconds: dict[str, float]):
+        self._isam = isam
+        self._seconds = seconds
+
+    def __getattr__(self, name):
+        attribute = getattr(self._isam, name)
+        if not callable(attribute):
+            return attribute
+        seconds = self._seconds
+
+        def timed(*args):
+            start = clock()
+            try:
+                return attribute(*args)
+            finally:
+                seconds[name] = seconds.get(name, 0.0) + clock() - start
+
+        return timed
+
+
+def timed_run(header, steps, settings: dict) -> tuple[float, dict[str, float]]:
+    """(CPU s of the timed region, CPU s inside GTSAM by call) of one run."""
+    gtsam_s: dict[str, float] = {}
+    gauss_newton = isam2_module.gauss_newton_steps
+
+    def timed_gauss_newton(*args):
+        start = clock()
+        try:
+            return gauss_newton(*args)
+        finally:
+            gtsam_s["final Gauss-Newton"] = gtsam_s.get("final Gauss-Newton", 0.0) + clock() - start
+
+    isam2_module.gauss_newton_steps = timed_gauss_newton
+    try:
+        smoother = Isam2Smoother(header, isam_wrapper=lambda isam: CpuTimedIsam2(isam, gtsam_s), **settings)
+        total = 0.0
+        for step in steps:
+            start = clock()
+            smoother.step(step)
+            smoother.current_pose()
+            total += clock() - start
+        start = clock()
+        smoother.finish()
+        smoother.trajectory()
+        total += clock() - start
+    finally:
+        isam2_module.gauss_newton_steps = gauss_newton
+    return total, gtsam_s
+
+
+def sources(spec: str):
+    """(name, header, records) of a ``scripts/bench_online.py`` source or a run log's path."""
+    if os.path.exists(spec):
+        log = read_log(spec)
+        yield os.path.basename(spec), log.header, log.records
+    else:
+        yield from logs(spec)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("logs", nargs="+", help="victoria-park, plaza1, mrclam:FOLDER:R1,R2, arena:A-B or a run log")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--set", default="", metavar="K=V,K=V", help="Isam2Smoother settings (default: the defaults)")
+    args = ap.parse_args(argv)
+    settings = parse_sets(args.set)
+    print(f"load average at the start: {os.getloadavg()[0]:.1f}")
+    print("| log | steps | CPU s (min) | GTSAM s | Python s | Python share (each repeat) |")
+    print("|---|---:|---:|---:|---:|---|")
+    for spec in args.logs:
+        for name, header, records in sources(spec):
+            steps = group_steps(header, records)
+            runs = [timed_run(header, steps, settings) for _ in range(args.repeats)]
+            shares = [100.0 * (total - sum(g.values())) / total for total, g in runs]
+            total, gtsam_s = min(runs, key=lambda r: r[0])
+            in_gtsam = sum(gtsam_s.values())
+            print(f"| {name} | {len(steps)} | {total:.3f} | {in_gtsam:.3f} | {total - in_gtsam:.3f} | "
+                  f"{100.0 * (total - in_gtsam) / total:.1f} % ({', '.join(f'{s:.1f}' for s in shares)}) |",
+                  flush=True)
+    print(f"load average at the end: {os.getloadavg()[0]:.1f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
