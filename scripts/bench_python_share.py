@@ -14,10 +14,18 @@ bindings, the online correction, bookkeeping. CPU time, not wall time, because o
 machine the wall time of a run moves with the load; CPU time still moves some (caches, the
 other hyperthread), so the table gives every repeat's share and the load average.
 
+With ``--floor`` it also prints the floor of that Python: the same graph's factors and
+seeds built and nothing else (per step the odometry's ``BetweenFactorPose2`` with its noise
+model and the pose's ``Pose2`` seed in a ``Values``; each observation's factor, a new
+landmark's seed), in a loop of its own and alternating with ``ISAM2.update`` at the steps
+where the default updated (as the smoother's construction must; the replay's GTSAM time is
+not the default's, its seeds being the start pose).
+
 Usage::
 
     .venv/bin/python -m scripts.bench_python_share victoria-park plaza1 --repeats 3
     .venv/bin/python -m scripts.bench_python_share mrclam:../shared/data/mrclam/MRCLAM_Dataset6:1,2,3,4,5
+    .venv/bin/python -m scripts.bench_python_share victoria-park --floor
 """
 
 from __future__ import annotations
@@ -30,8 +38,12 @@ import argparse  # noqa: E402
 import os  # noqa: E402
 import time  # noqa: E402
 
+import gtsam  # noqa: E402
+from gtsam.symbol_shorthand import X  # noqa: E402
+
 import fgslam.smoother.isam2 as isam2_module  # noqa: E402
 from fgslam.smoother import Isam2Smoother  # noqa: E402
+from fgslam.smoother.factors import FactorBuilder  # noqa: E402
 from scripts.bench_online import logs, parse_sets  # noqa: E402
 from slamio.log import group_steps, read_log  # noqa: E402
 
@@ -91,6 +103,45 @@ def timed_run(header, steps, settings: dict) -> tuple[float, dict[str, float]]:
     return total, gtsam_s
 
 
+def construction_floor(header, steps, update_at: set[int] | None) -> float:
+    """CPU s of building the graph's factors and seeds alone (module docstring); with
+    ``update_at``, each batch goes to an ``ISAM2.update`` after those steps (not counted)."""
+    factors = FactorBuilder()
+    isam = gtsam.ISAM2(Isam2Smoother(header).settings.isam2_params()) if update_at is not None else None
+    seed, known, python_s = gtsam.Pose2(*header.start_pose), set(), 0.0
+    graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+    start = clock()
+    for step in steps:
+        k = step.index
+        graph.add(factors.prior(header) if k == 0 else factors.odometry(k, step.odometry))
+        values.insert(X(k), seed)
+        for observation in step.observations:
+            if observation.landmark_id is None or observation.range_only:
+                continue
+            entry = factors.observation(k, seed, observation, False)
+            graph.add(entry.factor)
+            if observation.landmark_id not in known:
+                known.add(observation.landmark_id)
+                values.insert(entry.key, entry.landmark_guess)
+        if update_at is not None and k in update_at:
+            python_s += clock() - start
+            isam.update(graph, values)
+            graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+            start = clock()
+    return python_s + clock() - start
+
+
+def update_steps(header, steps) -> set[int]:
+    """The steps after which the default ``isam2`` ran an update."""
+    smoother, out = Isam2Smoother(header), set()
+    for step in steps:
+        updates = smoother.updates
+        smoother.step(step)
+        if smoother.updates != updates:
+            out.add(step.index)
+    return out
+
+
 def sources(spec: str):
     """(name, header, records) of a ``scripts/bench_online.py`` source or a run log's path."""
     if os.path.exists(spec):
@@ -105,6 +156,7 @@ def main(argv=None) -> int:
     ap.add_argument("logs", nargs="+", help="victoria-park, plaza1, mrclam:FOLDER:R1,R2, arena:A-B or a run log")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--set", default="", metavar="K=V,K=V", help="Isam2Smoother settings (default: the defaults)")
+    ap.add_argument("--floor", action="store_true", help="also the CPU s of building the factors and seeds alone")
     args = ap.parse_args(argv)
     settings = parse_sets(args.set)
     print(f"load average at the start: {os.getloadavg()[0]:.1f}")
@@ -120,6 +172,13 @@ def main(argv=None) -> int:
             print(f"| {name} | {len(steps)} | {total:.3f} | {in_gtsam:.3f} | {total - in_gtsam:.3f} | "
                   f"{100.0 * (total - in_gtsam) / total:.1f} % ({', '.join(f'{s:.1f}' for s in shares)}) |",
                   flush=True)
+            if args.floor:
+                alone = min(construction_floor(header, steps, None) for _ in range(args.repeats))
+                at = update_steps(header, steps)
+                interleaved = min(construction_floor(header, steps, at) for _ in range(args.repeats))
+                print(f"|   floor: factors and seeds alone | | | | {alone:.3f} ({1e6 * alone / len(steps):.1f} µs a step); "
+                      f"alternating with the updates {interleaved:.3f} ({1e6 * interleaved / len(steps):.1f} µs a step) | |",
+                      flush=True)
     print(f"load average at the end: {os.getloadavg()[0]:.1f}")
     return 0
 
