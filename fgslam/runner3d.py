@@ -31,7 +31,7 @@ from ekf.vio import pose_nees
 from fgslam.compare import TOP_LEVEL_KEYS, nees_band
 from fgslam.compare.metrics import OPTIONAL_TOP_LEVEL_KEYS
 from fgslam.failure import EstimatorFailed, EstimatorFailure, StepWatch, check_finite, failed_cell, reason_of
-from fgslam.memory import PeakMemory
+from fgslam.memory import PeakMemory, release_free_memory
 from fgslam.noise3d import noise_of  # noqa: F401  (re-exported: read with the log)
 from fgslam.registry import DEFAULTS, REGISTRY, build, names_for, parse_names
 from fgslam.runner import pinned_threads
@@ -296,6 +296,7 @@ def _with_batch(ready: Log3d, runs: list, failures: list, smoother, truth: Refer
         raise EstimatorFailed(EstimatorFailure("batch", None, None, reason_of(error), "batch")) from error
     runs.append(in_world(Run3d("batch", None, batch.trajectory(), batch.landmarks(), None, batch.seconds,
                                peak_memory_bytes=memory.peak_bytes), ready.world_T_start))
+    release_free_memory()  # what the batch solve's eliminations freed, before the verdict's
     reference = truth or Reference3d("batch", runs[-1].final, runs[-1].landmarks)
     return Comparison3d(runs, reference, ready.stamps_s, smoother, float(batch.error), smoother.error(),
                         verdict_or_none(smoother.graph, batch.values), failures)
