@@ -94,6 +94,7 @@ MARGINALISE_AFTER = 10
 #: the most landmarks kept in the state (the least recently seen are marginalised first)
 MAX_LANDMARKS = 300
 CHI2_4_999 = 18.4668  # χ²₄ quantile at 0.999
+_EYE3 = np.eye(3)
 
 
 def right_jacobian_se3(xi, terms: int = 12) -> np.ndarray:
@@ -115,8 +116,20 @@ def predict_stereo(world_T_imu, m_world, cam_T_imu, M) -> np.ndarray:
 
 def observation_jacobians(world_T_imu, m_world, cam_T_imu, M) -> tuple[np.ndarray, np.ndarray]:
     """(4×6 ∂z/∂δ for the right pose perturbation, 4×3 ∂z/∂m)."""
-    T_inv = inverse(world_T_imu)
-    p = T_inv @ np.append(m_world, 1.0)
+    return _observation_jacobians(inverse(world_T_imu), m_world, cam_T_imu, M)
+
+
+def _homogeneous(m) -> np.ndarray:
+    """``(m, 1)``: ``np.append(m, 1.0)`` of a 3-vector, without its generality."""
+    out = np.empty(4)
+    out[:3] = m
+    out[3] = 1.0
+    return out
+
+
+def _observation_jacobians(T_inv, m_world, cam_T_imu, M) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`observation_jacobians` given ``T_inv`` = ``inverse(world_T_imu)`` (one per step)."""
+    p = T_inv @ _homogeneous(m_world)
     q = cam_T_imu @ p
     A = M @ projection_jacobian(q) @ cam_T_imu
     return -A @ odot(p), A[:, :3] @ T_inv[:3, :3]
@@ -126,9 +139,18 @@ def constrained_jacobians(world_T_imu, m_world, m_first, cam_T_imu, M) -> tuple[
     """:func:`observation_jacobians` at ``(world_T_imu, m_world)``, projected (least change in
     the Frobenius norm) onto the matrices blind to a rigid motion of the world linearised at
     ``(world_T_imu, m_first)``: ``H U = 0`` with ``U = [Ad(T⁻¹); [I, −m_first^]]`` (9×6)."""
-    J_pose, J_m = observation_jacobians(world_T_imu, m_world, cam_T_imu, M)
-    U = np.vstack([adjoint(inverse(world_T_imu)), np.hstack([np.eye(3), -skew(m_first)])])
-    H = np.hstack([J_pose, J_m])
+    T_inv = inverse(world_T_imu)
+    return _constrained_jacobians(T_inv, adjoint(T_inv), m_world, m_first, cam_T_imu, M)
+
+
+def _constrained_jacobians(T_inv, adjoint_T_inv, m_world, m_first, cam_T_imu, M) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`constrained_jacobians` given ``T_inv`` and ``adjoint(T_inv)`` (one per step)."""
+    H = np.empty((4, POSE_DIM + 3))
+    H[:, :POSE_DIM], H[:, POSE_DIM:] = _observation_jacobians(T_inv, m_world, cam_T_imu, M)
+    U = np.zeros((POSE_DIM + 3, POSE_DIM))  # [Ad(T⁻¹); [I, −m_first^]]
+    U[:POSE_DIM] = adjoint_T_inv
+    U[POSE_DIM:, :3] = _EYE3
+    U[POSE_DIM:, 3:] = -skew(m_first)
     H = H - (H @ U) @ np.linalg.solve(U.T @ U, U.T)
     return H[:, :POSE_DIM], H[:, POSE_DIM:]
 
@@ -300,26 +322,31 @@ class VioEkf:
     def _update(self, known) -> None:
         n = self._P.shape[0]
         rows_H, rows_r = [], []
+        # the pose is the same for every landmark of the step: its inverse (and adjoint) once
+        T_inv = inverse(self._T)
+        cam_T_inv = self.cam_T_imu @ T_inv
+        adjoint_T_inv = adjoint(T_inv) if self.first_estimates and self.projected_jacobians else None
         for lid, z in known:
             m = self._landmark(lid)
-            q = self.cam_T_imu @ inverse(self._T) @ np.append(m, 1.0)
+            q = cam_T_inv @ _homogeneous(m)
             if not q[2] > 0.0:
                 self.skipped_behind += 1
                 continue
             # the pose's Jacobian at self._T, which is still the prior T_fe
             if not self.first_estimates:
-                J_pose, J_m = observation_jacobians(self._T, m, self.cam_T_imu, self.M)
+                J_pose, J_m = _observation_jacobians(T_inv, m, self.cam_T_imu, self.M)
             elif self.projected_jacobians:
-                J_pose, J_m = constrained_jacobians(self._T, m, self._m_fe[lid], self.cam_T_imu, self.M)
+                J_pose, J_m = _constrained_jacobians(T_inv, adjoint_T_inv, m, self._m_fe[lid], self.cam_T_imu, self.M)
             else:
-                J_pose, J_m = observation_jacobians(self._T, self._m_fe[lid], self.cam_T_imu, self.M)
+                J_pose, J_m = _observation_jacobians(T_inv, self._m_fe[lid], self.cam_T_imu, self.M)
             H = np.zeros((4, n))
             H[:, :POSE_DIM] = J_pose
             s = POSE_DIM + 3 * self._slot[lid]
             H[:, s : s + 3] = J_m
             r = z - self.M @ projection(q)
-            idx = np.r_[0:POSE_DIM, s : s + 3]
-            S = H[:, idx] @ self._P[np.ix_(idx, idx)] @ H[:, idx].T + self._R
+            idx = np.array((0, 1, 2, 3, 4, 5, s, s + 1, s + 2))  # the pose's and this landmark's
+            H_idx = H[:, idx]
+            S = H_idx @ self._P[idx[:, None], idx] @ H_idx.T + self._R
             nis = float(r @ np.linalg.solve(S, r))
             if self.gate is not None and nis > self.gate:
                 self.rejected += 1

@@ -18,7 +18,7 @@ import ctypes
 import ctypes.util
 import gc
 
-__all__ = ["PeakMemory", "resident_kib"]
+__all__ = ["PeakMemory", "release_free_memory", "resident_kib"]
 
 _STATUS = "/proc/self/status"
 _CLEAR_REFS = "/proc/self/clear_refs"
@@ -40,7 +40,9 @@ def resident_kib() -> int | None:
     return _status_kib("VmRSS")
 
 
-def _release_free_memory() -> None:
+def release_free_memory() -> None:
+    """Collect garbage and hand the heap's free memory back to the kernel (glibc's
+    ``malloc_trim``): what a finished piece of work freed stops counting as resident."""
     gc.collect()
     name = ctypes.util.find_library("c")
     if name is None:
@@ -69,7 +71,7 @@ class PeakMemory:
         self._baseline_kib: int | None = None
 
     def __enter__(self) -> "PeakMemory":
-        _release_free_memory()
+        release_free_memory()
         if _reset_high_water_mark():
             self._baseline_kib = resident_kib()
         return self

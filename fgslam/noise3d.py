@@ -15,7 +15,7 @@ import numpy as np
 
 from slamio.datasets.seed003 import StereoImuNoise
 from slamio.errors import FgslamError
-from slamio.log import RunLog, group_steps
+from slamio.log import RunLog
 from slamio.stereo import mean_row_covariance, rms_sigma_px
 
 __all__ = ["noise_of", "stereo_factor_noise"]
@@ -31,9 +31,12 @@ def noise_of(log: RunLog, steps=None) -> StereoImuNoise:
     and one for the three angular axes). ``steps``: the log's steps when the caller has
     grouped them already.
     """
-    steps = group_steps(log.header, log.records) if steps is None else steps
-    pixel_noises = {(o.sigma_px, o.covariance_px2) for s in steps for o in s.observations}
-    covs = {s.odometry.covariance for s in steps if s.odometry is not None}
+    steps = log.steps() if steps is None else steps
+    if hasattr(steps, "noise_levels"):  # a log read into columns: without building its steps
+        pixel_noises, covs = steps.noise_levels()
+    else:
+        pixel_noises = {(o.sigma_px, o.covariance_px2) for s in steps for o in s.observations}
+        covs = {s.odometry.covariance for s in steps if s.odometry is not None}
     if len(pixel_noises) > 1 or len(covs) > 1:
         raise FgslamError(
             f"{log.path}: the 3-D estimators assume one noise level, but the records carry {len(pixel_noises)} "

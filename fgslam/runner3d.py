@@ -31,15 +31,15 @@ from ekf.vio import pose_nees
 from fgslam.compare import TOP_LEVEL_KEYS, nees_band
 from fgslam.compare.metrics import OPTIONAL_TOP_LEVEL_KEYS
 from fgslam.failure import EstimatorFailed, EstimatorFailure, StepWatch, check_finite, failed_cell, reason_of
-from fgslam.memory import PeakMemory
+from fgslam.memory import PeakMemory, release_free_memory
 from fgslam.noise3d import noise_of  # noqa: F401  (re-exported: read with the log)
 from fgslam.registry import DEFAULTS, REGISTRY, build, names_for, parse_names
 from fgslam.runner import pinned_threads
 from slamio.datasets.seed003 import StereoImuNoise
 from slamio.errors import FgslamError
-from slamio.log import (
-    RunLog, StereoCalibration, TruthLandmark3, group_steps, pose3_from_matrix, pose3_matrix, stereo_calibration,
-)
+from slamio.log import RunLog, StereoCalibration, TruthLandmark3, pose3_from_matrix, pose3_matrix, stereo_calibration
+from slamio.log.columns import step_stamps
+from slamio.log.columns3d import step_truths
 
 #: name → factory(rig, noise): the 3-D estimators of :mod:`fgslam.registry` (what ``fgslam run
 #: --estimators`` accepts on a 3-D log).
@@ -100,16 +100,25 @@ def truth_reference_3d(log: RunLog, steps=None) -> Reference3d | None:
     """The log's ground truth as a :class:`Reference3d` (NaN poses and ``has_pose`` False in
     its gaps), with every ``truth_landmark3`` as the map; None when no pose has truth
     (``steps``: the log's steps when the caller has grouped them already)."""
-    steps = group_steps(log.header, log.records) if steps is None else steps
-    trajectory = np.full((len(steps), 4, 4), np.nan)
-    has_pose = np.array([s.truth is not None for s in steps], dtype=bool)
+    truths = step_truths(log.steps() if steps is None else steps)
+    trajectory = np.full((len(truths), 4, 4), np.nan)
+    has_pose = np.array([truth is not None for truth in truths], dtype=bool)
     if not has_pose.any():
         return None
-    for t, step in enumerate(steps):
-        if step.truth is not None:
-            trajectory[t] = step.truth.matrix()
-    landmarks = {r.landmark_id: np.array([r.x_m, r.y_m, r.z_m]) for r in log.records if isinstance(r, TruthLandmark3)}
+    for t, truth in enumerate(truths):
+        if truth is not None:
+            trajectory[t] = truth.matrix()
+    landmarks = {r.landmark_id: np.array([r.x_m, r.y_m, r.z_m]) for r in truth_landmarks3(log)}
     return Reference3d("ground_truth", trajectory, landmarks, has_pose)
+
+
+def truth_landmarks3(log) -> list[TruthLandmark3]:
+    """The ``truth_landmark3`` records of a 3-D log, in file order (a log read whole: from its
+    records; read into columns, :class:`slamio.log.columns3d.ColumnLog3d`: kept apart)."""
+    records = getattr(log, "records", None)
+    if records is None:
+        return list(log.truth_landmark_records)
+    return [r for r in records if isinstance(r, TruthLandmark3)]
 
 
 @dataclass(frozen=True)
@@ -201,7 +210,7 @@ class Log3d:
 
     @property
     def stamps_s(self) -> np.ndarray:
-        return np.array([s.stamp_s for s in self.steps])
+        return step_stamps(self.steps)
 
     def estimator(self, name: str):
         """A fresh estimator ``name`` for this log."""
@@ -287,6 +296,7 @@ def _with_batch(ready: Log3d, runs: list, failures: list, smoother, truth: Refer
         raise EstimatorFailed(EstimatorFailure("batch", None, None, reason_of(error), "batch")) from error
     runs.append(in_world(Run3d("batch", None, batch.trajectory(), batch.landmarks(), None, batch.seconds,
                                peak_memory_bytes=memory.peak_bytes), ready.world_T_start))
+    release_free_memory()  # what the batch solve's eliminations freed, before the verdict's
     reference = truth or Reference3d("batch", runs[-1].final, runs[-1].landmarks)
     return Comparison3d(runs, reference, ready.stamps_s, smoother, float(batch.error), smoother.error(),
                         verdict_or_none(smoother.graph, batch.values), failures)

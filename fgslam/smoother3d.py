@@ -75,6 +75,11 @@ MAX_RESTARTS = 10
 #: whole, so their final estimate is the batch optimum as before; the long dense simulated
 #: drive (45 000) is bounded (docs/performance.md, "A bounded isam2-3d").
 MAX_HELD_FACTORS = 12000
+#: ... and at most this *load* (factors held × factors a held step brought, on average; what the
+#: CPU time of an update grows with): a drive of many features a step is bounded sooner. The
+#: seed's real drives (~4 factors a step) and the default simulated loop (~13.5) stay below it
+#: up to the bound above; the long dense drive (~43) holds ≤ ~4 600 factors (docs/performance.md).
+MAX_HELD_LOAD = 200_000
 
 
 def gtsam_covariance(cov_rho_phi) -> np.ndarray:
@@ -116,6 +121,7 @@ class StereoIsam2:
         start_sigma: float = 1e-6,
         landmark_prior_sigma_m: float = 1000.0,
         max_held_factors: int | None = MAX_HELD_FACTORS,
+        max_held_load: float | None = MAX_HELD_LOAD,
     ):
         if robust not in ROBUST:
             raise ValueError(f"robust must be one of {ROBUST}, got {robust!r}")
@@ -150,7 +156,7 @@ class StereoIsam2:
         self._final: gtsam.Values | None = None  # finish()'s estimate
         self.rebuilds = 0  # times iSAM2 was started again after an update it could not solve
         # what iSAM2 holds, bounded (fgslam/window3d.py); None: every variable stays in it
-        self.window = None if max_held_factors is None else StereoWindow(max_held_factors)
+        self.window = None if max_held_factors is None else StereoWindow(max_held_factors, max_load=max_held_load)
 
     # ------------------------------------------------------------------ protocol
 
@@ -356,19 +362,37 @@ class BatchResult:
         return {lid: np.asarray(self.values.atPoint3(L(lid))) for lid in self._ids}
 
 
-def levenberg_marquardt(graph: gtsam.NonlinearFactorGraph, start: gtsam.Values, max_iterations: int) -> gtsam.Values:
-    """Levenberg–Marquardt on ``graph`` from ``start`` to a relative decrease of 1e-10."""
+def levenberg_marquardt(graph: gtsam.NonlinearFactorGraph, start: gtsam.Values, max_iterations: int, *,
+                        fill_reducing: bool = False) -> gtsam.Values:
+    """Levenberg–Marquardt on ``graph`` from ``start`` to a relative decrease of 1e-10; each
+    linear system eliminated in GTSAM's default (COLAMD) order, or with ``fill_reducing`` in
+    METIS's nested dissection of the variables (:func:`fgslam.linearized.fill_reducing_keys`)."""
     params = gtsam.LevenbergMarquardtParams()
     params.setMaxIterations(max_iterations)
     params.setRelativeErrorTol(1e-10)
     params.setAbsoluteErrorTol(1e-10)
+    if fill_reducing:
+        from fgslam.linearized import fill_reducing_keys
+
+        ordering = gtsam.Ordering()
+        for key in fill_reducing_keys(graph, start)[0]:
+            ordering.push_back(key)
+        params.setOrdering(ordering)
     return gtsam.LevenbergMarquardtOptimizer(graph, start, params).optimize()
 
 
 def batch_solve(smoother: StereoIsam2, *, max_iterations: int = 100) -> BatchResult:
     """Batch LM on the smoother's whole graph, started from its estimate (after
-    :meth:`StereoIsam2.finish`, the refined one: it then confirms the optimum)."""
+    :meth:`StereoIsam2.finish`, the refined one: it then confirms the optimum).
+
+    Its linear systems are eliminated in METIS's order (``fill_reducing``): on the long dense
+    drive of ``scripts/bench_vio.py`` the same 52 iterations to the same optimum (1e-13 m) in
+    13 CPU s against COLAMD's 24; from :meth:`StereoIsam2.finish`'s optimum (a drive iSAM2
+    held whole, e.g. the seed's real ones) the same solution to 1e-11 m. ``finish()`` keeps
+    COLAMD: from iSAM2's estimate on seed 003 drive 0027 LM in METIS's order ends in another
+    local optimum (graph error 406 033 against 399 633), its rounding steering LM on that
+    ill-conditioned drive (docs/performance.md)."""
     start = time.perf_counter()
-    values = levenberg_marquardt(smoother.graph, smoother.estimate(), max_iterations)
+    values = levenberg_marquardt(smoother.graph, smoother.estimate(), max_iterations, fill_reducing=True)
     seconds = time.perf_counter() - start
     return BatchResult(values, smoother.n_steps, smoother.landmark_ids(), float(smoother.graph.error(values)), seconds)

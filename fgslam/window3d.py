@@ -45,11 +45,14 @@ class StereoWindow:
     variable's value when it entered): what a rebuild after a failed update starts from.
     """
 
-    def __init__(self, max_factors: int, keep_fraction: float = 0.5, min_poses: int = 2):
-        if max_factors < 1 or not 0.0 < keep_fraction < 1.0 or min_poses < 1:
-            raise ValueError(f"max_factors ≥ 1, 0 < keep_fraction < 1, min_poses ≥ 1; got {max_factors}, "
-                             f"{keep_fraction}, {min_poses}")
+    def __init__(self, max_factors: int, keep_fraction: float = 0.5, min_poses: int = 2,
+                 max_load: float | None = None):
+        if max_factors < 1 or not 0.0 < keep_fraction < 1.0 or min_poses < 1 or (max_load is not None and max_load <= 0):
+            raise ValueError(f"max_factors ≥ 1, 0 < keep_fraction < 1, min_poses ≥ 1, max_load > 0 or None; got "
+                             f"{max_factors}, {keep_fraction}, {min_poses}, {max_load}")
         self.max_factors = int(max_factors)
+        self.max_load = None if max_load is None else float(max_load)
+        self.brought = 0  # factors the held poses brought (the marginal's factors not counted)
         self.keep_fraction = float(keep_fraction)
         self.min_poses = int(min_poses)
         self.factors = gtsam.NonlinearFactorGraph()
@@ -89,19 +92,28 @@ class StereoWindow:
         self.values.insert(values)
         self.poses.append((step, factors.size()))
         self.held_factors += factors.size()
+        self.brought += factors.size()
         for landmark_id, key in seen.items():
             self.key_of[landmark_id] = key
             self.last_seen[key] = step
 
+    def bound(self) -> float:
+        """The most factors iSAM2 may hold now: ``max_factors``, and with ``max_load`` at most
+        ``max_load`` / (the factors a held step brought, on average) — the *load* of what it
+        holds, factors held × factors a step brings, is what an update's cost grows with."""
+        if self.max_load is None or not self.poses:
+            return float(self.max_factors)
+        return min(float(self.max_factors), self.max_load * len(self.poses) / max(self.brought, 1))
+
     def due(self) -> bool:
-        """Whether iSAM2 holds more than ``max_factors`` factors (then :meth:`slide`)."""
-        return not self.stopped and self.held_factors > self.max_factors and len(self.poses) > self.min_poses
+        """Whether iSAM2 holds more than :meth:`bound` factors (then :meth:`slide`)."""
+        return not self.stopped and self.held_factors > self.bound() and len(self.poses) > self.min_poses
 
     # ------------------------------------------------------------------ the slide
 
     def leaving(self) -> tuple[list[int], list[int]]:
         """(pose indices, landmark keys) that a slide now takes out of iSAM2."""
-        budget = self.keep_fraction * self.max_factors
+        budget = self.keep_fraction * self.bound()
         first = len(self.poses) - self.min_poses
         kept = sum(n for _, n in self.poses[first:])
         while first > 0 and kept + self.poses[first - 1][1] <= budget:
@@ -126,6 +138,7 @@ class StereoWindow:
         for key in landmarks:
             self.frozen.insert(key, estimate.atPoint3(key))
             del self.last_seen[key]
+        self.brought -= sum(n for _, n in self.poses[:len(poses)])
         self.poses = self.poses[len(poses):]
         self.factors, self.values = kept.factors, kept.values
         self.held_factors = kept.factors.size()

@@ -14,8 +14,6 @@ Bonnabel 2015), checked against independent references.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 from scipy.linalg import expm
@@ -24,9 +22,7 @@ from builders import minimal_header
 from ekf import EkfSlam, InvariantEkfSlam
 from ekf.invariant import group_correction, se2_left_jacobian, transport_factors
 from ekf.models import predict_pose, range_bearing
-from fgslam.compare import ate_rmse_m
-from fgslam.runner import ESTIMATORS, run_estimator, truth_trajectory
-from slamio.log import Observation, Odometry, Step, as_matrix3, read_log
+from slamio.log import Observation, Odometry, Step, as_matrix3
 
 LANDMARKS = {1: np.array([4.0, 2.0]), 2: np.array([1.0, 5.0])}
 
@@ -124,16 +120,3 @@ def test_dead_reckoning_alone_is_the_same_filter():
 @pytest.mark.parametrize("association, name", [("jcbb", "ekf-inv"), ("nn", "ekf-inv-nn"), (None, "ekf-inv-ids")])
 def test_names(association, name):
     assert InvariantEkfSlam(minimal_header(), association=association).name == name
-
-
-def test_on_the_bundled_arena_log_it_is_as_accurate_as_the_textbook_filter():
-    """data/arena_octagon.jsonl (simulated, exact noise): the textbook filter is consistent
-    there, and the invariant filter is as accurate."""
-    log = read_log(Path(__file__).resolve().parents[1] / "data" / "arena_octagon.jsonl")
-    steps = log.steps()
-    truth, has = truth_trajectory(steps)
-    ate = {}
-    for name in ("ekf", "ekf-inv"):
-        run, _ = run_estimator(ESTIMATORS[name](log.header), steps, covariances=False)
-        ate[name] = ate_rmse_m(run.final, truth, has_pose=has, align=False)
-    assert ate["ekf-inv"] == pytest.approx(ate["ekf"], rel=0.05)

@@ -171,11 +171,11 @@ def test_the_odometrys_scales_are_learned_from_the_whole_run(arena):
     assert odometry.forward_scale == pytest.approx(0.95, abs=0.01)
 
 
-def with_ranges_as_depth(log: RunLog, bias_m: float, scale: float = 1.0) -> RunLog:
+def with_ranges_as_depth(log: RunLog, bias_m: float) -> RunLog:
     """The log's readings as a camera that sizes the landmark's image reports them: the
-    depth along its axis, ``r·cos b``, times ``scale``, reading ``bias_m`` long."""
+    depth along its axis, ``r·cos b``, reading ``bias_m`` long."""
     return dataclasses.replace(log, records=tuple(
-        dataclasses.replace(r, range_m=scale * r.range_m * float(np.cos(r.bearing_rad)) + bias_m)
+        dataclasses.replace(r, range_m=r.range_m * float(np.cos(r.bearing_rad)) + bias_m)
         if isinstance(r, Observation) else r for r in log.records))
 
 
@@ -192,15 +192,13 @@ def test_the_cameras_range_model_is_learned_without_truth(arena):
 
 def test_scales_measured_by_trials_are_held_and_the_rest_learned_around_them(arena):
     """The odometry's scales the run alone cannot give, held at what trials measured: the
-    model carries them, and the camera's range model — depth, bias and now its scale too,
-    which shows once the odometry's is known — is learned as the one put in."""
-    distorted = with_ranges_as_depth(with_odometry_distorted(arena, 0.95, 0.93, -0.04), 0.04, scale=1.03)
+    model carries them, and the camera's range bias is learned as the one put in."""
+    distorted = with_ranges_as_depth(with_odometry_distorted(arena, 0.95, 0.93, -0.04), 0.04)
     pinned = {"forward_scale": 0.95, "turn_scale": 0.93, "turn_per_m_rad": -0.04}
     fit = fit_without_truth([distorted], lags_s=(0.0,), pinned=pinned)
     odometry, observation = fit.model.odometry, fit.model.observation
     assert (odometry.forward_scale, odometry.turn_scale, odometry.turn_per_m_rad) == (0.95, 0.93, -0.04)
-    assert observation.range_is_depth and observation.range_bias_m == pytest.approx(0.04, abs=0.015)
-    assert observation.range_scale == pytest.approx(1.03, abs=0.01)
+    assert observation.range_is_depth and observation.range_bias_m == pytest.approx(0.04, abs=0.01)
     assert fit.report["odometry_scales_pinned"] == pinned
     assert "odometry.forward_scale" not in fit.report["not_determined_without_truth"]
 

@@ -12,7 +12,7 @@ import pytest
 from gtsam.symbol_shorthand import L, X
 
 from ekf.drive3d import position_errors_m, run_drive, steps_of
-from fgslam.smoother3d import MAX_HELD_FACTORS, StereoIsam2, batch_solve
+from fgslam.smoother3d import MAX_HELD_FACTORS, MAX_HELD_LOAD, StereoIsam2, batch_solve, levenberg_marquardt
 from fgslam.window3d import RE_ENTERED, StereoWindow
 from slamio.sim3d import DriveScenario, simulate_drive
 
@@ -64,9 +64,50 @@ def test_a_run_the_bound_never_reaches_is_the_unbounded_run(drive, unbounded):
 
 def test_the_default_bound_keeps_the_seed_drives_whole():
     """The seed's real drives hold ≤ 4 763 factors (0027: 3 460 sightings, 1 106 steps, 197
-    landmarks) and the default simulated stereo loop ~7 400 (seed 5: 7 365): the default bound
-    is above, so their final estimate stays the optimum."""
+    landmarks) and the default simulated stereo loop ~7 400 (seed 5: 7 365 over 545 steps): the
+    default bound is above, so their final estimate stays the optimum. Their load (factors ×
+    factors a step) is below the load bound too, and drives as sparse as they are reach the
+    factor bound first (13.5 factors a step, the loop's, × 12 000 < the load bound)."""
     assert MAX_HELD_FACTORS > max(3460 + 1106 + 197, 7365)
+    assert MAX_HELD_LOAD > max(4763**2 / 1106, 7365**2 / 545, MAX_HELD_FACTORS * 7365 / 545)
+
+
+def test_a_dense_drive_is_bounded_by_its_load():
+    """The load bound: iSAM2 holds at most load / (factors a held step brought) factors, and
+    slides keep half of that; the factor bound alone never slides on this drive."""
+    drive = simulate_drive(2, DriveScenario(straight_m=30.0, side_m=15.0, turn_radius_m=8.0, landmark_spacing_m=0.5,
+                                            max_features=30))
+    s = StereoIsam2(drive.K, drive.baseline_m, drive.cam_T_imu, max_held_factors=10**6, max_held_load=20_000)
+    held, bounds = [], []
+    for args in steps_of(drive):
+        s.step(*args)
+        held.append(s.window.held_factors)
+        bounds.append(s.window.bound())
+    per_step = s.graph.size() / s.n_steps
+    assert per_step > 20 and s.window.slides >= 3
+    assert max(h - b for h, b in zip(held, bounds)) <= 0  # after every step, a slide included
+    w = s.window  # the bound follows the drive's density: the load bound governs, not the factor bound
+    assert w.brought == sum(n for _, n in w.poses)
+    assert w.bound() == pytest.approx(20_000 * len(w.poses) / w.brought) and max(bounds) < 2_000
+
+
+def test_the_load_bound_in_numbers():
+    w = StereoWindow(max_factors=1000, max_load=2000.0)
+    assert w.bound() == 1000.0  # nothing held: the factor bound
+    values = gtsam.Values()
+    for step in range(4):
+        factors = gtsam.NonlinearFactorGraph()
+        for _ in range(10):  # 10 factors a step
+            factors.add(gtsam.PriorFactorPose3(X(step), gtsam.Pose3(), gtsam.noiseModel.Isotropic.Sigma(6, 1.0)))
+        step_values = gtsam.Values()
+        step_values.insert(X(step), gtsam.Pose3())
+        values.insert(step_values)
+        w.entered(step, factors, step_values, {})
+    assert w.bound() == pytest.approx(200.0)  # 2 000 / 10 factors a step
+    assert not w.due() and w.held_factors == 40
+    assert StereoWindow(max_factors=100, max_load=10**9).bound() == 100.0
+    with pytest.raises(ValueError):
+        StereoWindow(max_factors=100, max_load=0.0)
 
 
 def test_bounded_iSAM2_holds_a_bounded_number_of_variables(drive, bounded, unbounded):
@@ -101,6 +142,17 @@ def test_the_batch_solve_sees_the_whole_graph(bounded, unbounded):
     optimum = batch_solve(unbounded[0])
     assert batch.error == pytest.approx(optimum.error, rel=1e-6)
     assert np.allclose(batch.trajectory()[:, :3, 3], optimum.trajectory()[:, :3, 3], atol=1e-4)
+
+
+def test_the_batch_solves_fill_reducing_order_reaches_the_same_solution(unbounded):
+    """From the finished smoother's optimum, LM in METIS's order (the batch solve's) and in
+    GTSAM's default order give the same solution to rounding."""
+    s = unbounded[0]
+    default = levenberg_marquardt(s.graph, s.estimate(), 100)
+    metis = levenberg_marquardt(s.graph, s.estimate(), 100, fill_reducing=True)
+    assert s.graph.error(metis) == pytest.approx(s.graph.error(default), rel=1e-12)
+    assert max(np.abs(metis.atPose3(X(t)).matrix() - default.atPose3(X(t)).matrix()).max()
+               for t in range(s.n_steps)) < 1e-9
 
 
 def test_whole_estimate_has_every_pose_and_landmark_under_its_own_key(bounded):

@@ -257,9 +257,7 @@ def self_fit_notes(fit) -> str:
     camera = report.get("range_model_from_readings")
     if camera:
         lines.append(f"  camera range: {'depth along the axis (r cos b)' if camera['range_is_depth'] else 'Euclidean'}"
-                     f", reading {camera['range_bias_m']:+.3f} m long"
-                     + (f", scale {camera['range_scale']:.3f}" if camera.get("range_scale", 1.0) != 1.0 else "")
-                     + ": what the whole run's readings agree on best")
+                     f", reading {camera['range_bias_m']:+.3f} m long: what the whole run's readings agree on best")
     if report.get("odometry_scales_pinned"):
         lines.append("  held at the trials' values: " + ", ".join(report["odometry_scales_pinned"]))
         lines.append("  not learnable without truth (kept at scale 1, bias 0): range scale, bearing bias, the "

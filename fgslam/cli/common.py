@@ -247,20 +247,20 @@ def read(path: str):
 
 
 def read_counted(path: str, *, columns: bool = False) -> tuple[object, LogTally | None]:
-    """``(log, tally)``: with ``columns`` a planar log read into columns
-    (:func:`slamio.log.columns.columns_of`: no record objects held, the run's memory grows
-    with its numbers) and its :class:`LogTally` counted as it streams; a 3-D log, or without
-    ``columns``, read whole (:func:`read`) with tally None (count it from its records). The
-    same warnings and errors as :func:`read`."""
+    """``(log, tally)``: with ``columns`` the log read into columns — a planar log by
+    :func:`slamio.log.columns.columns_of`, a 3-D one by :func:`slamio.log.columns3d.columns3d_of`:
+    no record objects held, the run's memory grows with its numbers — and its
+    :class:`LogTally` counted as it streams; without ``columns`` read whole (:func:`read`)
+    with tally None (count it from its records). The same warnings and errors as :func:`read`."""
     from slamio.log import LogStream
     from slamio.log.columns import columns_of
+    from slamio.log.columns3d import columns3d_of
 
     if columns:
         stream = LogStream(path)
-        if not stream.header.is_3d:
-            tally = LogTally(stream.header)
-            return _warned(columns_of(stream, visit=tally.add)), tally
-        stream.close()
+        tally = LogTally(stream.header)
+        read_into = columns3d_of if stream.header.is_3d else columns_of
+        return _warned(read_into(stream, visit=tally.add)), tally
     return read(path), None
 
 

@@ -196,8 +196,11 @@ class ColumnLog:
 
 def step_stamps(steps: Sequence[Step]) -> np.ndarray:
     """Every step's stamp (s), shape (n,): from the columns when ``steps`` are
-    :class:`StepColumns` (no step built), else read off each step."""
-    if isinstance(steps, StepColumns):
+    :class:`StepColumns` or :class:`~slamio.log.columns3d.StepColumns3d` (no step built),
+    else read off each step."""
+    from slamio.log.columns3d import StepColumns3d
+
+    if isinstance(steps, (StepColumns, StepColumns3d)):
         return steps.stamps_s()
     return np.array([step.stamp_s for step in steps], dtype=float)
 

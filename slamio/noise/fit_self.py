@@ -44,8 +44,8 @@ import scipy.sparse.linalg as spla
 
 from slamio.noise.errors import NoiseModelError
 
-__all__ = ["LagFromReadings", "VceStep", "component_shares", "hat_traces", "hat_traces_blocks", "hat_traces_projected",
-           "lag_from_readings",
+__all__ = ["CholeskyFactor", "LagFromReadings", "VceStep", "component_shares", "hat_traces", "hat_traces_blocks",
+           "hat_traces_projected", "lag_from_readings",
            "parabola_minimum", "ranges_from_readings", "scaled_increments",
            "pair_weights", "relative_std", "scoring_step", "vce_from_sums", "vce_step"]
 
@@ -76,43 +76,84 @@ def component_shares(theta: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.n
     return var, w
 
 
-def _probed(A: sp.spmatrix, probes: int, seed: int, columns_ordered: bool = False):
+class CholeskyFactor:
+    """``AᵀA = Rᵀ R`` given by its upper-triangular factor R (n × n, sparse, a non-zero
+    diagonal), e.g. from GTSAM's elimination (:func:`fgslam.linearized.normal_cholesky`):
+    :meth:`solve` gives ``(AᵀA)⁻¹ W`` by two sparse triangular solves.
+
+    Held as ``R = D Ũ`` (D its diagonal, Ũ unit upper triangular, one CSR array set; a CSR R
+    given is scaled into Ũ in place): both solves read Ũ in place (as Ũᵀ, CSC, a view of the
+    same arrays), so no copy of the factor is made, once or per solve."""
+
+    def __init__(self, R: sp.spmatrix) -> None:
+        unit = sp.csr_matrix(R)  # a CSR R is taken over: scaled in place, not copied
+        unit.sort_indices()
+        diagonal = unit.diagonal()
+        if not np.all(np.isfinite(diagonal)) or np.any(diagonal == 0.0):
+            raise NoiseModelError("the smoothing problem is singular (a zero pivot): a pose or landmark no "
+                                  "measurement fixes")
+        unit.data /= np.repeat(diagonal, np.diff(unit.indptr))  # D⁻¹ R, in place
+        unit.setdiag(1.0)  # exactly 1 (it is R_ii / R_ii already)
+        self._unit, self._pivots = unit, diagonal**2
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self._unit.shape
+
+    def solve(self, W: np.ndarray) -> np.ndarray:
+        """``(AᵀA)⁻¹ W`` for W of shape (n,) or (n, k)."""
+        unit = self._unit
+        y = spla.spsolve_triangular(unit.T, W, lower=True, unit_diagonal=True, overwrite_A=True)  # Ũᵀ y = W
+        y /= self._pivots if y.ndim == 1 else self._pivots[:, None]
+        return spla.spsolve_triangular(unit, y, lower=False, unit_diagonal=True, overwrite_A=True,
+                                       overwrite_b=True)  # Ũ x = D⁻² y
+
+
+def _probed(A: sp.spmatrix, probes: int, seed: int, columns_ordered: bool = False,
+            factor: CholeskyFactor | None = None):
     """Hutchinson's probes of the hat matrix ``H = A (AᵀA)⁻¹ Aᵀ``: yields ``(z, Hz)`` blocks of
     Rademacher vectors (seeded, :data:`PROBE_BLOCK` columns at a time) after one sparse factorisation
     of ``AᵀA``; :class:`NoiseModelError` when it is singular (a variable no measurement fixes).
 
-    ``columns_ordered``: A's columns already come in a fill-reducing order (as
-    :func:`fgslam.linearized.whitened_system` gives them), factorised in that order; else
-    SuperLU orders them (minimum degree on AᵀA, which on some graphs fills in 5× as much:
-    890 MB against 170 MB on a long stereo drive). H does not depend on the columns' order."""
+    ``factor``: ``AᵀA``'s Cholesky factor, made by the caller in A's column order
+    (:class:`CholeskyFactor`); else SuperLU factorises it. ``columns_ordered``: A's columns
+    already come in a fill-reducing order (as :func:`fgslam.linearized.whitened_system` gives
+    them), factorised in that order; else SuperLU orders them (minimum degree on AᵀA, which on
+    some graphs fills in 5× as much: 890 MB against 170 MB on a long stereo drive). H does not
+    depend on the columns' order."""
     A = sp.csr_matrix(A)
     m, _ = A.shape
-    try:
-        lu = spla.splu((A.T @ A).tocsc(), permc_spec="NATURAL" if columns_ordered else "MMD_AT_PLUS_A",
-                       options={"SymmetricMode": True})
-    except RuntimeError as exc:  # "Factor is exactly singular"
-        raise NoiseModelError(f"the smoothing problem is singular ({exc}): a pose or landmark no "
-                              "measurement fixes") from None
+    solve = factor.solve if factor is not None else _superlu(A, columns_ordered).solve
     rng = np.random.default_rng(seed)
     done = 0
     while done < probes:  # drawn 32 at a time (the seeded probes stay what they were), solved a few at a time
         drawn = rng.choice((-1.0, 1.0), size=(m, min(32, probes - done)))
         for first in range(0, drawn.shape[1], PROBE_BLOCK):
             z = drawn[:, first:first + PROBE_BLOCK]
-            yield z, A @ lu.solve(np.asarray(A.T @ z))
+            yield z, A @ solve(np.asarray(A.T @ z))
         done += drawn.shape[1]
 
 
+def _superlu(A: sp.csr_matrix, columns_ordered: bool):
+    """SuperLU's factorisation of ``AᵀA`` (in A's column order when ``columns_ordered``)."""
+    try:
+        return spla.splu((A.T @ A).tocsc(), permc_spec="NATURAL" if columns_ordered else "MMD_AT_PLUS_A",
+                         options={"SymmetricMode": True})
+    except RuntimeError as exc:  # "Factor is exactly singular"
+        raise NoiseModelError(f"the smoothing problem is singular ({exc}): a pose or landmark no "
+                              "measurement fixes") from None
+
+
 def hat_traces(A: sp.spmatrix, weights: np.ndarray, probes: int = PROBES, seed: int = 0, *,
-               columns_ordered: bool = False) -> np.ndarray:
+               columns_ordered: bool = False, factor: CholeskyFactor | None = None) -> np.ndarray:
     """``Σ_j weights[j, c] · h_jj`` for every column c of ``weights`` (m, C), ``h`` the diagonal
     of the hat matrix of the whitened Jacobian ``A`` (m × n, full column rank).
 
     Hutchinson's estimator with ``probes`` Rademacher vectors (seeded: the same answer every
-    run; ``columns_ordered`` as :func:`_probed`). Raises :class:`NoiseModelError` when ``AᵀA``
-    is singular (a variable no measurement fixes)."""
+    run; ``columns_ordered`` and ``factor`` as :func:`_probed`). Raises :class:`NoiseModelError`
+    when ``AᵀA`` is singular (a variable no measurement fixes)."""
     out = np.zeros(weights.shape[1])
-    for z, hz in _probed(A, probes, seed, columns_ordered):
+    for z, hz in _probed(A, probes, seed, columns_ordered, factor):
         out += weights.T @ np.sum(z * hz, axis=1)
     return out / probes
 
@@ -340,12 +381,12 @@ def parabola_minimum(x: np.ndarray, y: np.ndarray) -> float | None:
 
 
 def ranges_from_readings(measured_m: np.ndarray, bearing_rad: np.ndarray, range_is_depth: bool,
-                         range_bias_m: float, range_scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """``(range_m, sigma_factor)`` of readings under a camera range model: ``measured =
-    range_scale·(r·cos b if range_is_depth else r) + range_bias_m`` inverted, as
+                         range_bias_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(range_m, sigma_factor)`` of readings under a camera range model with scale 1 (the
+    gauge: without truth the readings set the scale): ``measured = (r·cos b if
+    range_is_depth else r) + range_bias_m`` inverted, as
     :func:`slamio.noise.apply.correct_observation` does, and the factor its σ is stretched
-    by (1/(scale·cos b) for a depth, else 1/scale). Without truth the scale is the gauge and
-    stays 1, unless the odometry's scale is known (measured trials)."""
+    by (1/cos b for a depth, else 1)."""
     measured, bearing = np.asarray(measured_m, dtype=float), np.asarray(bearing_rad, dtype=float)
-    factor = (1.0 / np.cos(bearing) if range_is_depth else np.ones_like(measured)) / range_scale
+    factor = 1.0 / np.cos(bearing) if range_is_depth else np.ones_like(measured)
     return (measured - range_bias_m) * factor, factor
