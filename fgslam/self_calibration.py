@@ -36,6 +36,12 @@ solution (which absorb a landmark's lasting error into its position) it came out
 with τ ≈ 3–6 s on MRCLAM (Vicon: 0.56, 16 s) and made the EKF worse on two robots of five
 (docs/results-datasets.md), so the model keeps white readings.
 
+With ``odometry_window_s`` the odometry's variance components are learned from its steps
+chained over stretches of that many seconds against the batch solution
+(:mod:`slamio.noise.odometry_windows`) rather than step by step; off by default (on MRCLAM
+Dataset 6, 15 s windows lifted NEES in band a little and made the online anchored ATE
+worse: docs/results-datasets.md).
+
 What it does not learn: the range scale (the gauge: only the odometry's scale against it
 shows), the odometry's scales (:func:`profile_scales` can, ``scales=True``: it recovers a
 simulated robot's and comes close to Vicon's on MRCLAM, but made the MRCLAM estimates worse:
@@ -63,10 +69,12 @@ from slamio.noise.apply import apply_noise_model
 from slamio.noise.dead_reckoning import DeadReckoning, odometry_arrays, turn_rate_radps
 from slamio.noise.errors import NoiseModelError
 from slamio.noise.fit_self import (
-    LAG_GRID_S, LagFromReadings, component_shares, hat_traces, lag_from_readings, pair_weights, parabola_minimum,
+    LAG_GRID_S, LagFromReadings, component_shares, hat_traces, hat_traces_projected, lag_from_readings, pair_weights,
+    parabola_minimum,
     ranges_from_readings, relative_std, scaled_increments, scoring_step,
 )
 from slamio.noise.model import NoiseModel, ObservationModel, OdometryModel, OdometryNoiseRates
+from slamio.noise.odometry_windows import window_bounds, window_maps, window_residuals, window_sums
 
 __all__ = ["COMPONENTS", "RunGraph", "SelfCalibration", "fit_without_truth", "profile_range_model", "profile_scales"]
 
@@ -116,8 +124,9 @@ class RunGraph:
     """One planar log's measurements, with the landmark each reading was paired with; builds
     its factor graph for any θ (the measurements never change, only their σ)."""
 
-    def __init__(self, log: RunLog):
+    def __init__(self, log: RunLog, window_s: float | None = None):
         self.path = log.path
+        self.window_s = window_s
         steps = log.steps()
         if log.header.is_3d:
             raise NoiseModelError(f"{log.path}: a 3-D log; calibrate --without-truth writes a planar noise model. "
@@ -130,6 +139,7 @@ class RunGraph:
                                   "fit without truth needs one pose per step")
         self.header = log.header
         self.stamps_s, self.increments = odometry_arrays(steps)
+        self.windows = window_bounds(self.stamps_s, window_s) if window_s and len(steps) > 1 else None
         self.read_increments = self.increments
         self.set_increments(self.increments)
         chain = DeadReckoning(self.stamps_s, self.increments) if len(steps) > 1 else None
@@ -171,6 +181,16 @@ class RunGraph:
         self.odometry_q[:, 0, 0], self.odometry_q[:, 0, 1] = distance, dt
         self.odometry_q[:, 1, 2], self.odometry_q[:, 1, 3] = distance, dt
         self.odometry_q[:, 2, 4], self.odometry_q[:, 2, 5], self.odometry_q[:, 2, 6] = turn, distance, dt
+
+    def odometry_windows(self, theta: np.ndarray, rows: int):
+        """``(U, Q, Σ, residuals)`` of the odometry windows at the current solution
+        (:mod:`slamio.noise.odometry_windows`; the odometry's rows follow the prior's three)."""
+        q = self.odometry_q * self.variance_scale[None, :, None]
+        variances = np.maximum(self.odometry_q @ theta, 1e-18) * self.variance_scale
+        U, Q, S = window_maps(self.increments, q, variances, self.windows, lambda k: rows if k is None else 3 + 3 * k)
+        poses = np.array([[p.x(), p.y(), p.theta()] for p in (self.values.atPose2(X(t))
+                                                              for t in range(len(self.increments) + 1))])
+        return U, Q, S, window_residuals(poses, self.increments, self.windows)
 
     def chi2_half(self, theta: np.ndarray) -> float:
         """Half the whitened χ² of the batch solution for θ."""
@@ -285,20 +305,30 @@ def _iteration(graphs: list[RunGraph], theta: np.ndarray):
         graph, q, _ = run.solve(theta)
         A, b = whitened_system(graph, run.values)
         _, w = component_shares(theta, q)
-        pairs = pair_weights(w)
-        hat = hat_traces(A, np.hstack([w, pairs]), columns_ordered=True)
-        shown += w.T @ (b * b)
-        redundancy += w.sum(axis=0) - hat[:C]
-        pair_sums += pairs.sum(axis=0)
-        pair_hat += hat[C:]
         weights_all.append(w)
+        if run.windows:  # the odometry's components from its windows, the readings' from their rows
+            w = w.copy()
+            w[3:3 + 3 * len(run.increments)] = 0.0
+            pairs = pair_weights(w)
+            U, Q, S, residuals = run.odometry_windows(theta, A.shape[0])
+            hat, M = hat_traces_projected(A, np.hstack([w, pairs]), U, columns_ordered=True)
+            sums = window_sums(theta, residuals, Q, S, M)
+        else:
+            pairs = pair_weights(w)
+            hat = hat_traces(A, np.hstack([w, pairs]), columns_ordered=True)
+            sums = (0.0, 0.0, 0.0, 0.0)
+        shown += w.T @ (b * b) + sums[0]
+        redundancy += w.sum(axis=0) - hat[:C] + sums[1]
+        pair_sums += pairs.sum(axis=0) + sums[2]
+        pair_hat += hat[C:] + sums[3]
         run.regate(theta)
     return scoring_step(theta, shown, redundancy, pair_sums, pair_hat), np.concatenate(weights_all)
 
 
 def fit_without_truth(logs: list[RunLog], progress=None, *,
                       lags_s: tuple[float, ...] = LAG_GRID_S, scales: bool = False,
-                      range_model: bool = True, pinned: dict[str, float] | None = None) -> SelfCalibration:
+                      range_model: bool = True, pinned: dict[str, float] | None = None,
+                      odometry_window_s: float | None = None) -> SelfCalibration:
     """Fit the odometry's lag among ``lags_s``, the variance terms of a :class:`NoiseModel`
     and (``range_model``) the camera's range model on ``logs`` alone (module docstring). The
     lag comes first, from the readings' bearings (:func:`slamio.noise.fit_self.lag_from_readings`,
@@ -307,14 +337,18 @@ def fit_without_truth(logs: list[RunLog], progress=None, *,
     scales (:func:`profile_scales`). ``progress(done, total, label)``
     (:class:`fgslam.cli.progress.Progress`) after each iteration. ``pinned``: odometry scales
     measured otherwise (:meth:`slamio.noise.trials.TrialCalibration.odometry_scales`: a taped
-    distance and turns in place), held while the rest is learned around them."""
+    distance and turns in place), held while the rest is learned around them.
+    ``odometry_window_s``: the odometry's variance rates learned from its increments chained
+    over stretches of that many seconds (:mod:`slamio.noise.odometry_windows`) instead of
+    step by step: the white noise that is as large as the odometry's error over the stretch."""
     range_only = all(o.range_only for log in logs for o in log.records if isinstance(o, Observation))
     motion = None if range_only else pooled_lag(logs, lags_s)
     lag = 0.0 if motion is None else motion.lag_s
     odometry = OdometryModel(lag_s=lag, **(pinned or {}))
     reread = motion is not None or bool(pinned)
     lagged = [apply_noise_model(log, NoiseModel(odometry))[0] if reread else log for log in logs]
-    graphs, theta, step, weights, iterations, converged = _fit_variances(lagged, progress, "noise fit: iterations")
+    graphs, theta, step, weights, iterations, converged = _fit_variances(lagged, progress, "noise fit: iterations",
+                                                                         odometry_window_s)
     range_model = range_model and not range_only
     found, camera, costs = None, {}, {}
     for _ in range(PROFILE_ROUNDS if (scales or range_model) else 0):
@@ -349,6 +383,7 @@ def fit_without_truth(logs: list[RunLog], progress=None, *,
         result.report["not_determined_without_truth"] = [
             n for n in result.report["not_determined_without_truth"] if n.split(".")[-1] not in pinned]
     result.report["range_only"] = range_only
+    result.report["odometry_window_s"] = odometry_window_s
     result.report["lag_from_readings"] = None if motion is None else {
         "lag_s": lag, "pairs": motion.pairs, "lags_tried_s": [float(v) for v in lags_s],
         "median_squared_bearing_miss_rad2": [float(c) if np.isfinite(c) else None for c in motion.cost]}
@@ -375,9 +410,9 @@ def pooled_lag(logs: list[RunLog], lags_s: tuple[float, ...]) -> LagFromReadings
     return LagFromReadings(float(lags_s[int(np.argmin(total))]), total / pairs, pairs)
 
 
-def _fit_variances(logs: list[RunLog], progress, label: str):
+def _fit_variances(logs: list[RunLog], progress, label: str, window_s: float | None = None):
     """The VCE iterations on ``logs``: ``(graphs, θ, last step, weights, iterations, converged)``."""
-    graphs = [RunGraph(log) for log in logs]
+    graphs = [RunGraph(log, window_s) for log in logs]
     if not any(run.readings for run in graphs):
         raise NoiseModelError("no reading could be paired with a landmark: nothing to learn the noise from")
     return (graphs,) + _vce(graphs, START.copy(), progress, label)

@@ -93,10 +93,12 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     p.add_argument("--without-truth", dest="mode", action="store_const", const="self",
                    help="learn the noise from the logs alone (no ground truth needed): variance-component "
                    "estimation on the smoothed solution; the same as --from self")
-    p.add_argument("--odometry-window", type=float, default=1.0, metavar="S",
-                   help="(from truth) the stretch of driving, in seconds, the odometry's variance rates are fitted "
-                   "over (default 1): a longer one describes the error the estimator carries through long "
-                   "stretches without a reading (more consistent, less accurate; docs/results-datasets.md)")
+    p.add_argument("--odometry-window", type=float, default=None, metavar="S",
+                   help="the stretch of driving, in seconds, the odometry's variance rates are fitted over (from "
+                   "truth: default 1; without truth: default each step, with S the steps chained over S seconds "
+                   "against the smoothed solution): a longer one describes the error the estimator carries "
+                   "through long stretches without a reading (more consistent, less accurate; "
+                   "docs/results-datasets.md)")
     p.add_argument("--fit-mount", action="store_true",
                    help="(from truth) fit the model from where the bearings place the sensor on the robot and "
                    "carry it: applying the model states it as the log header's sensor.pose_on_robot (without "
@@ -175,9 +177,7 @@ def _calibrate_from_logs(args: argparse.Namespace, paths: list[str]) -> int:
 
     if args.out:  # before the fit, so nothing is computed for nothing
         check_new_file(args.out, overwrite=args.overwrite, example="noise.json")
-    window = getattr(args, "odometry_window", 1.0)
-    check_number("--odometry-window", window, above=0.0, at_most=600.0,
-                 what="the seconds of driving the odometry's variance rates are fitted over")
+    window = odometry_window(args, 1.0)
     model = fit_noise_model([read(p) for p in paths], fit_mount=getattr(args, "fit_mount", False), window_s=window)
     print(noise_model_summary(model))
     if args.out:
@@ -196,9 +196,10 @@ def _calibrate_without_truth(args: argparse.Namespace, paths: list[str]) -> int:
     if args.out:
         check_new_file(args.out, overwrite=args.overwrite, example="noise.json")
     pinned = None if getattr(args, "scales_from", None) is None else trial_scales(args.scales_from)
+    window = odometry_window(args, None)
     logs = [read(p) for p in paths]
     with Progress(unit="") as progress:
-        fit = fit_without_truth(logs, progress=progress, pinned=pinned)
+        fit = fit_without_truth(logs, progress=progress, pinned=pinned, odometry_window_s=window)
     print(noise_model_summary(fit.model))
     print(self_fit_notes(fit))
     if args.out:
@@ -206,6 +207,16 @@ def _calibrate_without_truth(args: argparse.Namespace, paths: list[str]) -> int:
                        overwrite=args.overwrite)
         print(f"wrote {args.out}")
     return 0
+
+
+def odometry_window(args: argparse.Namespace, default: float | None) -> float | None:
+    """``--odometry-window``'s seconds (``default`` when not given), checked."""
+    window = getattr(args, "odometry_window", None)
+    if window is None:
+        return default
+    check_number("--odometry-window", window, above=0.0, at_most=600.0,
+                 what="the seconds of driving the odometry's variance rates are fitted over")
+    return window
 
 
 def trial_scales(path: str) -> dict[str, float]:
@@ -236,6 +247,9 @@ def self_fit_notes(fit) -> str:
     if report.get("range_only"):
         lines.append("  range-only readings (radios): applying the model (--noise) changes the ranges' sigma only and "
                      "keeps the log's odometry, whose heading a range cannot check")
+    if report.get("odometry_window_s"):
+        lines.append(f"  odometry variance rates learned over {report['odometry_window_s']:g} s stretches of its steps "
+                     "chained (the error it carries between readings), not step by step")
     lag = report.get("lag_from_readings")
     if lag:
         lines.append(f"  odometry lag {lag['lag_s']:.2f} s: what {lag['pairs']} pairs of readings of the same "

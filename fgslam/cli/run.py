@@ -93,6 +93,10 @@ def add_parser(verbs) -> argparse.ArgumentParser:
                      help="seed 001's trial calibration from `fgslam calibrate TRIALS.csv --out CAL.json`: "
                           "ekf-s001 takes its R and Q from it (as `fgslam record --calibration` does); with "
                           "--noise self the fit holds the odometry's scales at the trials'")
+    run.add_argument("--odometry-window", type=float, default=None, metavar="S",
+                     help="with --noise self: learn the odometry's variance rates from its steps chained over "
+                          "S-second stretches (default: step by step), as `fgslam calibrate --without-truth "
+                          "--odometry-window S` does")
     run.add_argument("--no-report", action="store_true", help="skip report.html and the PNG figures")
     run.add_argument("--no-consistency", action="store_true",
                      help="skip NEES, NIS and covariance ellipses (their work runs between the timed steps, "
@@ -130,6 +134,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     log, tally = read_counted(args.log, columns=args.noise is None)
     require_motion(log, "estimate or score")
     dimension = 3 if log.header.is_3d else 2
+    if getattr(args, "odometry_window", None) is not None and (args.noise != "self" or dimension == 3):
+        raise FgslamError("--odometry-window sets the stretch the odometry's variance is learned over with "
+                          "--noise self on a planar log" + (f"; {args.log} is a 3-D log" if dimension == 3 else ""))
     if dimension == 3:  # seed 003's stereo + IMU logs: their records carry their noise
         for flag, value in (("--noise", args.noise), ("--calibration", args.calibration)):
             if value is not None and not (flag == "--noise" and value == "self"):
@@ -223,6 +230,7 @@ def _pipeline(dimension: int):
 def _with_side_inputs(args: argparse.Namespace, log):
     """The planar ``log`` with --noise's model and --calibration's R and Q applied (if given)."""
     if args.noise is not None:
+        from fgslam.cli.calibrate import odometry_window
         from slamio.noise.apply import apply_noise_model
         from slamio.noise.model import load_noise_model
 
@@ -230,7 +238,8 @@ def _with_side_inputs(args: argparse.Namespace, log):
             raise FgslamError(f"{args.log} was simulated (fgslam sim): its noise is the simulator's own and its "
                               "covariances are exact, so a fitted noise model does not apply; --noise is for a log "
                               "recorded or imported without one")
-        model = _self_fitted_model(log, args.calibration) if args.noise == "self" else load_noise_model(args.noise)
+        model = _self_fitted_model(log, args.calibration, odometry_window(args, None)) if args.noise == "self" \
+            else load_noise_model(args.noise)
         log, dropped = apply_noise_model(log, model)
         if args.noise == "self":  # the verdict then knows the noise is this log's own
             noise = {**log.header.noise, "learned_without_truth": True}
@@ -244,17 +253,17 @@ def _with_side_inputs(args: argparse.Namespace, log):
     return log
 
 
-def _self_fitted_model(log, calibration: str | None = None):
+def _self_fitted_model(log, calibration: str | None = None, window_s: float | None = None):
     """``--noise self``: the noise model :func:`fgslam.self_calibration.fit_without_truth`
     learns from ``log`` alone (the odometry's scales held at the trial ``calibration``'s,
-    when given), its summary printed."""
+    when given; its variances over ``window_s``-second stretches, when given), its summary printed."""
     from fgslam.cli.calibrate import noise_model_summary, self_fit_notes, trial_scales
     from fgslam.cli.progress import Progress
     from fgslam.self_calibration import fit_without_truth
 
     pinned = None if calibration is None else trial_scales(calibration)
     with Progress(unit="") as progress:
-        fit = fit_without_truth([log], progress=progress, pinned=pinned)
+        fit = fit_without_truth([log], progress=progress, pinned=pinned, odometry_window_s=window_s)
     print(noise_model_summary(fit.model))
     print(self_fit_notes(fit))
     return fit.model

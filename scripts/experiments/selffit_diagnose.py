@@ -8,7 +8,8 @@ Vicon: anchored / aligned ATE, NIS in band. Truth is the checker only: it never 
 learned model. Variants: ``self``, ``vicon``, a part name or several joined by ``+`` (the
 learned model with those parts from Vicon), ``learn:range`` / ``learn:range+scales`` (learned
 without truth with the range model / and the odometry's scales; ``learn:range|PARTS`` with
-PARTS from Vicon on top). Prints a markdown table of medians and each robot's figures;
+PARTS from Vicon on top; ``learn:range+w5``: the odometry's variances learned over 5 s
+windows). Prints a markdown table of medians and each robot's figures;
 caches the models as JSON in ``--cache``.
 
     PYTHONPATH=. .venv/bin/python -m scripts.experiments.selffit_diagnose RUNS_DIR [--variants a,b]
@@ -98,7 +99,8 @@ def own_vicon(runs: str, cache: str, k: int) -> NoiseModel:
 def learned_with(runs: str, cache: str, k: int, what: list[str]) -> NoiseModel:
     """Learned without truth with the extra parts ``what`` (``range``: the camera's range
     model; ``scales``: the odometry's scales; ``pin``: the forward and turn scales and the
-    turn per metre pinned at robot k's own Vicon fit, as trials would), cached."""
+    turn per metre pinned at robot k's own Vicon fit, as trials would; ``wS``: the odometry's
+    variance rates learned over S-second windows), cached."""
     from fgslam.self_calibration import fit_without_truth
 
     path = os.path.join(cache, f"learn{k}_{'+'.join(what)}.json")
@@ -108,8 +110,9 @@ def learned_with(runs: str, cache: str, k: int, what: list[str]) -> NoiseModel:
         if "pin" in what:
             odometry = own_vicon(runs, cache, k).odometry
             pinned = {name: getattr(odometry, name) for name in ("forward_scale", "turn_scale", "turn_per_m_rad")}
+        window = next((float(w[1:]) for w in what if w.startswith("w")), None)
         save_noise_model(path, fit_without_truth([log], range_model="range" in what, scales="scales" in what,
-                                                 pinned=pinned).model)
+                                                 pinned=pinned, odometry_window_s=window).model)
     return load_noise_model(path)
 
 

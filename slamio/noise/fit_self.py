@@ -44,7 +44,8 @@ import scipy.sparse.linalg as spla
 
 from slamio.noise.errors import NoiseModelError
 
-__all__ = ["CholeskyFactor", "LagFromReadings", "VceStep", "component_shares", "hat_traces", "hat_traces_blocks", "lag_from_readings",
+__all__ = ["CholeskyFactor", "LagFromReadings", "VceStep", "component_shares", "hat_traces", "hat_traces_blocks",
+           "hat_traces_projected", "lag_from_readings",
            "parabola_minimum", "ranges_from_readings", "scaled_increments",
            "pair_weights", "relative_std", "scoring_step", "vce_from_sums", "vce_step"]
 
@@ -155,6 +156,23 @@ def hat_traces(A: sp.spmatrix, weights: np.ndarray, probes: int = PROBES, seed: 
     for z, hz in _probed(A, probes, seed, columns_ordered, factor):
         out += weights.T @ np.sum(z * hz, axis=1)
     return out / probes
+
+
+def hat_traces_projected(A: sp.spmatrix, weights: np.ndarray, U: sp.spmatrix, probes: int = PROBES, seed: int = 0, *,
+                         columns_ordered: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`hat_traces` of ``weights`` and, from the same probes, ``U H Uᵀ``'s 3×3 diagonal
+    blocks (W, 3, 3) for ``U`` (3·W, m): the hat matrix seen through the odometry windows'
+    maps (:func:`slamio.noise.odometry_windows.window_maps`). Hutchinson: ``E[(U H z)(U z)ᵀ] =
+    U H Uᵀ``."""
+    out = np.zeros(weights.shape[1])
+    W = U.shape[0] // 3
+    M = np.zeros((W, 3, 3))
+    for z, hz in _probed(A, probes, seed, columns_ordered):
+        out += weights.T @ np.sum(z * hz, axis=1)
+        uz, uhz = (U @ z).reshape(W, 3, -1), (U @ hz).reshape(W, 3, -1)
+        M += np.einsum("wip,wjp->wij", uhz, uz)
+    M /= probes
+    return out / probes, 0.5 * (M + np.transpose(M, (0, 2, 1)))
 
 
 def hat_traces_blocks(A: sp.spmatrix, blocks: list[sp.spmatrix], probes: int = PROBES, seed: int = 0, *,
