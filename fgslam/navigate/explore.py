@@ -1,40 +1,50 @@
-"""``explore``: frontier exploration that also comes back to the landmarks, steered by ``vfh``.
+"""``explore``: look at every surface closely, and come back to the landmarks; steered by ``vfh``.
 
 A smoother is worth having when the robot sees the same landmarks again after a while (loop
-closures). So this navigator does two things on the occupancy grid its scans build
-(:mod:`fgslam.navigate.grid`, log-odds; unknown stays unknown):
+closures), and a tag is read only from its front within a few metres. So this navigator
+keeps, on the occupancy grid its scans build (:mod:`fgslam.navigate.grid`, log-odds; unknown
+stays unknown), four kinds of goal:
 
 * **frontiers** — free cells next to unknown ones (:func:`frontier_mask`), grouped into
   clusters; each cluster offers one goal, its cell nearest the cluster's middle among those
-  with room for the robot (:func:`frontier_goals`);
+  with room for the robot (:func:`frontier_goals`). The floor counts as explored only within
+  ``explored_range_m`` (3 m) of where a scan was taken;
+* **surfaces to inspect** — occupied cells no scan has hit from within ``read_range_m``
+  (2.5 m) at an incidence within ``read_incidence_rad`` (55°): a wall or box face seen only
+  from afar or edge-on, where a tag would not have been read
+  (:mod:`fgslam.navigate.inspect`). Per ``tile_m`` (1 m) tile of them one target, looked at
+  from a viewpoint 0.9–1.7 m in front of it (the side the free floor is on), where the
+  robot turns to face it; the tile then counts as looked at;
 * **landmark revisits** — a mapped landmark seen on fewer than ``visits_wanted`` separate
-  visits and not seen for ``revisit_gap_s`` becomes a goal: a viewpoint 1–1.5 m from it,
-  on known free floor with room for the robot, with no occupied cell between, and within
-  40° of the mean direction it was seen from (a tag is read from its front only; the
-  Situation carries no tag yaws, so where it was seen from is the estimate of its facing)
-  (:func:`landmark_viewpoint`); there the robot turns to face it. A visit is counted, as
-  the harness counts it, when the landmark's sighting count rises again after
-  ``revisit_gap_s`` without a rise.
+  visits and not seen for ``revisit_gap_s`` becomes a goal: a viewpoint ``view_m``
+  (1–2.5 m) from it, on known free floor with room for the robot, with no occupied cell
+  between, and within 40° of the mean direction it was seen from (the Situation carries no
+  tag yaws: where it was seen from is the estimate of its facing)
+  (:func:`~fgslam.navigate.inspect.landmark_viewpoint`); there the robot turns to face it.
+  A visit is counted, as the harness counts it, when the landmark's sighting count rises
+  again after ``revisit_gap_s`` without a rise;
+* **glances** — such a landmark in sight from where the robot is (within
+  ``glance_range_m``, 2.8 m, and 45° of its facing, nothing occupied between): the robot
+  turns to it there and then, on the way to another goal too (not when it has stood
+  ``glance_still_s`` on one spot already: turning there would keep it on that spot).
 
-The floor counts as explored (freed in the grid) only within ``explored_range_m`` (3 m) of
-where a scan was taken: the tag detector reads a 16 cm tag to ~3.5 m, so a room seen only
-from afar still has frontiers that bring the robot near its walls.
+Goals are chosen by cost: the length of the way over the known floor (Dijkstra on 0.2 m
+cells with room for the robot's enlarged disc, :mod:`fgslam.navigate.paths`; a goal the
+known floor does not lead to waits) plus ``turn_cost_m_per_rad`` for the turn toward it,
+landmark goals weighted by ``landmark_weight``; when none is left it goes back to the
+landmark it saw longest ago, or wanders. It starts with a look-around turn (a circle less
+the camera's view). It steers with :class:`~fgslam.navigate.vfh.Vfh` (local avoidance,
+turn-to-look) toward the point ``lookahead_m`` along the way. A frontier goal is reached
+when the robot is within ``reach_m`` or the cell is no longer a frontier (seen from afar).
+Stuck (no ``progress_m`` shorter way left for ``stuck_s``) or bumped twice on the way, or
+7 s on one spot whatever the goals: the goal is abandoned and its neighbourhood
+black-listed for ``blacklist_s`` (60 s: the map grows, a way that failed may open). On a
+bump the robot backs off ~0.15 m and turns away from the bump side.
 
-Goals are chosen by cost: distance plus ``turn_cost_m_per_rad`` for the turn toward them
-(:func:`goal_cost_m`), landmark goals weighted by ``landmark_weight``; when none is left it
-goes back to the landmark it saw longest ago, or wanders. It starts with a look-around turn (a circle less the camera's view).
-It steers to the goal with :class:`~fgslam.navigate.vfh.Vfh` (local avoidance, turn-to-look).
-A frontier goal is reached when the robot is within ``reach_m`` or the cell is no longer a
-frontier (seen from afar). Stuck (no ``progress_m`` closer to the goal for ``stuck_s``) or
-bumped twice on the way, or 7 s on one spot whatever the goals: the goal is abandoned and
-its neighbourhood black-listed for ``blacklist_s`` (60 s: the map grows, a way that failed
-may open). On a bump
-the robot backs off ~0.15 m and turns away from the bump side.
-
-Work per step stays small: at most one heavy job a step (a scan, the clearance map, the
-frontiers, a goal choice; the steering then reuses the previous step's histogram), and the
-clearance map and the frontiers are recomputed once every ``replan_s``, on two steps, on the
-block of known cells only.
+Work per step stays small: at most one heavy job a step besides steering (a scan; the
+surfaces that scan inspected; the clearance map; the frontiers; the inspection targets; the
+ways from the robot; a glance check; a goal choice, which looks for at most two viewpoints),
+the map's offers recomputed once every ``replan_s``, on the block of known cells only.
 """
 
 from __future__ import annotations
@@ -47,7 +57,8 @@ from scipy import ndimage
 
 from fgslam.navigate.common import ROBOT_RADIUS_M, Command, Situation, heading_error_rad, limited_command, turn_towards
 from fgslam.navigate.grid import OccupancyGrid
-from fgslam.navigate.inspect import inspected_hits, inspection_targets, nearest_to_group_middle
+from fgslam.navigate.inspect import (grid_sight, inspected_hits, inspection_targets, landmark_viewpoint,
+                                     nearest_to_group_middle)
 from fgslam.navigate.paths import coarse_passable, geodesic_from, way_ahead_xy, way_left_m, way_to
 from fgslam.navigate.vfh import Vfh
 from slamio.camera.kinect import KINECT_HFOV_RAD
@@ -94,37 +105,6 @@ def frontier_goals(log_odds: np.ndarray, clearance_m: np.ndarray, min_cells: int
     pick = nearest_to_group_middle(rows[roomy], cols[roomy], which[roomy], rows, cols, which)
     r, c, k = rows[roomy][pick], cols[roomy][pick], which[roomy][pick]
     return [(int(a), int(b), int(size[g])) for a, b, g in zip(r, c, k)]
-
-
-def _grid_sight(grid: OccupancyGrid, from_xy, to_xy, stop_short_m: float = 0.15) -> bool:
-    """No occupied cell on the segment (up to ``stop_short_m`` before ``to_xy``, the landmark
-    sits on its wall)."""
-    offset = np.subtract(to_xy, from_xy)
-    length = float(np.hypot(*offset))
-    steps = np.arange(0.0, max(length - stop_short_m, 0.0), 0.5 * grid.resolution_m)
-    points = np.asarray(from_xy) + steps[:, None] * offset / max(length, 1e-9)
-    return not np.any(grid.values_at(points) > OCCUPIED_ABOVE)
-
-
-def landmark_viewpoint(grid: OccupancyGrid, clearance_m_at, landmark_xy, robot_xy, distances_m=(1.0, 1.25, 1.5),
-                       directions: int = 16, room_m: float = ROBOT_RADIUS_M + 0.12, facing_rad: float | None = None,
-                       facing_limit_rad: float = math.radians(40)) -> tuple[float, float] | None:
-    """The viewpoint nearest the robot from which to look at a landmark (module docstring);
-    ``clearance_m_at(xy)`` gives the clearance at points. With ``facing_rad`` (the direction
-    the landmark was seen from), only viewpoints within ``facing_limit_rad`` of it: a tag is
-    seen from its front only. ``None`` when there is none."""
-    angles = np.arange(directions) * (2 * math.pi / directions)
-    if facing_rad is not None:
-        angles = angles[np.abs(wrap_angle(angles - facing_rad)) <= facing_limit_rad]
-    candidates = np.array([[landmark_xy[0] + d * math.cos(a), landmark_xy[1] + d * math.sin(a)]
-                           for d in distances_m for a in angles])
-    ok = (grid.values_at(candidates, outside=0.0) < FREE_BELOW) & (clearance_m_at(candidates) >= room_m)
-    candidates = candidates[ok]
-    order = np.argsort(np.hypot(candidates[:, 0] - robot_xy[0], candidates[:, 1] - robot_xy[1]))
-    for k in order:
-        if _grid_sight(grid, candidates[k], landmark_xy):
-            return float(candidates[k, 0]), float(candidates[k, 1])
-    return None
 
 
 def goal_cost_m(pose, goal_xy, turn_cost_m_per_rad: float = 0.5) -> float:
@@ -372,7 +352,7 @@ class Explore:
                 continue
             due.append((abs(wrap_angle(math.atan2(-dy, -dx) - pose[2])), key, xy))
         for _, key, xy in sorted(due)[:3]:
-            if _grid_sight(self.grid, pose[:2], xy):
+            if grid_sight(self.grid, pose[:2], xy):
                 goal = Goal("glance", (pose[0], pose[1]), key, target=xy)
                 goal.started_s = goal.improved_s = now
                 return goal

@@ -12,7 +12,8 @@ inspects nothing.
 Occupied cells not inspected yet are grouped into tiles of ``tile_m`` (:func:`inspection_targets`);
 each tile offers one target, its cell nearest the tile's middle, with the direction of the
 free floor around it (the way the surface faces, :func:`free_direction_rad`): a viewpoint
-in front of it is where to look from.
+in front of it is where to look from (:func:`landmark_viewpoint`, which finds landmarks'
+viewpoints too).
 """
 
 from __future__ import annotations
@@ -21,7 +22,11 @@ import math
 
 import numpy as np
 
-__all__ = ["hit_incidence_rad", "inspected_hits", "free_direction_rad", "inspection_targets", "nearest_to_group_middle"]
+from fgslam.navigate.common import ROBOT_RADIUS_M
+from slamio.geometry import wrap_angle
+
+__all__ = ["hit_incidence_rad", "inspected_hits", "free_direction_rad", "inspection_targets", "nearest_to_group_middle",
+           "grid_sight", "landmark_viewpoint"]
 
 
 def hit_incidence_rad(scan, scan_pose, max_gap_m: float = 0.08) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -110,3 +115,36 @@ def inspection_targets(occupied: np.ndarray, inspected: np.ndarray, free: np.nda
     rows, cols = rows[pick], cols[pick]
     facing = free_direction_rad(free, rows, cols)
     return [(int(r), int(c), float(f)) for r, c, f in zip(rows, cols, facing) if np.isfinite(f)]
+
+
+def grid_sight(grid, from_xy, to_xy, stop_short_m: float = 0.15, occupied_above: float = 0.5) -> bool:
+    """No occupied cell on the segment (up to ``stop_short_m`` before ``to_xy``, the landmark
+    sits on its wall)."""
+    offset = np.subtract(to_xy, from_xy)
+    length = float(np.hypot(*offset))
+    steps = np.arange(0.0, max(length - stop_short_m, 0.0), 0.5 * grid.resolution_m)
+    points = np.asarray(from_xy) + steps[:, None] * offset / max(length, 1e-9)
+    return not np.any(grid.values_at(points) > occupied_above)
+
+
+def landmark_viewpoint(grid, clearance_m_at, landmark_xy, robot_xy, distances_m=(1.0, 1.25, 1.5),
+                       directions: int = 16, room_m: float = ROBOT_RADIUS_M + 0.12, facing_rad: float | None = None,
+                       facing_limit_rad: float = math.radians(40), free_below: float = -0.3) -> tuple[float, float] | None:
+    """The viewpoint nearest the robot from which to look at a landmark or a surface: on
+    known free floor with ``room_m`` clearance, ``distances_m`` from it, nothing occupied
+    between (:func:`grid_sight`);
+    ``clearance_m_at(xy)`` gives the clearance at points. With ``facing_rad`` (the direction
+    the landmark was seen from), only viewpoints within ``facing_limit_rad`` of it: a tag is
+    seen from its front only. ``None`` when there is none."""
+    angles = np.arange(directions) * (2 * math.pi / directions)
+    if facing_rad is not None:
+        angles = angles[np.abs(wrap_angle(angles - facing_rad)) <= facing_limit_rad]
+    candidates = np.array([[landmark_xy[0] + d * math.cos(a), landmark_xy[1] + d * math.sin(a)]
+                           for d in distances_m for a in angles])
+    ok = (grid.values_at(candidates, outside=0.0) < free_below) & (clearance_m_at(candidates) >= room_m)
+    candidates = candidates[ok]
+    order = np.argsort(np.hypot(candidates[:, 0] - robot_xy[0], candidates[:, 1] - robot_xy[1]))
+    for k in order:
+        if grid_sight(grid, candidates[k], landmark_xy):
+            return float(candidates[k, 0]), float(candidates[k, 1])
+    return None
