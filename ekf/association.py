@@ -86,7 +86,8 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.stats import chi2 as _chi2
+
+from slamio.chi2 import chi2_ppf
 
 __all__ = [
     "DEFAULT_GATE_PROBABILITY",
@@ -129,7 +130,7 @@ DEFAULT_MAX_NODES = 20_000
 
 
 def chi2_gate(dof, probability: float = DEFAULT_GATE_PROBABILITY):
-    """The χ² gate: ``scipy.stats.chi2.ppf(probability, dof)`` (float, or array for an array of dof)."""
+    """The χ² gate: ``scipy.stats.chi2.ppf(probability, dof)`` (:func:`slamio.chi2.chi2_ppf`) (float, or array for an array of dof)."""
     if not 0.0 < probability < 1.0:
         raise ValueError(f"gate probability must be in (0, 1), got {probability!r}")
     if np.ndim(dof) == 0:
@@ -142,7 +143,7 @@ def chi2_gate(dof, probability: float = DEFAULT_GATE_PROBABILITY):
 
 @lru_cache(maxsize=64)
 def _gate_table_cached(probability: float, size: int) -> np.ndarray:
-    table = np.asarray(_chi2.ppf(probability, np.arange(size + 1)), dtype=float)
+    table = np.asarray(chi2_ppf(probability, np.arange(size + 1)), dtype=float)
     table[0] = 0.0  # zero degrees of freedom: nothing measured, nothing allowed
     table.setflags(write=False)
     return table

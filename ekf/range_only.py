@@ -118,7 +118,7 @@ def mirror_across_line(xy, positions_xy) -> np.ndarray:
 
 def try_initialise(positions_xy, ranges_m, sigmas_m, rule: DelayedInitRule = DelayedInitRule()) -> Trilateration | None:
     """The landmark's position when the ranges pin it down by ``rule``, else None."""
-    from scipy.stats import chi2 as chi2_dist
+    from slamio.chi2 import chi2_ppf
 
     P = np.asarray(positions_xy, dtype=float).reshape(-1, 2)
     m = len(P)
@@ -136,6 +136,6 @@ def try_initialise(positions_xy, ranges_m, sigmas_m, rule: DelayedInitRule = Del
     eigenvalues = np.linalg.eigvalsh(fit.covariance)
     if not eigenvalues[0] > 0.0 or math.sqrt(eigenvalues[-1]) > rule.max_sigma_m:
         return None  # a covariance that is not positive definite: the positions do not pin it down
-    if fit.chi2 > chi2_dist.ppf(rule.fit_probability, m - 2):
+    if fit.chi2 > chi2_ppf(rule.fit_probability, m - 2):
         return None
     return fit

@@ -39,6 +39,7 @@ from fgslam.verdict import verdict_or_none
 from slamio.errors import FgslamError
 from slamio.estimator import Estimator
 from slamio.log import Header, RunLog, Step
+from slamio.log.columns import ColumnLog, StepColumns, step_stamps
 
 #: name → factory(header): the planar estimators of :mod:`fgslam.registry` (what ``--estimators``
 #: accepts on a planar log).
@@ -149,7 +150,7 @@ def run_estimator(
     """
     trace = _Trace(len(steps), covariances and hasattr(estimator, "current_covariance"),
                    covariances and hasattr(estimator, "predicted_nis"), hasattr(estimator, "step_associations"))
-    watch = trace.watch = StepWatch(estimator.name, [step.stamp_s for step in steps])
+    watch = trace.watch = StepWatch(estimator.name, step_stamps(steps))
     with watch.failures():
         with pinned_threads(blas_threads), PeakMemory() as memory:
             _feed_steps(estimator, steps, progress, trace)
@@ -158,7 +159,7 @@ def run_estimator(
             estimator.finish()
             final = np.asarray(estimator.trajectory(), dtype=float)
             finish_s = time.perf_counter() - start
-        landmarks, heights, landmark_covariances, association = _final_map(estimator, steps, trace, covariances)
+        landmarks, heights, landmark_covariances, association = _final_map(estimator, trace, covariances)
     with_nis = trace.with_nis
     run = EstimatorRun(
         name=estimator.name,
@@ -195,6 +196,7 @@ class _Trace:
         self.nis_dofs: list[int] = []
         self.true_ids: list[int | None] = []
         self.keys: list[int | None] = []
+        self.hidden = False  # an observation (not range-only) without a landmark id was fed (seen when associating)
         self.watch: StepWatch | None = None  # the step being fed, for a failure's report
 
 
@@ -227,11 +229,12 @@ def _feed_steps(estimator: Estimator, steps: Sequence[Step], progress: Progress 
         if trace.associating:  # bookkeeping for the score, outside the timed region
             trace.keys.extend(estimator.step_associations())  # type: ignore[attr-defined]
             trace.true_ids.extend(_true_id(o) for o in step.observations)
+            trace.hidden = trace.hidden or any(o.landmark_id is None and not o.range_only for o in step.observations)
         if progress is not None and (i % every == 0 or i == len(steps) - 1):
             progress(i + 1, len(steps), estimator.name)
 
 
-def _final_map(estimator: Estimator, steps: Sequence[Step], trace: _Trace, covariances: bool):
+def _final_map(estimator: Estimator, trace: _Trace, covariances: bool):
     """``(landmarks, heights, landmark covariances, association score)`` after the run, the
     maps relabelled to the true ids when the estimator associated observations itself."""
     landmarks = dict(estimator.landmarks())
@@ -243,9 +246,8 @@ def _final_map(estimator: Estimator, steps: Sequence[Step], trace: _Trace, covar
     keys = trace.keys
     if hasattr(estimator, "associations"):  # ids settled after their step (deferred first sightings)
         keys = estimator.associations()  # type: ignore[attr-defined]
-    hidden = any(o.landmark_id is None and not o.range_only for step in steps for o in step.observations)
     association = None
-    if trace.associating and (hidden or any(k is not None and k < 0 for k in keys)):  # it associated: score it
+    if trace.associating and (trace.hidden or any(k is not None and k < 0 for k in keys)):  # it associated: score it
         association = score_associations(trace.true_ids, keys)
         landmarks = relabel_landmarks(landmarks, association)
         heights = relabel_landmarks(heights, association) if heights else heights
@@ -286,6 +288,8 @@ def truth_trajectory(steps: Sequence[Step]) -> tuple[np.ndarray, np.ndarray]:
     """``(trajectory (n, 3), has_pose (n,))`` of the steps' ground truth: NaN rows and False
     where a step has no ``truth_pose`` (e.g. a Vicon gap), a NaN heading where the truth has
     no heading (GPS)."""
+    if isinstance(steps, StepColumns):  # the same arrays, without building every step
+        return steps.truth_trajectory()
     trajectory = np.full((len(steps), 3), np.nan)
     has_pose = np.zeros(len(steps), dtype=bool)
     for i, step in enumerate(steps):
@@ -296,7 +300,7 @@ def truth_trajectory(steps: Sequence[Step]) -> tuple[np.ndarray, np.ndarray]:
     return trajectory, has_pose
 
 
-def truth_landmark_map(log: RunLog) -> tuple[dict[int, tuple[float, float]], dict[int, float] | None]:
+def truth_landmark_map(log: RunLog | ColumnLog) -> tuple[dict[int, tuple[float, float]], dict[int, float] | None]:
     """``(landmarks, heights)`` of the log's ``truth_landmark`` records (both empty/None
     when it has none); heights only for the landmarks that give one."""
     truth_landmarks = log.truth_landmarks()
@@ -305,7 +309,7 @@ def truth_landmark_map(log: RunLog) -> tuple[dict[int, tuple[float, float]], dic
     return landmarks, heights or None
 
 
-def truth_reference(log: RunLog) -> Reference | None:
+def truth_reference(log: RunLog | ColumnLog) -> Reference | None:
     """The log's ground truth as a :class:`Reference`, or None when no pose has truth.
 
     Poses without a ``truth_pose`` (gaps in motion capture) are NaN rows with
@@ -320,7 +324,7 @@ def truth_reference(log: RunLog) -> Reference | None:
     return Reference("ground_truth", trajectory, landmarks, heights, has_pose=has_pose)
 
 
-def choose_reference(log: RunLog, smoothed_trajectory, smoothed_landmarks, smoothed_heights=None) -> Reference:
+def choose_reference(log: RunLog | ColumnLog, smoothed_trajectory, smoothed_landmarks, smoothed_heights=None) -> Reference:
     """The reference ``fgslam run`` measures against, the best the log offers:
 
     1. the log's pose truth wherever it has some (full or partial, :func:`truth_reference`),
@@ -393,7 +397,7 @@ def require_usable_reference(smoother: Isam2Smoother, steps: Sequence[Step], log
 
 
 def compare_log(
-    log: RunLog,
+    log: RunLog | ColumnLog,
     estimator_names: Sequence[str] = DEFAULT_ESTIMATORS,
     progress: Progress | None = None,
     *,
@@ -416,7 +420,7 @@ def compare_log(
     truth — the comparison stops with one :class:`FgslamError` saying which and why.
     """
     steps = log.steps()
-    stamps_s = np.array([s.stamp_s for s in steps])
+    stamps_s = step_stamps(steps)
     runs, failures, smoother, smoother_run = _run_each(log, steps, estimator_names, progress, consistency)
     truth = truth_reference(log)
     if smoother is None:  # no batch solve: only the log's own truth can be the reference
@@ -445,7 +449,7 @@ def _log_name(log) -> str:
     return str(getattr(log, "path", "the log"))
 
 
-def _run_each(log: RunLog, steps: Sequence[Step], names: Sequence[str], progress: Progress | None,
+def _run_each(log: RunLog | ColumnLog, steps: Sequence[Step], names: Sequence[str], progress: Progress | None,
               consistency: bool) -> tuple[list[EstimatorRun], list[EstimatorFailure], Isam2Smoother | None,
                                           EstimatorRun | None]:
     """``(runs, failures, smoother, its run)``: every named estimator on ``steps``, those that
@@ -467,7 +471,7 @@ def _run_each(log: RunLog, steps: Sequence[Step], names: Sequence[str], progress
     return runs, failures, smoother, smoother_run
 
 
-def _without_batch(log: RunLog, failures: Sequence[EstimatorFailure]) -> str:
+def _without_batch(log: RunLog | ColumnLog, failures: Sequence[EstimatorFailure]) -> str:
     """Why a log without pose truth cannot be compared when no iSAM2 ran through."""
     failed = [f for f in failures if f.name in REGISTRY and REGISTRY[f.name].isam2]
     if failed:

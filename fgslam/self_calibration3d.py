@@ -132,7 +132,7 @@ def fit_without_truth_3d(ready: Log3d, progress=None) -> SelfCalibration3d:
         A, b = whitened_system(smoother.graph, batch.values)
         blocks = _component_blocks(smoother.graph, inputs, theta)
         shown = np.array([float(b @ (S @ b)) for S in blocks])
-        redundancy = np.array([float(S.diagonal().sum()) for S in blocks]) - hat_traces_blocks(A, blocks)
+        redundancy = np.array([float(S.diagonal().sum()) for S in blocks]) - hat_traces_blocks(A, blocks, columns_ordered=True)
         step = vce_from_sums(theta, shown, redundancy)
         theta = step.theta
         new = _outliers(smoother.graph, batch.values, math.sqrt(theta[0])) - dropped

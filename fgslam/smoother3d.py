@@ -284,15 +284,16 @@ class StereoIsam2:
             return
         if self.window is not None and self.window.slides > 0:  # bounded: the fixed-lag estimate
             self._final = self.estimate()
-            return
-        values = self._isam.calculateEstimate()
-        error = self.graph.error(values)
-        for _ in range(MAX_RESTARTS):  # LM gives up when its damping tops out; a fresh start may go on
-            values = levenberg_marquardt(self.graph, values, max_iterations)
-            previous, error = error, self.graph.error(values)
-            if previous - error <= 1e-6 * max(previous, 1e-12):
-                break
-        self._final = values
+        else:
+            values = self._isam.calculateEstimate()
+            error = self.graph.error(values)
+            for _ in range(MAX_RESTARTS):  # LM gives up when its damping tops out; a fresh start may go on
+                values = levenberg_marquardt(self.graph, values, max_iterations)
+                previous, error = error, self.graph.error(values)
+                if previous - error <= 1e-6 * max(previous, 1e-12):
+                    break
+            self._final = values
+        self._isam = None  # its Bayes tree is not read again: its memory goes to the batch solve and the verdict
 
     @property
     def n_steps(self) -> int:

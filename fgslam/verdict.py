@@ -30,9 +30,9 @@ from dataclasses import dataclass
 
 import gtsam
 import numpy as np
-from scipy.stats import chi2
 
 from fgslam.linearized import whitened_system
+from slamio.chi2 import chi2_ppf
 from slamio.noise.fit_self import hat_traces
 
 __all__ = ["FITS", "GroupVerdict", "graph_verdict", "verdict_lines", "verdict_or_none"]
@@ -60,7 +60,7 @@ class GroupVerdict:
     @property
     def band95(self) -> tuple[float, float]:
         r = max(self.redundancy, 1e-9)
-        return float(chi2.ppf(0.025, r) / r), float(chi2.ppf(0.975, r) / r)
+        return float(chi2_ppf(0.025, r) / r), float(chi2_ppf(0.975, r) / r)
 
     @property
     def sigma_factor(self) -> float:
@@ -144,7 +144,7 @@ def graph_verdict(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> di
     if not present:
         return {}
     onehot = np.stack([((groups == g) & ~outlier).astype(float) for g in present], axis=1)
-    hat = hat_traces(A, onehot)
+    hat = hat_traces(A, onehot, columns_ordered=True)
     out = {}
     for g, h in zip(present, hat):
         rows = groups == g

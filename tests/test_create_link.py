@@ -70,6 +70,28 @@ def test_loop_url_round_trip_and_default_baud():
     assert CreateLink("loop://", "create1").baud == 57600
 
 
+def test_an_answer_already_buffered_is_taken_even_past_the_deadline():
+    # a host not scheduled for longer than its timeout after asking (a busy machine) finds
+    # the answer waiting: it is not lost (a Create 1's distance would be lost with it)
+    with CreateLink("loop://", "create1", timeout_s=0.2) as link:
+        link.write(bytes([142, 7]))
+        assert link.read_exactly(2, timeout_s=0.0) == bytes([142, 7])
+
+
+def test_the_guardian_takes_a_buffered_answer_past_the_deadline_too():
+    import os
+
+    from slamio.create.guardian import _read_exactly
+
+    read_end, write_end = os.pipe()
+    try:
+        os.write(write_end, bytes([142, 7]))
+        assert _read_exactly(read_end, 2, 0.0) == bytes([142, 7])
+        assert _read_exactly(read_end, 2, 0.0) == b""  # nothing buffered: gives up at once
+    finally:
+        os.close(read_end), os.close(write_end)
+
+
 def test_exit_always_stops_the_wheels_and_returns_to_passive():
     spies = []
     with CreateLink("loop://", "create2", opener=spy_opener(spies)) as link:

@@ -8,7 +8,9 @@ import pytest
 import scipy.sparse as sp
 
 from slamio.noise.fit_self import (
-    component_shares, hat_traces, pair_weights, relative_std, scoring_step, vce_from_sums, vce_step,
+    component_shares, hat_traces, pair_weights, parabola_minimum, ranges_from_readings, relative_std, scaled_increments,
+    scoring_step,
+    vce_from_sums, vce_step,
 )
 
 
@@ -144,3 +146,39 @@ def test_the_odometry_lag_is_found_from_the_readings_alone():
     assert found.pairs > 100
     assert found.lag_s == pytest.approx(lag, abs=0.03)
     assert found.cost[0] > 2 * found.cost.min()
+
+
+def test_scaled_increments_inverts_a_known_distortion():
+    """Increments distorted from known true ones by forward scale 0.95, turn scale 0.93 and
+    −0.04 rad/m (a reverse stretch included) come back exactly."""
+    rng = np.random.default_rng(3)
+    true = np.column_stack([rng.uniform(-0.02, 0.05, 50), rng.normal(0, 0.001, 50), rng.normal(0, 0.03, 50)])
+    d_true = np.hypot(true[:, 0], true[:, 1]) * np.sign(true[:, 0])
+    read = np.column_stack([true[:, :2] / 0.95, (true[:, 2] - (-0.04) * d_true) / 0.93])
+    np.testing.assert_allclose(scaled_increments(read, 0.95, 0.93, -0.04), true, atol=1e-12)
+    np.testing.assert_allclose(scaled_increments(read, 1.0, 1.0, 0.0), read)
+
+
+def test_parabola_minimum_of_a_known_parabola():
+    f = lambda x: 3.0 * (x - 0.937) ** 2 + 5.0  # noqa: E731
+    x = np.array([0.8, 0.9, 1.05])
+    assert parabola_minimum(x, f(x)) == pytest.approx(0.937, abs=1e-12)
+    assert parabola_minimum(x, -f(x)) is None
+    assert parabola_minimum(x, 2.0 * x) is None
+    assert parabola_minimum(np.array([0.8, 0.8, 1.0]), np.array([1.0, 1.0, 2.0])) is None
+
+
+def test_ranges_from_readings_agree_with_applying_the_model():
+    """The range model's inverse and σ factor are those of slamio.noise.apply (scale 1)."""
+    from slamio.noise.apply import correct_observation
+    from slamio.noise.model import ObservationModel
+
+    rng = np.random.default_rng(4)
+    measured, bearing = rng.uniform(0.5, 4.0, 30), rng.uniform(-0.6, 0.6, 30)
+    for depth, bias in ((False, 0.0), (True, 0.045), (False, -0.03)):
+        model = ObservationModel(range_is_depth=depth, range_bias_m=bias, range_sigma_m=0.1, bearing_sigma_rad=1e-6)
+        ranges, factor = ranges_from_readings(measured, bearing, depth, bias)
+        for m, b, r, f in zip(measured, bearing, ranges, factor):
+            r_ref, _, sigma_ref, _ = correct_observation(model, m, b, 0.0)
+            assert r == pytest.approx(r_ref, rel=1e-12)
+            assert 0.1 * f == pytest.approx(sigma_ref, rel=1e-6)

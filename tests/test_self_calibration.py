@@ -12,7 +12,7 @@ import pytest
 
 from fgslam.runner import compare_log
 from fgslam.self_calibration import fit_without_truth
-from slamio.log import Odometry, RunLog, read_log
+from slamio.log import Observation, Odometry, RunLog, read_log
 from slamio.noise.apply import apply_noise_model
 
 DATA = Path(__file__).resolve().parent.parent / "data"
@@ -147,3 +147,44 @@ def test_the_verdict_names_a_recorders_nominal_noise_as_round_numbers():
 
     header = make_header("create1", "sim", 57600, default_noise("create1"), RecorderSettings())
     assert noise_source(header).startswith("round numbers, not fitted")
+
+
+def with_odometry_distorted(log: RunLog, forward_scale: float, turn_scale: float, turn_per_m_rad: float) -> RunLog:
+    """The log's odometry as a robot with these scales would report it: the true motion is
+    ``forward_scale`` × the reported distance and ``turn_scale`` × the reported turn plus
+    ``turn_per_m_rad`` per true metre."""
+    def distorted(r):
+        d_true = float(np.hypot(r.dx_m, r.dy_m)) * (1.0 if r.dx_m >= 0 else -1.0)
+        return dataclasses.replace(r, dx_m=r.dx_m / forward_scale, dy_m=r.dy_m / forward_scale,
+                                   dtheta_rad=(r.dtheta_rad - turn_per_m_rad * d_true) / turn_scale)
+    return dataclasses.replace(log, records=tuple(distorted(r) if isinstance(r, Odometry) else r for r in log.records))
+
+
+def test_the_odometrys_scales_are_learned_from_the_whole_run(arena):
+    """A robot whose odometry over-reads its turns (true turn 0.93× the reported, like
+    MRCLAM's 0.948), curves −0.04 rad per metre and over-reads distance (0.95): the scales
+    learned without truth, from how the run's landmarks agree, are the ones put in."""
+    distorted = with_odometry_distorted(arena, 0.95, 0.93, -0.04)
+    odometry = fit_without_truth([distorted], scales=True, lags_s=(0.0,)).model.odometry
+    assert odometry.turn_scale == pytest.approx(0.93, abs=0.01)
+    assert odometry.turn_per_m_rad == pytest.approx(-0.04, abs=0.01)
+    assert odometry.forward_scale == pytest.approx(0.95, abs=0.01)
+
+
+def with_ranges_as_depth(log: RunLog, bias_m: float) -> RunLog:
+    """The log's readings as a camera that sizes the landmark's image reports them: the
+    depth along its axis, ``r·cos b``, reading ``bias_m`` long."""
+    return dataclasses.replace(log, records=tuple(
+        dataclasses.replace(r, range_m=r.range_m * float(np.cos(r.bearing_rad)) + bias_m)
+        if isinstance(r, Observation) else r for r in log.records))
+
+
+def test_the_cameras_range_model_is_learned_without_truth(arena):
+    """Ranges reported as depth plus 4 cm (MRCLAM's camera: depth, +4.7 cm by Vicon) are
+    recognised as depth and the bias found; the simulator's own Euclidean ranges stay range.
+    The lag is pinned at the simulator's 0 (the lag search finds 0.02 s here, and the bias of
+    the plain ranges then comes out −1.4 cm: a lag's error leaks into the bias)."""
+    depth = fit_without_truth([with_ranges_as_depth(arena, 0.04)], lags_s=(0.0,)).model.observation
+    assert depth.range_is_depth and depth.range_bias_m == pytest.approx(0.04, abs=0.01)
+    plain = fit_without_truth([arena], lags_s=(0.0,)).model.observation
+    assert not plain.range_is_depth and plain.range_bias_m == pytest.approx(0.0, abs=0.01)

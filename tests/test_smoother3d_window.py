@@ -75,7 +75,7 @@ def test_bounded_iSAM2_holds_a_bounded_number_of_variables(drive, bounded, unbou
     # factors iSAM2 holds after a step (a slide included): never above the bound
     assert held[:, 0].max() <= BOUND
     # variables and poses iSAM2 holds stay bounded while the unbounded one holds everything
-    everything = unbounded[0]._isam.calculateEstimate().size()
+    everything = unbounded[0].estimate().size()  # after finish(): every variable, refined
     assert everything == s.n_steps + s.landmarks_added
     assert held[:, 1].max() < 0.3 * everything  # 99 of 366
     assert held[len(held) // 2:, 2].max() <= held[: len(held) // 2, 2].max() + 5  # no growth with the run
@@ -139,3 +139,11 @@ def test_a_landmark_that_left_comes_back_under_a_new_key_at_its_estimate():
     assert new and key == gtsam.symbol(RE_ENTERED, 0)
     assert np.allclose(w.left_estimate(3), [1.5, 2, 3])
     assert w.held_factors == 1 and w.slides == 1
+
+
+def test_finish_lets_go_of_isam2_and_keeps_what_is_read_after_it(unbounded):
+    # the Bayes tree's memory goes to the batch solve and the verdict that follow a run
+    s, _ = unbounded
+    assert s._isam is None
+    assert s.estimate().size() == s.n_steps + s.landmarks_added
+    assert len(s.smoothed_trajectory()) == s.n_steps and s.error() > 0.0

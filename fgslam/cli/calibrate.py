@@ -37,8 +37,9 @@ without truth: fgslam calibrate LOG.jsonl [LOG.jsonl ...] --without-truth --out 
   What a robot without motion capture can learn from its own runs: the variance rates of
   the odometry (per metre, per radian, per second) and the sigmas of range (growing with
   range) and bearing (growing with turn rate), and the outlier rate, by variance-component
-  estimation on the batch solution (fgslam.self_calibration). It cannot see scales, biases
-  or lags (they shift every measurement alike): those stay 1 and 0, and the summary lists
+  estimation on the batch solution (fgslam.self_calibration); the odometry's lag and the
+  camera's range model (range or depth along its axis, and its bias). It cannot see scales,
+  the bearing's bias or the camera's latency: those stay 1 and 0, and the summary lists
   them, and any rate the data cannot separate from another. fgslam run LOG --noise self
   fits on the log itself first. Planar logs only for now.
 
@@ -213,9 +214,13 @@ def self_fit_notes(fit) -> str:
     if lag:
         lines.append(f"  odometry lag {lag['lag_s']:.2f} s: what {lag['pairs']} pairs of readings of the same "
                      "landmarks show")
+    camera = report.get("range_model_from_readings")
+    if camera:
+        lines.append(f"  camera range: {'depth along the axis (r cos b)' if camera['range_is_depth'] else 'Euclidean'}"
+                     f", reading {camera['range_bias_m']:+.3f} m long: what the whole run's readings agree on best")
     lines.append("  not learnable without truth (kept at scale 1, bias 0; pin them with `fgslam calibrate "
                  "TRIALS.csv` or a log with truth): forward and range scale (only their ratio shows), turn "
-                 "scale, biases, the camera's latency and the readings' correlation in time")
+                 "scale, bearing bias, the camera's latency and the readings' correlation in time")
     return "\n".join(lines)
 
 

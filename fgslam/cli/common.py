@@ -145,10 +145,15 @@ def add_overwrite_option(parser: argparse.ArgumentParser, what: str = "an existi
 
 def summary(log) -> str:
     """One line on what a run log holds."""
+    return tally_of(log).text()
+
+
+def tally_of(log) -> LogTally:
+    """The :class:`LogTally` of a log read whole (its records)."""
     tally = LogTally(log.header)
     for record in log.records:
         tally.add(record)
-    return tally.text()
+    return tally
 
 
 class LogTally:
@@ -194,6 +199,10 @@ class LogTally:
         elif isinstance(record, log.Event):
             self.events[record.kind] = self.events.get(record.kind, 0) + 1
 
+    def event_counts(self) -> dict[str, int]:
+        """:func:`slamio.log.event_counts` of the records counted."""
+        return {kind: self.events[kind] for kind in self._log.EVENT_KINDS if kind in self.events}
+
     def _truths(self) -> tuple[int, int]:
         """(poses with a truth, of them with a position alone) up to and with the current pose."""
         if self.truth is None:
@@ -234,7 +243,29 @@ def read(path: str):
     """Read a run log, warning on stderr when its last line was cut off."""
     from slamio.log import read_log
 
-    log = read_log(path)
+    return _warned(read_log(path))
+
+
+def read_counted(path: str, *, columns: bool = False) -> tuple[object, LogTally | None]:
+    """``(log, tally)``: with ``columns`` a planar log read into columns
+    (:func:`slamio.log.columns.columns_of`: no record objects held, the run's memory grows
+    with its numbers) and its :class:`LogTally` counted as it streams; a 3-D log, or without
+    ``columns``, read whole (:func:`read`) with tally None (count it from its records). The
+    same warnings and errors as :func:`read`."""
+    from slamio.log import LogStream
+    from slamio.log.columns import columns_of
+
+    if columns:
+        stream = LogStream(path)
+        if not stream.header.is_3d:
+            tally = LogTally(stream.header)
+            return _warned(columns_of(stream, visit=tally.add)), tally
+        stream.close()
+    return read(path), None
+
+
+def _warned(log):
+    """``log``, after a warning on stderr when its last line was cut off or observations were rejected."""
     if log.truncated:
         print(f"{PROG}: warning: {log.truncated}", file=sys.stderr)
     rejected = log.rejection_summary() if hasattr(log, "rejection_summary") else None

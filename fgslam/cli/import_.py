@@ -240,7 +240,7 @@ def _pixel_covariance_option(values: list[float] | None):
     as the log's ``covariance_px2`` is; None when not given."""
     if values is None:
         return None
-    import slamio.log.records3d as records3d
+    from slamio.log.records3d import checked_pixel_covariance
     from slamio.stereo import rectified_pixel_covariance
 
     if len(values) == 3:
@@ -254,8 +254,8 @@ def _pixel_covariance_option(values: list[float] | None):
         raise FgslamError(f"--pixel-covariance takes 3 numbers (SIGMA_U SIGMA_V RHO) or 16 (the 4x4 over u_L, v_L, "
                           f"u_R, v_R, row by row), got {len(values)}")
     try:
-        return records3d._pixel_covariance([values[i:i + 4] for i in range(0, 16, 4)])
-    except records3d._Bad as bad:
+        return checked_pixel_covariance([values[i:i + 4] for i in range(0, 16, 4)])
+    except ValueError as bad:
         raise FgslamError(f"--pixel-covariance: {bad}") from None
 
 

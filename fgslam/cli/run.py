@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 from fgslam.atomic import write_text_whole
-from fgslam.cli.common import add_overwrite_option, add_verb, command_line, holds_outputs, read, summary
+from fgslam.cli.common import add_overwrite_option, add_verb, command_line, holds_outputs, read_counted, tally_of
 from fgslam.cli.estimators import ESTIMATOR_HELP, ESTIMATOR_HELP_3D
 from fgslam.cli.progress import Progress
 from fgslam.cli.results import ResultsFolder
@@ -124,9 +124,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     from fgslam.registry import parse_names
     from fgslam.runner import TIMING, require_motion
     from fgslam.verdict import verdict_lines
-    from slamio.log import event_counts
 
-    log = read(args.log)
+    # a planar log into columns unless --noise needs its records: the run then holds numbers, not records
+    log, tally = read_counted(args.log, columns=args.noise is None)
     require_motion(log, "estimate or score")
     dimension = 3 if log.header.is_3d else 2
     if dimension == 3:  # seed 003's stereo + IMU logs: their records carry their noise
@@ -140,7 +140,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     names = parse_names(args.estimators, dimension, need_isam2=dimension == 3)
     if dimension == 2:
         log = _with_side_inputs(args, log)
-    print(f"{args.log}: {'3-D log, ' if dimension == 3 else ''}{summary(log)}")
+    if tally is None:  # read whole: counted from its records (after --noise, as the estimators see it)
+        tally = tally_of(log)
+    print(f"{args.log}: {'3-D log, ' if dimension == 3 else ''}{tally.text()}")
     compare, compute_metrics, format_table, write_results = _pipeline(dimension)
     with Progress() as progress:
         result = compare(log, names, progress=progress, consistency=not args.no_consistency)
@@ -153,7 +155,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         metrics["log_truncated"] = log.truncated
     if getattr(log, "rejected", None):
         metrics["log_rejected"] = log.rejection_summary()
-    events = event_counts(log.records)
+    events = tally.event_counts()
     if events:  # what the robot met (bumps, cliffs, wheel drops); the estimators ignore them
         metrics["events"] = events
     if args.noise is not None:

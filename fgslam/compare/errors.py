@@ -150,11 +150,11 @@ def nees_dofs(reference) -> np.ndarray:
 def nees_band(dof: int = 3, runs: int = 1, probability: float = 0.95) -> tuple[float, float]:
     """Two-sided χ² band for the NEES averaged over ``runs`` runs (Bar-Shalom et al.): the
     average of N independent χ²(dof) values times N is χ²(N·dof), so the band is
-    [χ²⁻¹(α/2; N·dof), χ²⁻¹(1 − α/2; N·dof)] / N. From scipy.stats, not a table."""
-    from scipy.stats import chi2
+    [χ²⁻¹(α/2; N·dof), χ²⁻¹(1 − α/2; N·dof)] / N. From scipy (:func:`slamio.chi2.chi2_ppf`), not a table."""
+    from slamio.chi2 import chi2_ppf
 
     alpha = 1.0 - probability
-    return (float(chi2.ppf(alpha / 2, dof * runs)) / runs, float(chi2.ppf(1 - alpha / 2, dof * runs)) / runs)
+    return (float(chi2_ppf(alpha / 2, dof * runs)) / runs, float(chi2_ppf(1 - alpha / 2, dof * runs)) / runs)
 
 
 #: Degrees of freedom of an observation's NIS (range and bearing).

@@ -51,10 +51,10 @@ def ellipse_xy(centre_xy, covariance_xy, probability: float = 0.95, points: int 
     The boundary is ``{x : (x − c)ᵀ Σ⁻¹ (x − c) = χ²⁻¹(probability; 2)}`` (5.99 for 95 %):
     the unit circle scaled by ``√(χ² λᵢ)`` along the eigenvectors of Σ.
     """
-    from scipy.stats import chi2
+    from slamio.chi2 import chi2_ppf
 
     values, vectors = np.linalg.eigh(0.5 * (np.asarray(covariance_xy, dtype=float) + np.asarray(covariance_xy).T))
-    radii = np.sqrt(chi2.ppf(probability, 2) * np.clip(values, 0.0, None))
+    radii = np.sqrt(chi2_ppf(probability, 2) * np.clip(values, 0.0, None))
     angle = np.linspace(0.0, 2.0 * np.pi, points)
     circle = np.stack([np.cos(angle), np.sin(angle)])
     return (vectors @ (radii[:, None] * circle)).T + np.asarray(centre_xy, dtype=float)[:2]

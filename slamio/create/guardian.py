@@ -127,8 +127,8 @@ def _read_exactly(fd: int, size: int, timeout_s: float) -> bytes:
     out = bytearray()
     deadline = time.monotonic() + timeout_s
     while len(out) < size:
-        left = deadline - time.monotonic()
-        if left <= 0 or not select.select([fd], [], [], left)[0]:
+        left = max(0.0, deadline - time.monotonic())  # past the deadline: still take what is buffered
+        if not select.select([fd], [], [], left)[0]:
             break
         try:
             chunk = os.read(fd, size - len(out))

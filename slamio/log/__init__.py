@@ -38,7 +38,7 @@ constants in :mod:`slamio.log.fields`, explained in docs/log-format.md "Bounds")
 The package, one responsibility per file: :mod:`~slamio.log.records` (the records, steps and
 :class:`RunLog`), :mod:`~slamio.log.fields` (one field validated against its bounds),
 :mod:`~slamio.log.records3d` (the 3-D records, their parsers and the stereo calibration),
-:mod:`~slamio.log.read` (:func:`read_log`, :func:`iter_log`: the file streamed, each line through the fast path :mod:`~slamio.log.fast` and, when that does not accept it, the slow path :mod:`~slamio.log.parse`) and :mod:`~slamio.log.write` (:class:`LogWriter`,
+:mod:`~slamio.log.read` (:func:`read_log`, :func:`iter_log`: the file streamed, each line through the fast path :mod:`~slamio.log.fast` and, when that does not accept it, the slow path :mod:`~slamio.log.parse`), :mod:`~slamio.log.columns` (a planar log streamed into columns of numbers, its steps built when read: what ``fgslam run`` holds instead of the records) and :mod:`~slamio.log.write` (:class:`LogWriter`,
 :func:`write_log`). Import everything from ``slamio.log``.
 """
 

@@ -282,6 +282,10 @@ class LogStream:
                 return
             yield item
 
+    def close(self) -> None:
+        """Stop reading: the file is closed (iterating yields nothing more)."""
+        self._lines.close()
+
     def _slow(self, number: int, raw: bytes) -> Record | Rejected | None:
         """Line ``number`` through the slow path; None for a cut-off last line (noted in :attr:`truncated`)."""
         text, ended = _split(raw)

@@ -6,7 +6,7 @@ The format is specified in docs/log-format.md; :mod:`slamio.log` has the overvie
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Iterable, Union
+from typing import Any, Iterable, Iterator, Union
 
 import numpy as np
 
@@ -242,11 +242,7 @@ class RunLog:
 
     def rejection_summary(self) -> str | None:
         """One line counting the rejected observations by reason, or None when there are none."""
-        by_reason: dict[str, tuple[int, int, int]] = {}
-        for r in self.rejected:
-            count, first, _ = by_reason.get(r.reason, (0, r.line, r.line))
-            by_reason[r.reason] = (count + 1, first, r.line)
-        return rejection_line(self.path, by_reason)
+        return summarise_rejections(self.path, self.rejected)
 
     def steps(self) -> list[Step]:
         """Group the records into per-pose steps (see :class:`Step`)."""
@@ -264,6 +260,15 @@ class RunLog:
         """True when every pose has a ground-truth pose."""
         steps = self.steps()
         return bool(steps) and all(s.truth is not None for s in steps)
+
+
+def summarise_rejections(path: str, rejected: Iterable[Rejected]) -> str | None:
+    """:meth:`RunLog.rejection_summary` of the observations ``rejected`` from the log at ``path``."""
+    by_reason: dict[str, tuple[int, int, int]] = {}
+    for r in rejected:
+        count, first, _ = by_reason.get(r.reason, (0, r.line, r.line))
+        by_reason[r.reason] = (count + 1, first, r.line)
+    return rejection_line(path, by_reason)
 
 
 def rejection_line(path: str, by_reason: dict[str, tuple[int, int, int]]) -> str | None:
@@ -288,23 +293,28 @@ def group_steps(header: Header, records: Iterable[Record], *, at_robot_centre: b
     centre (:mod:`slamio.log.mount`), what every estimator expects; ``at_robot_centre=False``
     keeps them as the sensor took them (a fit against truth that models the sensor itself).
     """
+    return list(iter_steps(header, records, at_robot_centre=at_robot_centre))
+
+
+def iter_steps(header: Header, records: Iterable[Record], *, at_robot_centre: bool = True) -> Iterator[Step]:
+    """:func:`group_steps` one step at a time, each as soon as the record that ends it (the
+    next pose's odometry, or the end of ``records``) is read: a streamed log is grouped
+    without holding it."""
     from slamio.log.mount import moved_to_robot_centre, pose_on_robot
 
     mount = pose_on_robot(header.sensor) if at_robot_centre and not header.is_3d else None
-    steps: list[Step] = []
-    stamp, odometry, observations, truth = header.stamp_s, None, [], None
+    index, stamp, odometry, observations, truth = 0, header.stamp_s, None, [], None
     for record in records:
         if isinstance(record, (Odometry, VelocityOdometry)):
-            steps.append(Step(len(steps), stamp, odometry, tuple(observations), truth))
-            stamp, odometry, observations, truth = record.stamp_s, record, [], None
+            yield Step(index, stamp, odometry, tuple(observations), truth)
+            index, stamp, odometry, observations, truth = index + 1, record.stamp_s, record, [], None
         elif isinstance(record, Observation):
             observations.append(record if mount is None else moved_to_robot_centre(record, mount))
         elif isinstance(record, StereoObservation):
             observations.append(record)
         elif isinstance(record, (TruthPose, TruthPose3)):
             truth = record
-    steps.append(Step(len(steps), stamp, odometry, tuple(observations), truth))
-    return steps
+    yield Step(index, stamp, odometry, tuple(observations), truth)
 
 
 def event_counts(records: Iterable[Record]) -> dict[str, int]:

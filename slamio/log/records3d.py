@@ -277,6 +277,16 @@ def _pixel_covariance(value: Any) -> Matrix4:
     )
 
 
+def checked_pixel_covariance(value: Any) -> Matrix4:
+    """A 4×4 pixel covariance (rows of lists, px²) checked as the log's ``covariance_px2`` is;
+    ``ValueError`` says what is wrong (for callers outside the log reader, e.g. a command line
+    option)."""
+    try:
+        return _pixel_covariance(value)
+    except _Bad as bad:
+        raise ValueError(str(bad)) from None
+
+
 def _spd_matrix(value: Any, n: int, key: str, largest_allowed: float, smallest_allowed: float,
                 why_large: str, why_small: str) -> tuple[tuple[float, ...], ...]:
     """An n×n symmetric matrix with entries ≤ ``largest_allowed`` and its smallest eigenvalue
