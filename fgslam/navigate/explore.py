@@ -56,6 +56,7 @@ import numpy as np
 from scipy import ndimage
 
 from fgslam.navigate.common import ROBOT_RADIUS_M, Command, Situation, heading_error_rad, limited_command, turn_towards
+from fgslam.navigate.escape import ForwardEscape
 from fgslam.navigate.grid import OccupancyGrid
 from fgslam.navigate.inspect import (grid_sight, inspected_hits, inspection_targets, landmark_viewpoint,
                                      nearest_to_group_middle)
@@ -164,12 +165,13 @@ class Explore:
                  blacklist_s: float = 60.0, explored_range_m: float = 3.0, read_range_m: float = 2.5,
                  read_incidence_rad: float = math.radians(55), inspect_weight: float = 1.0,
                  glance_range_m: float = 2.8, glance_facing_rad: float = math.radians(45), lookahead_m: float = 0.8,
-                 view_m=(1.0, 1.5, 2.0, 2.5), tile_m: float = 1.0, glance_still_s: float = 2.0):
+                 view_m=(1.0, 1.5, 2.0, 2.5), tile_m: float = 1.0, glance_still_s: float = 2.0, spot_s: float = 5.0):
         self.rng = np.random.default_rng(seed)
         self.grid = grid if grid is not None else OccupancyGrid()
         # the floor counts as explored only where the tag detector could have read a tag
         self.vfh = Vfh(seed=int(self.rng.integers(2**31)), grid=self.grid, free_range_m=explored_range_m,
-                       careful=False)
+                       stuck_s=spot_s)
+        self.vfh.escape = ForwardEscape(self.vfh)  # leaves a spot forward, not reversing
         self.replan_s, self.reach_m, self.stuck_s, self.progress_m = replan_s, reach_m, stuck_s, progress_m
         self.visits_wanted, self.landmark_weight, self.turn_cost = visits_wanted, landmark_weight, turn_cost_m_per_rad
         self.visits = _Visits(revisit_gap_s)
@@ -428,14 +430,15 @@ class Explore:
 
     # ------------------------------------------------------------------ stepping
 
-    def _abandon(self, situation: Situation, distance_m: float | None = None) -> None:
-        """Black-list the goal's neighbourhood, drop it, back off (``distance_m``)."""
+    def _abandon(self, situation: Situation) -> None:
+        """Black-list the goal's neighbourhood, drop it, leave the spot (forward when the
+        known floor allows: :meth:`Vfh.leave_spot`)."""
         if self.goal is not None:
             self._ban(self.goal.xy, situation.now_s)
             if self.goal.kind == "inspect":
                 self._ban(self.goal.target, situation.now_s)
         self.goal = None
-        self.vfh.backoff.start(situation, prefer_left=bool(self.rng.integers(2)), distance_m=distance_m)
+        self.vfh.leave_spot(situation)
 
     def _look_around(self, situation: Situation) -> Command | None:
         """The first turn on the spot, so the map starts all round: a full circle less the
@@ -511,14 +514,18 @@ class Explore:
         if situation.bumped and not self.vfh.backoff.active:
             if self.goal is not None:
                 self.goal.bumps += 1
-            if self.goal is not None and self.goal.bumps >= 2:
-                self._abandon(situation)
-            else:
-                self.vfh.backoff.start(situation, prefer_left=bool(self.rng.integers(2)))
-        if self.vfh.spot.update(situation) and not self.vfh.backoff.active:
-            self._abandon(situation, self.vfh.escape_reverse_m(situation.pose))  # goal after goal and still on one spot: leave it
+                if self.goal.bumps >= 2:
+                    self._ban(self.goal.xy, situation.now_s)
+                    self.goal = None
+            self.vfh.escape.cancel()  # back off over known floor, turn away from the bump side
+            self.vfh.backoff.start(situation, prefer_left=bool(self.rng.integers(2)),
+                                   distance_m=self.vfh.escape_reverse_m(situation.pose, self.vfh.backoff.distance_m))
+        if self.vfh.spot.update(situation) and not self.vfh.backoff.active and not self.vfh.escaping:
+            self._abandon(situation)  # goal after goal and still on one spot: leave it
         if self.vfh.backoff.active:
             return self.vfh.backoff.step(situation)
+        if self.vfh.escaping:
+            return self.vfh.escape.step(situation, reuse=fresh_scan)
         looking = self._look_around(situation)
         if looking is not None:
             return looking
@@ -552,8 +559,8 @@ class Explore:
             command = self.vfh.steer(situation, self.vfh.goal_heading_rad(situation), reuse=busy)
             return limited_command(command.speed_m_s, command.turn_rate_rad_s, "wander")
         if not self._progress(situation):
-            self._abandon(situation, self.vfh.escape_reverse_m(situation.pose))
-            return self.vfh.backoff.step(situation)
+            self._abandon(situation)
+            return self.vfh.escape.step(situation) if self.vfh.escaping else self.vfh.backoff.step(situation)
         distance = math.hypot(self.goal.xy[0] - situation.pose[0], self.goal.xy[1] - situation.pose[1])
         if self.goal.kind != "frontier" and (self.goal.facing or distance < self.reach_m):
             return self._at_landmark(situation)
