@@ -36,10 +36,15 @@ landmark it saw longest ago, or wanders. It starts with a look-around turn (a ci
 the camera's view). It steers with :class:`~fgslam.navigate.vfh.Vfh` (local avoidance,
 turn-to-look) toward the point ``lookahead_m`` along the way. A frontier goal is reached
 when the robot is within ``reach_m`` or the cell is no longer a frontier (seen from afar).
-Stuck (no ``progress_m`` shorter way left for ``stuck_s``) or bumped twice on the way, or
-7 s on one spot whatever the goals: the goal is abandoned and its neighbourhood
-black-listed for ``blacklist_s`` (60 s: the map grows, a way that failed may open). On a
-bump the robot backs off ~0.15 m and turns away from the bump side.
+Stuck (no ``progress_m`` shorter way left for ``stuck_s``), or ``spot_s`` (5 s) within
+0.2 m of one spot whatever the goals: the goal is abandoned, its neighbourhood black-listed
+for ``blacklist_s`` (60 s: the map grows, a way that failed may open), and the robot leaves
+the spot *forward* (:class:`~fgslam.navigate.escape.ForwardEscape`: it turns on the spot
+toward the nearest sector the grid shows free and seen, looks, and drives out 0.35 m under
+``vfh``'s stop rules), reversing only over floor known free when no sector is (then often
+not at all: it turns away). ``vfh`` runs with its careful rules (the arc stop test, the
+reverse over known floor only). On a bump the robot backs off up to 0.15 m over floor known
+free and turns away from the bump side; bumped twice on the way, the goal is dropped.
 
 Work per step stays small: at most one heavy job a step besides steering (a scan; the
 surfaces that scan inspected; the clearance map; the frontiers; the inspection targets; the

@@ -36,7 +36,10 @@ then backs off and takes the opposite heading — never "blocked" for ever
 each close when looked at) does the same (:class:`~fgslam.navigate.common.SpotWatch`).
 Without a goal point it wanders: the goal heading is kept and changed by a random turn every
 ``wander_period_s``. On a bump it backs off ~0.15 m and turns away (:class:`BackOff`), and
-marks where it hit in the grid (something the scan did not show).
+marks where it hit in the grid (something the scan did not show). An owner may fit a forward
+escape (:attr:`Vfh.escape`, :mod:`fgslam.navigate.escape`; ``explore`` does): leaving a spot
+or a box it then turns toward a free, seen sector and drives out instead of reversing
+(:meth:`Vfh.leave_spot`); ``vfh`` alone has none.
 """
 
 from __future__ import annotations
