@@ -1,7 +1,7 @@
 """ekf: the independent reference estimators — EKF-SLAM, the seed papers' filters, dead reckoning.
 
 ``EkfSlam`` is the textbook EKF-SLAM (with NN/JCBB data association and optional 3-D
-landmark heights), ``FejEkfSlam`` the same with first-estimates Jacobians; ``EkfS000``, ``EkfS001``, ``EkfS003`` and ``EkfS004`` reproduce the seed
+landmark heights), ``FejEkfSlam`` the same with first-estimates Jacobians, ``InvariantEkfSlam`` with the right-invariant error; ``EkfS000``, ``EkfS001``, ``EkfS003`` and ``EkfS004`` reproduce the seed
 papers' filters as written, flaws included (docs/estimators.md); ``g_height`` is seed 002's
 landmark-height formula. Each module is named for what the filter is: seed 000's linear KF
 with a Kinect (``linear_kf_kinect``), seed 001's EKF with landmark signatures
@@ -16,6 +16,7 @@ return estimates; they never print, plot or read files.
 
 from ekf.dead_reckoning import DeadReckoning
 from ekf.fej import FejEkfSlam
+from ekf.invariant import InvariantEkfSlam
 from ekf.models import (
     landmark_from_range_bearing, landmark_init_jacobians, motion_jacobians, predict_pose, range_bearing,
     range_bearing_jacobians,
@@ -37,6 +38,7 @@ __all__ = [
     "EkfS004",
     "EkfSlam",
     "FejEkfSlam",
+    "InvariantEkfSlam",
     "exact_height_m",
     "g_height",
     "joseph_update",

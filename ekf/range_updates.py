@@ -10,10 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ekf.covariance import add_low_rank_in_place, augment_covariance, joseph_factors, kalman_gain
+from ekf.covariance import augment_covariance, kalman_gain
 from ekf.models import LANDMARK_DIM, ROBOT_DIM, range_bearing, range_bearing_jacobians
 from ekf.range_only import try_initialise
-from slamio.geometry import wrap_angle
 from slamio.log import Observation
 
 
@@ -33,9 +32,7 @@ class RangeOnlyUpdates:
         H_cols = np.hstack([H_pose[:1], H_landmark[:1]])
         R = np.array([[observation.sigma_range_m**2]])
         K, _, _ = kalman_gain(P, cols, H_cols, R)
-        mean += K @ np.array([observation.range_m - predicted_range])
-        mean[2] = wrap_angle(float(mean[2]))
-        add_low_rank_in_place(self._cov, n, *joseph_factors(P, cols, H_cols, K, R))
+        self._correct(n, P, cols, H_cols, K, R, np.array([observation.range_m - predicted_range]))
         self.range_updates += 1
 
     def _buffer_range(self, key: int, observation: Observation) -> bool:

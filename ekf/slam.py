@@ -501,11 +501,19 @@ class EkfSlam(MapAssociation, RangeOnlyUpdates, ReadingErrorStates, FilterOutput
             if not d2 <= chi2_gate(len(innovation), self.known_id_gate_probability):
                 self.gated_known_id += 1
                 return False
+        self._correct(n, P, cols, H_cols, K, R, innovation)
+        self.updates += 1
+        return True
+
+    def _correct(self, n: int, P: np.ndarray, cols: np.ndarray, H_cols: np.ndarray, K: np.ndarray, R: np.ndarray,
+                 innovation: np.ndarray) -> None:
+        """Apply one update: the mean moves by ``K ν`` (heading wrapped) and P takes the Joseph
+        form, in place. :class:`ekf.invariant.InvariantEkfSlam` moves the mean on the group
+        instead and carries P to the new estimate."""
+        mean = self._mean[:n]
         mean += K @ innovation
         mean[2] = wrap_angle(float(mean[2]))
         add_low_rank_in_place(self._cov, n, *joseph_factors(P, cols, H_cols, K, R))
-        self.updates += 1
-        return True
 
     def _reserve(self, needed: int) -> None:
         """Make room for a state of size ``needed``, doubling the capacity when it is full."""

@@ -61,12 +61,14 @@ def _named(estimator, name: str):
 # --------------------------------------------------------------------------- planar factories
 
 
-def _ekf(association: str | None = None, fej: bool = False):
+def _ekf(association: str | None = None, fej: bool = False, invariant: bool = False):
     def factory(header):
-        from ekf import EkfSlam, FejEkfSlam
+        from ekf import EkfSlam, FejEkfSlam, InvariantEkfSlam
 
         if fej:
             return FejEkfSlam(header)
+        if invariant:
+            return InvariantEkfSlam(header)
         return EkfSlam(header) if association is None else EkfSlam(header, association=association)
     return factory
 
@@ -129,6 +131,8 @@ _ENTRIES = (
     EstimatorEntry("ekf-nn", 2, "the same EKF with Mahalanobis-gated nearest-neighbour association", _ekf("nn")),
     EstimatorEntry("ekf-fej", 2, "the same EKF with first-estimates Jacobians (the global heading stays "
                    "unobservable)", _ekf(fej=True)),
+    EstimatorEntry("ekf-inv", 2, "the same EKF with the right-invariant error (Barrau and Bonnabel): the global heading "
+                   "stays unobservable with every Jacobian at the latest estimate", _ekf(invariant=True)),
     EstimatorEntry("ekf-s000", 2, "seed 000's linear KF (Trinity College, Create + Kinect), as written",
                    _seed("EkfS000")),
     EstimatorEntry("ekf-s001", 2, "seed 001's EKF (GoPiGo, forward/rotate moves, nearest neighbour), as written",

@@ -110,6 +110,9 @@ class Reading:
     turn_rate_radps: float
     range_read_m: float = math.nan  # the range as read (range_m is corrected by a range model)
     range_sigma_factor: float = 1.0  # the read range's σ times this is range_m's
+    # the range σ grows with (range_m with the range model's scale left out): a σ evaluated at
+    # the scaled range would shrink with a larger scale and bias the scale's likelihood
+    sigma_range_m: float = math.nan
 
 
 class RunGraph:
@@ -177,16 +180,17 @@ class RunGraph:
         graph, _, _ = self.solve(theta)
         return float(graph.error(self.values))
 
-    def set_range_model(self, range_is_depth: bool, range_bias_m: float) -> None:
+    def set_range_model(self, range_is_depth: bool, range_bias_m: float, range_scale: float = 1.0) -> None:
         """Every range re-read under a camera range model (:func:`ranges_from_readings`);
         range-only readings keep theirs."""
         for i, r in enumerate(self.readings):
             if r.bearing_rad is None:
                 continue
             rng, factor = ranges_from_readings(np.array([r.range_read_m]), np.array([r.bearing_rad]),
-                                               range_is_depth, range_bias_m)
+                                               range_is_depth, range_bias_m, range_scale)
             self.readings[i] = dataclasses.replace(r, range_m=max(float(rng[0]), 1e-3),
-                                                   range_sigma_factor=float(factor[0]))
+                                                   range_sigma_factor=float(factor[0]),
+                                                   sigma_range_m=max(float(rng[0]) * range_scale, 1e-3))
 
     def range_model_cost(self, theta: np.ndarray) -> float:
         """−log p of the readings as read (up to a constant) at the batch solution under the
@@ -205,7 +209,7 @@ class RunGraph:
             q[9], q[10] = 1.0, reading.turn_rate_radps**2
             rows.append(q)
         q = np.zeros(len(COMPONENTS))
-        q[7], q[8] = 1.0, reading.range_m**2
+        q[7], q[8] = 1.0, (reading.range_m if math.isnan(reading.sigma_range_m) else reading.sigma_range_m) ** 2
         rows.append(q)
         return rows
 
@@ -298,27 +302,30 @@ def _iteration(graphs: list[RunGraph], theta: np.ndarray):
 
 def fit_without_truth(logs: list[RunLog], progress=None, *,
                       lags_s: tuple[float, ...] = LAG_GRID_S, scales: bool = False,
-                      range_model: bool = True) -> SelfCalibration:
+                      range_model: bool = True, pinned: dict[str, float] | None = None) -> SelfCalibration:
     """Fit the odometry's lag among ``lags_s``, the variance terms of a :class:`NoiseModel`
     and (``range_model``) the camera's range model on ``logs`` alone (module docstring). The
     lag comes first, from the readings' bearings (:func:`slamio.noise.fit_self.lag_from_readings`,
     pooled over the logs); the variances are fitted on the odometry re-read with it, in turn
     with the range model (:func:`profile_range_model`) and, with ``scales``, the odometry's
     scales (:func:`profile_scales`). ``progress(done, total, label)``
-    (:class:`fgslam.cli.progress.Progress`) after each iteration."""
+    (:class:`fgslam.cli.progress.Progress`) after each iteration. ``pinned``: odometry scales
+    measured otherwise (:meth:`slamio.noise.trials.TrialCalibration.odometry_scales`: a taped
+    distance and turns in place), held while the rest is learned around them."""
     range_only = all(o.range_only for log in logs for o in log.records if isinstance(o, Observation))
     motion = None if range_only else pooled_lag(logs, lags_s)
     lag = 0.0 if motion is None else motion.lag_s
-    odometry = OdometryModel(lag_s=lag)
-    lagged = [log if motion is None else apply_noise_model(log, NoiseModel(odometry))[0] for log in logs]
+    odometry = OdometryModel(lag_s=lag, **(pinned or {}))
+    reread = motion is not None or bool(pinned)
+    lagged = [apply_noise_model(log, NoiseModel(odometry))[0] if reread else log for log in logs]
     graphs, theta, step, weights, iterations, converged = _fit_variances(lagged, progress, "noise fit: iterations")
     range_model = range_model and not range_only
     found, camera, costs = None, {}, {}
     for _ in range(PROFILE_ROUNDS if (scales or range_model) else 0):
         last = (dict(found or {}), dict(camera))
-        if range_model:
-            depth, bias, costs = profile_range_model(graphs, theta)
-            camera = {"range_is_depth": depth, "range_bias_m": bias}
+        if range_model:  # the range's scale shows once the odometry's is held
+            depth, bias, range_scale, costs = profile_range_model(graphs, theta, scale="forward_scale" in (pinned or {}))
+            camera = {"range_is_depth": depth, "range_bias_m": bias, "range_scale": range_scale}
         if scales:
             found = profile_scales(graphs, theta, found)
         theta, step, weights, more, converged = _vce(graphs, theta, progress, "noise fit: iterations")
@@ -336,11 +343,17 @@ def fit_without_truth(logs: list[RunLog], progress=None, *,
         result.model = dataclasses.replace(result.model,
                                            observation=dataclasses.replace(result.model.observation, **camera))
         result.report["range_model_from_readings"] = {
-            **camera, "negative_log_likelihood": {k: {"range_bias_m": v[0], "cost": v[1]} for k, v in costs.items()}}
-        result.report["not_determined_without_truth"] = [
-            n for n in NOT_DETERMINED_WITHOUT_TRUTH if n not in ("observation.range_is_depth", "observation.range_bias_m")]
+            **camera, "negative_log_likelihood": {k: {"range_bias_m": v[0], "range_scale": v[1], "cost": v[2]}
+                                                  for k, v in costs.items()}}
+        learned = ("observation.range_is_depth", "observation.range_bias_m") + \
+            (("observation.range_scale",) if "forward_scale" in (pinned or {}) else ())
+        result.report["not_determined_without_truth"] = [n for n in NOT_DETERMINED_WITHOUT_TRUTH if n not in learned]
     if found:
         result.report["odometry_scales_from_the_run"] = dict(found)
+    if pinned:
+        result.report["odometry_scales_pinned"] = dict(pinned)
+        result.report["not_determined_without_truth"] = [
+            n for n in result.report["not_determined_without_truth"] if n.split(".")[-1] not in pinned]
     result.report["range_only"] = range_only
     result.report["lag_from_readings"] = None if motion is None else {
         "lag_s": lag, "pairs": motion.pairs, "lags_tried_s": [float(v) for v in lags_s],
@@ -451,28 +464,38 @@ def _settled(last: tuple[dict, dict], now: tuple[dict, dict]) -> bool:
 
 #: The camera's range bias searched without truth: first step and bounds (m).
 RANGE_BIAS_STEP_M, RANGE_BIAS_BOUNDS_M = 0.02, (-0.3, 0.3)
+#: … and its scale, when the odometry's scales are held (measured trials): step and bounds.
+RANGE_SCALE_STEP, RANGE_SCALE_BOUNDS = 0.02, (0.8, 1.25)
 
 
-def profile_range_model(graphs: list[RunGraph], theta: np.ndarray) -> tuple[bool, float, dict]:
+def profile_range_model(graphs: list[RunGraph], theta: np.ndarray, scale: bool = False) -> tuple[bool, float, float, dict]:
     """The camera's range model most likely for the whole run (θ held): range or depth
     (``r·cos b``, what a camera that sizes the landmark's image measures), each with the
-    bias that fits it best (:func:`_line_search`). Its scale stays 1: without truth the
-    readings set the scale. ``(range_is_depth, range_bias_m, costs)``; the graphs are left
-    with their ranges re-read under it."""
+    bias (and, with ``scale``, the scale) that fits it best (:func:`_line_search`). Without
+    ``scale`` it stays 1: without truth the readings set the scale, unless the odometry's is
+    held at measured values. ``(range_is_depth, range_bias_m, range_scale, costs)``; the
+    graphs are left with their ranges re-read under it."""
     found = {}
     for depth in (False, True):
-        def cost(bias: float) -> float:
+        p = {"bias": 0.0, "scale": 1.0}
+
+        def cost(**change) -> float:
+            q = {**p, **change}
             for run in graphs:
-                run.set_range_model(depth, bias)
+                run.set_range_model(depth, q["bias"], q["scale"])
             return sum(run.range_model_cost(theta) for run in graphs)
 
-        bias = _line_search(cost, 0.0, RANGE_BIAS_STEP_M, RANGE_BIAS_BOUNDS_M)
-        bias = _line_search(cost, bias, 0.3 * RANGE_BIAS_STEP_M, RANGE_BIAS_BOUNDS_M)
-        found[depth] = (bias, cost(bias))
-    depth = found[True][1] < found[False][1]
+        for shrink in ((1.0, 0.3) if not scale else (1.0, 1.0, 0.3, 0.3)):
+            p["bias"] = _line_search(lambda v: cost(bias=v), p["bias"], shrink * RANGE_BIAS_STEP_M, RANGE_BIAS_BOUNDS_M)
+            if scale:
+                p["scale"] = _line_search(lambda v: cost(scale=v), p["scale"], shrink * RANGE_SCALE_STEP,
+                                          RANGE_SCALE_BOUNDS)
+        found[depth] = (p["bias"], p["scale"], cost())
+    depth = found[True][2] < found[False][2]
+    bias, range_scale, _ = found[depth]
     for run in graphs:
-        run.set_range_model(depth, found[depth][0])
-    return depth, found[depth][0], {"range": found[False], "depth": found[True]}
+        run.set_range_model(depth, bias, range_scale)
+    return depth, bias, range_scale, {"range": found[False], "depth": found[True]}
 
 
 def _line_search(f, x: float, h: float, bounds: tuple[float, float], moves: int = 8) -> float:

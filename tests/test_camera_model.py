@@ -126,3 +126,16 @@ def test_kinect_default_matches_the_design_facts():
     cam = kinect_v1_default()
     assert (cam.fx, cam.fy, cam.cx, cam.cy, cam.width_px, cam.height_px) == (525, 525, 319.5, 239.5, 640, 480)
     assert math.degrees(cam.horizontal_fov_rad) == pytest.approx(62.7, abs=0.1)
+
+
+def test_size_mismatch_names_a_size_given_height_first():
+    """TagSLAM's test_22 cameras.yaml says [800, 848] for its 848-wide T265 images."""
+    from slamio.camera.camera_files import load_camera_file
+
+    camera = load_camera_file("data/cameras/fisheye_kalibr.yaml")
+    assert (camera.width_px, camera.height_px) == (848, 800)
+    assert camera.size_mismatch(848, 800) is None
+    fits_other_camera = camera.size_mismatch(640, 480)
+    assert "640×480" in fits_other_camera and "848×800" in fits_other_camera and "height first" not in fits_other_camera
+    swapped = camera.size_mismatch(800, 848)
+    assert "800×848" in swapped and "height first" in swapped

@@ -161,6 +161,23 @@ def test_same_seed_same_encoder_noise():
     assert run(3)[1] == run(4)[1]  # noise is on the encoders, not on the motion
 
 
+def test_a_frame_counts_as_unread_until_the_host_has_it(manual):
+    """A frame still in the kernel's flip buffer is in no queue the pty reports; with the
+    host's count of bytes read, the simulator counts it unread until it is queued or read."""
+    sim, port = manual()
+    read = {"bytes": 0}
+    sim.host_bytes_read = lambda: read["bytes"]
+    sim.handle_bytes(p.start() + p.safe() + p.stream([7, 35, 43, 44]))
+    sim.step()
+    assert sim._unread_by_host() == 13  # in the flip buffer or the queue: unread either way
+    read["bytes"] += len(port.read(13))
+    assert read["bytes"] == 13 and sim._unread_by_host() == 0
+    sim.host_bytes_read = None  # a host in another process: the queue alone
+    sim.step()
+    port.read(13)
+    assert sim._unread_by_host() == 0
+
+
 def test_faults_damage_and_drop_bytes_from_their_own_stream(manual):
     sim, port = manual(corrupt_fraction=0.2, drop_fraction=0.1, seed=5)
     sim.handle_bytes(p.start() + p.safe() + p.stream([7, 35, 43, 44]))

@@ -12,8 +12,6 @@ of the propagation Jacobians the filter used.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -22,9 +20,7 @@ import ekf.slam
 from builders import minimal_header
 from ekf import EkfSlam, FejEkfSlam
 from ekf.models import motion_jacobians, predict_pose, range_bearing
-from fgslam.runner import ESTIMATORS, run_estimator, truth_trajectory
-from fgslam.compare import ate_rmse_m
-from slamio.log import Observation, Odometry, Step, as_matrix3, read_log
+from slamio.log import Observation, Odometry, Step, as_matrix3
 
 ODO_COV = as_matrix3(np.diag([0.02, 0.01, 0.01]) ** 2)
 LANDMARK = np.array([4.0, 2.0])
@@ -159,19 +155,6 @@ def test_the_innovation_still_uses_the_latest_estimate():
 @pytest.mark.parametrize("association, name", [("jcbb", "ekf-fej"), ("nn", "ekf-fej-nn"), (None, "ekf-fej-ids")])
 def test_names(association, name):
     assert FejEkfSlam(minimal_header(), association=association).name == name
-
-
-def test_on_the_bundled_arena_log_it_is_as_accurate_as_the_textbook_filter():
-    """data/arena_octagon.jsonl (simulated, exact noise): the textbook filter is consistent
-    there, and the first-estimates filter is as accurate."""
-    log = read_log(Path(__file__).resolve().parents[1] / "data" / "arena_octagon.jsonl")
-    steps = log.steps()
-    truth, has = truth_trajectory(steps)
-    ate = {}
-    for name in ("ekf", "ekf-fej"):
-        run, _ = run_estimator(ESTIMATORS[name](log.header), steps, covariances=False)
-        ate[name] = ate_rmse_m(run.final, truth, has_pose=has, align=False)
-    assert ate["ekf-fej"] == pytest.approx(ate["ekf"], rel=0.05)
 
 
 @pytest.mark.parametrize("scenario, seed", [("arena-octagon", 1), ("cylinders", 1)])

@@ -12,7 +12,9 @@ import pytest
 
 from fgslam.record_cli import add_calibrate_parser, add_record_parser, main
 from slamio.noise.errors import NoiseModelError, NoiseModelFileError
-from slamio.noise.trials import calibrate_from_trials, load_calibration, motion_errors, read_trials, simulated_trials
+from slamio.noise.trials import (
+    calibrate_from_trials, calibration_from_dict, load_calibration, motion_errors, read_trials, simulated_trials,
+)
 from slamio.log import Odometry, read_log
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -223,3 +225,39 @@ def test_calibrate_from_trials_named_with_from(tmp_path, capsys):
     assert "forward: 30 trials" in capsys.readouterr().out
     assert main(["calibrate", str(BUNDLED), "--from", "truth"]) == 2  # a CSV is no run log
     capsys.readouterr()
+
+
+def test_scales_of_exact_trials_both_ways():
+    """A robot that travels 0.95 m and turns 0.02 rad per commanded metre, and turns 1.03 rad
+    per commanded radian, forward and backward, left and right: the scales come out exactly."""
+    from slamio.geometry import arc_increment
+    from slamio.noise.trials import MotionTrial
+
+    motion = []
+    for i, d in enumerate((0.5, -0.5, 1.0, 0.25)):
+        dtheta = 0.02 * d
+        x, y, _ = arc_increment(0.95 * d, dtheta)  # along a gentle arc of 0.95 d
+        motion.append(MotionTrial("forward", d, 0.0, x, y, dtheta, i + 1))
+    for i, a in enumerate((1.5708, -1.5708, 3.0, -0.5)):
+        motion.append(MotionTrial("rotate", 0.0, a, 0.0, 0.0, 1.03 * a, i + 10))
+    cal = calibrate_from_trials(motion, [])
+    scales = cal.odometry_scales()
+    assert scales["forward_scale"] == pytest.approx(0.95, abs=1e-4)  # the arc's chord, 1e-5 short
+    assert scales["turn_per_m_rad"] == pytest.approx(0.02, abs=1e-12)
+    assert scales["turn_scale"] == pytest.approx(1.03, abs=1e-12)
+    assert cal.rotate["scale_std"] == pytest.approx(0.0, abs=1e-12)
+    back = calibration_from_dict(cal.to_dict(), "round trip")
+    assert back.odometry_scales() == scales
+
+
+def test_a_calibration_without_scales_says_to_calibrate_again():
+
+    d = calibrate_from_trials(*read_trials("data/calibration_trials_s001.csv")).to_dict()
+    for part in ("forward", "rotate"):
+        for key in ("scale", "scale_std", "turn_per_m_rad"):
+            d[part].pop(key, None)
+    with pytest.raises(NoiseModelError, match="before scales were kept.*calibrate TRIALS.csv"):
+        calibration_from_dict(d, "old.json").odometry_scales()
+    d["rotate"]["scale"] = -1.0
+    with pytest.raises(NoiseModelError, match=r"rotate.scale must be > 0"):
+        calibration_from_dict(d, "bad.json")

@@ -13,10 +13,10 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 import pytest
-from gtsam.symbol_shorthand import H, L, X
+from gtsam.symbol_shorthand import H, L, T, X
 
 from fgslam.smoother import Isam2Smoother, batch_solve
-from fgslam.smoother.relinearisation import component_thresholds, ratios
+from fgslam.smoother.relinearisation import component_thresholds, key_list, ratios
 from slamio.errors import FgslamError
 from slamio.log import group_steps
 from slamio.sim import simulate
@@ -244,3 +244,18 @@ def test_after_a_window_slide_the_cap_still_falls_on_gtsams_checks():
     assert smoother.window_slides >= 2 and smoother.update_failures == 0
     assert all(len(r.moved) >= 4 for r in records[1:-1])  # checks ran on each fresh iSAM2
     assert sum(sum(r.moved) for r in records) == 0
+
+
+def test_key_list_holds_exactly_the_keys_given():
+    """noRelinKeys built per symbol character (the poses in one createKeyList call): the same
+    keys as a push_back per key, whatever their kinds and however large their indices."""
+    rng = np.random.default_rng(0)
+    keys = ([X(int(i)) for i in rng.choice(10**6, 400, replace=False)] + [L(i) for i in range(30)]
+            + [T(5), H(2), X(2**53 - 1), X(2**53 + 5), X(2**55 + 3)])
+    rng.shuffle(keys)
+    out, got = key_list(np.array(keys, dtype=np.uint64)), []
+    while not out.empty():
+        got.append(out.front())
+        out.pop_front()
+    assert sorted(got) == sorted(keys)
+    assert key_list(np.array([], dtype=np.uint64)).empty()

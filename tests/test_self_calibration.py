@@ -171,11 +171,11 @@ def test_the_odometrys_scales_are_learned_from_the_whole_run(arena):
     assert odometry.forward_scale == pytest.approx(0.95, abs=0.01)
 
 
-def with_ranges_as_depth(log: RunLog, bias_m: float) -> RunLog:
+def with_ranges_as_depth(log: RunLog, bias_m: float, scale: float = 1.0) -> RunLog:
     """The log's readings as a camera that sizes the landmark's image reports them: the
-    depth along its axis, ``r·cos b``, reading ``bias_m`` long."""
+    depth along its axis, ``r·cos b``, times ``scale``, reading ``bias_m`` long."""
     return dataclasses.replace(log, records=tuple(
-        dataclasses.replace(r, range_m=r.range_m * float(np.cos(r.bearing_rad)) + bias_m)
+        dataclasses.replace(r, range_m=scale * r.range_m * float(np.cos(r.bearing_rad)) + bias_m)
         if isinstance(r, Observation) else r for r in log.records))
 
 
@@ -188,3 +188,37 @@ def test_the_cameras_range_model_is_learned_without_truth(arena):
     assert depth.range_is_depth and depth.range_bias_m == pytest.approx(0.04, abs=0.01)
     plain = fit_without_truth([arena], lags_s=(0.0,)).model.observation
     assert not plain.range_is_depth and plain.range_bias_m == pytest.approx(0.0, abs=0.01)
+
+
+def test_scales_measured_by_trials_are_held_and_the_rest_learned_around_them(arena):
+    """The odometry's scales the run alone cannot give, held at what trials measured: the
+    model carries them, and the camera's range model — depth, bias and now its scale too,
+    which shows once the odometry's is known — is learned as the one put in."""
+    distorted = with_ranges_as_depth(with_odometry_distorted(arena, 0.95, 0.93, -0.04), 0.04, scale=1.03)
+    pinned = {"forward_scale": 0.95, "turn_scale": 0.93, "turn_per_m_rad": -0.04}
+    fit = fit_without_truth([distorted], lags_s=(0.0,), pinned=pinned)
+    odometry, observation = fit.model.odometry, fit.model.observation
+    assert (odometry.forward_scale, odometry.turn_scale, odometry.turn_per_m_rad) == (0.95, 0.93, -0.04)
+    assert observation.range_is_depth and observation.range_bias_m == pytest.approx(0.04, abs=0.015)
+    assert observation.range_scale == pytest.approx(1.03, abs=0.01)
+    assert fit.report["odometry_scales_pinned"] == pinned
+    assert "odometry.forward_scale" not in fit.report["not_determined_without_truth"]
+
+
+def test_calibrate_without_truth_holds_the_scales_of_a_trials_file(tmp_path, capsys):
+    from fgslam.cli import main
+    from slamio.noise.model import load_noise_model
+    from slamio.noise.trials import calibrate_from_trials, read_trials
+
+    trials = DATA / "calibration_trials_s001.csv"
+    expected = calibrate_from_trials(*read_trials(trials)).odometry_scales()
+    model_path = tmp_path / "noise.json"
+    log = _unsimulated_copy(tmp_path)
+    assert main(["calibrate", str(log), "--without-truth", "--scales-from", str(trials), "--out", str(model_path)]) == 0
+    out = capsys.readouterr().out
+    assert "odometry scales held at the trials'" in out and "held at the trials' values: forward_scale" in out
+    odometry = load_noise_model(model_path).odometry
+    assert odometry.forward_scale == pytest.approx(expected["forward_scale"], abs=1e-12)
+    assert odometry.turn_scale == pytest.approx(expected["turn_scale"], abs=1e-12)
+    assert main(["calibrate", str(log), "--scales-from", str(trials)]) in (1, 2)
+    assert "use it with --without-truth" in capsys.readouterr().err

@@ -12,7 +12,7 @@ import math
 import gtsam
 import numpy as np
 import pytest
-from gtsam.symbol_shorthand import L, X
+from gtsam.symbol_shorthand import L, T, X
 
 from fgslam.compare import ate_rmse_m
 from fgslam.smoother import DEFAULT_ROBUST_K, FAST_SETTINGS, BatchResult, Isam2Smoother, batch_solve
@@ -774,3 +774,39 @@ def test_isam2_params_options_keep_the_answer(noisy, kwargs):
     header, steps, _, _, smoother, _ = noisy
     other = run(header, steps, **kwargs)
     assert pose_difference(other.trajectory(), smoother.trajectory())[0] <= 1e-4
+
+
+def test_poses_of_reads_the_same_numbers_in_one_call_or_pose_by_pose():
+    """The trajectory read in one extractPose2 call is each X(i)'s own x(), y(), theta(), bit
+    for bit, with tags and landmarks among the values; a pose beyond n falls back to reading
+    pose by pose, with the same result."""
+    from fgslam.smoother.variables import poses_of
+
+    rng = np.random.default_rng(3)
+    for n, extra in ((500, False), (40, True)):
+        values = gtsam.Values()
+        for i in range(n):
+            values.insert(X(i), gtsam.Pose2(*(rng.normal(size=3) * [10.0, 10.0, 3.0])))
+        for i in range(20):
+            values.insert(L(i), rng.normal(size=2))
+        values.insert(T(7), gtsam.Pose2(1.0, 2.0, 0.3))
+        if extra:
+            values.insert(X(n + 5), gtsam.Pose2())
+        one_by_one = np.array([[values.atPose2(X(i)).x(), values.atPose2(X(i)).y(), values.atPose2(X(i)).theta()]
+                               for i in range(n)])
+        np.testing.assert_array_equal(poses_of(values, n), one_by_one)
+
+
+def test_a_point_landmarks_guess_is_the_seed_pose_and_the_reading():
+    """The guess computed when first asked for: seed ⊕ (r cos b, r sin b), GTSAM's transformFrom."""
+    from fgslam.smoother.factors import FactorBuilder
+
+    seed = gtsam.Pose2(1.0, -2.0, 0.7)
+    obs = Observation(0.0, 4, 2.5, -0.4, 0.1, 0.05)
+    entry = FactorBuilder().observation(3, seed, obs, False)
+    expected = np.asarray(seed.transformFrom(np.array([2.5 * math.cos(-0.4), 2.5 * math.sin(-0.4)])))
+    np.testing.assert_array_equal(entry.landmark_guess, expected)
+    c, s = math.cos(0.7), math.sin(0.7)
+    np.testing.assert_allclose(entry.landmark_guess, [1.0 + c * 2.5 * math.cos(-0.4) - s * 2.5 * math.sin(-0.4),
+                                                      -2.0 + s * 2.5 * math.cos(-0.4) + c * 2.5 * math.sin(-0.4)])
+    assert entry.key == L(4) and entry.pose_index == 3 and entry.seed_pose is seed

@@ -40,8 +40,11 @@ without truth: fgslam calibrate LOG.jsonl [LOG.jsonl ...] --without-truth --out 
   estimation on the batch solution (fgslam.self_calibration); the odometry's lag and the
   camera's range model (range or depth along its axis, and its bias). It cannot see scales,
   the bearing's bias or the camera's latency: those stay 1 and 0, and the summary lists
-  them, and any rate the data cannot separate from another. fgslam run LOG --noise self
-  fits on the log itself first. Planar logs only for now.
+  them, and any rate the data cannot separate from another. --scales-from TRIALS.csv (or
+  the CAL.json made from it) holds the odometry's forward and turn scales and its turn per
+  metre at what a few taped drives and turns in place measured. fgslam run LOG --noise self
+  fits on the log itself first (with --calibration CAL.json: holding its scales). Planar
+  logs only for now.
 
 from truth:   fgslam calibrate LOG.jsonl [LOG.jsonl ...] --out noise.json [--from truth]
   Fit a noise model against the ground truth in run logs (motion capture, a simulator):
@@ -98,6 +101,10 @@ def add_parser(verbs) -> argparse.ArgumentParser:
                    help="(from truth) fit the model from where the bearings place the sensor on the robot and "
                    "carry it: applying the model states it as the log header's sensor.pose_on_robot (without "
                    "it the fitted mount is only reported)")
+    p.add_argument("--scales-from", default=None, metavar="CAL.json|TRIALS.csv",
+                   help="(without truth) hold the odometry's forward and turn scales and its turn per metre at "
+                   "what measured trials say (a calibration from `fgslam calibrate TRIALS.csv --out CAL.json`, or "
+                   "the trials CSV itself): what the run alone cannot tell, a taped distance and turns in place can")
     p.add_argument("--out", default=None, metavar="FILE",
                    help="write the noise model (from truth) or the trial calibration (from trials) JSON here; "
                    "an existing file is kept")
@@ -138,6 +145,9 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     if getattr(args, "fit_mount", False) and mode != "truth":
         raise FgslamError("--fit-mount fits the sensor's mount against ground truth: it works with logs that have "
                           "truth (--from truth), not " + ("without truth" if mode == "self" else "with trials"))
+    if getattr(args, "scales_from", None) is not None and mode != "self":
+        raise FgslamError("--scales-from holds the odometry's scales while the rest is learned without truth: "
+                          "use it with --without-truth")
     if mode == "truth":
         return _calibrate_from_logs(args, args.trials)
     if mode == "self":
@@ -185,9 +195,10 @@ def _calibrate_without_truth(args: argparse.Namespace, paths: list[str]) -> int:
 
     if args.out:
         check_new_file(args.out, overwrite=args.overwrite, example="noise.json")
+    pinned = None if getattr(args, "scales_from", None) is None else trial_scales(args.scales_from)
     logs = [read(p) for p in paths]
     with Progress(unit="") as progress:
-        fit = fit_without_truth(logs, progress=progress)
+        fit = fit_without_truth(logs, progress=progress, pinned=pinned)
     print(noise_model_summary(fit.model))
     print(self_fit_notes(fit))
     if args.out:
@@ -195,6 +206,21 @@ def _calibrate_without_truth(args: argparse.Namespace, paths: list[str]) -> int:
                        overwrite=args.overwrite)
         print(f"wrote {args.out}")
     return 0
+
+
+def trial_scales(path: str) -> dict[str, float]:
+    """The odometry's scales measured by trials (:meth:`slamio.noise.trials.TrialCalibration.odometry_scales`),
+    from a calibration JSON or the trials CSV itself, printed."""
+    from slamio.noise.trials import calibrate_from_trials, load_calibration, read_trials
+
+    calibration = calibrate_from_trials(*read_trials(path), source=path) if path.lower().endswith(".csv") \
+        else load_calibration(path)
+    scales = calibration.odometry_scales()
+    if not scales:
+        raise FgslamError(f"{path}: has no forward or rotate trials, so no odometry scale to hold; "
+                          "drive forward and turn in place a few times and measure where the robot ended")
+    print(f"odometry scales held at the trials' ({path}): " + ", ".join(f"{k} {v:.4f}" for k, v in scales.items()))
+    return scales
 
 
 def self_fit_notes(fit) -> str:
@@ -217,10 +243,17 @@ def self_fit_notes(fit) -> str:
     camera = report.get("range_model_from_readings")
     if camera:
         lines.append(f"  camera range: {'depth along the axis (r cos b)' if camera['range_is_depth'] else 'Euclidean'}"
-                     f", reading {camera['range_bias_m']:+.3f} m long: what the whole run's readings agree on best")
-    lines.append("  not learnable without truth (kept at scale 1, bias 0; pin them with `fgslam calibrate "
-                 "TRIALS.csv` or a log with truth): forward and range scale (only their ratio shows), turn "
-                 "scale, bearing bias, the camera's latency and the readings' correlation in time")
+                     f", reading {camera['range_bias_m']:+.3f} m long"
+                     + (f", scale {camera['range_scale']:.3f}" if camera.get("range_scale", 1.0) != 1.0 else "")
+                     + ": what the whole run's readings agree on best")
+    if report.get("odometry_scales_pinned"):
+        lines.append("  held at the trials' values: " + ", ".join(report["odometry_scales_pinned"]))
+        lines.append("  not learnable without truth (kept at scale 1, bias 0): range scale, bearing bias, the "
+                     "camera's latency and the readings' correlation in time")
+    else:
+        lines.append("  not learnable without truth (kept at scale 1, bias 0; hold the odometry's with "
+                     "--scales-from TRIALS.csv, or fit on a log with truth): forward and range scale (only their "
+                     "ratio shows), turn scale, bearing bias, the camera's latency and the readings' correlation in time")
     return "\n".join(lines)
 
 

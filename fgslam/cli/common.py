@@ -201,7 +201,7 @@ class LogTally:
 
     def event_counts(self) -> dict[str, int]:
         """:func:`slamio.log.event_counts` of the records counted."""
-        return {kind: self.events[kind] for kind in self._log.EVENT_KINDS if kind in self.events}
+        return self._log.records.in_event_kind_order(self.events)
 
     def _truths(self) -> tuple[int, int]:
         """(poses with a truth, of them with a position alone) up to and with the current pose."""

@@ -91,7 +91,8 @@ def add_parser(verbs) -> argparse.ArgumentParser:
                           "(`fgslam calibrate LOG --without-truth`)")
     run.add_argument("--calibration", default=None, metavar="CAL.json",
                      help="seed 001's trial calibration from `fgslam calibrate TRIALS.csv --out CAL.json`: "
-                          "ekf-s001 takes its R and Q from it (as `fgslam record --calibration` does)")
+                          "ekf-s001 takes its R and Q from it (as `fgslam record --calibration` does); with "
+                          "--noise self the fit holds the odometry's scales at the trials'")
     run.add_argument("--no-report", action="store_true", help="skip report.html and the PNG figures")
     run.add_argument("--no-consistency", action="store_true",
                      help="skip NEES, NIS and covariance ellipses (their work runs between the timed steps, "
@@ -229,7 +230,7 @@ def _with_side_inputs(args: argparse.Namespace, log):
             raise FgslamError(f"{args.log} was simulated (fgslam sim): its noise is the simulator's own and its "
                               "covariances are exact, so a fitted noise model does not apply; --noise is for a log "
                               "recorded or imported without one")
-        model = _self_fitted_model(log) if args.noise == "self" else load_noise_model(args.noise)
+        model = _self_fitted_model(log, args.calibration) if args.noise == "self" else load_noise_model(args.noise)
         log, dropped = apply_noise_model(log, model)
         if args.noise == "self":  # the verdict then knows the noise is this log's own
             noise = {**log.header.noise, "learned_without_truth": True}
@@ -243,15 +244,17 @@ def _with_side_inputs(args: argparse.Namespace, log):
     return log
 
 
-def _self_fitted_model(log):
+def _self_fitted_model(log, calibration: str | None = None):
     """``--noise self``: the noise model :func:`fgslam.self_calibration.fit_without_truth`
-    learns from ``log`` alone, its summary printed."""
-    from fgslam.cli.calibrate import noise_model_summary, self_fit_notes
+    learns from ``log`` alone (the odometry's scales held at the trial ``calibration``'s,
+    when given), its summary printed."""
+    from fgslam.cli.calibrate import noise_model_summary, self_fit_notes, trial_scales
     from fgslam.cli.progress import Progress
     from fgslam.self_calibration import fit_without_truth
 
+    pinned = None if calibration is None else trial_scales(calibration)
     with Progress(unit="") as progress:
-        fit = fit_without_truth([log], progress=progress)
+        fit = fit_without_truth([log], progress=progress, pinned=pinned)
     print(noise_model_summary(fit.model))
     print(self_fit_notes(fit))
     return fit.model

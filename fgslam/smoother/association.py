@@ -193,8 +193,9 @@ class SmootherAssociation:
     def begin_step(self, observations) -> None:
         """Open the key slots of a new step's observations (ids known ones use their id)."""
         self._step_start = len(self._keys)
-        self._keys.extend(o.landmark_id for o in observations)
-        self._observations.extend(observations)
+        if observations:  # (most steps of a long log have none)
+            self._keys.extend([o.landmark_id for o in observations])
+            self._observations.extend(observations)
 
     def step_keys(self) -> list[int | None]:
         """The ids the last step's observations were used as, as known now."""

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import math
 
-from ekf.models import wrap_angle
 
 #: An observation whose NIS against the pose-only prediction has a χ² tail probability below
 #: this is not used by the correction; the smoother then gives the held steps to iSAM2 at once
@@ -45,6 +44,10 @@ def chi2_tail(nis: float, dof: int) -> float:
 # The maths below is written out in scalars: on 3×3 matrices numpy's per-call overhead is
 # ten times the arithmetic, and this runs for every observation of every step.
 # Covariances are 3×3 nested lists (symmetric), poses (x_m, y_m, theta_rad) tuples.
+# Angles are wrapped as ekf.models.wrap_angle wraps a float — (a + π) mod 2π − π, the same
+# operations, so the same bits — written out, without its call and its test for an array.
+_PI = math.pi
+_TWO_PI = 2.0 * math.pi
 
 
 def predict(mean, P, increment, Q_increment) -> tuple[tuple[float, float, float], list[list[float]]]:
@@ -73,7 +76,7 @@ def predict(mean, P, increment, Q_increment) -> tuple[tuple[float, float, float]
     g02 = c * q02 - s * q12
     g12 = s * q02 + c * q12
     m00, m01, m02, m11, m12, m22 = f00 + g00, f01 + g01, f02 + g02, f11 + g11, f12 + g12, p22 + q22
-    moved = (x + c * dx - s * dy, y + s * dx + c * dy, wrap_angle(th + dth))
+    moved = (x + c * dx - s * dy, y + s * dx + c * dy, (th + dth + _PI) % _TWO_PI - _PI)
     return moved, [[m00, m01, m02], [m01, m11, m12], [m02, m12, m22]]
 
 
@@ -90,7 +93,7 @@ def correct(mean, P, landmark_xy, range_m: float, bearing_rad: float, R) -> tupl
     q = ex * ex + ey * ey
     r = math.sqrt(q)
     nu_r = range_m - r
-    nu_b = wrap_angle(bearing_rad - wrap_angle(math.atan2(ey, ex) - th))
+    nu_b = (bearing_rad - ((math.atan2(ey, ex) - th + _PI) % _TWO_PI - _PI) + _PI) % _TWO_PI - _PI
     # H = [[h0, h1, 0], [h2, h3, -1]]
     h0, h1, h2, h3 = -ex / r, -ey / r, ey / q, -ex / q
     (p00, p01, p02), (_, p11, p12), (_, _, p22) = P
@@ -114,7 +117,8 @@ def correct(mean, P, landmark_xy, range_m: float, bearing_rad: float, R) -> tupl
     k00, k01 = u00 * i00 + u01 * i01, u00 * i01 + u01 * i11
     k10, k11 = u10 * i00 + u11 * i01, u10 * i01 + u11 * i11
     k20, k21 = u20 * i00 + u21 * i01, u20 * i01 + u21 * i11
-    updated = (x + k00 * nu_r + k01 * nu_b, y + k10 * nu_r + k11 * nu_b, wrap_angle(th + k20 * nu_r + k21 * nu_b))
+    heading = th + k20 * nu_r + k21 * nu_b
+    updated = (x + k00 * nu_r + k01 * nu_b, y + k10 * nu_r + k11 * nu_b, (heading + _PI) % _TWO_PI - _PI)
     # P − K S Kᵀ = P − K Uᵀ
     c00 = p00 - (k00 * u00 + k01 * u01)
     c01 = p01 - (k00 * u10 + k01 * u11)
@@ -144,7 +148,7 @@ def correct_range(mean, P, landmark_xy, range_m: float, var_range_m2: float) -> 
     if not S > 0.0:
         return mean, P, math.inf
     k0, k1, k2 = u0 / S, u1 / S, u2 / S
-    updated = (x + k0 * nu, y + k1 * nu, wrap_angle(th + k2 * nu))
+    updated = (x + k0 * nu, y + k1 * nu, (th + k2 * nu + _PI) % _TWO_PI - _PI)
     P_new = [[p00 - k0 * u0, p01 - k0 * u1, p02 - k0 * u2],
              [p01 - k0 * u1, p11 - k1 * u1, p12 - k1 * u2],
              [p02 - k0 * u2, p12 - k1 * u2, p22 - k2 * u2]]

@@ -11,7 +11,6 @@ holds iSAM2 or decides when a factor goes in.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import gtsam
 import numpy as np
@@ -156,18 +155,40 @@ def start_prior_covariance(header: Header) -> np.ndarray:
     return 0.5 * (cov + cov.T)
 
 
-@dataclass
 class PendingObservation:
-    """An observation factor not (yet) accepted into iSAM2."""
+    """An observation factor not (yet) accepted into iSAM2.
 
-    landmark_id: int
-    key: int  # the landmark's variable: L(id) for a point, T(id) for a tag
-    pose_index: int
-    factor: gtsam.NonlinearFactor
-    gate_factor: gtsam.NonlinearFactor  # the same with the plain Gaussian noise (for the gate)
-    landmark_guess: np.ndarray | gtsam.Pose2  # the landmark implied by the observation and its seed pose
-    seed_pose: gtsam.Pose2  # the robot pose the observation was made from, as seeded then
-    attempts: int = 0  # failed updates it took part in
+    ``landmark_guess`` is the landmark implied by the observation and its seed pose: a
+    point (``numpy`` array) or a tag's ``Pose2``. Only a landmark iSAM2 does not hold yet
+    needs it (its seed, and the gates of :mod:`fgslam.smoother.pending`), so a point's is
+    computed on first use from ``seed_pose`` and the reading kept in ``polar``
+    ``(range_m, bearing_rad)``: most observations are of landmarks already in the map.
+    """
+
+    __slots__ = ("landmark_id", "key", "pose_index", "factor", "gate_factor", "seed_pose", "attempts",
+                 "_guess", "_polar")
+
+    def __init__(self, landmark_id: int, key: int, pose_index: int, factor: gtsam.NonlinearFactor,
+                 gate_factor: gtsam.NonlinearFactor, landmark_guess: np.ndarray | gtsam.Pose2 | None,
+                 seed_pose: gtsam.Pose2, attempts: int = 0, polar: tuple[float, float] | None = None):
+        self.landmark_id = landmark_id
+        self.key = key  # the landmark's variable: L(id) for a point, T(id) for a tag
+        self.pose_index = pose_index
+        self.factor = factor
+        self.gate_factor = gate_factor  # the same with the plain Gaussian noise (for the gate)
+        self.seed_pose = seed_pose  # the robot pose the observation was made from, as seeded then
+        self.attempts = attempts  # failed updates it took part in
+        self._guess = landmark_guess
+        self._polar = polar  # (range_m, bearing_rad) of a point's reading, when its guess waits
+
+    @property
+    def landmark_guess(self) -> np.ndarray | gtsam.Pose2:
+        """The landmark implied by the observation and its seed pose."""
+        if self._guess is None:
+            r, b = self._polar
+            self._guess = np.asarray(self.seed_pose.transformFrom(np.array([r * math.cos(b), r * math.sin(b)])),
+                                     dtype=float)
+        return self._guess
 
 
 class FactorBuilder:
@@ -186,8 +207,9 @@ class FactorBuilder:
         prior_noise = gtsam.noiseModel.Gaussian.Covariance(start_prior_covariance(header))
         return gtsam.PriorFactorPose2(X(0), gtsam.Pose2(*header.start_pose), prior_noise)
 
-    def odometry(self, k: int, increment: gtsam.Pose2, odo: Odometry) -> gtsam.BetweenFactorPose2:
+    def odometry(self, k: int, odo: Odometry) -> gtsam.BetweenFactorPose2:
         """``BetweenFactorPose2(X(k − 1), X(k))`` for the odometry record ``odo``."""
+        increment = gtsam.Pose2(odo.dx_m, odo.dy_m, odo.dtheta_rad)
         return gtsam.BetweenFactorPose2(X(k - 1), X(k), increment, self.odometry_noise(odo))
 
     def odometry_noise(self, odo: Odometry):
@@ -226,14 +248,15 @@ class FactorBuilder:
         lid = obs.landmark_id
         noise, used = self._observation_noise(obs)
         bearing = gtsam.Rot2(obs.bearing_rad)
-        p_robot = np.array([obs.range_m * math.cos(obs.bearing_rad), obs.range_m * math.sin(obs.bearing_rad)])
         if not is_tag:
             factor = gtsam.BearingRangeFactor2D(X(k), L(lid), bearing, obs.range_m, used)
             gate_factor = factor
             if used is not noise:
                 gate_factor = gtsam.BearingRangeFactor2D(X(k), L(lid), bearing, obs.range_m, noise)
-            guess = np.asarray(seed.transformFrom(p_robot), dtype=float)
-            return PendingObservation(lid, L(lid), k, factor, gate_factor, guess, seed)
+            # the landmark's guess, seed ⊕ the reading, is computed when first asked for
+            return PendingObservation(lid, L(lid), k, factor, gate_factor, None, seed,
+                                      polar=(obs.range_m, obs.bearing_rad))
+        p_robot = np.array([obs.range_m * math.cos(obs.bearing_rad), obs.range_m * math.sin(obs.bearing_rad)])
         if has_tag_yaw(obs):  # the tag's whole pose relative to the robot
             measured = tag_relative_pose(obs)
             gaussian = gtsam.noiseModel.Gaussian.Covariance(tag_noise_covariance(obs))

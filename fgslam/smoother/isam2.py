@@ -246,29 +246,29 @@ class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
             if step.odometry is not None:
                 raise FgslamError("Isam2Smoother: step 0 is the start pose and cannot have odometry")
             seed = gtsam.Pose2(*self.header.start_pose)
-            self._held.core.add(self._factors.prior(self.header))
+            self._held.core.append(self._factors.prior(self.header))
         else:
             odo = step.odometry
             if odo is None:
                 raise FgslamError(f"Isam2Smoother: step {k} has no odometry; every step after 0 starts with one")
-            increment = gtsam.Pose2(odo.dx_m, odo.dy_m, odo.dtheta_rad)
             assert self._online.pose is not None
-            # latest iSAM2 estimate ⊕ the increments since, not dead reckoning from the start
-            seed = self._online.pose.compose(increment)
-            used = ()
+            # latest iSAM2 estimate ⊕ the increments since, not dead reckoning from the start …
             if self._corrector is not None:  # … corrected by the observations of mapped landmarks
                 seed, used = self._corrected(odo, step.observations)
-            self._online.moved(increment, odo, used)
+            else:
+                seed, used = self._online.pose.compose(gtsam.Pose2(odo.dx_m, odo.dy_m, odo.dtheta_rad)), ()
+            self._online.moved(odo, used)
             if self.settings.keyframes:
+                increment = gtsam.Pose2(odo.dx_m, odo.dy_m, odo.dtheta_rad)
                 observed = any(o.landmark_id is not None or self.associate for o in step.observations)
                 chain = self._keyframes.fold(k, increment, odometry_noise_covariance(odo), observed)
                 if chain is not None:  # a keyframe: the chain since the last one becomes one compound factor
                     noise = gtsam.noiseModel.Gaussian.Covariance(chain.covariance())
-                    self._held.core.add(gtsam.BetweenFactorPose2(X(chain.start), X(k), chain.compound, noise))
+                    self._held.core.append(gtsam.BetweenFactorPose2(X(chain.start), X(k), chain.compound, noise))
             else:
-                self._held.core.add(self._factors.odometry(k, increment, odo))
+                self._held.core.append((k, odo))  # its factor is built when the held steps go to iSAM2
         if not self._keyframes.open.links:  # a variable of its own (always, without keyframes)
-            self._held.values.insert(X(k), seed)
+            self._held.values.append((X(k), seed))
             self._keyframes.indices.append(k)
             self._add_observations(k, seed, step.observations)
         else:  # folded into the open chain; it saw no landmark id
@@ -281,7 +281,7 @@ class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
 
     def _add_observations(self, k: int, seed: gtsam.Pose2, observations) -> None:
         """Hold the factors of pose ``k``'s observations (and their heights)."""
-        if self.associate:
+        if self.associate and (observations or self._association.retry):  # (retries are due at any step)
             observations = self._associate(k, seed, observations)
         for obs in observations:
             self._add_observation(k, seed, obs)
@@ -305,9 +305,9 @@ class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
     def _add_height(self, obs: Observation) -> None:
         """Hold a height observation's factor (:meth:`FactorBuilder.height`), and the height's
         seed when its landmark has none yet."""
-        self._held.core.add(self._factors.height(obs))
+        self._held.core.append(self._factors.height(obs))
         if obs.landmark_id not in self._landmarks.height_ids:
-            self._held.values.insert(H(obs.landmark_id), float(obs.height_m))
+            self._held.values.append((H(obs.landmark_id), float(obs.height_m)))
             self._landmarks.height_ids.add(obs.landmark_id)
 
     def _corrected(self, odo, observations) -> tuple[gtsam.Pose2, tuple]:
@@ -316,22 +316,25 @@ class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
         those it used (``(landmark_id, landmark_xy, range_m, bearing_rad, R)``). A landmark iSAM2 does
         not hold yet, or a surprising observation, makes the step urgent."""
         corrector = self._corrector
-        used = []
         corrector.predict((odo.dx_m, odo.dy_m, odo.dtheta_rad), odo.covariance)
+        if not observations:  # (most steps of a long log)
+            return gtsam.Pose2(*corrector.mean), ()
+        used = []
+        known, tag_ids, landmark_xy = self._landmarks.known, self._landmarks.tag_ids, self._landmark_xy
         for obs in observations:
             lid = obs.landmark_id
             if lid is None:
                 continue
-            if lid not in self._landmarks.known:
+            if lid not in known:
                 # a range-only landmark waits for its trilateration (pending.py), not for an update
                 self._held.urgent |= not obs.range_only
                 continue
-            if lid in self._landmarks.tag_ids:
+            if lid in tag_ids:
                 continue
-            xy = self._landmark_xy.get(lid)
+            xy = landmark_xy.get(lid)
             if xy is None:
                 point = self._isam.calculateEstimatePoint2(L(lid))
-                xy = self._landmark_xy[lid] = (float(point[0]), float(point[1]))
+                xy = landmark_xy[lid] = (float(point[0]), float(point[1]))
             if obs.range_only:
                 R = obs.sigma_range_m**2
                 bearing = None

@@ -29,9 +29,10 @@ class OnlinePose:
     def __init__(self):
         self.pose: gtsam.Pose2 | None = None  # latest pose: iSAM2's after an update, else ⊕ odometry
         # odometry records since the newest pose in iSAM2, for the online covariance, each
-        # with the observations the online correction used at that step; kept raw, so a
-        # step costs one list append
-        self._since: list[tuple[gtsam.Pose2, Odometry, tuple]] = []
+        # with the observations the online correction used at that step; kept raw (their
+        # Pose2 increments are built only when a covariance is asked for), so a step costs
+        # one list append
+        self._since: list[tuple[Odometry, tuple]] = []
         self._anchor: gtsam.Pose2 | None = None  # iSAM2's estimate of its newest pose
         # current_covariance() is asked at every step (NEES): the marginal is kept until
         # iSAM2 changes, and the held odometry is propagated only once per record
@@ -45,10 +46,10 @@ class OnlinePose:
         # (_corrected_covariance); the replay is kept and carried on until iSAM2 changes
         self._replay: _Replay | None = None
 
-    def moved(self, increment: gtsam.Pose2, odometry: Odometry, used: tuple = ()) -> None:
+    def moved(self, odometry: Odometry, used: tuple = ()) -> None:
         """Note one more step's odometry since the newest pose in iSAM2, and the
         observations the online correction used at it: ``(landmark_id, landmark_xy, range_m, bearing_rad, R)``."""
-        self._since.append((increment, odometry, used))
+        self._since.append((odometry, used))
 
     def updated(self, pose: gtsam.Pose2, newest_in_isam: int, steps_after: int, anchor: gtsam.Pose2) -> None:
         """After an iSAM2 update: ``pose`` is the newest pose; the newest pose iSAM2 holds is
@@ -78,8 +79,8 @@ class OnlinePose:
     def _caught_up_since_chain(self) -> OdometryChain:
         """The odometry since the newest iSAM2 pose, with the records held since the last call."""
         chain = self._since_chain
-        for increment, odo, _ in self._since[len(chain.links) :]:
-            chain.append(increment, odometry_noise_covariance(odo))
+        for odo, _ in self._since[len(chain.links) :]:
+            chain.append(gtsam.Pose2(odo.dx_m, odo.dy_m, odo.dtheta_rad), odometry_noise_covariance(odo))
         return chain
 
     def covariance(self, isam: gtsam.ISAM2, frame: str) -> np.ndarray:
@@ -90,7 +91,7 @@ class OnlinePose:
         if self._marginal is None:
             self._marginal = np.asarray(isam.marginalCovariance(X(chain.start)), dtype=float)
         cov = self._marginal
-        if any(used for _, _, used in self._since):  # the online correction moved the pose
+        if any(used for _, used in self._since):  # the online correction moved the pose
             cov = self._corrected_covariance(isam)
             if frame == "body":
                 J = body_to_world(self.pose.theta())
@@ -119,7 +120,7 @@ class OnlinePose:
         heading σ 0.003 rad against a 0.04 rad error, NEES up to 4 000). For the same reason
         the replay stays on the prediction from there (the linearisation point's pose ⊕ the
         odometry): moving its mean by the readings would turn the Jacobians again."""
-        ids = [lid for _, _, used in self._since for lid, *_ in used]
+        ids = [lid for _, used in self._since for lid, *_ in used]
         replay = self._replay
         if replay is None or not set(ids) <= set(replay.column):  # a landmark not in it: start over with all
             replay = self._replay = _Replay.start(isam, self._since_chain.start,
@@ -233,7 +234,7 @@ class _Replay:
         """Replay the held steps not replayed yet: predict with each odometry, then update
         with the readings the correction used there, along the prediction."""
         P, mean, n = self.P, self.mean, self.P.shape[0]
-        for increment, odo, used in since[self.steps :]:
+        for odo, used in since[self.steps :]:
             u = (odo.dx_m, odo.dy_m, odo.dtheta_rad)
             F, G = motion_jacobians(mean, u)
             mean = predict_pose(mean, u)

@@ -16,7 +16,7 @@ import numpy as np
 from gtsam.symbol_shorthand import X
 
 from fgslam.smoother.chain import OdometryChain, add_links
-from fgslam.smoother.factors import PendingObservation
+from fgslam.smoother.factors import FactorBuilder, PendingObservation
 from fgslam.smoother.variables import poses_of
 
 #: The ``isam2-fast`` preset: settings tuned on Victoria Park (docs/performance.md), for long
@@ -51,8 +51,12 @@ class HeldSteps:
     Their odometry/prior/height factors and pose/height seeds (``core``, ``values``), their
     observation factors (``entries``), the range factors of range-only landmarks already
     placed (``ranges``), how many steps wait and whether any of them observed something:
-    run in one update later. ``urgent`` marks a step that should not wait: it saw a
-    landmark iSAM2 does not hold yet, or an observation the online correction did not use
+    run in one update later. ``core`` and ``values`` are plain lists until then: an
+    odometry record is held as ``(k, record)`` and becomes its factor, and the seeds go
+    into one ``gtsam.Values``, only in :meth:`take` (a step then costs list appends, not a
+    factor, a noise model and a ``Values.insert``, each a call through GTSAM's bindings).
+
+    ``urgent`` marks a step that should not wait: it saw a landmark iSAM2 does not hold yet, or an observation the online correction did not use
     (:mod:`fgslam.smoother.correction`); ``unlikely``, an observation the correction found
     unlikely (the update then waits for ``update_tail_min_steps`` held steps);
     ``uncorrected``, an observation without an id (the correction cannot use it, so the online
@@ -65,8 +69,10 @@ class HeldSteps:
 
     def _empty(self) -> None:
         """Nothing held."""
-        self.core = gtsam.NonlinearFactorGraph()
-        self.values = gtsam.Values()
+        # the prior, odometry and height terms in step order: a factor, or (k, odometry
+        # record) for step k's odometry factor, built in take()
+        self.core: list = []
+        self.values: list[tuple[int, object]] = []  # (key, seed) of each held variable
         self.entries: list[PendingObservation] = []
         self.ranges: list[PendingObservation] = []
         self.steps = 0
@@ -80,10 +86,18 @@ class HeldSteps:
         """Observation factors held (range-bearing, tag and range-only)."""
         return len(self.entries) + len(self.ranges)
 
-    def take(self) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values, list[PendingObservation],
-                            list[PendingObservation]]:
-        """(core, values, entries, ranges) of every held step; nothing is held afterwards."""
-        taken = self.core, self.values, self.entries, self.ranges
+    def take(self, factors: FactorBuilder) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values,
+                                                  list[PendingObservation], list[PendingObservation]]:
+        """(core, values, entries, ranges) of every held step, the odometry factors built by
+        ``factors`` (:meth:`FactorBuilder.odometry`); nothing is held afterwards."""
+        core = gtsam.NonlinearFactorGraph()
+        odometry = factors.odometry
+        for term in self.core:
+            core.add(odometry(*term) if type(term) is tuple else term)
+        values = gtsam.Values()
+        for key, seed in self.values:
+            values.insert(key, seed)
+        taken = core, values, self.entries, self.ranges
         self._empty()
         return taken
 

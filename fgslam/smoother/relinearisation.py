@@ -29,6 +29,12 @@ import numpy as np
 #: radians), a point landmark (x, y), a height.
 _DIMENSIONS = {ord("x"): 3, ord("t"): 3, ord("l"): 2, ord("h"): 1}
 
+#: A key is its symbol's character in the top 8 bits and its index in the 56 below (gtsam.Symbol).
+_INDEX_BITS = 56
+_INDEX_MASK = (1 << _INDEX_BITS) - 1
+#: Indices below this are exact as float64 (what createKeyList takes them as).
+_EXACT_IN_FLOAT = 1 << 53
+
 
 def component_thresholds(keys: list[int], threshold: float | tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
     """The relinearisation threshold of each tangent component of the variables ``keys``, in
@@ -68,8 +74,21 @@ def held_back(isam: gtsam.ISAM2, threshold: float | tuple[float, float], max_var
     keys = isam.getLinearizationPoint().keys()
     ratio = ratios(isam.getDelta(), keys, threshold)
     past = np.flatnonzero(ratio >= 1.0)
-    out = gtsam.KeyList()
-    if len(past) > max_variables:
-        for i in past[np.argsort(-ratio[past], kind="stable")][max_variables:].tolist():
-            out.push_back(keys[i])
+    if len(past) <= max_variables:
+        return gtsam.KeyList()
+    chosen = past[np.argsort(-ratio[past], kind="stable")][max_variables:]
+    return key_list(np.asarray(keys, dtype=np.uint64)[chosen])
+
+
+def key_list(keys: np.ndarray) -> gtsam.KeyList:
+    """``keys`` (uint64) as a ``gtsam.KeyList``, poses first (GTSAM reads ``noRelinKeys`` as a
+    set). The poses, usually nearly all of them (a check may hold back thousands), are made in
+    one call of ``gtsam.utilities.createKeyList`` from their indices, the rest one by one: a
+    ``push_back`` per key took 1.1 ms a check on Victoria Park."""
+    kinds = keys >> np.uint64(_INDEX_BITS)
+    indices = keys & np.uint64(_INDEX_MASK)
+    is_pose = (kinds == ord("x")) & (indices < np.uint64(_EXACT_IN_FLOAT))  # its index passes as a float64
+    out = gtsam.utilities.createKeyList("x", indices[is_pose].astype(np.float64)) if is_pose.any() else gtsam.KeyList()
+    for key in keys[~is_pose].tolist():
+        out.push_back(key)
     return out

@@ -47,7 +47,7 @@ class Isam2Updates:
         """Give every held step to iSAM2 in one update; read back the newest pose."""
         if self._held.steps == 0:
             return
-        core, core_values, fresh, ranges = self._held.take()
+        core, core_values, fresh, ranges = self._held.take(self._factors)
         if self._robust is not None:
             fresh = self._pending.confirm_first_sightings(fresh, self._landmarks.known)
         entries = self._pending.screen(fresh, self._isam, self._landmarks) + fresh + ranges

@@ -12,6 +12,12 @@ import numpy as np
 from gtsam.symbol_shorthand import H, L, T, X
 
 
+#: A key is its symbol's character in the top 8 bits and its index in the 56 below (gtsam.Symbol).
+_INDEX_BITS = 56
+_INDEX_MASK = (1 << _INDEX_BITS) - 1
+_L, _T = ord("l"), ord("t")
+
+
 class LandmarkRegistry:
     """The landmarks seen so far: which are in iSAM2, which are tags, which have a height."""
 
@@ -29,12 +35,12 @@ class LandmarkRegistry:
     def enter(self, values: gtsam.Values) -> None:
         """Note the landmarks among ``values``, the new variables of an accepted update."""
         for key in values.keys():
-            symbol = gtsam.Symbol(key)
-            if chr(symbol.chr()) in "lt":
-                lid = int(symbol.index())
+            kind = key >> _INDEX_BITS  # gtsam.Symbol(key).chr(), without building the Symbol
+            if kind == _L or kind == _T:
+                lid = key & _INDEX_MASK  # its index()
                 self.known.add(lid)
                 self.ids.append(lid)
-                if chr(symbol.chr()) == "t":
+                if kind == _T:
                     self.tag_ids.add(lid)
 
     def positions(self, values: gtsam.Values) -> dict[int, tuple[float, float]]:
@@ -49,7 +55,15 @@ class LandmarkRegistry:
 
 
 def poses_of(values: gtsam.Values, n: int) -> np.ndarray:
-    """(n, 3): poses ``X(0)`` … ``X(n − 1)`` of ``values`` as (x_m, y_m, theta_rad)."""
+    """(n, 3): poses ``X(0)`` … ``X(n − 1)`` of ``values`` as (x_m, y_m, theta_rad).
+
+    Read in one call (``gtsam.utilities.extractPose2``: every ``Pose2`` of ``values`` in key
+    order, as ``x(), y(), theta()``) when those poses are the last n keys of ``values`` (the
+    smoother's other variables, ``H``, ``L`` and ``T``, sort before ``X``), else pose by pose."""
+    keys = np.asarray(values.keys(), dtype=np.uint64)
+    if len(keys) >= n and np.array_equal(keys[len(keys) - n :], np.uint64(X(0)) + np.arange(n, dtype=np.uint64)):
+        rows = np.asarray(gtsam.utilities.extractPose2(values), dtype=float).reshape(-1, 3)
+        return rows[len(rows) - n :]
     out = np.empty((n, 3))
     for i in range(n):
         p = values.atPose2(X(i))

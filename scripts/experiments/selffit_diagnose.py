@@ -85,15 +85,31 @@ def models(runs: str, cache: str, k: int) -> tuple[NoiseModel, NoiseModel]:
     return load_noise_model(self_path), load_noise_model(vicon_path)
 
 
+def own_vicon(runs: str, cache: str, k: int) -> NoiseModel:
+    """The model fitted on robot k's own Vicon (what perfect trials would tell of it), cached."""
+    from slamio.noise.fit_truth import fit_noise_model
+
+    path = os.path.join(cache, f"vicon_own{k}.json")
+    if not os.path.exists(path):
+        save_noise_model(path, fit_noise_model([read_log(os.path.join(runs, f"robot{k}.jsonl"))]))
+    return load_noise_model(path)
+
+
 def learned_with(runs: str, cache: str, k: int, what: list[str]) -> NoiseModel:
     """Learned without truth with the extra parts ``what`` (``range``: the camera's range
-    model; ``scales``: the odometry's scales), cached."""
+    model; ``scales``: the odometry's scales; ``pin``: the forward and turn scales and the
+    turn per metre pinned at robot k's own Vicon fit, as trials would), cached."""
     from fgslam.self_calibration import fit_without_truth
 
     path = os.path.join(cache, f"learn{k}_{'+'.join(what)}.json")
     if not os.path.exists(path):
         log = read_log(os.path.join(runs, f"robot{k}.jsonl"))
-        save_noise_model(path, fit_without_truth([log], range_model="range" in what, scales="scales" in what).model)
+        pinned = None
+        if "pin" in what:
+            odometry = own_vicon(runs, cache, k).odometry
+            pinned = {name: getattr(odometry, name) for name in ("forward_scale", "turn_scale", "turn_per_m_rad")}
+        save_noise_model(path, fit_without_truth([log], range_model="range" in what, scales="scales" in what,
+                                                 pinned=pinned).model)
     return load_noise_model(path)
 
 

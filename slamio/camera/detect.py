@@ -267,10 +267,9 @@ class FrontEnd:
             result.rejections.append(Rejection("corrupt_image", frame.name, frame.error or ""))
             return result
         h, w = frame.bgr.shape[:2]
-        if (w, h) != (self.camera.width_px, self.camera.height_px):
-            result.rejections.append(Rejection(
-                "wrong_image_size", frame.name,
-                f"{w}×{h}, camera file says {self.camera.width_px}×{self.camera.height_px}"))
+        mismatch = self.camera.size_mismatch(w, h)
+        if mismatch is not None:
+            result.rejections.append(Rejection("wrong_image_size", frame.name, mismatch))
             return result
         grey = cv2.cvtColor(frame.bgr, cv2.COLOR_BGR2GRAY)
         problem = exposure_problem(grey, self.config.saturated_level, self.config.over_exposed_fraction,
@@ -344,9 +343,9 @@ class FrontEnd:
             reason = "corrupt_depth" if frame.depth_error else "no_depth_image"
             result.rejections.append(Rejection(reason, frame.name, frame.depth_error or ""))
             return
-        if frame.depth_m.shape != (cam.height_px, cam.width_px):
-            result.rejections.append(Rejection("wrong_image_size", frame.name,
-                                               f"depth is {frame.depth_m.shape[1]}×{frame.depth_m.shape[0]}"))
+        mismatch = cam.size_mismatch(frame.depth_m.shape[1], frame.depth_m.shape[0])
+        if mismatch is not None:
+            result.rejections.append(Rejection("wrong_image_size", frame.name, f"depth: {mismatch}"))
             return
         measured, rejected, blobs = detect_colour_landmarks(frame.bgr, frame.depth_m, cam, cfg.colour)
         result.blobs.extend(blobs)

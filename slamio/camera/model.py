@@ -164,6 +164,17 @@ class CameraModel:
         """Full horizontal field of view of the pinhole (distortion ignored)."""
         return math.atan((self.width_px - 1 - self.cx + 0.5) / self.fx) + math.atan((self.cx + 0.5) / self.fx)
 
+    def size_mismatch(self, width_px: int, height_px: int) -> str | None:
+        """Why an image of ``width_px`` × ``height_px`` does not fit this camera (``None``: it
+        does), naming a file that gives the size height first (TagSLAM's test_22 does)."""
+        if (width_px, height_px) == (self.width_px, self.height_px):
+            return None
+        text = f"the image is {width_px}×{height_px} pixels but the camera file says {self.width_px}×{self.height_px}"
+        if (width_px, height_px) == (self.height_px, self.width_px):
+            text += (" (the file gives the size height first: Kalibr's resolution is [width, height], "
+                     "a camera_info's image_width then image_height)")
+        return text
+
     def with_mount(self, T_robot_camera: np.ndarray) -> "CameraModel":
         return CameraModel(self.width_px, self.height_px, self.K, self.dist_coeffs,
                            self.distortion_model, np.asarray(T_robot_camera, dtype=float), self.name)

@@ -55,6 +55,10 @@ real time by a background thread (``time_scale`` 10 runs a 30 s drive in 3 s). A
 falls behind (a busy machine) does not see the robot run away: before each step the
 simulator waits until the host has read everything sent so far (the pty's input queue is
 empty), for at most ``wait_for_host_s`` of real time, so simulated time stretches instead.
+Bytes written to a pty reach that queue only when a kernel worker moves them (on a busy
+machine up to a second later, measured); a host in the same process says how many bytes it
+has read (:attr:`host_bytes_read`, as ``fgslam record`` and ``live`` set it), and the
+simulator then also waits until its last frame has reached the queue or the host.
 The ground truth — :attr:`true_pose`, :attr:`true_path_length_m`, :attr:`true_turn_rad` —
 and the raw frames sent before any damage (:attr:`sent_frames`) can be read at any time.
 
@@ -81,7 +85,7 @@ import select
 import tempfile
 import threading
 import time
-from typing import Iterator, Sequence
+from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -140,6 +144,11 @@ class SimulatedCreate:
         self.wheel_base_m = wheel_base_m
         self.wait_for_host_s = float(wait_for_host_s)
         self.max_hold_s = float(max_hold_s)
+        #: The host's count of bytes read from the port, when it runs in this process (e.g.
+        #: ``lambda: link.bytes_read``): frames still in the kernel's flip buffer are waited for.
+        self.host_bytes_read: Callable[[], int] | None = None
+        self._unseen_bytes = 0  # written since the host was last seen to have our bytes
+        self._host_read_seen = 0
         motion_seed, fault_seed = np.random.SeedSequence(int(seed)).spawn(2)
         self._rng = np.random.default_rng(motion_seed)
         self._fault_rng = np.random.default_rng(fault_seed)
@@ -397,11 +406,18 @@ class SimulatedCreate:
         return True
 
     def _unread_by_host(self) -> int:
-        """Bytes sent that the host has not read yet (the pty's input queue)."""
+        """Bytes sent that the host has not read yet: the pty's input queue and, with
+        :attr:`host_bytes_read`, bytes written that have reached neither it nor the host."""
         with self._lock:
             if self._slave is None:
                 return 0
-            return unread_bytes(self._slave)
+            queued = unread_bytes(self._slave)
+            if self.host_bytes_read is None:
+                return queued
+            read = self.host_bytes_read()
+            if queued or read != self._host_read_seen:  # our bytes have left the flip buffer
+                self._unseen_bytes, self._host_read_seen = 0, read
+            return queued + self._unseen_bytes
 
     def _run(self) -> None:
         wall_step = STEP_S / self.time_scale
@@ -472,6 +488,7 @@ class SimulatedCreate:
         try:
             _, writable, _ = select.select([], [self._master], [], 0.05)
             written = os.write(self._master, data) if writable else 0
+            self._unseen_bytes += written
         except BlockingIOError:
             written = 0
         except OSError:

@@ -108,9 +108,8 @@ class BagImageTags:
         tags: list[tuple[int, np.ndarray]] = []
         if grey is None:
             counts["images_undecodable"] += 1
-        elif grey.shape != (camera.height_px, camera.width_px):
-            raise BagFormatError(self.path, topic, f"is {grey.shape[1]}×{grey.shape[0]} pixels but its camera "
-                                 f"({camera.name or 'the camera given'}) is {camera.width_px}×{camera.height_px}: "
+        elif (mismatch := camera.size_mismatch(grey.shape[1], grey.shape[0])) is not None:
+            raise BagFormatError(self.path, topic, f"{mismatch} ({camera.name or 'the camera given'}): "
                                  "give this camera's calibration", index)
         else:
             for det in self.detector.detect(grey):

@@ -323,6 +323,11 @@ def event_counts(records: Iterable[Record]) -> dict[str, int]:
     for record in records:
         if type(record) is Event:
             counts[record.kind] = counts.get(record.kind, 0) + 1
+    return in_event_kind_order(counts)
+
+
+def in_event_kind_order(counts: dict[str, int]) -> dict[str, int]:
+    """``counts`` (event kind -> count) with its kinds in :data:`EVENT_KINDS` order."""
     return {kind: counts[kind] for kind in EVENT_KINDS if kind in counts}
 
 

@@ -322,12 +322,12 @@ def parabola_minimum(x: np.ndarray, y: np.ndarray) -> float | None:
 
 
 def ranges_from_readings(measured_m: np.ndarray, bearing_rad: np.ndarray, range_is_depth: bool,
-                         range_bias_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(range_m, sigma_factor)`` of readings under a camera range model with scale 1 (the
-    gauge: without truth the readings set the scale): ``measured = (r·cos b if
-    range_is_depth else r) + range_bias_m`` inverted, as
+                         range_bias_m: float, range_scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """``(range_m, sigma_factor)`` of readings under a camera range model: ``measured =
+    range_scale·(r·cos b if range_is_depth else r) + range_bias_m`` inverted, as
     :func:`slamio.noise.apply.correct_observation` does, and the factor its σ is stretched
-    by (1/cos b for a depth, else 1)."""
+    by (1/(scale·cos b) for a depth, else 1/scale). Without truth the scale is the gauge and
+    stays 1, unless the odometry's scale is known (measured trials)."""
     measured, bearing = np.asarray(measured_m, dtype=float), np.asarray(bearing_rad, dtype=float)
-    factor = 1.0 / np.cos(bearing) if range_is_depth else np.ones_like(measured)
+    factor = (1.0 / np.cos(bearing) if range_is_depth else np.ones_like(measured)) / range_scale
     return (measured - range_bias_m) * factor, factor

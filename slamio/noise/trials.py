@@ -216,6 +216,22 @@ class TrialCalibration:
             source=f"fgslam calibrate {self.source}",
         )
 
+    def odometry_scales(self) -> dict[str, float]:
+        """The odometry's scales the trials measured (``forward_scale`` and ``turn_per_m_rad``
+        from forward trials, ``turn_scale`` from turns in place), as
+        :class:`slamio.noise.model.OdometryModel` names them: what ``--noise self`` cannot
+        learn without truth and holds at these values when a calibration is given."""
+        out = {}
+        for name, part, fields in (("forward", self.forward, (("scale", "forward_scale"), ("turn_per_m_rad", "turn_per_m_rad"))),
+                                   ("rotate", self.rotate, (("scale", "turn_scale"),))):
+            if part is None:
+                continue
+            if "scale" not in part:
+                raise NoiseModelError(f"{self.source}: its {name} trials were calibrated before scales were kept; "
+                                      "run fgslam calibrate TRIALS.csv --out FILE again")
+            out.update({model_name: float(part[key]) for key, model_name in fields})
+        return out
+
     def to_dict(self) -> dict:
         return {
             "format": CALIBRATION_FORMAT,
@@ -240,6 +256,9 @@ class TrialCalibration:
                 f"bias x {bias[0]:+.4f} m, y {bias[1]:+.4f} m, θ {bias[2]:+.4f} rad; "
                 f"σ x {sd[0]:.4f} m, y {sd[1]:.4f} m, θ {sd[2]:.4f} rad"
             )
+            if "scale" in part:
+                lines.append(f"    scale {part['scale']:.4f} ± {part['scale_std']:.4f} (true {unit} per commanded {unit})"
+                             + (f", turn per metre {part['turn_per_m_rad']:+.4f} rad/m" if "turn_per_m_rad" in part else ""))
         if self.observation is None:
             lines.append("  sensor: no trials")
         else:
@@ -268,7 +287,24 @@ def _motion_part(trials: list[MotionTrial], kind: str, where: str) -> dict | Non
         "bias": _listed(errors.mean(axis=0)),
         "covariance": _listed(cov),
         per: _listed(cov / mean_command),
+        **_scales(chosen, errors, kind),
     }
+
+
+def _scales(trials: list[MotionTrial], errors: np.ndarray, kind: str) -> dict:
+    """The odometry's scale of one kind of trial (true travel or turn per commanded metre or
+    radian, ``1 + Σ sign·error / Σ |command|``, with the standard error of the trials' own
+    ratios) and, from forward trials, the turn per metre driven (least squares of the θ
+    errors on the distances): what :class:`slamio.noise.model.OdometryModel` calls
+    ``forward_scale`` / ``turn_scale`` and ``turn_per_m_rad``."""
+    command = np.array([t.command_distance_m if kind == "forward" else t.command_angle_rad for t in trials])
+    along = errors[:, 0] if kind == "forward" else errors[:, 2]
+    ratios = 1.0 + np.sign(command) * along / np.maximum(np.abs(command), 1e-12)
+    out = {"scale": float(1.0 + np.sum(np.sign(command) * along) / np.sum(np.abs(command))),
+           "scale_std": float(np.std(ratios, ddof=1) / math.sqrt(len(trials)))}
+    if kind == "forward":
+        out["turn_per_m_rad"] = float(np.sum(errors[:, 2] * command) / np.sum(command**2))
+    return out
 
 
 def calibrate_from_trials(motion: list[MotionTrial], sensor: list[SensorTrial],
@@ -382,6 +418,11 @@ def _check_calibration(d) -> None:
             _vector(f"{name}.bias", part["bias"], 3)
             _covariance_matrix(f"{name}.covariance", part["covariance"], 3)
             _covariance_matrix(f"{name}.{per}", part[per], 3)
+            for key in ("scale", "scale_std", "turn_per_m_rad"):
+                if key in part:
+                    value = _finite(f"{name}.{key}", part[key])
+                    if key == "scale" and not value > 0:
+                        raise _Bad(f"{name}.scale must be > 0, got {part[key]!r}", f"{name}.scale")
     if d.get("pooled_motion_covariance") is not None:
         _covariance_matrix("pooled_motion_covariance", d["pooled_motion_covariance"], 3)
     sensor = _part(d, "observation", ("trials", "bias", "covariance", "sigma_range_m", "sigma_bearing_rad"))
