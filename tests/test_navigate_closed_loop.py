@@ -27,10 +27,11 @@ def test_vfh_wanders_the_clutter_room_without_bumping_or_sticking(seed):
     assert result.area_seen_m2 >= 30.0  # of the room's 36 m²
 
 
-@pytest.mark.parametrize("seed, seen, revisited", [(8, 0.9, 0.8), (4, 0.9, 0.6)])
+@pytest.mark.parametrize("seed, seen, revisited", [(9, 0.9, 0.8), (7, 0.65, 0.55)])
 def test_explore_sees_and_revisits_the_tags_without_bumping_or_sticking(seed, seen, revisited):
-    """Issue 44's landmark goals hold on seed 8; on seed 4 (and on most of the ten seeds,
-    docs/navigate.md) the revisits fall short of 80 %: a floor guards against regressions."""
+    """Issue 44's landmark goals hold on seed 9 (17/18 seen, 15/18 revisited); seed 7 was the
+    worst of seeds 1-20 in this harness before the forward escape (13/19 seen, 11/19
+    revisited; 17/19 and 13/19 with it: docs/navigate.md): a floor guards against regressions."""
     result = _run("explore", seed)
     print("explore", seed, result.summary())
     assert result.bumps == 0

@@ -135,6 +135,11 @@ class SpotWatch:
         self.limit_s, self.radius_m = limit_s, radius_m
         self._anchor: tuple[float, float, float] | None = None  # x, y, since
 
+    @property
+    def anchor(self) -> tuple[float, float, float] | None:
+        """(x, y, since when) of the spot the robot is on (``None`` right after it fired)."""
+        return self._anchor
+
     def update(self, situation: Situation) -> bool:
         x, y = situation.pose[:2]
         if self._anchor is None or math.hypot(x - self._anchor[0], y - self._anchor[1]) > self.radius_m:

@@ -36,7 +36,10 @@ then backs off and takes the opposite heading — never "blocked" for ever
 each close when looked at) does the same (:class:`~fgslam.navigate.common.SpotWatch`).
 Without a goal point it wanders: the goal heading is kept and changed by a random turn every
 ``wander_period_s``. On a bump it backs off ~0.15 m and turns away (:class:`BackOff`), and
-marks where it hit in the grid (something the scan did not show).
+marks where it hit in the grid (something the scan did not show). An owner may fit a forward
+escape (:attr:`Vfh.escape`, :mod:`fgslam.navigate.escape`; ``explore`` does): leaving a spot
+or a box it then turns toward a free, seen sector and drives out instead of reversing
+(:meth:`Vfh.leave_spot`); ``vfh`` alone has none.
 """
 
 from __future__ import annotations
@@ -235,6 +238,9 @@ class Vfh:
         self._probes = np.stack([along * c - side * s, along * s + side * c], axis=2).reshape(-1, 2)
         self._probe_along_m = along
         self.backoff = BackOff()
+        # leaving a spot forward (fgslam.navigate.escape.ForwardEscape), when an owner fits one;
+        # without it the robot reverses (escape_reverse_m) and turns away
+        self.escape = None
         self._last_scan = None
         self._blocked = None
         self._previous: float | None = None
@@ -253,6 +259,11 @@ class Vfh:
         # the arc stop test and the reverse over known floor only (module docstring); ``explore``
         # runs without them until they are measured live for it (docs/navigate.md)
         self.careful = careful
+
+    @property
+    def sector_angles(self) -> np.ndarray:
+        """The world-frame centre bearing of each histogram sector (:func:`sector_angles_rad`)."""
+        return self._angles
 
     # ------------------------------------------------------------------ memory
 
@@ -337,11 +348,17 @@ class Vfh:
         # arcs sweep the sides the narrow camera has not seen: turn mostly on the spot
         speed = CRUISE_SPEED_M_S * (0.3 + 0.7 * room) * max(0.0, 1.0 - abs(error) / math.radians(25))
         turn = turn_towards(error)
-        stopping_m = 0.08 + speed**2 / (2 * 0.5) + speed * 0.2
-        if self._gap_ahead_m(pose) < stopping_m or (
-                self.careful and self._arc_free_m(pose, speed, turn, stopping_m) < stopping_m):
+        if self.must_stop(pose, speed, turn):
             speed = 0.0
         return limited_command(speed, turn, "drive" if speed > 0 else "turn")
+
+    def must_stop(self, pose, speed_m_s: float, turn_rate_rad_s: float) -> bool:
+        """The stop rules (module docstring, step 4) for a command at ``pose``, on the active
+        window the last :meth:`histogram` read: an occupied cell in the corridor ahead within
+        the stopping distance, or (``careful``) the enlarged disc nearing one along the arc."""
+        stopping_m = 0.08 + speed_m_s**2 / (2 * 0.5) + speed_m_s * 0.2
+        return self._gap_ahead_m(pose) < stopping_m or (
+            self.careful and self._arc_free_m(pose, speed_m_s, turn_rate_rad_s, stopping_m) < stopping_m)
 
     def _arc_free_m(self, pose, speed_m_s: float, turn_rate_rad_s: float, distance_m: float) -> float:
         """:func:`arc_free_m` on the occupied cells of the active window (remembered ones too),
@@ -367,10 +384,24 @@ class Vfh:
         if self._boxed_turned < 2 * math.pi:
             return limited_command(0.0, self._look_sign, "look" if (~known).any() else "blocked")
         self._boxed_heading = None
-        self.backoff.start(situation, prefer_left=bool(self.rng.integers(2)), distance_m=self.escape_reverse_m(pose))
+        self.leave_spot(situation)
         self._wander_heading = float(wrap_angle(pose[2] + math.pi))
         self._wander_until_s = situation.now_s + self.wander_period_s
-        return self.backoff.step(situation)
+        return self.escape.step(situation) if self.escaping else self.backoff.step(situation)
+
+    @property
+    def escaping(self) -> bool:
+        """A forward escape (:attr:`escape`) is under way."""
+        return self.escape is not None and self.escape.active
+
+    def leave_spot(self, situation: Situation) -> None:
+        """Leave the spot the robot is on: forward toward floor known free when an escape is
+        fitted and finds a way out (:mod:`fgslam.navigate.escape`), else back off
+        (:meth:`escape_reverse_m`) and turn away."""
+        if self.escape is not None and self.escape.start(situation):
+            return
+        self.backoff.start(situation, prefer_left=bool(self.rng.integers(2)),
+                           distance_m=self.escape_reverse_m(situation.pose))
 
     def escape_reverse_m(self, pose, most_m: float = ESCAPE_REVERSE_M) -> float:
         """How far to reverse (leaving a spot: :data:`ESCAPE_REVERSE_M`; after a bump: the
@@ -399,15 +430,18 @@ class Vfh:
 
     def step(self, situation: Situation) -> Command:
         fresh = self.observe(situation)  # a scan integrated: one heavy job is enough for a step
-        if self.spot.update(situation) and not self.backoff.active:
+        if self.spot.update(situation) and not self.backoff.active and not self.escaping:
             # dithering on one spot (two ways that each close when looked at): leave it
-            self.backoff.start(situation, prefer_left=bool(self.rng.integers(2)),
-                               distance_m=self.escape_reverse_m(situation.pose))
+            self.leave_spot(situation)
             self._wander_heading = float(wrap_angle(situation.pose[2] + math.pi))
             self._wander_until_s = situation.now_s + self.wander_period_s
         if situation.bumped:
+            if self.escape is not None:
+                self.escape.cancel()
             self.backoff.start(situation, prefer_left=bool(self.rng.integers(2)),
                                distance_m=self.escape_reverse_m(situation.pose, self.backoff.distance_m))
         if self.backoff.active:
             return self.backoff.step(situation)
+        if self.escaping:
+            return self.escape.step(situation, reuse=fresh)
         return self.steer(situation, self.goal_heading_rad(situation), reuse=fresh)
