@@ -166,13 +166,13 @@ def test_a_frame_counts_as_unread_until_the_host_has_it(manual):
     host's count of bytes read, the simulator counts it unread until it is queued or read."""
     sim, port = manual()
     read = {"bytes": 0}
-    sim.host_bytes_read = lambda: read["bytes"]
+    sim.unread.host_bytes_read = lambda: read["bytes"]
     sim.handle_bytes(p.start() + p.safe() + p.stream([7, 35, 43, 44]))
     sim.step()
     assert sim._unread_by_host() == 13  # in the flip buffer or the queue: unread either way
     read["bytes"] += len(port.read(13))
     assert read["bytes"] == 13 and sim._unread_by_host() == 0
-    sim.host_bytes_read = None  # a host in another process: the queue alone
+    sim.unread.host_bytes_read = None  # a host in another process: the queue alone
     sim.step()
     port.read(13)
     assert sim._unread_by_host() == 0

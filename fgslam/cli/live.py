@@ -290,7 +290,7 @@ def _drive(args, waypoints, start_pose, settings, status, on_step, sensor, windo
         link = CreateLink(port, args.model, baud=args.baud)
         link.open()  # a port that does not open is a user error (exit 1), before the log exists
         if sim is not None:  # the simulator waits for what this process has read (slamio.create.sim)
-            sim.host_bytes_read = lambda: link.bytes_read
+            sim.unread.host_bytes_read = lambda: link.bytes_read
         result = run_live(link, args.out, waypoints, start_pose=start_pose, grab_for=grab_for, front_end=front_end,
                           settings=settings, truth=truth, truth_landmarks=truth_landmarks, clock=clock,
                           odometry_noise=odometry_noise, on_step=on_step, sensor=sensor, window_poses=window_poses,

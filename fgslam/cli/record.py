@@ -245,7 +245,7 @@ def _record_run(args, out: Path, settings, noise, observation, trials, source, s
         link = CreateLink(port, args.model, baud=args.baud)
         link.open()  # a port that does not open is a user error (exit 1), before the log exists
         if sim is not None:  # the simulator waits for what this process has read (slamio.create.sim)
-            sim.host_bytes_read = lambda: link.bytes_read
+            sim.unread.host_bytes_read = lambda: link.bytes_read
         kwargs = dict(settings=settings, noise=noise, source=source, observation_noise=observation,
                       calibration=trials, hooks=truth or saver, overwrite=args.overwrite, signals=signals,
                       on_placed=placed)

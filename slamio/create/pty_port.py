@@ -10,7 +10,7 @@ import os
 import termios
 import tty
 
-__all__ = ["close_pty", "open_pty", "unread_bytes"]
+__all__ = ["Unread", "close_pty", "open_pty", "unread_bytes"]
 
 
 def open_pty(port: str) -> tuple[int, int]:
@@ -45,3 +45,32 @@ def unread_bytes(slave: int) -> int:
         return int.from_bytes(fcntl.ioctl(slave, termios.FIONREAD, b"\0\0\0\0"), "little")
     except OSError:
         return 0
+
+
+class Unread:
+    """Bytes written to a pty's master that its host has not read yet.
+
+    The slave's input queue (:func:`unread_bytes`) alone misses bytes still in the kernel's
+    flip buffer: a write reaches the queue only when a kernel worker moves it, on a busy
+    machine up to a second later (measured), and a simulator pacing itself by the queue ran
+    ahead of a host that had seen nothing (15 s of robot time in one 0.4 s read). A host in
+    the same process that says how many bytes it has read (``host_bytes_read``, e.g.
+    ``lambda: link.bytes_read``) lets bytes written since count as unread until they are
+    queued or read."""
+
+    def __init__(self) -> None:
+        self.host_bytes_read = None  # Callable[[], int] | None
+        self._unseen = 0  # written since the host was last seen to have our bytes
+        self._host_read_seen = 0
+
+    def wrote(self, count: int) -> None:
+        self._unseen += count
+
+    def count(self, slave: int) -> int:
+        queued = unread_bytes(slave)
+        if self.host_bytes_read is None:
+            return queued
+        read = self.host_bytes_read()
+        if queued or read != self._host_read_seen:  # our bytes have left the flip buffer
+            self._unseen, self._host_read_seen = 0, read
+        return queued + self._unseen

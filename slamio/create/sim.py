@@ -54,11 +54,9 @@ Time runs in 15 ms steps of simulated time (:meth:`clock`), paced at ``time_scal
 real time by a background thread (``time_scale`` 10 runs a 30 s drive in 3 s). A host that
 falls behind (a busy machine) does not see the robot run away: before each step the
 simulator waits until the host has read everything sent so far (the pty's input queue is
-empty), for at most ``wait_for_host_s`` of real time, so simulated time stretches instead.
-Bytes written to a pty reach that queue only when a kernel worker moves them (on a busy
-machine up to a second later, measured); a host in the same process says how many bytes it
-has read (:attr:`host_bytes_read`, as ``fgslam record`` and ``live`` set it), and the
-simulator then also waits until its last frame has reached the queue or the host.
+empty), for at most ``wait_for_host_s`` of real time, so simulated time stretches instead;
+a host in this process that sets ``unread.host_bytes_read`` is also waited for while frames are
+still in the kernel's flip buffer (:class:`slamio.create.pty_port.Unread`).
 The ground truth — :attr:`true_pose`, :attr:`true_path_length_m`, :attr:`true_turn_rad` —
 and the raw frames sent before any damage (:attr:`sent_frames`) can be read at any time.
 
@@ -85,14 +83,14 @@ import select
 import tempfile
 import threading
 import time
-from typing import Callable, Iterator, Sequence
+from typing import Iterator, Sequence
 
 import numpy as np
 
 from slamio.create import protocol
 from slamio.create.odometry import CREATE2_MM_PER_COUNT, WHEEL_BASE_M, OdometryNoise
 from slamio.create.protocol import Opcode, OiMode
-from slamio.create.pty_port import close_pty, open_pty, unread_bytes
+from slamio.create.pty_port import Unread, close_pty, open_pty
 from slamio.create.sim_model import (
     bump_bits,
     move_disc,
@@ -144,11 +142,7 @@ class SimulatedCreate:
         self.wheel_base_m = wheel_base_m
         self.wait_for_host_s = float(wait_for_host_s)
         self.max_hold_s = float(max_hold_s)
-        #: The host's count of bytes read from the port, when it runs in this process (e.g.
-        #: ``lambda: link.bytes_read``): frames still in the kernel's flip buffer are waited for.
-        self.host_bytes_read: Callable[[], int] | None = None
-        self._unseen_bytes = 0  # written since the host was last seen to have our bytes
-        self._host_read_seen = 0
+        self.unread = Unread()  # what the host has not read (a host in this process sets its host_bytes_read)
         motion_seed, fault_seed = np.random.SeedSequence(int(seed)).spawn(2)
         self._rng = np.random.default_rng(motion_seed)
         self._fault_rng = np.random.default_rng(fault_seed)
@@ -406,18 +400,9 @@ class SimulatedCreate:
         return True
 
     def _unread_by_host(self) -> int:
-        """Bytes sent that the host has not read yet: the pty's input queue and, with
-        :attr:`host_bytes_read`, bytes written that have reached neither it nor the host."""
+        """Bytes sent that the host has not read yet (:class:`slamio.create.pty_port.Unread`)."""
         with self._lock:
-            if self._slave is None:
-                return 0
-            queued = unread_bytes(self._slave)
-            if self.host_bytes_read is None:
-                return queued
-            read = self.host_bytes_read()
-            if queued or read != self._host_read_seen:  # our bytes have left the flip buffer
-                self._unseen_bytes, self._host_read_seen = 0, read
-            return queued + self._unseen_bytes
+            return 0 if self._slave is None else self.unread.count(self._slave)
 
     def _run(self) -> None:
         wall_step = STEP_S / self.time_scale
@@ -488,7 +473,7 @@ class SimulatedCreate:
         try:
             _, writable, _ = select.select([], [self._master], [], 0.05)
             written = os.write(self._master, data) if writable else 0
-            self._unseen_bytes += written
+            self.unread.wrote(written)
         except BlockingIOError:
             written = 0
         except OSError:

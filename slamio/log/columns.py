@@ -167,8 +167,28 @@ class StepColumns(Sequence[Step]):
         return _record(Observation, values)
 
 
+class ColumnLogMethods:
+    """What :class:`ColumnLog` and :class:`~slamio.log.columns3d.ColumnLog3d` answer as a
+    :class:`~slamio.log.RunLog` would, from their ``columns``, ``truth_landmark_records``,
+    ``path`` and ``rejected``."""
+
+    def steps(self):
+        """The per-pose steps, as :meth:`slamio.log.RunLog.steps` groups them (built as read)."""
+        return self.columns
+
+    def has_motion(self) -> bool:
+        return len(self.columns) > 1
+
+    def truth_landmarks(self) -> dict:
+        """landmark id → its truth landmark record."""
+        return {r.landmark_id: r for r in self.truth_landmark_records}
+
+    def rejection_summary(self) -> str | None:
+        return summarise_rejections(self.path, self.rejected)
+
+
 @dataclass(frozen=True)
-class ColumnLog:
+class ColumnLog(ColumnLogMethods):
     """A planar log read into columns (:func:`read_columns`): what a run needs of a
     :class:`~slamio.log.RunLog`, in memory that grows with its numbers."""
 
@@ -179,19 +199,6 @@ class ColumnLog:
     events: tuple[Event, ...] = ()
     truncated: str | None = None
     rejected: tuple[Rejected, ...] = ()
-
-    def steps(self) -> StepColumns:
-        """The per-pose steps, as :meth:`slamio.log.RunLog.steps` groups them (built as read)."""
-        return self.columns
-
-    def has_motion(self) -> bool:
-        return len(self.columns) > 1
-
-    def truth_landmarks(self) -> dict[int, TruthLandmark]:
-        return {r.landmark_id: r for r in self.truth_landmark_records}
-
-    def rejection_summary(self) -> str | None:
-        return summarise_rejections(self.path, self.rejected)
 
 
 def step_stamps(steps: Sequence[Step]) -> np.ndarray:

@@ -33,8 +33,9 @@ from typing import Callable, Iterator, Sequence, overload
 
 import numpy as np
 
+from slamio.log.columns import ColumnLogMethods
 from slamio.log.read import LogStream
-from slamio.log.records import Header, Record, Rejected, Step, iter_steps, summarise_rejections
+from slamio.log.records import Header, Record, Rejected, Step, iter_steps
 from slamio.log.records3d import StereoObservation, TruthLandmark3, TruthPose3, VelocityOdometry
 
 __all__ = ["ColumnLog3d", "StepColumns3d", "columns3d_of", "read_columns3d", "step_truths"]
@@ -182,7 +183,7 @@ class StepColumns3d(Sequence[Step]):
 
 
 @dataclass(frozen=True)
-class ColumnLog3d:
+class ColumnLog3d(ColumnLogMethods):
     """A 3-D log read into columns (:func:`read_columns3d`): what a run needs of a
     :class:`~slamio.log.RunLog`, in memory that grows with its numbers."""
 
@@ -192,20 +193,6 @@ class ColumnLog3d:
     truth_landmark_records: tuple[TruthLandmark3, ...] = ()
     truncated: str | None = None
     rejected: tuple[Rejected, ...] = ()
-
-    def steps(self) -> StepColumns3d:
-        """The per-pose steps, as :meth:`slamio.log.RunLog.steps` groups them (built as read)."""
-        return self.columns
-
-    def has_motion(self) -> bool:
-        return len(self.columns) > 1
-
-    def truth_landmarks(self) -> dict[int, TruthLandmark3]:
-        """landmark id → its ``truth_landmark3`` record."""
-        return {r.landmark_id: r for r in self.truth_landmark_records}
-
-    def rejection_summary(self) -> str | None:
-        return summarise_rejections(self.path, self.rejected)
 
 
 def columns3d_of(stream: LogStream, visit: Callable[[Record], None] | None = None) -> ColumnLog3d:
