@@ -174,6 +174,7 @@ def run_into_the_wall(tmp_path, model, settings, controller_of=BackOff, **kwargs
         controller = controller_of(sim)
         clock = SimClock(sim)
         link = CreateLink(sim.port, model, reconnect_delay_s=0.05, reconnect_attempts=3)
+        sim.unread.host_bytes_read = lambda: link.bytes_read  # paced as fgslam record paces it
         result = record(link, out, controller, settings=settings, clock=clock, **kwargs)
         assert builders.wait_for(lambda: sim.commanded_mm_s == (0.0, 0.0) and sim.mode == OiMode.PASSIVE)
         controller.t0, controller.truth = clock.t0, sim.true_pose
