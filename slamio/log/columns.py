@@ -66,7 +66,42 @@ def _record(cls: type, values: dict):
     return record
 
 
-class StepColumns(Sequence[Step]):
+class StepSequence(Sequence[Step]):
+    """The steps of a log read into columns, built one at a time as they are asked for: what
+    :class:`StepColumns` and :class:`~slamio.log.columns3d.StepColumns3d` share (each holds
+    its steps' stamps in ``_stamps`` and builds step ``i`` in ``_step(i)``)."""
+
+    _stamps: array
+
+    def _step(self, i: int) -> Step:
+        raise NotImplementedError
+
+    def __len__(self) -> int:
+        return len(self._stamps)
+
+    @overload
+    def __getitem__(self, i: int) -> Step: ...
+
+    @overload
+    def __getitem__(self, i: slice) -> list[Step]: ...
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self._step(k) for k in range(*i.indices(len(self)))]
+        n = len(self)
+        if not -n <= i < n:
+            raise IndexError(f"step {i} of {n}")
+        return self._step(i % n)
+
+    def __iter__(self) -> Iterator[Step]:
+        return map(self._step, range(len(self)))
+
+    def stamps_s(self) -> np.ndarray:
+        """Every step's stamp (s), shape (n,)."""
+        return np.array(self._stamps, dtype=float)
+
+
+class StepColumns(StepSequence):
     """The steps of a planar log as columns (:meth:`append` while reading), read back as
     :class:`~slamio.log.Step` objects built on demand (indexing, slicing, iterating)."""
 
@@ -100,33 +135,9 @@ class StepColumns(Sequence[Step]):
                 column.append(_NONE_ID if value is None else value)
         self._first.append(len(self._observation["stamp_s"]))
 
-    def __len__(self) -> int:
-        return len(self._stamps)
-
-    @overload
-    def __getitem__(self, i: int) -> Step: ...
-
-    @overload
-    def __getitem__(self, i: slice) -> list[Step]: ...
-
-    def __getitem__(self, i):
-        if isinstance(i, slice):
-            return [self._step(k) for k in range(*i.indices(len(self)))]
-        n = len(self)
-        if not -n <= i < n:
-            raise IndexError(f"step {i} of {n}")
-        return self._step(i % n)
-
-    def __iter__(self) -> Iterator[Step]:
-        return map(self._step, range(len(self)))
-
     @property
     def observation_count(self) -> int:
         return len(self._observation["stamp_s"])
-
-    def stamps_s(self) -> np.ndarray:
-        """Every step's stamp (s), shape (n,)."""
-        return np.array(self._stamps, dtype=float)
 
     def truth_trajectory(self) -> tuple[np.ndarray, np.ndarray]:
         """``(trajectory (n, 3), has_pose (n,))`` of the steps' truth poses: NaN rows and False

@@ -29,11 +29,9 @@ import math
 import os
 from array import array
 from dataclasses import dataclass
-from typing import Callable, Iterator, Sequence, overload
+from typing import Callable, Iterator, Sequence
 
-import numpy as np
-
-from slamio.log.columns import ColumnLogMethods
+from slamio.log.columns import ColumnLogMethods, StepSequence
 from slamio.log.read import LogStream
 from slamio.log.records import Header, Record, Rejected, Step, iter_steps
 from slamio.log.records3d import StereoObservation, TruthLandmark3, TruthPose3, VelocityOdometry
@@ -71,7 +69,7 @@ class _Distinct:
         return i
 
 
-class StepColumns3d(Sequence[Step]):
+class StepColumns3d(StepSequence):
     """The steps of a 3-D log as columns (:meth:`append` while reading), read back as
     :class:`~slamio.log.Step` objects built on demand (indexing, slicing, iterating)."""
 
@@ -114,33 +112,9 @@ class StepColumns3d(Sequence[Step]):
             self._pixel_cov.append(_NONE if o.covariance_px2 is None else self._pixel_covariances.index(o.covariance_px2))
         self._first.append(len(self._tracks))
 
-    def __len__(self) -> int:
-        return len(self._stamps)
-
-    @overload
-    def __getitem__(self, i: int) -> Step: ...
-
-    @overload
-    def __getitem__(self, i: slice) -> list[Step]: ...
-
-    def __getitem__(self, i):
-        if isinstance(i, slice):
-            return [self._step(k) for k in range(*i.indices(len(self)))]
-        n = len(self)
-        if not -n <= i < n:
-            raise IndexError(f"step {i} of {n}")
-        return self._step(i % n)
-
-    def __iter__(self) -> Iterator[Step]:
-        return map(self._step, range(len(self)))
-
     @property
     def observation_count(self) -> int:
         return len(self._tracks)
-
-    def stamps_s(self) -> np.ndarray:
-        """Every step's stamp (s), shape (n,)."""
-        return np.array(self._stamps, dtype=float)
 
     def truths(self) -> list[TruthPose3 | None]:
         """Every step's ``truth_pose3`` (None where it has none), as the steps hold them."""
