@@ -136,40 +136,39 @@ def test_a_cut_off_last_line_as_read_log(small_log, tmp_path):
     assert columns.truncated and columns.truncated.startswith(f"{path}:")
 
 
+def _both_errors(small_log, tmp_path, kind: str, edit):
+    """(path, line number, read_log's error, read_columns3d's error) of the small log with its
+    first ``kind`` record past line 30 changed by ``edit(record)``."""
+    lines = small_log.read_text().splitlines()
+    number = next(i for i, line in enumerate(lines) if f'"{kind}"' in line and i > 30) + 1
+    record = json.loads(lines[number - 1])
+    edit(record)
+    lines[number - 1] = json.dumps(record)
+    path = tmp_path / "bad.jsonl"
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(LogFormatError) as expected:
+        read_log(path)
+    with pytest.raises(LogFormatError) as got:
+        read_columns3d(path)
+    return path, number, expected.value, got.value
+
+
 @pytest.mark.parametrize("field, value, words", [
     ("u_left_px", "left", "field 'u_left_px'"),
     ("sigma_px", -1.0, "'sigma_px'"),
     ("track_id", 1.5, "field 'track_id' must be an integer"),
 ])
 def test_a_bad_line_is_the_same_error_as_read_log(small_log, tmp_path, field, value, words):
-    lines = small_log.read_text().splitlines()
-    number = next(i for i, line in enumerate(lines) if '"stereo_observation"' in line and i > 30) + 1
-    record = json.loads(lines[number - 1])
-    record[field] = value
-    lines[number - 1] = json.dumps(record)
-    path = tmp_path / "bad.jsonl"
-    path.write_text("\n".join(lines) + "\n")
-    with pytest.raises(LogFormatError) as expected:
-        read_log(path)
-    with pytest.raises(LogFormatError) as got:
-        read_columns3d(path)
-    assert str(got.value) == str(expected.value) and got.value.line == expected.value.line == number
-    assert str(got.value).startswith(f"{path}:{number}: ") and words in str(got.value)
+    path, number, expected, got = _both_errors(small_log, tmp_path, "stereo_observation",
+                                               lambda record: record.__setitem__(field, value))
+    assert str(got) == str(expected) and got.line == expected.line == number
+    assert str(got).startswith(f"{path}:{number}: ") and words in str(got)
 
 
 def test_a_bad_velocity_interval_is_the_same_error_as_read_log(small_log, tmp_path):
-    lines = small_log.read_text().splitlines()
-    number = next(i for i, line in enumerate(lines) if '"velocity_odometry"' in line and i > 30) + 1
-    record = json.loads(lines[number - 1])
-    record["dt_s"] *= 2.0
-    lines[number - 1] = json.dumps(record)
-    path = tmp_path / "bad.jsonl"
-    path.write_text("\n".join(lines) + "\n")
-    with pytest.raises(LogFormatError) as expected:
-        read_log(path)
-    with pytest.raises(LogFormatError) as got:
-        read_columns3d(path)
-    assert str(got.value) == str(expected.value) and f":{number}: field 'dt_s'" in str(got.value)
+    _, number, expected, got = _both_errors(small_log, tmp_path, "velocity_odometry",
+                                            lambda record: record.__setitem__("dt_s", 2.0 * record["dt_s"]))
+    assert str(got) == str(expected) and f":{number}: field 'dt_s'" in str(got)
 
 
 def test_a_planar_log_is_refused(tmp_path):
