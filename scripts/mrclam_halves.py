@@ -19,6 +19,7 @@ Usage::
 
     .venv/bin/python -m scripts.mrclam_halves ../shared/data/mrclam/MRCLAM_Dataset6 --work /tmp/halves
     .venv/bin/python -m scripts.mrclam_halves FOLDER --work DIR --odometry-window 5 --estimators ekf,ekf-fej,isam2
+    .venv/bin/python -m scripts.mrclam_halves FOLDER --work DIR --odometry-window 15 --self-window 15 --estimators ekf-inv,isam2
 """
 
 from __future__ import annotations
@@ -60,15 +61,18 @@ def _quiet(*argv: str) -> None:
 
 
 def measure_robot(folder: str, robot: int, work: Path, window_s: float = 1.0,
-                  estimators: str = "ekf,isam2") -> dict[str, dict]:
+                  estimators: str = "ekf,isam2", self_window_s: float | None = None) -> dict[str, dict]:
     """``{model: metrics.json}`` of robot's second half (the model with truth fitted over
-    ``window_s`` stretches of odometry: ``fgslam calibrate --odometry-window``)."""
+    ``window_s`` stretches of odometry: ``fgslam calibrate --odometry-window``; the model
+    without truth over ``self_window_s`` stretches, step by step when None)."""
     whole, first, second = (work / f"r{robot}{part}.jsonl" for part in ("", "a", "b"))
     _quiet("import", "mrclam", folder, str(whole), "--robot", str(robot), "--noise", "round", "--overwrite")
     split_at_middle(whole, first, second)
     _quiet("calibrate", str(first), "--out", str(work / f"truth{robot}.json"), "--overwrite",
            "--odometry-window", str(window_s))
-    _quiet("calibrate", str(first), "--without-truth", "--out", str(work / f"self{robot}.json"), "--overwrite")
+    self_window = [] if self_window_s is None else ["--odometry-window", str(self_window_s)]
+    _quiet("calibrate", str(first), "--without-truth", "--out", str(work / f"self{robot}.json"), "--overwrite",
+           *self_window)
     metrics = {}
     for model in MODELS:
         out = work / f"out_{model}_{robot}"
@@ -101,12 +105,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--robots", default="1,2,3,4,5")
     parser.add_argument("--odometry-window", type=float, default=1.0, metavar="S",
                         help="the model with truth fits the odometry over S-second stretches (default 1)")
+    parser.add_argument("--self-window", type=float, default=None, metavar="S",
+                        help="the model without truth fits the odometry over S-second stretches "
+                             "(default: step by step, as calibrate --without-truth does)")
     parser.add_argument("--estimators", default="ekf,isam2")
     args = parser.parse_args(argv)
     args.work.mkdir(parents=True, exist_ok=True)
     results = {}
     for robot in (int(r) for r in args.robots.split(",")):
-        results[robot] = measure_robot(args.folder, robot, args.work, args.odometry_window, args.estimators)
+        results[robot] = measure_robot(args.folder, robot, args.work, args.odometry_window, args.estimators,
+                                       args.self_window)
         print(f"robot {robot}: done", flush=True)
     print_tables(results, args.estimators.split(","))
     return 0
