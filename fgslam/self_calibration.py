@@ -42,8 +42,12 @@ chained over stretches of that many seconds against the batch solution
 Dataset 6, 15 s windows lifted NEES in band a little and made the online anchored ATE
 worse: docs/results-datasets.md).
 
-What it does not learn: the range scale (the gauge: only the odometry's scale against it
-shows), the odometry's scales (:func:`profile_scales` can, ``scales=True``: it recovers a
+On a range-only log (ranging radios) the range scale is profiled instead
+(:func:`fgslam.self_profiles.profile_range_scale`), the odometry as read taken as the measure
+of distance: Plaza1 and Plaza2 each give 1.065–1.068 alone, where GPS says 1.069–1.070.
+
+What it does not learn: a camera's range scale (the gauge: only the odometry's scale against
+it shows), the odometry's scales (:func:`profile_scales` can, ``scales=True``: it recovers a
 simulated robot's and comes close to Vicon's on MRCLAM, but made the MRCLAM estimates worse:
 iSAM2 final median 0.161 → 0.258 m, so it is off), the bearing's
 scale and bias, the camera's latency — they keep the model's default (scale 1, bias 0) and
@@ -70,11 +74,12 @@ from slamio.noise.dead_reckoning import DeadReckoning, odometry_arrays, turn_rat
 from slamio.noise.errors import NoiseModelError
 from slamio.noise.fit_self import (
     LAG_GRID_S, LagFromReadings, component_shares, hat_traces, hat_traces_projected, lag_from_readings, pair_weights,
-    parabola_minimum,
-    ranges_from_readings, relative_std, scaled_increments, scoring_step,
+    ranges_from_readings, relative_std, scoring_step,
 )
 from slamio.noise.model import NoiseModel, ObservationModel, OdometryModel, OdometryNoiseRates
 from slamio.noise.odometry_windows import window_bounds, window_maps, window_residuals, window_sums
+
+from fgslam.self_profiles import PROFILE_ROUNDS, profile_range_model, profile_range_scale, profile_scales, settled
 
 __all__ = ["COMPONENTS", "RunGraph", "SelfCalibration", "fit_without_truth", "profile_range_model", "profile_scales"]
 
@@ -208,13 +213,21 @@ class RunGraph:
             self.readings[i] = dataclasses.replace(r, range_m=max(float(rng[0]), 1e-3),
                                                    range_sigma_factor=float(factor[0]))
 
+    def set_range_scale(self, scale: float) -> None:
+        """Every range-only reading re-read as ``range / scale`` (σ likewise: a radio that
+        reads long by ``scale``); camera readings keep theirs."""
+        for i, r in enumerate(self.readings):
+            if r.bearing_rad is None:
+                self.readings[i] = dataclasses.replace(r, range_m=max(r.range_read_m / scale, 1e-3),
+                                                       range_sigma_factor=1.0 / scale)
+
     def range_model_cost(self, theta: np.ndarray) -> float:
         """−log p of the readings as read (up to a constant) at the batch solution under the
         current range model: half the χ² plus the log of each inlier range's σ as read (its
         σ after correction is that times the correction's derivative, which cancels)."""
         total = self.chi2_half(theta)
         for reading, inlier in zip(self.readings, self.inlier):
-            if inlier and reading.bearing_rad is not None:
+            if inlier:
                 total += 0.5 * math.log(self.reading_q(reading)[-1] @ theta)
         return total
 
@@ -349,18 +362,22 @@ def fit_without_truth(logs: list[RunLog], progress=None, *,
     lagged = [apply_noise_model(log, NoiseModel(odometry))[0] if reread else log for log in logs]
     graphs, theta, step, weights, iterations, converged = _fit_variances(lagged, progress, "noise fit: iterations",
                                                                          odometry_window_s)
+    radio_scale = range_model and range_only
     range_model = range_model and not range_only
     found, camera, costs = None, {}, {}
-    for _ in range(PROFILE_ROUNDS if (scales or range_model) else 0):
+    for _ in range(PROFILE_ROUNDS if (scales or range_model or radio_scale) else 0):
         last = (dict(found or {}), dict(camera))
         if range_model:
             depth, bias, costs = profile_range_model(graphs, theta)
             camera = {"range_is_depth": depth, "range_bias_m": bias}
+        if radio_scale:
+            scale, cost = profile_range_scale(graphs, theta)
+            camera, costs = {"range_scale": scale}, {"range": (scale, cost)}
         if scales:
             found = profile_scales(graphs, theta, found)
         theta, step, weights, more, converged = _vce(graphs, theta, progress, "noise fit: iterations")
         iterations += more
-        if _settled(last, (found or {}, camera)):
+        if settled(last, (found or {}, camera)):
             break
     if found:
         odometry = dataclasses.replace(odometry, **found)
@@ -372,10 +389,11 @@ def fit_without_truth(logs: list[RunLog], progress=None, *,
     if camera:
         result.model = dataclasses.replace(result.model,
                                            observation=dataclasses.replace(result.model.observation, **camera))
+        found_key = "range_scale" if radio_scale else "range_bias_m"
         result.report["range_model_from_readings"] = {
-            **camera, "negative_log_likelihood": {k: {"range_bias_m": v[0], "cost": v[1]} for k, v in costs.items()}}
-        result.report["not_determined_without_truth"] = [
-            n for n in NOT_DETERMINED_WITHOUT_TRUTH if n not in ("observation.range_is_depth", "observation.range_bias_m")]
+            **camera, "negative_log_likelihood": {k: {found_key: v[0], "cost": v[1]} for k, v in costs.items()}}
+        learned = {f"observation.{name}" for name in camera}
+        result.report["not_determined_without_truth"] = [n for n in NOT_DETERMINED_WITHOUT_TRUTH if n not in learned]
     if found:
         result.report["odometry_scales_from_the_run"] = dict(found)
     if pinned:
@@ -436,99 +454,6 @@ def _vce(graphs: list[RunGraph], theta: np.ndarray, progress, label: str):
         if converged:
             break
     return theta, step, weights, iteration, converged
-
-
-#: The odometry's scales searched on the whole run (:func:`profile_scales`): name, first step
-#: and bounds.
-SCALE_SEARCH = (("turn_scale", 0.04, (0.7, 1.3)), ("turn_per_m_rad", 0.03, (-0.3, 0.3)),
-                ("forward_scale", 0.04, (0.7, 1.3)))
-
-
-def profile_scales(graphs: list[RunGraph], theta: np.ndarray, start: dict[str, float] | None = None) -> dict[str, float]:
-    """The odometry's turn scale, turn per metre and forward scale that make the whole run's
-    measurements most likely (θ held), one at a time, twice (:func:`_line_search`).
-
-    The cost is half the χ² of the graph with every odometry variance held at that of the
-    increments as read (the regression of the smoothed motion on the odometry): the variances
-    must not move with the scales, or the profile trades accuracy for σ. Tried: ``q`` of
-    the scaled increments (smaller scales shrink every variance and win on the determinant:
-    on a simulated run turn scale 0.916 and forward scale 0.874 for 0.93 and 0.95), and the
-    noise taken as the reading's (covariance ``S Σ Sᵀ``: a larger scale inflates σ and
-    whitens systematic misfit; on MRCLAM turn scales 1.28, at the search's bound).
-    The graphs are left with the odometry re-read at the result, ``q`` of the scaled
-    increments."""
-    p = dict(start or {"forward_scale": 1.0, "turn_scale": 1.0, "turn_per_m_rad": 0.0})
-
-    def re_read(values: dict[str, float], final: bool = False) -> None:
-        fs, ts = values["forward_scale"], values["turn_scale"]
-        for run in graphs:
-            scaled = scaled_increments(run.read_increments, fs, ts, values["turn_per_m_rad"])
-            run.set_increments(scaled, None if final else (1.0, 1.0, 1.0))
-
-    def cost(values: dict[str, float]) -> float:
-        re_read(values)
-        return sum(run.chi2_half(theta) for run in graphs)
-
-    for run in graphs:
-        run.set_increments(run.read_increments)  # q of the increments as read
-    for shrink in (1.0, 0.3):
-        for name, step, bounds in SCALE_SEARCH:
-            p[name] = _line_search(lambda v: cost({**p, name: v}), p[name], step * shrink, bounds)
-    re_read(p, final=True)
-    return p
-
-
-#: At most this many rounds of the profiles (scales, range model) and the variances in turn;
-#: they stop when no profiled value moves by more than :data:`PROFILE_SETTLED`.
-PROFILE_ROUNDS = 4
-PROFILE_SETTLED = 0.003
-
-
-def _settled(last: tuple[dict, dict], now: tuple[dict, dict]) -> bool:
-    for a, b in zip(last, now):
-        if set(a) != set(b) or any(abs(float(a[k]) - float(b[k])) > PROFILE_SETTLED for k in a):
-            return False
-    return True
-
-
-#: The camera's range bias searched without truth: first step and bounds (m).
-RANGE_BIAS_STEP_M, RANGE_BIAS_BOUNDS_M = 0.02, (-0.3, 0.3)
-
-
-def profile_range_model(graphs: list[RunGraph], theta: np.ndarray) -> tuple[bool, float, dict]:
-    """The camera's range model most likely for the whole run (θ held): range or depth
-    (``r·cos b``, what a camera that sizes the landmark's image measures), each with the
-    bias that fits it best (:func:`_line_search`). Its scale stays 1: without truth the
-    readings set the scale. ``(range_is_depth, range_bias_m, costs)``; the graphs are left
-    with their ranges re-read under it."""
-    found = {}
-    for depth in (False, True):
-        def cost(bias: float) -> float:
-            for run in graphs:
-                run.set_range_model(depth, bias)
-            return sum(run.range_model_cost(theta) for run in graphs)
-
-        bias = _line_search(cost, 0.0, RANGE_BIAS_STEP_M, RANGE_BIAS_BOUNDS_M)
-        bias = _line_search(cost, bias, 0.3 * RANGE_BIAS_STEP_M, RANGE_BIAS_BOUNDS_M)
-        found[depth] = (bias, cost(bias))
-    depth = found[True][1] < found[False][1]
-    for run in graphs:
-        run.set_range_model(depth, found[depth][0])
-    return depth, found[depth][0], {"range": found[False], "depth": found[True]}
-
-
-def _line_search(f, x: float, h: float, bounds: tuple[float, float], moves: int = 8) -> float:
-    """A minimum of ``f`` near ``x``: step by ``h`` downhill until the middle of three points
-    is the lowest, then the parabola's minimum through them (within ``bounds``)."""
-    fx = f(x)
-    for _ in range(moves):
-        lo, hi = max(x - h, bounds[0]), min(x + h, bounds[1])
-        f_lo, f_hi = f(lo), f(hi)
-        if fx <= f_lo and fx <= f_hi:
-            v = parabola_minimum(np.array([lo, x, hi]), np.array([f_lo, fx, f_hi]))
-            return x if v is None else float(np.clip(v, lo, hi))
-        x, fx = (lo, f_lo) if f_lo < f_hi else (hi, f_hi)
-    return x
 
 
 def _result(logs, theta, step, rel, iterations, converged, outlier_rate, readings, unpaired,

@@ -3,6 +3,7 @@ and both estimators on a simulated ranging-radio run (iSAM2 against batch LM).""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -180,3 +181,24 @@ def test_ekf_range_update_is_the_textbook_update(simulated):
     ekf.step(step)
     np.testing.assert_allclose(ekf.state_mean(), expected_mean, atol=1e-8)
     np.testing.assert_allclose(ekf.state_covariance(), expected_cov, atol=1e-10)
+
+
+@pytest.mark.parametrize("scale", [1.0, 1.07])
+def test_a_radios_range_scale_is_learned_without_truth(scale):
+    """Ranges read ``scale`` long (Plaza's radios: 1.069 by GPS) are recognised against the
+    odometry, the only other measure of distance the run has: the fit without truth finds
+    the scale put in, and the σ of the ranges about it."""
+    from fgslam.self_calibration import fit_without_truth
+    from slamio.log import RunLog
+
+    header, records = range_only_run(seed=5, laps=3.0)
+    scaled = tuple(dataclasses.replace(r, range_m=scale * r.range_m) if isinstance(r, Observation) else r
+                   for r in records)
+    fit = fit_without_truth([RunLog("scaled.jsonl", header, scaled)])
+    observation = fit.model.observation
+    assert observation.range_scale == pytest.approx(scale, abs=0.005)
+    assert observation.range_sigma_m == pytest.approx(0.3 * scale, rel=0.15)
+    assert "observation.range_scale" not in fit.report["not_determined_without_truth"]
+    from fgslam.cli.calibrate import noise_model_summary, self_fit_notes
+    assert f"ranges (no bearing): measured = {observation.range_scale:.4f} x distance" in noise_model_summary(fit.model)
+    assert f"radio ranges read {observation.range_scale:.4f} x the distance" in self_fit_notes(fit)

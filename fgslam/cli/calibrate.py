@@ -245,8 +245,8 @@ def self_fit_notes(fit) -> str:
         lines.append("  not separated by this data (kept near their start; drive at other speeds and turn more "
                      "to learn them): " + ", ".join(report["not_separated_by_this_data"]))
     if report.get("range_only"):
-        lines.append("  range-only readings (radios): applying the model (--noise) changes the ranges' sigma only and "
-                     "keeps the log's odometry, whose heading a range cannot check")
+        lines.append("  range-only readings (radios): applying the model (--noise) changes the ranges' scale and sigma "
+                     "only and keeps the log's odometry, whose heading a range cannot check")
     if report.get("odometry_window_s"):
         lines.append(f"  odometry variance rates learned over {report['odometry_window_s']:g} s stretches of its steps "
                      "chained (the error it carries between readings), not step by step")
@@ -255,6 +255,11 @@ def self_fit_notes(fit) -> str:
         lines.append(f"  odometry lag {lag['lag_s']:.2f} s: what {lag['pairs']} pairs of readings of the same "
                      "landmarks show")
     camera = report.get("range_model_from_readings")
+    if camera and "range_scale" in camera:
+        lines.append(f"  radio ranges read {camera['range_scale']:.4f} x the distance: what the whole run's ranges "
+                     "agree on best with the log's odometry taken as the measure of distance (only their ratio shows)")
+        lines.append("  not learnable without truth: the odometry's scales and the readings' correlation in time")
+        return "\n".join(lines)
     if camera:
         lines.append(f"  camera range: {'depth along the axis (r cos b)' if camera['range_is_depth'] else 'Euclidean'}"
                      f", reading {camera['range_bias_m']:+.3f} m long: what the whole run's readings agree on best")
@@ -283,7 +288,7 @@ def noise_model_summary(model) -> str:
             f"heading {n.heading_rad2_per_m ** 0.5:.4f} rad; per sqrt(rad) turned {n.heading_rad2_per_rad ** 0.5:.4f} rad; "
             f"per sqrt(s): {n.forward_m2_per_s ** 0.5:.4f} m, {n.lateral_m2_per_s ** 0.5:.4f} m, "
             f"{n.heading_rad2_per_s ** 0.5:.4f} rad"]),
-        *(_radio_lines(model) if "constant_offset_fit" in model.fit_report.get("observation", {}) else [
+        *(_radio_lines(model) if _is_radio_model(model) else [
             f"camera: range is {'depth (r cos b)' if z.range_is_depth else 'Euclidean range'}, "
             f"measured = {z.range_scale:.4f} x {z.range_bias_m:+.4f} m; bearing = {z.bearing_scale:.4f} b "
             f"{z.bearing_bias_rad:+.4f} rad; latency {z.camera_latency_s:.3f} s",
@@ -312,12 +317,18 @@ def _mount_line(model) -> str:
             "pass --fit-mount to fit the model from there and carry it")
 
 
+def _is_radio_model(model) -> bool:
+    """A model of range-only readings: fitted with truth (slamio.noise.range) or without."""
+    return "constant_offset_fit" in model.fit_report.get("observation", {}) or bool(model.fit_report.get("range_only"))
+
+
 def _radio_lines(model) -> list[str]:
     """The observation lines of a range-only model (ranging radios, slamio.noise.range)."""
-    z, offset = model.observation, model.fit_report["observation"]["constant_offset_fit"]
+    z, offset = model.observation, model.fit_report.get("observation", {}).get("constant_offset_fit")
     return [
-        f"ranges (no bearing): measured = {z.range_scale:.4f} x distance {z.range_bias_m:+.4f} m "
-        f"(a constant offset would be {offset['median_offset_m']:.2f} m, spread {offset['robust_spread_m']:.2f} m)",
+        f"ranges (no bearing): measured = {z.range_scale:.4f} x distance {z.range_bias_m:+.4f} m"
+        + (f" (a constant offset would be {offset['median_offset_m']:.2f} m, spread {offset['robust_spread_m']:.2f} m)"
+           if offset else ""),
         f"  sigma range = hypot({z.range_sigma_m:.4f} m, {z.range_sigma_per_m:.4f} x range); "
         f"outliers {100 * z.outlier_rate:.2f} %",
     ]
