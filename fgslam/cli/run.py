@@ -191,9 +191,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         written = write_results(args, metrics, result)
         results.finish(**run_provenance(args))
         progress(1, 1, "writing the results")
-    slowed = dimension == 2 and _consistency_mode(args, 2) != "none" and any(name.startswith("isam2") for name in names)
+    mode = _consistency_mode(args, 2) if dimension == 2 and any(name.startswith("isam2") for name in names) else "none"
     return finish_run(args, results, log, written, replaced, format_table(metrics), notes=[short] if short else [],
-                      timing_note=TIMING["consistency_note"] if slowed else None,
+                      timing_note={"all": TIMING["consistency_note"], "sampled": TIMING["sampled_note"]}.get(mode),
                       verdict=verdict_lines(verdict, metrics.get("noise_source")) if verdict else [],
                       failures=result.failures)
 

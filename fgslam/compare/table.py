@@ -89,7 +89,7 @@ COLUMN_MEANINGS = {
     "NIS in %": "share of observations of already mapped landmarks whose NIS (innovation against "
     "the estimator's prediction, weighted by its predicted covariance) lies inside the 95 % "
     "chi-square(2) band (chi-square(1) for a range-only reading); about 95 when consistent; needs no ground truth. "
-    "Both in % columns are taken at a seeded sample of steps by default (±: the share's binomial standard "
+    "Both in % columns are taken at a seeded sample of steps by default (±: the share's standard "
     "error; fgslam run --consistency all: every step)",
     "peak MB": "how far the process's resident memory rose during the run, megabytes (10^6 bytes)",
 }
@@ -117,8 +117,8 @@ def sample_note(metrics: dict, names) -> str | None:
         c = metrics[name].get("consistency") if isinstance(metrics[name], dict) else None
         if c and c.get("mode") == "sampled":
             return (f"NEES and NIS in % at a seeded sample of steps (the same for every estimator): NEES at "
-                    f"{c['nees_steps']} and NIS at {c['nis_steps']} of {c['steps']} steps; ± is the binomial "
-                    "standard error of the share; --consistency all takes every step")
+                    f"{c['nees_steps']} and NIS at {c['nis_steps']} of {c['steps']} steps; ± is the share's "
+                    "standard error; --consistency all takes every step")
     return None
 
 
