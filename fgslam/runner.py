@@ -30,6 +30,7 @@ import scipy.linalg  # noqa: F401  (scipy's own BLAS is loaded now, so the threa
 from threadpoolctl import threadpool_limits
 
 from fgslam.compare import NIS_DOF, EstimatorRun, Reference, relabel_landmarks, score_associations
+from fgslam.consistency_sample import ConsistencySample, sample_of_steps
 from fgslam.failure import EstimatorFailed, EstimatorFailure, StepWatch, check_finite, reason_of
 from fgslam.memory import PeakMemory
 from fgslam.registry import DEFAULTS, REGISTRY, isam2_names, names_for, parse_names
@@ -56,11 +57,16 @@ TIMING = {
     "what": "wall time of estimator.step per step (the total adds finish()), BLAS pinned to 1 thread",
     "clock": "time.perf_counter",
     "blas_threads": BLAS_THREADS,
-    "outside_the_timed_region": "NIS before each step, the covariance for NEES after it, association bookkeeping",
-    # printed under the table when NIS/NEES ran and an iSAM2 did (measured on MRCLAM and Victoria
-    # Park, docs/performance.md: the EKF's steps slow by a few per cent)
+    "outside_the_timed_region": "NIS before a step, the covariance for NEES after it (at every step or at "
+                                "the sampled ones: consistency.mode), association bookkeeping",
+    # printed under the table when NIS/NEES ran at every step and an iSAM2 did (measured on MRCLAM
+    # and Victoria Park, docs/performance.md: the EKF's steps slow by a few per cent)
     "consistency_note": "the NIS/NEES work between the steps is not timed but slows iSAM2's own steps "
                         "(30-50 % on real logs); --no-consistency times the estimators alone",
+    # … and when they ran at the sampled steps (fgslam.consistency_sample; no slow-down measured,
+    # docs/performance.md)
+    "sampled_note": "NIS/NEES at the sampled steps run between the steps, untimed (their CPU time: "
+                    "time_consistency_cpu_s in metrics.json); --no-consistency times the estimators alone",
 }
 
 
@@ -131,7 +137,7 @@ def parse_estimator_names(text: str, *, need_isam2: bool = True) -> list[str]:
 
 def run_estimator(
     estimator: Estimator, steps: Sequence[Step], progress: Progress | None = None, *, covariances: bool = True,
-    blas_threads: int | None = BLAS_THREADS,
+    blas_threads: int | None = BLAS_THREADS, sample: ConsistencySample | None = None,
 ) -> tuple[EstimatorRun, Estimator]:
     """Feed ``steps`` to ``estimator`` in order, timing each step and ``finish()``, with BLAS
     and OpenMP pinned to ``blas_threads`` (default 1; None leaves them as they are).
@@ -140,7 +146,10 @@ def run_estimator(
     timed region: before each step, the NIS of its observations against the estimator's
     prediction (``predicted_nis``, where the estimator offers it); after it, the covariance
     the estimator states for its online pose (for NEES). A run that only serves as a
-    reference or a timing can skip that work. The peak memory of the whole run is measured
+    reference or a timing can skip that work. ``sample``
+    (:mod:`fgslam.consistency_sample`) takes the NIS and the covariance only at its steps
+    (None: at every step); the other steps' covariances are NaN. The CPU time of the steps
+    and of that work (``time.thread_time``) is kept apart. The peak memory of the whole run is measured
     too (:class:`fgslam.memory.PeakMemory`; the consistency work is included in it).
 
     An exception from the estimator (in a step, ``finish()`` or reading its final estimate),
@@ -149,16 +158,18 @@ def run_estimator(
     naming the estimator, the step and the reason.
     """
     trace = _Trace(len(steps), covariances and hasattr(estimator, "current_covariance"),
-                   covariances and hasattr(estimator, "predicted_nis"), hasattr(estimator, "step_associations"))
+                   covariances and hasattr(estimator, "predicted_nis"), hasattr(estimator, "step_associations"),
+                   sample)
     watch = trace.watch = StepWatch(estimator.name, step_stamps(steps))
     with watch.failures():
         with pinned_threads(blas_threads), PeakMemory() as memory:
             _feed_steps(estimator, steps, progress, trace)
             watch.finishing()
-            start = time.perf_counter()
+            start, start_cpu = time.perf_counter(), time.thread_time()
             estimator.finish()
             final = np.asarray(estimator.trajectory(), dtype=float)
             finish_s = time.perf_counter() - start
+            trace.step_cpu_s += time.thread_time() - start_cpu
         landmarks, heights, landmark_covariances, association = _final_map(estimator, trace, covariances)
     with_nis = trace.with_nis
     run = EstimatorRun(
@@ -177,18 +188,37 @@ def run_estimator(
         peak_memory_bytes=memory.peak_bytes,
         landmark_covariances=landmark_covariances or None,
         unused_observations=unused_observations(estimator),
+        consistency=_consistency_description(trace, sample, covariances),
+        cpu_time_s=trace.step_cpu_s,
+        consistency_cpu_s=trace.consistency_cpu_s if (trace.pose_covariances is not None or with_nis) else None,
     )
     return run, estimator
+
+
+def _consistency_description(trace: "_Trace", sample: ConsistencySample | None, covariances: bool) -> dict | None:
+    """What metrics.json says of the steps the NEES and NIS were taken at (None: not taken)."""
+    if not covariances or (trace.pose_covariances is None and not trace.with_nis):
+        return None
+    n = len(trace.step_times_s)
+    return {"mode": "all", "seed": None, "steps": n, "nees_steps": n, "nis_steps": n} if sample is None \
+        else sample.description()
 
 
 class _Trace:
     """What :func:`run_estimator` records step by step: the online poses and step times, and
     outside the timed region the pose covariances, the NIS values and the association keys."""
 
-    def __init__(self, n: int, with_covariance: bool, with_nis: bool, associating: bool) -> None:
+    def __init__(self, n: int, with_covariance: bool, with_nis: bool, associating: bool,
+                 sample: ConsistencySample | None = None) -> None:
         self.online = np.empty((n, 3))
         self.step_times_s = np.empty(n)
-        self.pose_covariances = np.empty((n, 3, 3)) if with_covariance else None
+        self.step_cpu_s = 0.0  # time.thread_time of the steps and finish()
+        self.consistency_cpu_s = 0.0  # time.thread_time of the NIS and covariance work
+        self.pose_covariances = (np.empty((n, 3, 3)) if sample is None else np.full((n, 3, 3), np.nan)) \
+            if with_covariance else None
+        everywhere = np.ones(n, dtype=bool)
+        self.nees_at = everywhere if sample is None else sample.nees  # the steps to take each at
+        self.nis_at = everywhere if sample is None else sample.nis
         self.with_nis = with_nis
         self.associating = associating
         self.nis_values: list[float] = []
@@ -207,31 +237,42 @@ def _feed_steps(estimator: Estimator, steps: Sequence[Step], progress: Progress 
     for i, step in enumerate(steps):
         if trace.watch is not None:
             trace.watch.step = i
-        if trace.with_nis:  # against the prediction, so before the step; outside the timed region
+        if trace.with_nis and trace.nis_at[i]:  # against the prediction, so before the step; not timed
+            cpu = time.thread_time()
             for observation, value in zip(step.observations, estimator.predicted_nis(step)):  # type: ignore[attr-defined]
                 if value is not None:
                     trace.nis_values.append(value)
                     trace.nis_steps.append(i)
                     trace.nis_dofs.append(1 if observation.range_only else NIS_DOF)
+            trace.consistency_cpu_s += time.thread_time() - cpu
+        cpu = time.thread_time()
         start = time.perf_counter()
         estimator.step(step)
         trace.online[i] = estimator.current_pose()
         trace.step_times_s[i] = time.perf_counter() - start
+        trace.step_cpu_s += time.thread_time() - cpu
         check_finite(trace.online[i])  # a diverged estimator fails here, not in the figures
-        if trace.pose_covariances is not None:  # for NEES; outside the timed region
-            try:
-                covariance = estimator.current_covariance()  # type: ignore[attr-defined]
-            except RuntimeError:  # gtsam.IndeterminateSystemException: no marginal this step
-                covariance = np.nan
-            else:
-                check_finite(trace.online[i], covariance)
-            trace.pose_covariances[i] = covariance
+        if trace.pose_covariances is not None and trace.nees_at[i]:  # for NEES; outside the timed region
+            cpu = time.thread_time()
+            trace.pose_covariances[i] = _stated_covariance(estimator, trace.online[i])
+            trace.consistency_cpu_s += time.thread_time() - cpu
         if trace.associating:  # bookkeeping for the score, outside the timed region
             trace.keys.extend(estimator.step_associations())  # type: ignore[attr-defined]
             trace.true_ids.extend(_true_id(o) for o in step.observations)
             trace.hidden = trace.hidden or any(o.landmark_id is None and not o.range_only for o in step.observations)
         if progress is not None and (i % every == 0 or i == len(steps) - 1):
             progress(i + 1, len(steps), estimator.name)
+
+
+def _stated_covariance(estimator: Estimator, pose: np.ndarray):
+    """The covariance ``estimator`` states for its online ``pose`` (NaN when iSAM2 cannot form
+    the marginal this step); a stated covariance that is not a number fails the run."""
+    try:
+        covariance = estimator.current_covariance()  # type: ignore[attr-defined]
+    except RuntimeError:  # gtsam.IndeterminateSystemException: no marginal this step
+        return np.nan
+    check_finite(pose, covariance)
+    return covariance
 
 
 def _final_map(estimator: Estimator, trace: _Trace, covariances: bool):
@@ -401,7 +442,7 @@ def compare_log(
     estimator_names: Sequence[str] = DEFAULT_ESTIMATORS,
     progress: Progress | None = None,
     *,
-    consistency: bool = True,
+    consistency: bool | str = True,
 ) -> Comparison:
     """Run the named estimators and the batch solve on ``log``; choose the reference.
 
@@ -411,8 +452,10 @@ def compare_log(
     landmarks for the map error when it has them; a smoothed reference no better than
     odometry is refused (:func:`require_usable_reference`). The batch solve starts from plain
     ``isam2`` when it ran, else from the first robust iSAM2 (whose graph, and so whose
-    batch solve, is robust too). ``consistency`` is :func:`run_estimator`'s ``covariances``
-    (NEES, NIS and covariance ellipses).
+    batch solve, is robust too). ``consistency`` says where NEES, NIS and the covariance
+    ellipses are taken (:mod:`fgslam.consistency_sample`): ``"sampled"`` (``fgslam run``'s
+    default: one seeded sample of steps, shared by every estimator), ``"all"`` or True (every
+    step), ``"none"`` or False (not at all).
 
     An estimator that fails mid-run (:class:`fgslam.failure.EstimatorFailed`) is kept in
     :attr:`Comparison.failures` and the others go on. Where the failure leaves nothing to
@@ -421,7 +464,9 @@ def compare_log(
     """
     steps = log.steps()
     stamps_s = step_stamps(steps)
-    runs, failures, smoother, smoother_run = _run_each(log, steps, estimator_names, progress, consistency)
+    mode = ("all" if consistency else "none") if isinstance(consistency, bool) else consistency
+    sample = sample_of_steps(steps, mode)
+    runs, failures, smoother, smoother_run = _run_each(log, steps, estimator_names, progress, sample, mode != "none")
     truth = truth_reference(log)
     if smoother is None:  # no batch solve: only the log's own truth can be the reference
         if truth is None:
@@ -450,7 +495,7 @@ def _log_name(log) -> str:
 
 
 def _run_each(log: RunLog | ColumnLog, steps: Sequence[Step], names: Sequence[str], progress: Progress | None,
-              consistency: bool) -> tuple[list[EstimatorRun], list[EstimatorFailure], Isam2Smoother | None,
+              sample: ConsistencySample | None, consistency: bool) -> tuple[list[EstimatorRun], list[EstimatorFailure], Isam2Smoother | None,
                                           EstimatorRun | None]:
     """``(runs, failures, smoother, its run)``: every named estimator on ``steps``, those that
     failed set apart, and the iSAM2 the batch solve starts from (plain ``isam2`` when it ran,
@@ -461,7 +506,8 @@ def _run_each(log: RunLog | ColumnLog, steps: Sequence[Step], names: Sequence[st
     smoother_run: EstimatorRun | None = None
     for name in names:
         try:
-            run, estimator = run_estimator(ESTIMATORS[name](log.header), steps, progress, covariances=consistency)
+            run, estimator = run_estimator(ESTIMATORS[name](log.header), steps, progress, covariances=consistency,
+                                           sample=sample)
         except EstimatorFailed as failed:
             failures.append(failed.failure)
             continue

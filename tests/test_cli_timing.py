@@ -82,16 +82,23 @@ def test_fgslam_run_says_what_was_timed(tmp_path, capsys):
 
 
 def test_fgslam_run_says_when_the_consistency_work_slows_the_smoother(tmp_path, capsys):
-    """NIS/NEES between the steps is untimed but slows iSAM2's own steps: the table says so,
-    and not when there was none (--no-consistency) or no iSAM2 ran."""
+    """NIS/NEES at every step is untimed but slows iSAM2's own steps: the table says so; at
+    the default sample it says they are untimed; neither when there was none
+    (--no-consistency) or no iSAM2 ran."""
     from fgslam.cli import main
 
     note = TIMING["consistency_note"]
-    assert main(["run", "data/arena_square.jsonl", "--out", str(tmp_path / "a"), "--no-report"]) == 0
+    assert main(["run", "data/arena_square.jsonl", "--out", str(tmp_path / "a"), "--no-report",
+                 "--consistency", "all"]) == 0
     assert note in capsys.readouterr().out
+    assert main(["run", "data/arena_square.jsonl", "--out", str(tmp_path / "s"), "--no-report"]) == 0
+    printed = capsys.readouterr().out
+    assert TIMING["sampled_note"] in printed and note not in printed
     assert main(["run", "data/arena_square.jsonl", "--out", str(tmp_path / "b"), "--no-report",
                  "--no-consistency"]) == 0
-    assert note not in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert note not in printed and TIMING["sampled_note"] not in printed
     assert main(["run", "data/arena_square.jsonl", "--out", str(tmp_path / "c"), "--no-report",
                  "--estimators", "ekf,dead_reckoning"]) == 0
-    assert note not in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert note not in printed and TIMING["sampled_note"] not in printed

@@ -193,7 +193,8 @@ def _named(estimator, name):
 
 
 #: figures that depend on the machine (times, memory), not on the estimate
-MACHINE_KEYS = {"time_total_s", "time_step_p50_s", "time_step_p99_s", "time_step_max_s", "peak_memory_mb"}
+MACHINE_KEYS = {"time_total_s", "time_step_p50_s", "time_step_p99_s", "time_step_max_s", "peak_memory_mb",
+                "time_cpu_s", "time_consistency_cpu_s"}
 
 
 def figures(metrics: dict, name: str) -> dict:

@@ -129,14 +129,15 @@ GAP = set(range(100, 140)) | set(range(300, 400, 7))
 
 @pytest.fixture(scope="module")
 def partial(tmp_path_factory):
-    """A log with truth gaps, and `fgslam run` on it (with the report)."""
+    """A log with truth gaps, and `fgslam run` on it (with the report), NEES and NIS at every
+    step (the default sample's draw among the poses with truth: test_consistency_sample)."""
     folder = tmp_path_factory.mktemp("partial")
     log = write_without_truth_at(folder / "gappy.jsonl", GAP | set(range(800, 825)))
     truth, has_truth = truth_arrays(log)
     out = folder / "run"
     stdout = io.StringIO()
     with contextlib.redirect_stdout(stdout):
-        assert main(["run", str(log), "--out", str(out)]) == 0
+        assert main(["run", str(log), "--out", str(out), "--consistency", "all"]) == 0
     metrics = json.loads((out / "metrics.json").read_text())
     return log, truth, has_truth, out, metrics, stdout.getvalue()
 

@@ -178,18 +178,53 @@ def chi2_summary(values, dofs) -> tuple[float | None, float | None, int]:
     """``(mean, share inside the 95 % χ² band, count)`` of χ² values (NIS, NEES) with
     ``dofs`` degrees of freedom each, NaNs dropped; each value is tested against the band of
     its own degrees of freedom. ``(None, None, 0)`` when no value is finite."""
+    v, inside = _finite_inside(values, dofs)
+    if not len(v):
+        return None, None, 0
+    return float(np.mean(v)), float(np.mean(inside)), int(len(v))
+
+
+def _finite_inside(values, dofs) -> tuple[np.ndarray, np.ndarray]:
+    """``(finite values, whether each is inside the 95 % band of its degrees of freedom)``."""
     v = np.asarray(values, dtype=float).reshape(-1)
     d = np.asarray(dofs, dtype=int).reshape(-1)
     finite = np.isfinite(v)
     v, d = v[finite], d[finite]
-    if not len(v):
-        return None, None, 0
     inside = np.zeros(len(v), dtype=bool)
     for dof in np.unique(d):
         low, high = nees_band(int(dof))
         m = d == dof
         inside[m] = (v[m] >= low) & (v[m] <= high)
-    return float(np.mean(v)), float(np.mean(inside)), int(len(v))
+    return v, inside
+
+
+def in_band_se_by_step(values, dofs, steps) -> float | None:
+    """Standard error of the in-band share of χ² values taken several to a step (the NIS of
+    a step's observations, which share its pose), with the step as the sampled unit: the
+    ratio estimator's √(k/(k−1) Σⱼ (yⱼ − p mⱼ)²) / Σⱼ mⱼ over the k steps, yⱼ of whose mⱼ
+    values are inside. One value a step gives about the binomial √(p(1 − p)/k). None
+    with fewer than two steps."""
+    v = np.asarray(values, dtype=float).reshape(-1)
+    finite = np.isfinite(v)
+    _, inside = _finite_inside(v, np.full(len(v), NIS_DOF) if dofs is None else dofs)
+    groups, where = np.unique(np.asarray(steps).reshape(-1)[finite], return_inverse=True)
+    k = len(groups)
+    if k < 2:
+        return None
+    m = np.bincount(where, minlength=k).astype(float)
+    y = np.bincount(where, weights=inside.astype(float), minlength=k)
+    p = y.sum() / m.sum()
+    return math.sqrt(k / (k - 1) * float(np.sum((y - p * m) ** 2))) / float(m.sum())
+
+
+def in_band_se(share: float | None, count: int | None) -> float | None:
+    """Binomial standard error √(p(1 − p)/n) of an in-band share ``p`` over ``count`` values
+    (None when there is no share). It treats the values as independent: for a sample of
+    spread-out steps that is about right; over every step, whose neighbours are correlated,
+    it understates the uncertainty of the share as a measure of the estimator."""
+    if share is None or not count:
+        return None
+    return math.sqrt(max(share * (1.0 - share), 0.0) / count)
 
 
 def rpe_delta_frames(reference, distance_m: float = 1.0, *, has_pose=None) -> int:

@@ -36,8 +36,10 @@ The shape of :func:`compute_metrics`'s dictionary (a 3-D log's run has the same 
          "nees_inside_95": float|None,   # share of them whose NEES is inside the 95 %
                                          # band of its dof: χ²(3) [0.216, 9.35],
                                          # χ²(2) [0.0506, 7.38]
+         "nees_inside_95_se": float|None,# its binomial standard error √(p(1−p)/count)
          "nees_count": int|None,         # how many online poses have a NEES (those with
-                                         # truth and a positive-definite covariance)
+                                         # truth, a positive-definite covariance and,
+                                         # when sampled, a step of the sample)
          "nees_dof": int|None,           # their degrees of freedom: 3, or 2 when the
                                          # truth has no heading (None: none, or mixed)
          "nis_mean": float|None,         # mean NIS of the observations of landmarks
@@ -47,9 +49,16 @@ The shape of :func:`compute_metrics`'s dictionary (a 3-D log's run has the same 
                                          # needs no reference
          "nis_inside_95": float|None,    # share of them inside their χ²(dof) band: χ²(2)
                                          # [0.0506, 7.38], χ²(1) [0.000982, 5.02]
-         "nis_count": int|None,          # how many observations have a NIS
+         "nis_inside_95_se": float|None, # its standard error, the step the sampled unit
+                                         # (errors.in_band_se_by_step)
+         "nis_count": int|None,          # how many observations have a NIS (when
+                                         # sampled: at the sample's NIS steps)
          "nis_dof": float|None,          # their mean degrees of freedom: what nis_mean
                                          # is when consistent (2; 1 for range-only)
+         "consistency": dict|None,       # the steps NEES and NIS were taken at: mode
+                                         # ("sampled" or "all"), seed, steps (of the log),
+                                         # nees_steps, nis_steps (how many were drawn);
+                                         # None when not taken (--no-consistency)
          "map_rmse_m": float|None,       # None when no landmark id in common
          "map_height_rmse_m": float|None,# 3-D maps against true heights, else None
          "landmarks_estimated": int,
@@ -68,6 +77,10 @@ The shape of :func:`compute_metrics`'s dictionary (a 3-D log's run has the same 
          "time_step_max_s": float|None,  # slowest step; None for batch
          "peak_memory_mb": float|None,   # resident memory the run added at its peak, MB
                                          # (10⁶ bytes; fgslam.memory); None if unmeasured
+         "time_cpu_s": float|None,       # CPU time (time.thread_time) of the steps and
+                                         # finish(); None for batch
+         "time_consistency_cpu_s": float|None, # CPU time of the NEES/NIS work between the
+                                         # steps (untimed above); None when not taken
          "steps": int,                   # poses this estimator estimated
          "failure": str|None},           # why its estimate cannot be scored (NaN poses)
      "<estimator that failed mid-run>": {"failed": {"step": int|None, "time_s": float|None,
@@ -90,6 +103,8 @@ import numpy as np
 from fgslam.compare.alignment import align_se2, apply_se2, resolve_alignment
 from fgslam.compare.association import AssociationScore
 from fgslam.compare.errors import (
+    in_band_se,
+    in_band_se_by_step,
     _rmse,
     chi2_summary,
     final_pose_error_m,
@@ -129,12 +144,15 @@ METRIC_KEYS = (
     "rpe_heading_rmse_rad",
     "nees_mean",
     "nees_inside_95",
+    "nees_inside_95_se",
     "nees_count",
     "nees_dof",
     "nis_mean",
     "nis_inside_95",
+    "nis_inside_95_se",
     "nis_count",
     "nis_dof",
+    "consistency",
     "map_rmse_m",
     "map_height_rmse_m",
     "landmarks_estimated",
@@ -148,6 +166,8 @@ METRIC_KEYS = (
     "time_step_p99_s",
     "time_step_max_s",
     "peak_memory_mb",
+    "time_cpu_s",
+    "time_consistency_cpu_s",
     "steps",
     "failure",
 )
@@ -326,12 +346,16 @@ def _consistency_metrics(run: EstimatorRun, reference: Reference, ref: np.ndarra
     return {
         "nees_mean": _json_float(nees_mean),
         "nees_inside_95": _json_float(nees_inside),
+        "nees_inside_95_se": _json_float(in_band_se(nees_inside, nees_count)),
         "nees_count": nees_count,
         "nees_dof": nees_dof,
         "nis_mean": _json_float(nis_mean),
         "nis_inside_95": _json_float(nis_inside),
+        "nis_inside_95_se": _json_float(
+            None if run.nis_steps is None or not nis_count else in_band_se_by_step(run.nis, run.nis_dofs, run.nis_steps)),
         "nis_count": nis_count,
         "nis_dof": _json_float(nis_dof),
+        "consistency": None if run.consistency is None else dict(run.consistency),
     }
 
 
@@ -349,6 +373,8 @@ def _time_metrics(run: EstimatorRun) -> dict:
         "time_step_p99_s": _json_float(p99),
         "time_step_max_s": _json_float(tmax),
         "peak_memory_mb": None if run.peak_memory_bytes is None else round(run.peak_memory_bytes / 1e6, 3),
+        "time_cpu_s": _json_float(run.cpu_time_s),
+        "time_consistency_cpu_s": _json_float(run.consistency_cpu_s),
     }
 
 

@@ -90,6 +90,13 @@ class EstimatorRun:
     #: no id and no association; ``rejected``: ambiguous; ``unconfirmed``: a first sighting
     #: nothing agreed with), from the estimator's own counters; None when it keeps none
     unused_observations: dict[str, int] | None = None
+    #: the steps NEES and NIS were taken at (:meth:`fgslam.consistency_sample.ConsistencySample.description`:
+    #: mode "all" or "sampled", seed, how many steps of how many); None when they were not taken
+    consistency: dict | None = None
+    #: CPU time (``time.thread_time``) of the steps and ``finish()``, and of the NEES/NIS work
+    #: between the steps (None: none was done), seconds; None for a run that did not measure them
+    cpu_time_s: float | None = None
+    consistency_cpu_s: float | None = None
 
 
 @dataclass(frozen=True)

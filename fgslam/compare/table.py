@@ -49,8 +49,8 @@ OPTIONAL_COLUMNS = (
     ("assoc %", "association", _association_cell),
     ("assoc wrong/new/rej", "association", _association_counts_cell),
     ("unused obs", "unused_observations", _unused_cell),
-    ("NEES in %", "nees_inside_95", lambda m: _fmt(m.get("nees_inside_95"), 100.0, 1)),
-    ("NIS in %", "nis_inside_95", lambda m: _fmt(m.get("nis_inside_95"), 100.0, 1)),
+    ("NEES in %", "nees_inside_95", lambda m: _in_band_cell(m, "nees")),
+    ("NIS in %", "nis_inside_95", lambda m: _in_band_cell(m, "nis")),
     ("peak MB", "peak_memory_mb", lambda m: _fmt(m.get("peak_memory_mb"), 1.0, 1)),
 )
 
@@ -88,13 +88,38 @@ COLUMN_MEANINGS = {
     "chi-square(2) band)",
     "NIS in %": "share of observations of already mapped landmarks whose NIS (innovation against "
     "the estimator's prediction, weighted by its predicted covariance) lies inside the 95 % "
-    "chi-square(2) band (chi-square(1) for a range-only reading); about 95 when consistent; needs no ground truth",
+    "chi-square(2) band (chi-square(1) for a range-only reading); about 95 when consistent; needs no ground truth. "
+    "Both in % columns are taken at a seeded sample of steps by default (±: the share's standard "
+    "error; fgslam run --consistency all: every step)",
     "peak MB": "how far the process's resident memory rose during the run, megabytes (10^6 bytes)",
 }
 
 
 def _fmt(value, scale: float = 1.0, digits: int = 4) -> str:
     return "-" if value is None else f"{value * scale:.{digits}f}"
+
+
+def _sampled(m: dict) -> bool:
+    return (m.get("consistency") or {}).get("mode") == "sampled"
+
+
+def _in_band_cell(m: dict, what: str) -> str:
+    """The in-band share in per cent; ``±`` its standard error when taken at a sample of steps."""
+    cell = _fmt(m.get(f"{what}_inside_95"), 100.0, 1)
+    se = m.get(f"{what}_inside_95_se")
+    return f"{cell}±{100 * se:.1f}" if _sampled(m) and se is not None and cell != "-" else cell
+
+
+def sample_note(metrics: dict, names) -> str | None:
+    """The line under the table saying the NEES and NIS come from a sample of steps, and how
+    many (None when they were taken at every step, or not at all)."""
+    for name in names:
+        c = metrics[name].get("consistency") if isinstance(metrics[name], dict) else None
+        if c and c.get("mode") == "sampled":
+            return (f"NEES and NIS in % at a seeded sample of steps (the same for every estimator): NEES at "
+                    f"{c['nees_steps']} and NIS at {c['nis_steps']} of {c['steps']} steps; ± is the share's "
+                    "standard error; --consistency all takes every step")
+    return None
 
 
 def _consistency_notes(name: str, m: dict) -> list[str]:
@@ -211,6 +236,10 @@ def table_rows(metrics: dict) -> tuple[tuple[str, ...], list[tuple[str, ...]], l
         notes += _consistency_notes(name, m)
     if any_aligned:
         notes.insert(0, "* aligned to the reference in SE(2) (first poses differ)")
+    if any(header in ("NEES in %", "NIS in %") for header, _ in optional):
+        note = sample_note(metrics, names)
+        if note:
+            notes.append(note)
     if batch_is_reference:
         notes.insert(0, "no ground truth: every error above is the distance to the smoothed solution (batch, the "
                         "reference) - agreement with it, not accuracy")

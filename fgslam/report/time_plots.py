@@ -273,8 +273,10 @@ def plot_nees(path, runs: list[EstimatorRun], reference: Reference, stamps_s, *,
         values = np.full(k, np.nan)
         valid = reference.has_pose[:k]
         values[valid] = nees(np.asarray(run.online)[valid], np.asarray(run.online_covariances)[valid], ref[:k][valid])
-        ax.plot(t[:k], values, color=_style(i)[0], lw=0.8, alpha=_FAINT_ALPHA if faint else 1.0,
-                label=f"{run.name} (baseline: faint)" if faint else run.name, zorder=1 if faint else 2)
+        sampled = (run.consistency or {}).get("mode") == "sampled"  # a point per sampled step, not a curve
+        ax.plot(t[:k], values, ".-" if sampled else "-", ms=3.0, color=_style(i)[0], lw=0.4 if sampled else 0.8,
+                alpha=_FAINT_ALPHA if faint else 1.0, zorder=1 if faint else 2,
+                label=(f"{run.name} (baseline: faint)" if faint else run.name) + (" (sampled steps)" if sampled else ""))
         drawn = True
     if not drawn:
         return None

@@ -162,10 +162,7 @@ def _draw_run(panel, run: EstimatorRun, reference: Reference, style, faint: bool
                       lw=1.1, label=f"{run.name} landmarks" if legend else None, zorder=3)
     if run.online_covariances is not None and run.online is not None and len(run.online):
         online = apply_se2(np.asarray(run.online, dtype=float).reshape(-1, 3), rot, trans)
-        if picks_at is None:
-            picks = np.unique(np.linspace(0, len(online) - 1, _ELLIPSES_PER_RUN).round().astype(int))
-        else:  # the detail: the pose at its centre
-            picks = np.array([picks_at]) if picks_at < len(online) else np.zeros(0, dtype=int)
+        picks = _ellipse_steps(np.asarray(run.online_covariances)[: len(online)], picks_at)
         _draw_ellipses(panel, online[picks, :2], np.asarray(run.online_covariances)[picks], rot, colour,
                        f"{run.name} 95 % pose ellipse (online)" if legend else None)
     if run.landmark_covariances:
@@ -173,6 +170,20 @@ def _draw_run(panel, run: EstimatorRun, reference: Reference, style, faint: bool
         centres = apply_se2(np.array([run.landmarks[k] for k in ids], dtype=float).reshape(-1, 2), rot, trans)
         _draw_ellipses(panel, centres, [run.landmark_covariances[k] for k in ids], rot, colour, None)
     return final
+
+
+def _ellipse_steps(covariances: np.ndarray, picks_at: int | None) -> np.ndarray:
+    """The steps to draw pose ellipses at, among those with a covariance (every step, or the
+    consistency sample's): :data:`_ELLIPSES_PER_RUN` spread over the run, or for the detail
+    (``picks_at``) the step nearest to it (each ellipse is drawn around its own pose)."""
+    have = np.flatnonzero(np.isfinite(covariances).all(axis=(1, 2)))
+    if not len(have):
+        return have
+    if picks_at is None:
+        return have[np.unique(np.linspace(0, len(have) - 1, min(_ELLIPSES_PER_RUN, len(have))).round().astype(int))]
+    if picks_at >= len(covariances):
+        return np.zeros(0, dtype=int)
+    return have[[int(np.argmin(np.abs(have - picks_at)))]]
 
 
 def _draw_detail(ax, detail, plotted, finals: dict, centre: np.ndarray, k_detail: int, span: float,

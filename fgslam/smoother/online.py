@@ -16,10 +16,10 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import L, T, X
 
-from ekf.models import motion_jacobians, predict_pose, range_bearing_jacobians
 from ekf.observation import observation_nis
 from fgslam.smoother.chain import OdometryChain
 from fgslam.smoother.factors import odometry_noise_covariance
+from slamio.geometry import wrap_angle
 from slamio.log import Odometry, Step
 
 
@@ -87,16 +87,16 @@ class OnlinePose:
         """3×3 covariance of :attr:`pose` (see :meth:`Isam2Smoother.current_covariance`).
         ``isam`` may be a ``gtsam.Marginals`` when no step since the newest iSAM2 pose was
         corrected (after :meth:`Isam2Smoother.finish`)."""
-        chain = self._caught_up_since_chain()
-        if self._marginal is None:
-            self._marginal = np.asarray(isam.marginalCovariance(X(chain.start)), dtype=float)
-        cov = self._marginal
-        if any(used for _, used in self._since):  # the online correction moved the pose
-            cov = self._corrected_covariance(isam)
+        if any(used for _, used in self._since):  # the online correction moved the pose: the replay's
+            cov = self._corrected_covariance(isam)  # (neither the pose's marginal nor the chain needed)
             if frame == "body":
                 J = body_to_world(self.pose.theta())
                 cov = J.T @ cov @ J
             return 0.5 * (cov + cov.T)
+        chain = self._caught_up_since_chain()
+        if self._marginal is None:
+            self._marginal = np.asarray(isam.marginalCovariance(X(chain.start)), dtype=float)
+        cov = self._marginal
         if chain.links:
             A = chain.compound.inverse().AdjointMap()
             cov = A @ cov @ A.T + chain.covariance()
@@ -232,27 +232,48 @@ class _Replay:
 
     def run(self, since: list) -> None:
         """Replay the held steps not replayed yet: predict with each odometry, then update
-        with the readings the correction used there, along the prediction."""
-        P, mean, n = self.P, self.mean, self.P.shape[0]
+        with the readings the correction used there, along the prediction.
+
+        The EKF of :mod:`ekf.models` (``F = ∂(pose ⊕ u)/∂pose``, ``G = ∂(pose ⊕ u)/∂u``, the
+        range-bearing Jacobians) written for its sparsity: F is the identity but for two
+        entries, so F P Fᵀ is two row and two column updates in place, and a reading's H has
+        two non-zero blocks, so P Hᵀ is two block products and P − K S Kᵀ = P − K (P Hᵀ)ᵀ."""
+        P = self.P
+        x, y, th = (float(v) for v in self.mean)
         for odo, used in since[self.steps :]:
-            u = (odo.dx_m, odo.dy_m, odo.dtheta_rad)
-            F, G = motion_jacobians(mean, u)
-            mean = predict_pose(mean, u)
-            P[:3, :] = F @ P[:3, :]
-            P[:, :3] = P[:, :3] @ F.T
+            dx, dy = odo.dx_m, odo.dy_m
+            c, s = math.cos(th), math.sin(th)
+            a, b = -s * dx - c * dy, c * dx - s * dy  # F = [[1, 0, a], [0, 1, b], [0, 0, 1]]
+            P[0, :] += a * P[2, :]
+            P[1, :] += b * P[2, :]
+            P[:, 0] += a * P[:, 2]
+            P[:, 1] += b * P[:, 2]
+            G = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
             P[:3, :3] += G @ np.asarray(odo.covariance) @ G.T
+            x, y, th = x + c * dx - s * dy, y + s * dx + c * dy, wrap_angle(th + odo.dtheta_rad)
             for lid, _, _, bearing_rad, R in used:
-                H_pose, H_landmark = range_bearing_jacobians(mean, self.landmark_at[lid])
-                rows = 2 if bearing_rad is not None else 1  # a range-only observation: the range row
-                H = np.zeros((rows, n))
-                H[:, :3] = H_pose[:rows]
-                c = self.column[lid]
-                H[:, c : c + 2] = H_landmark[:rows]
-                S = H @ P @ H.T + np.atleast_2d(R)
-                K = P @ H.T @ np.linalg.inv(S)
-                P = P - K @ S @ K.T
-                P = 0.5 * (P + P.T)
-        self.P, self.mean, self.steps = P, mean, len(since)
+                P = self._update(P, (x, y), lid, 2 if bearing_rad is not None else 1, R)
+        self.P, self.mean, self.steps = P, np.array([x, y, th]), len(since)
+
+    def _update(self, P: np.ndarray, position: tuple[float, float], lid: int, rows: int, R) -> np.ndarray:
+        """P after one reading of landmark ``lid`` (``rows`` 1: its range alone) from ``position``."""
+        landmark = self.landmark_at[lid]
+        ex, ey = float(landmark[0]) - position[0], float(landmark[1]) - position[1]
+        q = ex * ex + ey * ey
+        r = math.sqrt(q)
+        H_pose = np.array([[-ex / r, -ey / r, 0.0], [ey / q, -ex / q, -1.0]])[:rows]
+        H_landmark = np.array([[ex / r, ey / r], [-ey / q, ex / q]])[:rows]
+        col = self.column[lid]
+        U = P[:, :3] @ H_pose.T + P[:, col : col + 2] @ H_landmark.T  # P Hᵀ, n × rows
+        S = H_pose @ U[:3] + H_landmark @ U[col : col + 2] + np.atleast_2d(R)
+        if rows == 2:  # S⁻¹ of a 2×2 in closed form (numpy.linalg's call costs more than the sum)
+            (s00, s01), (s10, s11) = S
+            S_inv = np.array([[s11, -s01], [-s10, s00]]) / (s00 * s11 - s01 * s10)
+        else:
+            S_inv = 1.0 / S
+        K = U @ S_inv
+        P = P - K @ U.T
+        return 0.5 * (P + P.T)
 
 
 def landmark_covariances(marginals, estimate: gtsam.Values, landmark_ids, tag_ids) -> dict[int, np.ndarray]:

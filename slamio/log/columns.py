@@ -139,6 +139,10 @@ class StepColumns(StepSequence):
     def observation_count(self) -> int:
         return len(self._observation["stamp_s"])
 
+    def observations_per_step(self) -> np.ndarray:
+        """``(n,)`` how many observations each step holds (without building the steps)."""
+        return np.diff(np.asarray(self._first, dtype=np.int64))
+
     def truth_trajectory(self) -> tuple[np.ndarray, np.ndarray]:
         """``(trajectory (n, 3), has_pose (n,))`` of the steps' truth poses: NaN rows and False
         where a step has none, a NaN heading where the truth has none
