@@ -112,7 +112,8 @@ def test_metrics_and_table_say_how_many_steps_and_the_standard_error(log):
     entry = m[run.name]
     assert entry["nees_count"] == int(np.count_nonzero(sample.nees & reference.has_pose))
     p, n = entry["nees_inside_95"], entry["nees_count"]
-    assert entry["nees_inside_95_se"] == pytest.approx(math.sqrt(p * (1 - p) / n))
+    q = (p * n + 2) / (n + 4)  # Agresti and Coull's adjusted share
+    assert entry["nees_inside_95_se"] == pytest.approx(math.sqrt(q * (1 - q) / (n + 4)))
     # the NIS's: by step (a step's observations share its pose), from the values drawn afresh
     inside = [(v >= 0.0506356) & (v <= 7.37776) if d == 2 else (v >= 0.000982069) & (v <= 5.02389)
               for v, d in zip(run.nis, run.nis_dofs)]
@@ -131,7 +132,9 @@ def test_metrics_and_table_say_how_many_steps_and_the_standard_error(log):
 
 
 def test_in_band_se():
-    assert in_band_se(0.9, 100) == pytest.approx(0.03)
+    assert in_band_se(0.9, 100) == pytest.approx(0.03, rel=0.05)  # the textbook √(p(1-p)/n) away from 0 and 1
+    assert in_band_se(1.0, 50) == pytest.approx(math.sqrt((52 / 54) * (2 / 54) / 54))  # not 0 when all are in
+    assert in_band_se(0.0, 50) == pytest.approx(in_band_se(1.0, 50))
     assert in_band_se(None, 10) is None and in_band_se(0.5, 0) is None
 
 

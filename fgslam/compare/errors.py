@@ -214,17 +214,23 @@ def in_band_se_by_step(values, dofs, steps) -> float | None:
     m = np.bincount(where, minlength=k).astype(float)
     y = np.bincount(where, weights=inside.astype(float), minlength=k)
     p = y.sum() / m.sum()
+    if p in (0.0, 1.0):  # every value in (or out of) the band: no spread to measure, so the binomial's over the steps
+        return in_band_se(float(p), k)
     return math.sqrt(k / (k - 1) * float(np.sum((y - p * m) ** 2))) / float(m.sum())
 
 
 def in_band_se(share: float | None, count: int | None) -> float | None:
-    """Binomial standard error √(p(1 − p)/n) of an in-band share ``p`` over ``count`` values
-    (None when there is no share). It treats the values as independent: for a sample of
-    spread-out steps that is about right; over every step, whose neighbours are correlated,
-    it understates the uncertainty of the share as a measure of the estimator."""
+    """Standard error of an in-band share ``p`` over ``count`` values (None when there is no
+    share): the binomial √(p̃(1 − p̃)/(n + 4)) with Agresti and Coull's p̃ = (np + 2)/(n + 4),
+    which is the textbook √(p(1 − p)/n) within a few per cent for shares away from 0 and 1,
+    and does not read 0 when every value (or none) is inside: 50 of 50 give ±2.6 points,
+    not ±0. It treats the values as independent: for a sample of spread-out steps that is
+    about right; over every step, whose neighbours are correlated, it understates the
+    uncertainty of the share as a measure of the estimator."""
     if share is None or not count:
         return None
-    return math.sqrt(max(share * (1.0 - share), 0.0) / count)
+    adjusted = (share * count + 2.0) / (count + 4.0)
+    return math.sqrt(adjusted * (1.0 - adjusted) / (count + 4.0))
 
 
 def rpe_delta_frames(reference, distance_m: float = 1.0, *, has_pose=None) -> int:

@@ -36,7 +36,7 @@ The shape of :func:`compute_metrics`'s dictionary (a 3-D log's run has the same 
          "nees_inside_95": float|None,   # share of them whose NEES is inside the 95 %
                                          # band of its dof: χ²(3) [0.216, 9.35],
                                          # χ²(2) [0.0506, 7.38]
-         "nees_inside_95_se": float|None,# its binomial standard error √(p(1−p)/count)
+         "nees_inside_95_se": float|None,# its binomial standard error (errors.in_band_se)
          "nees_count": int|None,         # how many online poses have a NEES (those with
                                          # truth, a positive-definite covariance and,
                                          # when sampled, a step of the sample)
