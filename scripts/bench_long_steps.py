@@ -129,7 +129,9 @@ def _plain() -> dict:
     return {"rebuild": updates.rebuild, "held_back": relinearisation.CapChoice.held_back}
 
 
-_PLAIN = _plain()
+#: The calls timed in each step, unwrapped (an experiment may put its own variant here:
+#: scripts/experiments/long_steps_age_cap.py).
+PLAIN = _plain()
 
 
 def _timed_held_back(events: Events):
@@ -149,8 +151,8 @@ def _timed_held_back(events: Events):
 
     # wrapped from the plain functions each time: wrapping the previous log's wrappers nested
     # them, and from the second log on each call was counted once per log before it
-    updates.rebuild = timed(_PLAIN["rebuild"], events.rebuilds)
-    relinearisation.CapChoice.held_back = timed(_PLAIN["held_back"], events.checks)
+    updates.rebuild = timed(PLAIN["rebuild"], events.rebuilds)
+    relinearisation.CapChoice.held_back = timed(PLAIN["held_back"], events.checks)
 
 
 def instrumented(header, events: Events):
