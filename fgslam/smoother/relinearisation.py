@@ -92,6 +92,8 @@ class CapChoice:
         """``values`` went into ``isam`` in an update that succeeded."""
         if isam is self._isam:
             self._entered.extend(values.keys())
+        elif self._isam is not None:  # a rebuilt or slid ISAM2: let the old one go now
+            self._isam, self._keys, self._entered = None, [], []
 
     def held_back(self, isam) -> gtsam.KeyList:
         """What the check of ``isam``'s next update is not to relinearise (the same keys as
