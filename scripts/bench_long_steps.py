@@ -8,7 +8,8 @@ Usage::
     .venv/bin/python -m scripts.bench_long_steps mrclam:1 mrclam:2 grid:2000
     .venv/bin/python -m scripts.bench_long_steps victoria-park --top 10 --consistency
 
-Each log (``victoria-park``: the file shipped with gtsam; ``mrclam:K``: robot K of
+Each log (``victoria-park``: the file shipped with gtsam; ``plaza1``, ``plaza2``: the files
+shipped with gtsam; ``mrclam:K``: robot K of
 ``../shared/data/mrclam/MRCLAM_Dataset6`` imported as ``fgslam import`` does; ``grid:N`` or
 ``grid:N:LAPS``: the ``fgslam sim grid`` scenario with N landmarks, seed 1 (its own laps, or
 LAPS as ``bench_scaling --laps``); or a run-log path) is run through the
@@ -20,7 +21,7 @@ whatever preempted it. For the ``--top`` longest steps (wall) the script prints 
 many updates ran), the variables that update relinearised and re-eliminated
 (``ISAM2Result``), the read of the newest pose after it (``calculateEstimatePose2``: GTSAM's
 lazy back-substitution runs there), the time the relinearisation cap's choice took in Python
-(:func:`fgslam.smoother.relinearisation.held_back`), a rebuild after a failed update
+(:meth:`fgslam.smoother.relinearisation.CapChoice.held_back`; wall / CPU), a rebuild after a failed update
 (:mod:`fgslam.smoother.recovery`; the failed update counts in the update columns), and the time Python's garbage collector
 ran in that step, by generation; then every collection of the run, by generation (the one
 generation-2 collection of a run is usually :class:`fgslam.memory.PeakMemory`'s own
@@ -54,6 +55,10 @@ def load(name: str):
         from slamio.datasets.victoria_park import import_victoria_park
 
         return import_victoria_park()
+    if name in ("plaza1", "plaza2"):
+        from slamio.datasets.plaza import import_plaza
+
+        return import_plaza(name)
     if name.startswith("mrclam:"):
         from slamio.datasets.mrclam import import_mrclam
 
@@ -76,9 +81,9 @@ class Events:
     step_cpu_s: list[float] = field(default_factory=list)  # the thread's CPU time in each step
     updates: list[tuple[float, float, int, int]] = field(default_factory=list)  # start, s, relin, reelim
     collections: list[tuple[float, float, int]] = field(default_factory=list)  # start, s, generation
-    checks: list[tuple[float, float]] = field(default_factory=list)  # start, s of each held_back (the cap)
+    checks: list[tuple[float, float, float]] = field(default_factory=list)  # start, s, CPU s of each cap's choice
     reads: list[tuple[float, float]] = field(default_factory=list)  # start, s of each newest-pose read
-    rebuilds: list[tuple[float, float]] = field(default_factory=list)  # start, s of each rebuild after a failure
+    rebuilds: list[tuple[float, float, float]] = field(default_factory=list)  # start, s, CPU s of each rebuild after a failure
     _gc_start: float = 0.0
 
     def on_gc(self, phase: str, info: dict) -> None:
@@ -118,22 +123,36 @@ class _TimedIsam:
         return getattr(self._isam, name)
 
 
+def _plain() -> dict:
+    from fgslam.smoother import relinearisation, updates
+
+    return {"rebuild": updates.rebuild, "held_back": relinearisation.CapChoice.held_back}
+
+
+#: The calls timed in each step, unwrapped (an experiment may put its own variant here:
+#: scripts/experiments/long_steps_age_cap.py).
+PLAIN = _plain()
+
+
 def _timed_held_back(events: Events):
-    """fgslam.smoother.updates.held_back (the relinearisation cap's choice, in Python) and
-    rebuild (a fresh iSAM2 from the whole graph after a failed update), timed."""
-    from fgslam.smoother import updates
+    """fgslam.smoother.relinearisation.CapChoice.held_back (the relinearisation cap's choice,
+    in Python; wall and CPU time) and rebuild (a fresh iSAM2 from the whole graph after a
+    failed update), timed."""
+    from fgslam.smoother import relinearisation, updates
 
     def timed(plain, into: list):
         def call(*args):
-            start = time.perf_counter()
+            start, cpu = time.perf_counter(), time.thread_time()
             try:
                 return plain(*args)
             finally:
-                into.append((start, time.perf_counter() - start))
+                into.append((start, time.perf_counter() - start, time.thread_time() - cpu))
         return call
 
-    updates.rebuild = timed(updates.rebuild, events.rebuilds)
-    updates.held_back = timed(updates.held_back, events.checks)
+    # wrapped from the plain functions each time: wrapping the previous log's wrappers nested
+    # them, and from the second log on each call was counted once per log before it
+    updates.rebuild = timed(PLAIN["rebuild"], events.rebuilds)
+    relinearisation.CapChoice.held_back = timed(PLAIN["held_back"], events.checks)
 
 
 def instrumented(header, events: Events):
@@ -170,18 +189,22 @@ def report(name: str, top: int, consistency: bool) -> None:
           f"(CPU: max {cpu.max():.1f} ms, p99 {np.percentile(cpu, 99):.2f} ms), "
           f"p99 {np.percentile(times, 99):.2f} ms, total {run.total_time_s:.2f} s "
           f"(steps {times.sum() / 1e3:.2f} s); gen-2 collections {sum(c[2] == 2 for c in events.collections)}")
-    print("| step | ms | CPU ms | in update ms | updates | relinearised | re-eliminated | pose read ms | cap's choice ms | rebuild ms | gc ms (gen) |")
+    print("| step | ms | CPU ms | in update ms | updates | relinearised | re-eliminated | pose read ms | cap's choice ms (CPU) | rebuild ms | gc ms (gen) |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for k in np.argsort(-times, kind="stable")[:top]:
         span = events.steps[k]
         ups = [u for u in events.updates if events.within(u[0], span)]
         gcs = [c for c in events.collections if events.within(c[0], span)]
-        checks = sum(c[1] for c in events.checks if events.within(c[0], span))
+        checks = [c for c in events.checks if events.within(c[0], span)]
         reads = sum(r[1] for r in events.reads if events.within(r[0], span))
         rebuilt = sum(r[1] for r in events.rebuilds if events.within(r[0], span))
         gc_text = ", ".join(f"{1e3 * c[1]:.1f} ({c[2]})" for c in gcs) or "-"
         print(f"| {k} | {times[k]:.1f} | {cpu[k]:.1f} | {1e3 * sum(u[1] for u in ups):.1f} | {len(ups)} | "
-              f"{sum(u[2] for u in ups)} | {sum(u[3] for u in ups)} | {1e3 * reads:.1f} | {1e3 * checks:.1f} | {1e3 * rebuilt:.1f} | {gc_text} |")
+              f"{sum(u[2] for u in ups)} | {sum(u[3] for u in ups)} | {1e3 * reads:.1f} | {1e3 * sum(c[1] for c in checks):.1f} / {1e3 * sum(c[2] for c in checks):.1f} | {1e3 * rebuilt:.1f} | {gc_text} |")
+    if events.checks:
+        wall, cpu = np.array([c[1] for c in events.checks]) * 1e3, np.array([c[2] for c in events.checks]) * 1e3
+        print(f"cap's choice: {len(wall)} checks, longest {wall.max():.1f} ms wall / {cpu.max():.1f} ms CPU, "
+              f"total {wall.sum():.0f} ms wall / {cpu.sum():.0f} ms CPU")
     for generation in (0, 1, 2):
         spent = [c[1] * 1e3 for c in events.collections if c[2] == generation]
         if spent:
@@ -200,7 +223,7 @@ def report(name: str, top: int, consistency: bool) -> None:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("logs", nargs="+", help="victoria-park, mrclam:K, grid:N[:LAPS] or a run-log path")
+    ap.add_argument("logs", nargs="+", help="victoria-park, plaza1, plaza2, mrclam:K, grid:N[:LAPS] or a run-log path")
     ap.add_argument("--top", type=int, default=8, help="how many of the longest steps to take apart")
     ap.add_argument("--consistency", action="store_true", help="do fgslam run's NIS/NEES work between steps")
     args = ap.parse_args(argv)

@@ -16,7 +16,7 @@ import pytest
 from gtsam.symbol_shorthand import H, L, T, X
 
 from fgslam.smoother import Isam2Smoother, batch_solve
-from fgslam.smoother.relinearisation import component_thresholds, key_list, ratios
+from fgslam.smoother.relinearisation import CapChoice, component_thresholds, key_list, ratios
 from slamio.errors import FgslamError
 from slamio.log import group_steps
 from slamio.sim import simulate
@@ -259,3 +259,111 @@ def test_key_list_holds_exactly_the_keys_given():
         out.pop_front()
     assert sorted(got) == sorted(keys)
     assert key_list(np.array([], dtype=np.uint64)).empty()
+
+
+# ---------------------------------------------------------------- the cap's choice, kept keys
+
+
+def _reference_held_back(isam, threshold, max_variables) -> list[int]:
+    """The cap's choice as it was first written: every key read back from iSAM2's
+    linearisation point (sorted by key), ranked by ratio with a stable sort, the first
+    ``max_variables`` dropped."""
+    keys = isam.getLinearizationPoint().keys()
+    ratio = ratios(isam.getDelta(), keys, threshold)
+    past = np.flatnonzero(ratio >= 1.0)
+    if len(past) <= max_variables:
+        return []
+    chosen = past[np.argsort(-ratio[past], kind="stable")][max_variables:]
+    return [int(k) for k in np.asarray(keys, dtype=np.uint64)[chosen]]
+
+
+def _listed(keys: gtsam.KeyList) -> list[int]:
+    out = gtsam.KeyList(keys)
+    got = []
+    while not out.empty():
+        got.append(out.front())
+        out.pop_front()
+    return got
+
+
+class _ComparedCap:
+    """The smoother's CapChoice, each choice compared with the reference's on the same iSAM2."""
+
+    def __init__(self, cap: CapChoice, threshold, max_variables):
+        self._cap, self._threshold, self._max = cap, threshold, max_variables
+        self.choices: list[list[int]] = []
+
+    def entered(self, isam, values):
+        self._cap.entered(isam, values)
+
+    def held_back(self, isam):
+        out = self._cap.held_back(isam)
+        expected = _reference_held_back(isam, self._threshold, self._max)
+        got = _listed(out)
+        assert sorted(got) == sorted(expected)  # GTSAM reads noRelinKeys as a set …
+        poses = [k for k in expected if chr(gtsam.Symbol(k).chr()) == "x"]
+        assert got == poses + [k for k in expected if k not in set(poses)]  # … and key_list puts the poses first
+        self.choices.append(got)
+        return out
+
+
+def _compared(smoother) -> _ComparedCap:
+    settings = smoother.settings
+    smoother._cap = _ComparedCap(smoother._cap, settings.relinearize_threshold, settings.relinearize_max_variables)
+    return smoother._cap
+
+
+@pytest.mark.parametrize("settings", [
+    dict(relinearize_skip=2, relinearize_max_variables=5),  # a real threshold: ranked by ratio
+    dict(update_every=1, relinearize_skip=3, relinearize_threshold=0.0, relinearize_max_variables=4),  # all tied
+])
+def test_the_kept_keys_choose_what_a_full_read_chooses(settings):
+    """Through a whole run (poses, landmarks and tags entering between checks), every check's
+    held-back keys are the ones the first implementation chose from a full read of iSAM2's
+    keys: the same keys, in the same order by ratio with ties broken by key."""
+    header, records = simulate("arena-octagon", 2)
+    steps = group_steps(header, records)
+    smoother = Isam2Smoother(header, tags=True, **settings)
+    compared = _compared(smoother)
+    _online(smoother, steps)
+    assert smoother.update_failures == 0
+    held = [c for c in compared.choices if c]
+    assert len(held) >= 5  # several checks held something back
+    kinds = {chr(gtsam.Symbol(k).chr()) for c in held for k in c}
+    assert kinds >= {"x", "l"} or kinds >= {"x", "t"}
+
+
+def test_the_kept_keys_are_read_again_after_a_rebuild_and_a_slide():
+    """A rebuilt iSAM2 and a slid window's fresh one are other objects: the keys are read back
+    from them, and every choice still matches the full read."""
+    from test_smoother import junk, make_loop_log, with_extra
+
+    header, steps, _, _ = make_loop_log(n_steps=80)
+    for extra in (dict(), dict(window_poses=10)):
+        smoother = Isam2Smoother(header, update_every=1, relinearize_skip=3, relinearize_threshold=0.0,
+                                 relinearize_max_variables=2, **extra)
+        compared = _compared(smoother)
+        for step in steps:
+            smoother.step(with_extra(step, junk(step, 99)) if step.index == 20 and not extra else step)
+        assert smoother.update_failures == (0 if extra else 1)
+        assert smoother.window_slides >= (2 if extra else 0)
+        assert sum(1 for c in compared.choices if c) >= 10
+
+
+def test_the_kept_keys_are_read_again_when_iSAM2_holds_others():
+    """Keys entered into iSAM2 without :meth:`CapChoice.entered` (another caller's update) are
+    noticed by the count of variables, and the choice is the full read's."""
+    isam = gtsam.ISAM2()
+    noise = gtsam.noiseModel.Isotropic.Sigma(3, 0.1)
+    graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+    graph.add(gtsam.PriorFactorPose2(X(0), gtsam.Pose2(), noise))
+    values.insert(X(0), gtsam.Pose2(0.3, 0.0, 0.0))
+    isam.update(graph, values)
+    cap = CapChoice(0.0, 1)
+    assert _listed(cap.held_back(isam)) == []  # one variable, the cap is 1
+    for i in range(1, 4):
+        graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+        graph.add(gtsam.BetweenFactorPose2(X(i - 1), X(i), gtsam.Pose2(1.0, 0.0, 0.0), noise))
+        values.insert(X(i), gtsam.Pose2(i + 0.2, 0.1, 0.0))
+        isam.update(graph, values)  # not told to the cap
+    assert _listed(cap.held_back(isam)) == _reference_held_back(isam, 0.0, 1) == [X(1), X(2), X(3)]

@@ -60,6 +60,7 @@ from fgslam.smoother.online import OnlinePose
 from fgslam.smoother.pairings import IdlessPairings
 from fgslam.smoother.pending import MAX_UNCONFIRMED, PENDING_GATE, PendingObservations, RangeOnlyLandmarks
 from fgslam.smoother.policy import HeldSteps, Keyframes
+from fgslam.smoother.relinearisation import CapChoice
 from fgslam.smoother.queries import EstimateQueries
 from fgslam.smoother.settings import Isam2Settings
 from fgslam.smoother.updates import Isam2Updates
@@ -197,6 +198,8 @@ class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
         self._factors = FactorBuilder(self._robust)
         self._isam = self._new_isam()
         self._isam_updates = 0  # updates given to this ISAM2 (GTSAM counts them for relinearize_skip)
+        # the relinearisation cap's choice, keeping iSAM2's keys between checks (relinearisation.py)
+        self._cap = CapChoice(self.settings.relinearize_threshold, self.settings.relinearize_max_variables or 0)
         self._unlabelled = False  # observations without an id seen: the smoother associates them
         self._graph = gtsam.NonlinearFactorGraph()  # every factor accepted into iSAM2
         self._initial = gtsam.Values()  # the initial guess of every variable in iSAM2

@@ -5,7 +5,7 @@ pending step — its entry of iSAM2's delta — exceeds the threshold, and re-el
 clique that holds one of them (as a frontal or a separator variable) and all their
 ancestors. After iSAM2 has smoothed a stretch of poses seeded from the online correction
 that was up to a thousand poses on MRCLAM and twelve thousand variables re-eliminated on
-Plaza1, in one update of 50–570 ms (docs/performance.md). :func:`held_back` lets a check
+Plaza1, in one update of 50–570 ms (docs/performance.md). :class:`CapChoice` lets a check
 relinearise only the ``max_variables`` variables whose step exceeds the threshold by the
 largest factor and names the rest, which go to GTSAM as ``ISAM2UpdateParams.noRelinKeys``.
 Those stay linearised where they are until a later check chooses them (or
@@ -68,16 +68,62 @@ def ratios(delta: gtsam.VectorValues, keys: list[int], threshold: float | tuple[
     return np.maximum.reduceat(ratio, starts)
 
 
-def held_back(isam: gtsam.ISAM2, threshold: float | tuple[float, float], max_variables: int) -> gtsam.KeyList:
-    """The variables of ``isam`` past the threshold beyond the ``max_variables`` furthest past
-    it: what its next check is not to relinearise (``ISAM2UpdateParams.noRelinKeys``)."""
-    keys = isam.getLinearizationPoint().keys()
-    ratio = ratios(isam.getDelta(), keys, threshold)
-    past = np.flatnonzero(ratio >= 1.0)
-    if len(past) <= max_variables:
-        return gtsam.KeyList()
-    chosen = past[np.argsort(-ratio[past], kind="stable")][max_variables:]
-    return key_list(np.asarray(keys, dtype=np.uint64)[chosen])
+class CapChoice:
+    """The variables of one ``ISAM2`` past the threshold beyond the ``max_variables`` furthest
+    past it: what its next check is not to relinearise (``ISAM2UpdateParams.noRelinKeys``).
+
+    The keys of the ``ISAM2`` and their components' thresholds are kept from check to check
+    and extended by the keys each update entered (:meth:`entered`), so a check reads only
+    iSAM2's delta: reading the keys back from the linearisation point and converting them
+    took about half of a check's choice on 49 000 variables. When the ``ISAM2`` is not the
+    one the keys were kept for (a rebuild, a window's slide) or holds a different number of
+    variables than they say, the keys are read back from it."""
+
+    def __init__(self, threshold: float | tuple[float, float], max_variables: int):
+        self._threshold, self._max_variables = threshold, max_variables
+        self._isam = None
+        self._keys: list[int] = []  # as GTSAM's linearisation point listed them, then as entered
+        self._entered: list[int] = []  # entered since the arrays below were last extended
+        self._array = np.empty(0, dtype=np.uint64)
+        self._thresholds = np.empty(0)
+        self._starts = np.empty(0, dtype=np.intp)  # where each variable's components start
+
+    def entered(self, isam, values: gtsam.Values) -> None:
+        """``values`` went into ``isam`` in an update that succeeded."""
+        if isam is self._isam:
+            self._entered.extend(values.keys())
+        elif self._isam is not None:  # a rebuilt or slid ISAM2: let the old one go now
+            self._isam, self._keys, self._entered = None, [], []
+
+    def held_back(self, isam) -> gtsam.KeyList:
+        """What the check of ``isam``'s next update is not to relinearise (the same keys as
+        reading them all back and ranking by ratio, ties by key: tested)."""
+        self._sync(isam)
+        if not self._keys:
+            return gtsam.KeyList()
+        step = np.abs(np.asarray(isam.getDelta().vector(self._keys)).ravel())
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.maximum.reduceat(np.where(self._thresholds > 0, step / self._thresholds, np.inf), self._starts)
+        past = np.flatnonzero(ratio >= 1.0)
+        if len(past) <= self._max_variables:
+            return gtsam.KeyList()
+        keys = self._array[past]
+        chosen = keys[np.lexsort((keys, -ratio[past]))][self._max_variables:]  # by ratio, then by key
+        return key_list(chosen)
+
+    def _sync(self, isam) -> None:
+        size = isam.getLinearizationPoint().size()
+        if isam is not self._isam or len(self._keys) + len(self._entered) != size:
+            self._isam, self._keys, self._entered = isam, [], list(isam.getLinearizationPoint().keys())
+            self._array, self._thresholds, self._starts = np.empty(0, dtype=np.uint64), np.empty(0), np.empty(0, dtype=np.intp)
+        if self._entered:
+            new = np.array(self._entered, dtype=np.uint64)
+            thresholds, starts = component_thresholds(new, self._threshold)
+            self._starts = np.concatenate([self._starts, starts + len(self._thresholds)])
+            self._thresholds = np.concatenate([self._thresholds, thresholds])
+            self._array = np.concatenate([self._array, new])
+            self._keys.extend(self._entered)
+            self._entered = []
 
 
 def key_list(keys: np.ndarray) -> gtsam.KeyList:

@@ -15,7 +15,6 @@ from gtsam.symbol_shorthand import X
 
 from fgslam.smoother.factors import PendingObservation, update_batch
 from fgslam.smoother.recovery import rebuild
-from fgslam.smoother.relinearisation import held_back
 from slamio.errors import FgslamError
 
 
@@ -118,14 +117,14 @@ class Isam2Updates:
         on the n-th update of an ``ISAM2`` when n is a multiple of ``relinearize_skip``);
         otherwise GTSAM's own check relinearises at most ``relinearize_max_variables``."""
         self._isam_updates += 1
+        capped = self.settings.relinearize_max_variables is not None and not self._unlabelled
         if self._unlabelled and self._isam_updates % ASSOCIATION_RELINEARIZE_SKIP == 0:
             update_params = gtsam.ISAM2UpdateParams()
             update_params.force_relinearize = True  # forces the check, not the relinearisation
             self._isam.update(factors or gtsam.NonlinearFactorGraph(), values or gtsam.Values(), update_params)
-        elif (self.settings.relinearize_max_variables is not None and not self._unlabelled
-              and self._isam_updates % self.settings.relinearize_skip == 0):  # GTSAM's own check, capped
+        elif capped and self._isam_updates % self.settings.relinearize_skip == 0:  # GTSAM's own check, capped
             update_params = gtsam.ISAM2UpdateParams()
-            held = held_back(self._isam, self.settings.relinearize_threshold, self.settings.relinearize_max_variables)
+            held = self._cap.held_back(self._isam)
             if held.size():
                 update_params.noRelinKeys = held
             self._isam.update(factors or gtsam.NonlinearFactorGraph(), values or gtsam.Values(), update_params)
@@ -133,6 +132,8 @@ class Isam2Updates:
             self._isam.update()
         else:
             self._isam.update(factors, values)
+        if capped and values is not None:
+            self._cap.entered(self._isam, values)
 
     def _accept(self, factors: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> None:
         self._graph.push_back(factors)
