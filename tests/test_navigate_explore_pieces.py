@@ -124,22 +124,3 @@ def test_a_landmark_due_a_visit_and_in_sight_is_glanced_at_from_where_the_robot_
     # an occupied cell between hides it
     nav.grid.mark_occupied([[1.2, 0.15]], 3.0)
     assert nav._glance(Situation(30.0, pose, None, None, landmarks=landmark, sightings={5: 1})) is None
-
-
-def test_with_the_run_s_length_known_explore_discovers_first_and_revisits_at_the_end():
-    from fgslam.navigate.explore import Goal
-
-    goals = [Goal("frontier", (2.0, 0.0)), Goal("landmark", (0.0, 2.0), 5)]
-    pose = (0.0, 0.0, 0.0)
-    # by hand: the frontier 2 m straight ahead; the landmark's viewpoint 2 m away a quarter turn
-    # to the left, 2 + 0.5 m/rad × π/2 = 2.785 m
-    frontier_m, landmark_m = 2.0, 2.0 + 0.5 * math.pi / 2
-    unbudgeted = make_navigator("explore", seed=0)
-    assert unbudgeted._costs_m(pose, goals, 250.0) == pytest.approx([frontier_m, 0.5 * landmark_m])
-    nav = make_navigator("explore", seed=0, duration_s=300.0)
-    assert nav.duration_s == 300.0 and make_navigator("vfh", duration_s=300.0).name == "vfh"  # vfh takes none
-    nav._first_s = 10.0  # the run's first step
-    # until the last 90 s a revisit weighs as much as a frontier: the frontier is cheaper
-    assert nav._costs_m(pose, goals, 219.0) == pytest.approx([frontier_m, landmark_m])
-    # in the last 90 s frontiers cost double and revisits half
-    assert nav._costs_m(pose, goals, 221.0) == pytest.approx([2.0 * frontier_m, 0.5 * landmark_m])
