@@ -26,12 +26,11 @@ from slamio.clutter import clutter_world
 
 def run(name: str, seed: int, minutes: float, world: str = "clutter") -> dict:
     if world == "clutter":
-        result = drive(clutter_world(seed), make_navigator(name, seed=seed, duration_s=60.0 * minutes),
-                       duration_s=60.0 * minutes, seed=seed)
+        result = drive(clutter_world(seed), make_navigator(name, seed=seed), duration_s=60.0 * minutes, seed=seed)
     else:
         obstacles, landmarks = six_metre_room()
         start = (0.8, 0.8, 0.7 + seed)  # the same corner, a different first heading per seed
-        result = drive(obstacles, make_navigator(name, seed=seed, duration_s=60.0 * minutes), start, duration_s=60.0 * minutes,
+        result = drive(obstacles, make_navigator(name, seed=seed), start, duration_s=60.0 * minutes,
                        landmarks=landmarks, seed=seed)
     row = result.summary()
     row["step_p50_us"] = float(np.percentile(result.step_cpu_us, 50))

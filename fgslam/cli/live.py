@@ -286,7 +286,7 @@ def _drive(args, waypoints, start_pose, settings, status, on_step, sensor, windo
         if args.navigate is not None:
             from fgslam.navigate import make_navigator
 
-            navigator = make_navigator(args.navigate, seed=args.sim_seed, duration_s=args.duration)
+            navigator = make_navigator(args.navigate, seed=args.sim_seed)
         link = CreateLink(port, args.model, baud=args.baud)
         link.open()  # a port that does not open is a user error (exit 1), before the log exists
         if sim is not None:  # the simulator waits for what this process has read (slamio.create.sim)

@@ -26,16 +26,11 @@ __all__ = ["NAVIGATORS", "make_navigator", "Situation", "Command", "Navigator"]
 NAVIGATORS = {"vfh-s000": VfhS000, "vfh": Vfh, "explore-s001": ExploreS001, "explore": Explore}
 
 
-def make_navigator(name: str, *, seed: int = 0, duration_s: float | None = None, **options) -> Navigator:
+def make_navigator(name: str, *, seed: int = 0, **options) -> Navigator:
     """A new navigator called ``name`` (a key of :data:`NAVIGATORS`), its randomness seeded
-    from ``seed``; ``options`` go to its constructor (e.g. ``goal_xy`` for ``vfh``).
-    ``duration_s``, the run's length in robot seconds when known, goes to the navigators that
-    budget their time (``explore``: discover first, revisit at the end) and is ignored by the
-    others."""
+    from ``seed``; ``options`` go to its constructor (e.g. ``goal_xy`` for ``vfh``)."""
     if name not in NAVIGATORS:
         raise FgslamError(f"--navigate: no navigator called {name!r}; choose one of {', '.join(NAVIGATORS)}")
-    if duration_s is not None and getattr(NAVIGATORS[name], "budgets_time", False):
-        options["duration_s"] = duration_s
     try:
         return NAVIGATORS[name](seed=seed, **options)
     except TypeError as error:

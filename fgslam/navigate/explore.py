@@ -163,7 +163,6 @@ class Explore:
     """The ``explore`` navigator (module docstring)."""
 
     name = "explore"
-    budgets_time = True  # takes the run's length (make_navigator's duration_s)
 
     def __init__(self, *, seed: int = 0, grid: OccupancyGrid | None = None, replan_s: float = 1.0,
                  reach_m: float = 0.35, stuck_s: float = 6.0, progress_m: float = 0.15, revisit_gap_s: float = 20.0,
@@ -171,9 +170,7 @@ class Explore:
                  blacklist_s: float = 60.0, explored_range_m: float = 3.0, read_range_m: float = 2.5,
                  read_incidence_rad: float = math.radians(55), inspect_weight: float = 1.0,
                  glance_range_m: float = 2.8, glance_facing_rad: float = math.radians(45), lookahead_m: float = 0.8,
-                 view_m=(1.0, 1.5, 2.0, 2.5), tile_m: float = 1.0, glance_still_s: float = 2.0, spot_s: float = 5.0,
-                 duration_s: float | None = None, reserve_s: float = 90.0, first_landmark_weight: float = 1.0,
-                 late_explore_weight: float = 2.0):
+                 view_m=(1.0, 1.5, 2.0, 2.5), tile_m: float = 1.0, glance_still_s: float = 2.0, spot_s: float = 5.0):
         self.rng = np.random.default_rng(seed)
         self.grid = grid if grid is not None else OccupancyGrid()
         # the floor counts as explored only where the tag detector could have read a tag
@@ -191,9 +188,6 @@ class Explore:
         self.glance_range_m, self.glance_facing_rad = glance_range_m, glance_facing_rad
         self.lookahead_m, self.view_m, self.tile_m = lookahead_m, tuple(view_m), tile_m
         self.glance_still_s = glance_still_s
-        # the run's length, when known: discover first, revisit in the last ``reserve_s``
-        self.duration_s, self.reserve_s, self._first_s = duration_s, reserve_s, None  # (the first step's time)
-        self.first_landmark_weight, self.late_explore_weight = first_landmark_weight, late_explore_weight
         self._glance_failed: dict[int, float] = {}  # landmark: no glance at it before then
         self._glance_check = False  # look for a glance on the next free step (after a refresh)
         self._targets: list[tuple[float, float, float]] = []  # inspection targets: x, y, facing
@@ -395,18 +389,7 @@ class Explore:
         goal.xy, goal.resolved = view, True
         return True
 
-    def _kind_weights(self, now_s: float | None) -> dict[str, float]:
-        """The cost weight per kind of goal. With the run's length known, landmark revisits
-        weigh ``first_landmark_weight`` until the last ``reserve_s``, then ``landmark_weight``
-        against frontiers and surfaces weighted ``late_explore_weight``."""
-        if self.duration_s is None or now_s is None:
-            return {"inspect": self.inspect_weight, "landmark": self.landmark_weight}
-        if now_s - (self._first_s or 0.0) < self.duration_s - self.reserve_s:
-            return {"inspect": self.inspect_weight, "landmark": self.first_landmark_weight}
-        late = self.late_explore_weight
-        return {"frontier": late, "inspect": late * self.inspect_weight, "landmark": self.landmark_weight}
-
-    def _costs_m(self, pose, goals: list[Goal], now_s: float | None = None) -> np.ndarray:
+    def _costs_m(self, pose, goals: list[Goal]) -> np.ndarray:
         """:func:`goal_cost_m` per goal, with the way's length over the floor for the straight
         distance (:meth:`way_lengths_m`), weighted by the goal's kind."""
         if not goals:
@@ -416,8 +399,8 @@ class Explore:
         way = self.way_lengths_m(xy)
         way = np.where(np.isnan(way), straight, way)
         turn = np.abs(wrap_angle(np.arctan2(xy[:, 1] - pose[1], xy[:, 0] - pose[0]) - pose[2]))
-        weights = self._kind_weights(now_s)
-        weight = np.array([weights.get(g.kind, 1.0) for g in goals])
+        weight = np.array([{"inspect": self.inspect_weight, "landmark": self.landmark_weight}.get(g.kind, 1.0)
+                           for g in goals])
         return weight * (way + self.turn_cost * turn)
 
     def _choose(self, situation: Situation, tries: int = 2) -> Goal | None:
@@ -433,7 +416,7 @@ class Explore:
         goals = [g for g, a, b in zip(goals, listed[:len(goals)], listed[len(goals):])
                  if not a and not (b and g.kind == "inspect")]  # an inspection's surface banned too
         # a goal the known floor leads not to (yet) is left for later
-        offers = [(cost, g) for cost, g in zip(self._costs_m(pose, goals, situation.now_s), goals) if cost < math.inf]
+        offers = [(cost, g) for cost, g in zip(self._costs_m(pose, goals), goals) if cost < math.inf]
         if not offers:  # explored and every landmark visited: go back to the one seen longest ago
             returns = [g for g in self._landmark_goals(situation, stale_only=False)
                        if not self._listed(g.xy, situation.now_s)]
@@ -531,7 +514,6 @@ class Explore:
         return situation.now_s - goal.improved_s <= self.stuck_s
 
     def step(self, situation: Situation) -> Command:
-        self._first_s = situation.now_s if self._first_s is None else self._first_s
         fresh_scan = self.vfh.observe(situation)
         self.visits.update(situation.sightings, situation.now_s, situation.landmarks, situation.pose[:2])
         if situation.bumped and not self.vfh.backoff.active:
