@@ -371,7 +371,7 @@ def fit_without_truth(logs: list[RunLog], progress=None, *,
             depth, bias, costs = profile_range_model(graphs, theta)
             camera = {"range_is_depth": depth, "range_bias_m": bias}
         if radio_scale:
-            scale, cost = profile_range_scale(graphs, theta)
+            scale, cost = profile_range_scale(graphs, theta, progress)
             camera, costs = {"range_scale": scale}, {"range": (scale, cost)}
         if scales:
             found = profile_scales(graphs, theta, found)

@@ -99,23 +99,36 @@ def profile_range_model(graphs: list[RunGraph], theta: np.ndarray) -> tuple[bool
 
 #: A radio's range scale searched without truth: first step and bounds.
 RANGE_SCALE_STEP, RANGE_SCALE_BOUNDS = 0.02, (0.8, 1.25)
+#: The most solves :func:`profile_range_scale` makes: two line searches of at most
+#: 1 + 2 × 8 costs each (:func:`line_search`), and the last at the result.
+RANGE_SCALE_SOLVES = 35
 
 
-def profile_range_scale(graphs: list[RunGraph], theta: np.ndarray) -> tuple[float, float]:
+def profile_range_scale(graphs: list[RunGraph], theta: np.ndarray, progress=None) -> tuple[float, float]:
     """The scale of range-only readings (``measured = scale · distance``: a radio's time of
     flight read long or short) most likely for the whole run (θ held), against the log's
     odometry: with nothing else to measure distance, only the ratio of the two scales shows,
     and the odometry as read is taken as the gauge. ``(scale, cost)``; the graphs are left
     with their ranges re-read under it. On Plaza1 and Plaza2 each run alone gives
-    1.065–1.068, where GPS says 1.069–1.070 (docs/results-datasets.md)."""
+    1.065–1.068, where GPS says 1.069–1.070 (docs/results-datasets.md).
+    ``progress(done, total, label)`` after each solve (at most :data:`RANGE_SCALE_SOLVES`)."""
+    solves = 0
+
     def cost(scale: float) -> float:
+        nonlocal solves
         for run in graphs:
             run.set_range_scale(scale)
-        return sum(run.range_model_cost(theta) for run in graphs)
+        total = sum(run.range_model_cost(theta) for run in graphs)
+        solves += 1
+        if progress is not None:
+            progress(min(solves, RANGE_SCALE_SOLVES), RANGE_SCALE_SOLVES, "noise fit: range scale")
+        return total
 
     scale = line_search(cost, 1.0, RANGE_SCALE_STEP, RANGE_SCALE_BOUNDS)
     scale = line_search(cost, scale, 0.3 * RANGE_SCALE_STEP, RANGE_SCALE_BOUNDS)
     found = cost(scale)  # also leaves the graphs at it
+    if progress is not None:
+        progress(RANGE_SCALE_SOLVES, RANGE_SCALE_SOLVES, "noise fit: range scale")
     return scale, found
 
 
