@@ -98,18 +98,25 @@ class CapChoice:
     def held_back(self, isam) -> gtsam.KeyList:
         """What the check of ``isam``'s next update is not to relinearise (the same keys as
         reading them all back and ranking by ratio, ties by key: tested)."""
-        self._sync(isam)
-        if not self._keys:
+        ratio = self.ratios(isam)
+        if ratio is None:
             return gtsam.KeyList()
-        step = np.abs(np.asarray(isam.getDelta().vector(self._keys)).ravel())
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ratio = np.maximum.reduceat(np.where(self._thresholds > 0, step / self._thresholds, np.inf), self._starts)
         past = np.flatnonzero(ratio >= 1.0)
         if len(past) <= self._max_variables:
             return gtsam.KeyList()
         keys = self._array[past]
         chosen = keys[np.lexsort((keys, -ratio[past]))][self._max_variables:]  # by ratio, then by key
         return key_list(chosen)
+
+    def ratios(self, isam) -> np.ndarray | None:
+        """Each variable's largest pending step over its threshold (inf at a zero threshold),
+        in the order of the kept keys; None when ``isam`` holds no variable."""
+        self._sync(isam)
+        if not self._keys:
+            return None
+        step = np.abs(np.asarray(isam.getDelta().vector(self._keys)).ravel())
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.maximum.reduceat(np.where(self._thresholds > 0, step / self._thresholds, np.inf), self._starts)
 
     def _sync(self, isam) -> None:
         size = isam.getLinearizationPoint().size()

@@ -40,12 +40,9 @@ def aged_held_back(max_age: int, landmarks_exempt: bool):
     """CapChoice.held_back that also holds back the variables older than ``max_age``."""
 
     def held_back(self: CapChoice, isam) -> gtsam.KeyList:
-        self._sync(isam)
-        if not self._keys:
+        ratio = self.ratios(isam)
+        if ratio is None:
             return gtsam.KeyList()
-        step = np.abs(np.asarray(isam.getDelta().vector(self._keys)).ravel())
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ratio = np.maximum.reduceat(np.where(self._thresholds > 0, step / self._thresholds, np.inf), self._starts)
         age = len(self._keys) - 1 - np.arange(len(self._keys))
         old = age > max_age
         if landmarks_exempt:
