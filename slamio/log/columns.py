@@ -227,6 +227,22 @@ def step_stamps(steps: Sequence[Step]) -> np.ndarray:
     return np.array([step.stamp_s for step in steps], dtype=float)
 
 
+def records_kept(stream: LogStream, visit: Callable[[Record], None] | None, rejected: list[Rejected],
+                 kept: list[Record], keep: tuple[type, ...]) -> Iterator[Record]:
+    """``stream``'s records for the steps: a rejected observation goes to ``rejected``
+    instead; each other record is shown to ``visit`` and, when of a type in ``keep`` (what
+    the steps do not carry: truth landmarks, events), also put in ``kept``."""
+    for item in stream:
+        if type(item) is Rejected:
+            rejected.append(item)
+            continue
+        if visit is not None:
+            visit(item)
+        if type(item) in keep:
+            kept.append(item)
+        yield item
+
+
 def columns_of(stream: LogStream, visit: Callable[[Record], None] | None = None) -> ColumnLog:
     """The planar log ``stream`` (its header read, no record yet) read to its end into a
     :class:`ColumnLog`; ``visit`` sees every record kept, in file order (e.g. to count them).
@@ -235,20 +251,8 @@ def columns_of(stream: LogStream, visit: Callable[[Record], None] | None = None)
         raise ValueError(f"{stream.path} is a 3-D log; columns hold a planar log's steps")
     rejected: list[Rejected] = []
     kept: list[Record] = []
-
-    def records() -> Iterator[Record]:
-        for item in stream:
-            if type(item) is Rejected:
-                rejected.append(item)
-                continue
-            if visit is not None:
-                visit(item)
-            if type(item) in (TruthLandmark, Event):
-                kept.append(item)
-            yield item
-
     columns = StepColumns()
-    for step in iter_steps(stream.header, records()):
+    for step in iter_steps(stream.header, records_kept(stream, visit, rejected, kept, (TruthLandmark, Event))):
         columns.append(step)
     return ColumnLog(stream.path, stream.header, columns, tuple(r for r in kept if type(r) is TruthLandmark),
                      tuple(r for r in kept if type(r) is Event), stream.truncated, tuple(rejected))

@@ -29,9 +29,9 @@ import math
 import os
 from array import array
 from dataclasses import dataclass
-from typing import Callable, Iterator, Sequence
+from typing import Callable, Sequence
 
-from slamio.log.columns import ColumnLogMethods, StepSequence
+from slamio.log.columns import ColumnLogMethods, StepSequence, records_kept
 from slamio.log.read import LogStream
 from slamio.log.records import Header, Record, Rejected, Step, iter_steps
 from slamio.log.records3d import StereoObservation, TruthLandmark3, TruthPose3, VelocityOdometry
@@ -176,21 +176,9 @@ def columns3d_of(stream: LogStream, visit: Callable[[Record], None] | None = Non
     if not stream.header.is_3d:
         raise ValueError(f"{stream.path} is a planar log; these columns hold a 3-D log's steps")
     rejected: list[Rejected] = []
-    landmarks: list[TruthLandmark3] = []
-
-    def records() -> Iterator[Record]:
-        for item in stream:
-            if type(item) is Rejected:
-                rejected.append(item)
-                continue
-            if visit is not None:
-                visit(item)
-            if type(item) is TruthLandmark3:
-                landmarks.append(item)
-            yield item
-
+    landmarks: list[Record] = []
     columns = StepColumns3d()
-    for step in iter_steps(stream.header, records()):
+    for step in iter_steps(stream.header, records_kept(stream, visit, rejected, landmarks, (TruthLandmark3,))):
         columns.append(step)
     return ColumnLog3d(stream.path, stream.header, columns, tuple(landmarks), stream.truncated, tuple(rejected))
 
