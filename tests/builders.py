@@ -6,6 +6,10 @@ import json
 import time
 
 from slamio.log import Header, read_log, write_log
+from slamio.sim3d import DriveScenario
+
+#: The short drive of :func:`write_small_drive`.
+SMALL_DRIVE = DriveScenario(straight_m=40.0, side_m=25.0)
 
 
 def wait_for(predicate, timeout_s=30.0):
@@ -83,3 +87,30 @@ def sim_steps(sim, seconds: float) -> None:
 
     for _ in range(round(seconds / STEP_S)):
         sim.step()
+
+
+def retained_bytes(read, path) -> int:
+    """What the result of ``read(path)`` holds in memory (tracemalloc), bytes."""
+    import gc
+    import tracemalloc
+
+    gc.collect()
+    tracemalloc.start()
+    try:
+        kept = read(path)
+        size, _ = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    del kept
+    return size
+
+
+def write_small_drive(path):
+    """A short simulated stereo + IMU drive (seed 5, 40 m × 25 m) written as a 3-D log at
+    ``path``; returns ``path``."""
+    from slamio.datasets.seed003_log import drive_to_log
+    from slamio.sim3d import simulate_drive
+
+    header, records = drive_to_log(simulate_drive(5, SMALL_DRIVE), source={"generator": "test"})
+    write_log(path, header, records)
+    return path

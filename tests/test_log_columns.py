@@ -7,7 +7,6 @@ import dataclasses
 import gc
 import json
 import os
-import tracemalloc
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +19,7 @@ from fgslam.runner import compare_log, truth_trajectory
 from slamio.log import LogFormatError, LogStream, Observation, event_counts, read_log, write_log
 from slamio.log.columns import ColumnLog, StepColumns, columns_of, read_columns, step_stamps
 from slamio.sim import simulate
+from builders import retained_bytes
 from test_log import headers, records_in_time_order
 
 DATA = Path(__file__).resolve().parent.parent / "data"
@@ -112,19 +112,6 @@ def test_a_3d_log_is_refused():
 
     with pytest.raises(ValueError, match="drive.jsonl is a 3-D log"):
         columns_of(Stream())  # type: ignore[arg-type]
-
-
-def retained_bytes(read, path) -> int:
-    """What the result of ``read(path)`` holds in memory (tracemalloc), bytes."""
-    gc.collect()
-    tracemalloc.start()
-    try:
-        kept = read(path)
-        size, _ = tracemalloc.get_traced_memory()
-    finally:
-        tracemalloc.stop()
-    del kept
-    return size
 
 
 def test_columns_hold_less_than_half_the_file_where_records_hold_more_than_twice_it(tmp_path):

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import math
-import tracemalloc
 
 import numpy as np
 import pytest
@@ -15,15 +14,12 @@ from hypothesis import strategies as st
 from ekf.drive3d import step_inputs
 from fgslam.noise3d import noise_of
 from fgslam.runner3d import compute_metrics_3d, run_log3d, truth_landmarks3, truth_reference_3d
-from slamio.datasets.seed003_log import drive_to_log
 from slamio.log import LiveStep, LogFormatError, LogStream, read_log, write_log
 from slamio.log import StereoObservation, TruthLandmark3, TruthPose3, VelocityOdometry
 from slamio.log.columns import step_stamps
 from slamio.log.columns3d import ColumnLog3d, StepColumns3d, columns3d_of, read_columns3d, step_truths
-from slamio.sim3d import DriveScenario, simulate_drive
+from builders import retained_bytes, write_small_drive
 from test_log3d import HEADER, covariances4, covariances6, unit_quaternions
-
-SMALL = DriveScenario(straight_m=40.0, side_m=25.0)
 
 
 def assert_same_log(path) -> ColumnLog3d:
@@ -113,10 +109,7 @@ def test_covariances_that_differ_in_the_sign_of_a_zero_stay_apart(tmp_path):
 
 @pytest.fixture(scope="module")
 def small_log(tmp_path_factory):
-    path = tmp_path_factory.mktemp("columns3d") / "small.jsonl"
-    header, records = drive_to_log(simulate_drive(5, SMALL), source={"generator": "test"})
-    write_log(path, header, records)
-    return path
+    return write_small_drive(tmp_path_factory.mktemp("columns3d") / "small.jsonl")
 
 
 def test_a_simulated_drive_reads_into_the_same_steps_and_truth(small_log):
@@ -185,18 +178,6 @@ def test_a_stream_read_into_columns_is_read_once(small_log):
     seen: list = []
     columns3d_of(LogStream(small_log), visit=seen.append)
     assert seen == list(read_log(small_log).records)
-
-
-def retained_bytes(read, path) -> int:
-    """What the result of ``read(path)`` holds in memory (tracemalloc), bytes."""
-    tracemalloc.start()
-    try:
-        kept = read(path)
-        size, _ = tracemalloc.get_traced_memory()
-    finally:
-        tracemalloc.stop()
-    del kept
-    return size
 
 
 def test_columns_hold_a_fraction_of_what_records_hold(small_log):

@@ -24,22 +24,18 @@ from fgslam.runner3d import (
     parse_estimator_names_3d,
     position_rmse_m,
 )
-from slamio.datasets.seed003_log import drive_to_log
 from slamio.errors import FgslamError
 from slamio.log import read_log, write_log
 from slamio.log import StereoObservation
 from slamio.se3 import exp_se3
-from slamio.sim3d import DriveScenario, simulate_drive
+from slamio.sim3d import simulate_drive
 
-SMALL = DriveScenario(straight_m=40.0, side_m=25.0)
+from builders import SMALL_DRIVE as SMALL, write_small_drive
 
 
 @pytest.fixture(scope="module")
 def small_log(tmp_path_factory):
-    path = tmp_path_factory.mktemp("log3d") / "small.jsonl"
-    header, records = drive_to_log(simulate_drive(5, SMALL), source={"generator": "test"})
-    write_log(path, header, records)
-    return path
+    return write_small_drive(tmp_path_factory.mktemp("log3d") / "small.jsonl")
 
 
 @pytest.fixture(scope="module")
