@@ -29,8 +29,22 @@ def assert_same_log(path) -> ColumnLog:
     """``read_columns(path)`` answers as ``read_log(path)`` does, step for step and type for type."""
     log, columns = read_log(path), read_columns(path)
     steps, table = log.steps(), columns.steps()
-    assert isinstance(table, StepColumns) and len(table) == len(steps)
-    assert repr(list(table)) == repr(steps)  # repr: the same values of the same types (1.0 is not 1)
+    assert isinstance(table, StepColumns)
+    assert_same_steps_and_notes(log, columns)
+    for ours, theirs in zip(truth_trajectory(table), truth_trajectory(steps)):  # from the columns / the steps
+        np.testing.assert_array_equal(ours, theirs)
+    assert columns.truth_landmarks() == log.truth_landmarks()
+    assert event_counts(columns.events) == event_counts(log.records)
+    return columns
+
+
+def assert_same_steps_and_notes(log, columns) -> None:
+    """What a planar and a 3-D log in columns both answer as the records do: the steps as a
+    sequence (values and types: repr tells -0.0 from 0.0 and 1.0 from 1), their stamps and
+    observation count, motion, and the notes on what was cut off or rejected."""
+    steps, table = log.steps(), columns.steps()
+    assert len(table) == len(steps)
+    assert repr(list(table)) == repr(steps)
     assert list(table) == steps
     assert repr(table[len(steps) // 2]) == repr(steps[len(steps) // 2]) and repr(table[-1]) == repr(steps[-1])
     assert repr(table[1:4]) == repr(steps[1:4])
@@ -38,14 +52,9 @@ def assert_same_log(path) -> ColumnLog:
         table[len(steps)]
     assert table.observation_count == sum(len(s.observations) for s in steps)
     np.testing.assert_array_equal(step_stamps(table), step_stamps(steps))
-    for ours, theirs in zip(truth_trajectory(table), truth_trajectory(steps)):  # from the columns / the steps
-        np.testing.assert_array_equal(ours, theirs)
-    assert columns.truth_landmarks() == log.truth_landmarks()
-    assert event_counts(columns.events) == event_counts(log.records)
     assert columns.has_motion() == log.has_motion()
     assert (columns.truncated, columns.rejected) == (log.truncated, log.rejected)
     assert columns.rejection_summary() == log.rejection_summary()
-    return columns
 
 
 @pytest.mark.parametrize("name", ["arena_square.jsonl", "arena_octagon.jsonl"])

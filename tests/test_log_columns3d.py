@@ -16,9 +16,9 @@ from fgslam.noise3d import noise_of
 from fgslam.runner3d import compute_metrics_3d, run_log3d, truth_landmarks3, truth_reference_3d
 from slamio.log import LiveStep, LogFormatError, LogStream, read_log, write_log
 from slamio.log import StereoObservation, TruthLandmark3, TruthPose3, VelocityOdometry
-from slamio.log.columns import step_stamps
 from slamio.log.columns3d import ColumnLog3d, StepColumns3d, columns3d_of, read_columns3d, step_truths
 from builders import retained_bytes, write_small_drive
+from test_log_columns import assert_same_steps_and_notes
 from test_log3d import HEADER, covariances4, covariances6, unit_quaternions
 
 
@@ -26,24 +26,14 @@ def assert_same_log(path) -> ColumnLog3d:
     """``read_columns3d(path)`` answers as ``read_log(path)`` does, step for step and type for type."""
     log, columns = read_log(path), read_columns3d(path)
     steps, table = log.steps(), columns.steps()
-    assert isinstance(table, StepColumns3d) and len(table) == len(steps)
-    assert repr(list(table)) == repr(steps)  # repr: the same values of the same types (-0.0 is not 0.0)
-    assert list(table) == steps
-    assert repr(table[len(steps) // 2]) == repr(steps[len(steps) // 2]) and repr(table[-1]) == repr(steps[-1])
-    assert repr(table[1:4]) == repr(steps[1:4])
-    with pytest.raises(IndexError):
-        table[len(steps)]
-    assert table.observation_count == sum(len(s.observations) for s in steps)
-    np.testing.assert_array_equal(step_stamps(table), step_stamps(steps))
+    assert isinstance(table, StepColumns3d)
+    assert_same_steps_and_notes(log, columns)
     assert repr(step_truths(table)) == repr(step_truths(steps))
     pixels = {(o.sigma_px, o.covariance_px2) for s in steps for o in s.observations}
     twists = {s.odometry.covariance for s in steps if s.odometry is not None}
     assert table.noise_levels() == (pixels, twists)
     assert truth_landmarks3(columns) == truth_landmarks3(log)
     assert columns.truth_landmarks() == {r.landmark_id: r for r in truth_landmarks3(log)}
-    assert columns.has_motion() == log.has_motion()
-    assert (columns.truncated, columns.rejected) == (log.truncated, log.rejected)
-    assert columns.rejection_summary() == log.rejection_summary()
     for ours, theirs in zip(step_inputs(table), step_inputs(steps)):
         assert repr(ours) == repr(theirs)
     return columns
