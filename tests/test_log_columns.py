@@ -96,20 +96,28 @@ def test_rejected_readings_and_a_cut_off_last_line_as_read_log(tmp_path):
     assert columns.rejected and columns.truncated
 
 
-def test_a_bad_line_is_the_same_error_as_read_log(tmp_path):
-    lines = (DATA / "arena_square.jsonl").read_text().splitlines()
-    number = next(i for i, line in enumerate(lines) if '"observation"' in line and i > 30) + 1
+def both_errors(source, tmp_path, kind: str, edit, read):
+    """(path, line number, read_log's error, ``read``'s error) of the log ``source`` with its
+    first ``kind`` record past line 30 changed by ``edit(record)``."""
+    lines = source.read_text().splitlines()
+    number = next(i for i, line in enumerate(lines) if f'"{kind}"' in line and i > 30) + 1
     record = json.loads(lines[number - 1])
-    record["range_m"] = "far"
+    edit(record)
     lines[number - 1] = json.dumps(record)
     path = tmp_path / "bad.jsonl"
     path.write_text("\n".join(lines) + "\n")
     with pytest.raises(LogFormatError) as expected:
         read_log(path)
     with pytest.raises(LogFormatError) as got:
-        read_columns(path)
-    assert str(got.value) == str(expected.value) and got.value.line == expected.value.line == number
-    assert str(got.value).startswith(f"{path}:{number}: field 'range_m'")
+        read(path)
+    return path, number, expected.value, got.value
+
+
+def test_a_bad_line_is_the_same_error_as_read_log(tmp_path):
+    path, number, expected, got = both_errors(DATA / "arena_square.jsonl", tmp_path, "observation",
+                                              lambda record: record.update(range_m="far"), read_columns)
+    assert str(got) == str(expected) and got.line == expected.line == number
+    assert str(got).startswith(f"{path}:{number}: field 'range_m'")
 
 
 def test_a_3d_log_is_refused():

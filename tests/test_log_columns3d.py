@@ -3,7 +3,6 @@ same errors (file:line and the field), less memory, and a run on it with the sam
 
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
@@ -14,11 +13,11 @@ from hypothesis import strategies as st
 from ekf.drive3d import step_inputs
 from fgslam.noise3d import noise_of
 from fgslam.runner3d import compute_metrics_3d, run_log3d, truth_landmarks3, truth_reference_3d
-from slamio.log import LiveStep, LogFormatError, LogStream, read_log, write_log
+from slamio.log import LiveStep, LogStream, read_log, write_log
 from slamio.log import StereoObservation, TruthLandmark3, TruthPose3, VelocityOdometry
 from slamio.log.columns3d import ColumnLog3d, StepColumns3d, columns3d_of, read_columns3d, step_truths
 from builders import retained_bytes, write_small_drive
-from test_log_columns import assert_same_steps_and_notes
+from test_log_columns import assert_same_steps_and_notes, both_errors
 from test_log3d import HEADER, covariances4, covariances6, unit_quaternions
 
 
@@ -119,38 +118,22 @@ def test_a_cut_off_last_line_as_read_log(small_log, tmp_path):
     assert columns.truncated and columns.truncated.startswith(f"{path}:")
 
 
-def _both_errors(small_log, tmp_path, kind: str, edit):
-    """(path, line number, read_log's error, read_columns3d's error) of the small log with its
-    first ``kind`` record past line 30 changed by ``edit(record)``."""
-    lines = small_log.read_text().splitlines()
-    number = next(i for i, line in enumerate(lines) if f'"{kind}"' in line and i > 30) + 1
-    record = json.loads(lines[number - 1])
-    edit(record)
-    lines[number - 1] = json.dumps(record)
-    path = tmp_path / "bad.jsonl"
-    path.write_text("\n".join(lines) + "\n")
-    with pytest.raises(LogFormatError) as expected:
-        read_log(path)
-    with pytest.raises(LogFormatError) as got:
-        read_columns3d(path)
-    return path, number, expected.value, got.value
-
-
 @pytest.mark.parametrize("field, value, words", [
     ("u_left_px", "left", "field 'u_left_px'"),
     ("sigma_px", -1.0, "'sigma_px'"),
     ("track_id", 1.5, "field 'track_id' must be an integer"),
 ])
 def test_a_bad_line_is_the_same_error_as_read_log(small_log, tmp_path, field, value, words):
-    path, number, expected, got = _both_errors(small_log, tmp_path, "stereo_observation",
-                                               lambda record: record.__setitem__(field, value))
+    path, number, expected, got = both_errors(small_log, tmp_path, "stereo_observation",
+                                              lambda record: record.__setitem__(field, value), read_columns3d)
     assert str(got) == str(expected) and got.line == expected.line == number
     assert str(got).startswith(f"{path}:{number}: ") and words in str(got)
 
 
 def test_a_bad_velocity_interval_is_the_same_error_as_read_log(small_log, tmp_path):
-    _, number, expected, got = _both_errors(small_log, tmp_path, "velocity_odometry",
-                                            lambda record: record.__setitem__("dt_s", 2.0 * record["dt_s"]))
+    _, number, expected, got = both_errors(small_log, tmp_path, "velocity_odometry",
+                                           lambda record: record.__setitem__("dt_s", 2.0 * record["dt_s"]),
+                                           read_columns3d)
     assert str(got) == str(expected) and f":{number}: field 'dt_s'" in str(got)
 
 
