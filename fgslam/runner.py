@@ -30,7 +30,7 @@ import scipy.linalg  # noqa: F401  (scipy's own BLAS is loaded now, so the threa
 from threadpoolctl import threadpool_limits
 
 from fgslam.compare import NIS_DOF, EstimatorRun, Reference, relabel_landmarks, score_associations
-from fgslam.consistency_sample import ConsistencySample, sample_of_steps
+from fgslam.consistency_sample import ConsistencySample, every_step, sample_of_steps
 from fgslam.failure import EstimatorFailed, EstimatorFailure, StepWatch, check_finite, reason_of
 from fgslam.memory import PeakMemory
 from fgslam.registry import DEFAULTS, REGISTRY, isam2_names, names_for, parse_names
@@ -157,6 +157,7 @@ def run_estimator(
     (:func:`fgslam.failure.check_finite`), is raised as :class:`fgslam.failure.EstimatorFailed`
     naming the estimator, the step and the reason.
     """
+    sample = every_step(len(steps)) if sample is None else sample
     trace = _Trace(len(steps), covariances and hasattr(estimator, "current_covariance"),
                    covariances and hasattr(estimator, "predicted_nis"), hasattr(estimator, "step_associations"),
                    sample)
@@ -195,13 +196,11 @@ def run_estimator(
     return run, estimator
 
 
-def _consistency_description(trace: "_Trace", sample: ConsistencySample | None, covariances: bool) -> dict | None:
+def _consistency_description(trace: "_Trace", sample: ConsistencySample, covariances: bool) -> dict | None:
     """What metrics.json says of the steps the NEES and NIS were taken at (None: not taken)."""
     if not covariances or (trace.pose_covariances is None and not trace.with_nis):
         return None
-    n = len(trace.step_times_s)
-    return {"mode": "all", "seed": None, "steps": n, "nees_steps": n, "nis_steps": n} if sample is None \
-        else sample.description()
+    return sample.description()
 
 
 class _Trace:
@@ -209,16 +208,13 @@ class _Trace:
     outside the timed region the pose covariances, the NIS values and the association keys."""
 
     def __init__(self, n: int, with_covariance: bool, with_nis: bool, associating: bool,
-                 sample: ConsistencySample | None = None) -> None:
+                 sample: ConsistencySample) -> None:
         self.online = np.empty((n, 3))
         self.step_times_s = np.empty(n)
         self.step_cpu_s = 0.0  # time.thread_time of the steps and finish()
         self.consistency_cpu_s = 0.0  # time.thread_time of the NIS and covariance work
-        self.pose_covariances = (np.empty((n, 3, 3)) if sample is None else np.full((n, 3, 3), np.nan)) \
-            if with_covariance else None
-        everywhere = np.ones(n, dtype=bool)
-        self.nees_at = everywhere if sample is None else sample.nees  # the steps to take each at
-        self.nis_at = everywhere if sample is None else sample.nis
+        self.pose_covariances = np.full((n, 3, 3), np.nan) if with_covariance else None  # NaN where not taken
+        self.nees_at, self.nis_at = sample.nees, sample.nis  # the steps to take each at
         self.with_nis = with_nis
         self.associating = associating
         self.nis_values: list[float] = []
