@@ -25,6 +25,7 @@ from fgslam.compare import nees_band
 from fgslam.memory import PeakMemory
 from fgslam.runner import run_estimator
 from fgslam.smoother import FAST_SETTINGS, Isam2Smoother, odometry_noise_covariance
+from jacobians import numeric_jacobian
 from slamio.geometry import wrap_angle
 from slamio.log import Step, read_log
 
@@ -36,16 +37,6 @@ def log():
     return read_log(BUNDLED)
 
 
-def _numerical_jacobian(f, x, eps=1e-6):
-    x = np.asarray(x, dtype=float)
-    cols = []
-    for i in range(len(x)):
-        dx = np.zeros_like(x)
-        dx[i] = eps
-        d = f(x + dx) - f(x - dx)
-        d[1] = wrap_angle(d[1])
-        cols.append(d / (2 * eps))
-    return np.column_stack(cols)
 
 
 def _measure(state, landmark_index=3):
@@ -61,7 +52,7 @@ def test_range_bearing_nis_matches_the_formula():
         joint = 0.01 * A @ A.T + 1e-4 * np.eye(5)
         R = np.diag([0.02**2, 0.01**2])
         z = _measure(np.r_[pose, landmark]) + rng.normal(0, 0.05, 2)
-        H = _numerical_jacobian(_measure, np.r_[pose, landmark])
+        H = numeric_jacobian(_measure, np.r_[pose, landmark], angle_rows=(1,))
         nu = z - _measure(np.r_[pose, landmark])
         nu[1] = wrap_angle(nu[1])
         expected = nu @ np.linalg.solve(H @ joint @ H.T + R, nu)
@@ -89,7 +80,7 @@ def test_ekf_predicted_nis_equals_a_full_state_computation(log):
                 def h(state, i=i):
                     return np.array(range_bearing(state[:3], state[i : i + 2]))
 
-                H = _numerical_jacobian(h, mean)
+                H = numeric_jacobian(h, mean, angle_rows=(1,))
                 nu = np.array([obs.range_m, obs.bearing_rad]) - h(mean)
                 nu[1] = wrap_angle(nu[1])
                 S = H @ P @ H.T + np.diag([obs.sigma_range_m**2, obs.sigma_bearing_rad**2])

@@ -35,6 +35,7 @@ from ekf.signature_ekf import (
 )
 from slamio.geometry import arc_increment, wrap_angle
 from builders import minimal_header as make_header
+from jacobians import numeric_jacobian
 from slamio.log import Observation, Odometry, Step, group_steps
 from slamio.sim import simulate
 
@@ -71,22 +72,41 @@ def step(index, odometry=None, observations=()):
     return Step(index, float(index), odometry, tuple(observations), None)
 
 
-def numeric_jacobian(f, x, angle_rows=(), h=1e-6):
-    """Central differences of f at x; output rows in ``angle_rows`` are wrapped."""
-    x = np.asarray(x, dtype=float)
-    f0 = np.atleast_1d(f(x))
-    J = np.zeros((f0.size, x.size))
-    for j in range(x.size):
-        d = np.zeros_like(x)
-        d[j] = h
-        diff = np.atleast_1d(f(x + d)) - np.atleast_1d(f(x - d))
-        for r in angle_rows:
-            diff[r] = wrap_angle(diff[r])
-        J[:, j] = diff / (2.0 * h)
-    return J
 
 
 # --------------------------------------------------------------------------- the hand computation
+
+
+def hand_expected(mu, with_s):
+    """Expected (range, bearing[, signature]) of the hand scene's landmark."""
+    dx, dy = mu[3] - mu[0], mu[4] - mu[1]
+    z = [math.hypot(dx, dy), wrap_angle(math.atan2(dy, dx) - mu[2])]
+    return np.array(z + [mu[5]] if with_s else z)
+
+
+def hand_jacobian(mu, with_s):
+    """Jacobian of :func:`hand_expected` over the 6-state."""
+    dx, dy = mu[3] - mu[0], mu[4] - mu[1]
+    q = dx * dx + dy * dy
+    rq = math.sqrt(q)
+    rows = [
+        [-dx / rq, -dy / rq, 0, dx / rq, dy / rq, 0],
+        [dy / q, -dx / q, -1, -dy / q, dx / q, 0],
+    ]
+    if with_s:
+        rows.append([0, 0, 0, 0, 0, 1])
+    return np.array(rows, dtype=float)
+
+
+def hand_correct(mu, P, z, with_s, Q):
+    """The paper's correction, lines 4–6 of its algorithm."""
+    Ht = hand_jacobian(mu, with_s)
+    K = P @ Ht.T @ np.linalg.inv(Ht @ P @ Ht.T + Q)
+    nu = z - hand_expected(mu, with_s)
+    nu[1] = wrap_angle(nu[1])
+    mu = mu + K @ nu
+    mu[2] = wrap_angle(mu[2])
+    return mu, (np.eye(6) - K @ Ht) @ P
 
 
 def hand_two_steps(q_power):
@@ -123,32 +143,6 @@ def hand_two_steps(q_power):
     P[3:, 3:] = Gp @ Sigma @ Gp.T + Gz @ Q @ Gz.T
     out.append((mu.copy(), P.copy()))
 
-    def h(mu, with_s):  # expected (range, bearing[, signature])
-        dx, dy = mu[3] - mu[0], mu[4] - mu[1]
-        z = [math.hypot(dx, dy), wrap_angle(math.atan2(dy, dx) - mu[2])]
-        return np.array(z + [mu[5]] if with_s else z)
-
-    def H(mu, with_s):  # Jacobian of h over the 6-state
-        dx, dy = mu[3] - mu[0], mu[4] - mu[1]
-        q = dx * dx + dy * dy
-        rq = math.sqrt(q)
-        rows = [
-            [-dx / rq, -dy / rq, 0, dx / rq, dy / rq, 0],
-            [dy / q, -dx / q, -1, -dy / q, dx / q, 0],
-        ]
-        if with_s:
-            rows.append([0, 0, 0, 0, 0, 1])
-        return np.array(rows, dtype=float)
-
-    def correct(mu, P, z, with_s, Q):  # lines 4–6
-        Ht = H(mu, with_s)
-        K = P @ Ht.T @ np.linalg.inv(Ht @ P @ Ht.T + Q)
-        nu = z - h(mu, with_s)
-        nu[1] = wrap_angle(nu[1])
-        mu = mu + K @ nu
-        mu[2] = wrap_angle(mu[2])
-        return mu, (np.eye(6) - K @ Ht) @ P
-
     # step 1: forward d = 0.5 (eq. 23) → line 2; G of eq. 25 → line 3
     d = 0.5
     th = mu[2]
@@ -161,7 +155,7 @@ def hand_two_steps(q_power):
     P = G @ P @ G.T + Fx.T @ R @ Fx
     z1 = np.array([1.62, 0.47, 0.63])
     Q1 = np.diag(np.array([0.04, 0.015, 0.03]) ** q_power)
-    mu, P = correct(mu, P, z1, True, Q1)
+    mu, P = hand_correct(mu, P, z1, True, Q1)
     out.append((mu.copy(), P.copy()))
 
     # step 2: rotate θ' = −0.2 (eq. 24) → line 2; G = I (eq. 26) → line 3, same R
@@ -170,7 +164,7 @@ def hand_two_steps(q_power):
     P = P + Fx.T @ R @ Fx
     z2 = np.array([1.60, 0.66])
     Q2 = np.diag(np.array([0.04, 0.015]) ** q_power)
-    mu, P = correct(mu, P, z2, False, Q2)
+    mu, P = hand_correct(mu, P, z2, False, Q2)
     out.append((mu.copy(), P.copy()))
     return out, R
 
