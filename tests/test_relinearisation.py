@@ -214,7 +214,7 @@ def test_after_a_rebuild_the_cap_still_falls_on_gtsams_checks():
     checks run uncapped. With every variable past a zero threshold and a cap of 0, no check
     may move a linearisation point (read from GTSAM before and after each update), before
     or after the rebuild."""
-    from test_smoother import junk, make_loop_log, with_extra
+    from loop_logs import junk, make_loop_log, with_extra
 
     header, steps, _, _ = make_loop_log(n_steps=60)
     smoother, records = _capped_at_zero_recording(header)
@@ -235,7 +235,7 @@ def test_after_a_rebuild_the_cap_still_falls_on_gtsams_checks():
 def test_after_a_window_slide_the_cap_still_falls_on_gtsams_checks():
     """The fresh iSAM2 a slide starts (fgslam/smoother/window.py) has had one update, the
     window's: counted as GTSAM counts it, no capped check moves a linearisation point."""
-    from test_smoother import make_loop_log
+    from loop_logs import make_loop_log
 
     header, steps, _, _ = make_loop_log(n_steps=80)
     smoother, records = _capped_at_zero_recording(header, window_poses=10)
@@ -336,7 +336,7 @@ def test_the_kept_keys_choose_what_a_full_read_chooses(settings):
 def test_the_kept_keys_are_read_again_after_a_rebuild_and_a_slide():
     """A rebuilt iSAM2 and a slid window's fresh one are other objects: the keys are read back
     from them, and every choice still matches the full read."""
-    from test_smoother import junk, make_loop_log, with_extra
+    from loop_logs import junk, make_loop_log, with_extra
 
     header, steps, _, _ = make_loop_log(n_steps=80)
     for extra in (dict(), dict(window_poses=10)):
