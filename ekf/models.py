@@ -198,7 +198,23 @@ def range_nis(pose, landmark_xy, joint_covariance, range_m: float, sigma_range_m
 
 
 def normalised_innovation_squared(nu, S) -> float:
-    """``νᵀ S⁻¹ ν`` through S's Cholesky factor; NaN when S is not positive definite."""
+    """``νᵀ S⁻¹ ν`` through S's Cholesky factor; NaN when S is not positive definite.
+
+    A 2×2 S (a range-bearing reading, the common case) is factored in closed form, the
+    same operations as LAPACK's Cholesky and triangular solve (numpy's calls cost more than
+    the sums)."""
+    if len(nu) == 2:
+        (s00, s01), (s10, s11) = np.asarray(S, dtype=float).tolist()
+        if not s00 > 0.0:  # also NaN
+            return float("nan")
+        l00 = math.sqrt(s00)
+        l10 = 0.5 * (s10 + s01) / l00
+        d = s11 - l10 * l10
+        if not d > 0.0:
+            return float("nan")
+        w0 = float(nu[0]) / l00
+        w1 = (float(nu[1]) - l10 * w0) / math.sqrt(d)
+        return w0 * w0 + w1 * w1
     try:
         L = np.linalg.cholesky(0.5 * (S + S.T))
     except np.linalg.LinAlgError:

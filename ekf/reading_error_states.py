@@ -32,15 +32,20 @@ class ReadingErrorStates:
         joint[:3, :3] = P_rr
         joint[:3, 3:] = F @ self._cov[:ROBOT_DIM, rows]
         joint[3:, :3] = joint[:3, 3:].T
-        joint[3:, 3:] = self._cov[np.ix_(rows, rows)]
-        A = np.diag(np.r_[np.ones(5), scale])  # the decay of the two errors
-        joint = A @ joint @ A + np.diag(np.r_[np.zeros(5), added])
-        predicted_range, predicted_bearing = range_bearing(pose, self._mean[i : i + 2])
+        joint[3:, 3:] = self._cov[rows][:, rows]
+        decay = np.ones(7)
+        decay[5:] = scale  # the decay of the two errors: A joint A with A = diag(decay), then their added variance
+        joint = joint * decay[:, None] * decay
+        joint[5, 5] += added[0]
+        joint[6, 6] += added[1]
+        landmark = self._mean[i : i + 2]
+        predicted_range, predicted_bearing = range_bearing(pose, landmark)
         error = scale * self._mean[j : j + 2]
-        nu = np.array([observation.range_m - predicted_range - error[0],
-                       wrap_angle(observation.bearing_rad - predicted_bearing - error[1])])
-        H_pose, H_landmark = range_bearing_jacobians(pose, self._mean[i : i + 2])
-        H = np.hstack([H_pose, H_landmark, np.eye(2)])
+        nu = (observation.range_m - predicted_range - error[0],
+              wrap_angle(observation.bearing_rad - predicted_bearing - error[1]))
+        H = np.empty((2, 7))
+        H[:, :3], H[:, 3:5] = range_bearing_jacobians(pose, landmark)
+        H[:, 5:] = ((1.0, 0.0), (0.0, 1.0))
         S = H @ joint @ H.T + (1.0 - self.reading_error.share) * measurement_covariance(observation)
         return normalised_innovation_squared(nu, S)
 

@@ -5,7 +5,9 @@ For each log this runs ``fgslam run``'s default planar estimators as ``compare_l
 every step (``--consistency all``) and at the seeded sample (the default,
 :mod:`fgslam.consistency_sample`), interleaved, ``--repeats`` times. It prints, by CPU time
 (``time.thread_time``, the machine being shared): the estimators' own steps in each mode, the
-consistency work in each mode and its share of the estimators' own time; then, the honesty
+consistency work in each mode (the NIS before the steps, the covariance after them, and the
+landmark covariances after the run, for the map's ellipses: also shown alone) and its share of
+the estimators' own time; then, the honesty
 test, each estimator's NEES and NIS in-band shares over every step and over the sample, with
 the sample's binomial standard error and the difference in standard errors.
 
@@ -50,8 +52,8 @@ def shares(run, truth, has_pose) -> dict:
 
 
 def measure(path: str, names, repeats: int, sizes=("default",)) -> tuple[dict, dict]:
-    """``(cpu, figures)``: (estimator, mode) → minimum (steps CPU s, consistency CPU s) over the
-    repeats, and (estimator, mode) → :func:`shares` of the last repeat; a mode is ``none``,
+    """``(cpu, figures)``: (estimator, mode) → minimum (steps CPU s, consistency CPU s, of which the
+    landmark covariances after the run) over the repeats, and (estimator, mode) → :func:`shares` of the last repeat; a mode is ``none``,
     ``all``, ``default`` (``fgslam run``'s sample) or a sample size."""
     log = read_columns(path)
     steps = log.steps()
@@ -64,8 +66,9 @@ def measure(path: str, names, repeats: int, sizes=("default",)) -> tuple[dict, d
                 size = None if mode in (*BASE_MODES, "default") else int(mode)
                 sample = sample_of_steps(steps, mode if mode in BASE_MODES else "sampled", size=size)
                 run, _ = run_estimator(ESTIMATORS[name](log.header), steps, covariances=mode != "none", sample=sample)
-                old = cpu.get((name, mode), (np.inf, np.inf))
-                cpu[(name, mode)] = (min(old[0], run.cpu_time_s), min(old[1], run.consistency_cpu_s or 0.0))
+                old = cpu.get((name, mode), (np.inf, np.inf, np.inf))
+                cpu[(name, mode)] = (min(old[0], run.cpu_time_s), min(old[1], run.consistency_cpu_s or 0.0),
+                                     min(old[2], run.map_covariance_cpu_s or 0.0))
                 figures[(name, mode)] = shares(run, truth, has_pose)
     return cpu, figures
 
@@ -84,6 +87,9 @@ def print_costs(label: str, names, cpu: dict, sizes) -> None:
     total = {m: sum(cpu[(n, m)][1] for n in names) for m in modes[1:]}
     print_table_row(label, "all estimators", f"{total_own:.3f}",
                     *(f"{total[m]:.3f} ({100 * total[m] / total_own:.1f} %)" for m in modes[1:]))
+    maps = {m: sum(cpu[(n, m)][2] for n in names) for m in modes[1:]}
+    print_table_row(label, "of which the map's covariances", "",
+                    *(f"{maps[m]:.3f} ({100 * maps[m] / total_own:.1f} %)" for m in modes[1:]))
 
 
 def print_honesty(label: str, names, figures: dict, size: int) -> None:

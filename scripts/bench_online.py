@@ -78,9 +78,14 @@ def logs(spec: str):
         folder, _, robots = spec.split(":", 1)[1].rpartition(":")
         for robot in robots.split(","):
             yield f"{Path(folder).name} robot {robot}", *import_mrclam(folder, int(robot))
+    elif spec.endswith(".jsonl") and Path(spec).is_file():  # a run log (fgslam import …), as fgslam run reads it
+        from slamio.log import read_log
+
+        log = read_log(spec)
+        yield Path(spec).name, log.header, log.records
     else:
-        raise SystemExit(f"unknown log {spec!r}: arena:A-B, arena-laps:SEED:LAPS, victoria-park, plaza1, plaza2, mrclam:FOLDER:R1,R2 "
-                         "or mrclam-fitted:FOLDER:R1,R2")
+        raise SystemExit(f"unknown log {spec!r}: arena:A-B, arena-laps:SEED:LAPS, victoria-park, plaza1, plaza2, mrclam:FOLDER:R1,R2, "
+                         "mrclam-fitted:FOLDER:R1,R2 or a run log's path (.jsonl)")
 
 
 def parse_sets(text: str) -> dict:

@@ -101,6 +101,10 @@ def test_sampled_values_are_the_every_step_values_at_the_sampled_steps(log, make
     np.testing.assert_allclose(sampled.nis, every.nis[keep], rtol=1e-9)
     assert sampled.consistency == sample.description()
     assert sampled.consistency_cpu_s is not None and sampled.cpu_time_s > 0
+    # the map's covariances after the run are consistency work too, counted within it
+    assert sampled.landmark_covariances and 0.0 <= sampled.map_covariance_cpu_s <= sampled.consistency_cpu_s
+    alone, _ = run_estimator(make(log.header), steps, covariances=False)
+    assert alone.consistency_cpu_s is None and alone.map_covariance_cpu_s is None and not alone.landmark_covariances
 
 
 def test_metrics_and_table_say_how_many_steps_and_the_standard_error(log):

@@ -80,7 +80,8 @@ The shape of :func:`compute_metrics`'s dictionary (a 3-D log's run has the same 
          "time_cpu_s": float|None,       # CPU time (time.thread_time) of the steps and
                                          # finish(); None for batch
          "time_consistency_cpu_s": float|None, # CPU time of the NEES/NIS work between the
-                                         # steps (untimed above); None when not taken
+                                         # steps and of the landmark covariances after the
+                                         # run (untimed above); None when not taken
          "steps": int,                   # poses this estimator estimated
          "failure": str|None},           # why its estimate cannot be scored (NaN poses)
      "<estimator that failed mid-run>": {"failed": {"step": int|None, "time_s": float|None,

@@ -93,10 +93,13 @@ class EstimatorRun:
     #: the steps NEES and NIS were taken at (:meth:`fgslam.consistency_sample.ConsistencySample.description`:
     #: mode "all" or "sampled", seed, how many steps of how many); None when they were not taken
     consistency: dict | None = None
-    #: CPU time (``time.thread_time``) of the steps and ``finish()``, and of the NEES/NIS work
-    #: between the steps (None: none was done), seconds; None for a run that did not measure them
+    #: CPU time (``time.thread_time``) of the steps and ``finish()``, and of the consistency work:
+    #: the NEES/NIS between the steps and the landmark covariances after the run (None: none was
+    #: done), seconds; None for a run that did not measure them
     cpu_time_s: float | None = None
     consistency_cpu_s: float | None = None
+    #: of ``consistency_cpu_s``, the landmark covariances after the run (the map's ellipses)
+    map_covariance_cpu_s: float | None = None
 
 
 @dataclass(frozen=True)

@@ -97,6 +97,12 @@ def _end_frame_covariance(Q, dtheta_rad: float) -> np.ndarray:
     """blockdiag(R(dθ)ᵀ, 1) · Q · blockdiag(R(dθ), 1) for a symmetric 3×3 ``Q`` over
     (dx, dy, dθ): the covariance of a relative pose's additive noise expressed, as GTSAM's
     ``BetweenFactorPose2`` error is, in the frame at the end of the relative pose."""
+    xx, xy, xt, yy, yt, f = end_frame_covariance_entries(Q, dtheta_rad)
+    return np.array([[xx, xy, xt], [xy, yy, yt], [xt, yt, f]])
+
+
+def end_frame_covariance_entries(Q, dtheta_rad: float) -> tuple[float, float, float, float, float, float]:
+    """The upper triangle ``(xx, xy, xθ, yy, yθ, θθ)`` of :func:`_end_frame_covariance`, as floats."""
     (a, b, c), (_, d, e), (_, _, f) = Q  # upper triangle
     cos, sin = math.cos(dtheta_rad), math.sin(dtheta_rad)
     # blockdiag(R(dθ)ᵀ, 1) · Q · blockdiag(R(dθ), 1), written out (this runs once per step)
@@ -105,7 +111,7 @@ def _end_frame_covariance(Q, dtheta_rad: float) -> np.ndarray:
     xy = cos * sin * (d - a) + (cos * cos - sin * sin) * b
     xt = cos * c + sin * e
     yt = -sin * c + cos * e
-    return np.array([[xx, xy, xt], [xy, yy, yt], [xt, yt, f]])
+    return xx, xy, xt, yy, yt, f
 
 
 def tag_relative_pose(observation: Observation) -> gtsam.Pose2:

@@ -17,8 +17,8 @@ import numpy as np
 from gtsam.symbol_shorthand import L, T, X
 
 from ekf.observation import observation_nis
-from fgslam.smoother.chain import OdometryChain
-from fgslam.smoother.factors import odometry_noise_covariance
+from fgslam.smoother.chain import FloatChain, OdometryChain
+from fgslam.smoother.factors import end_frame_covariance_entries, odometry_noise_covariance
 from slamio.geometry import wrap_angle
 from slamio.log import Odometry, Step
 
@@ -37,11 +37,12 @@ class OnlinePose:
         # current_covariance() is asked at every step (NEES): the marginal is kept until
         # iSAM2 changes, and the held odometry is propagated only once per record
         self._marginal: np.ndarray | None = None
-        self._since_chain = OdometryChain(0)
+        self._since_chain = OdometryChain(0)  # for the association (fgslam.smoother.pairings)
+        self._float_chain = FloatChain(0)  # the same in floats, for the covariance and the NIS
         # predicted_nis() asks at every step with readings for the joint marginal of the newest
         # iSAM2 pose and the landmarks read; until iSAM2 changes one joint over every landmark
         # asked for so far serves them all (a superset's blocks are the subset's joint marginal)
-        self._joint: tuple[set[int], object] | None = None
+        self._joint: tuple[dict[int, int], np.ndarray] | None = None
         # current_covariance() of a corrected pose replays the correction's steps as an EKF
         # (_corrected_covariance); the replay is kept and carried on until iSAM2 changes
         self._replay: _Replay | None = None
@@ -59,6 +60,7 @@ class OnlinePose:
         self._anchor = anchor
         self._since = self._since[len(self._since) - steps_after :] if steps_after else []
         self._since_chain = OdometryChain(newest_in_isam)
+        self._float_chain = FloatChain(newest_in_isam)
         self.forget_marginal()
 
     def forget_marginal(self) -> None:
@@ -68,19 +70,28 @@ class OnlinePose:
         self._joint = None
         self._replay = None
 
-    def _joint_marginal(self, isam: gtsam.ISAM2, x_key: int, ids: list[int]):
+    def _joint_marginal(self, isam: gtsam.ISAM2, x_key: int, ids: list[int]) -> tuple[dict[int, int], np.ndarray]:
         """iSAM2's joint marginal of ``x_key`` and the landmarks ``ids`` (and of every landmark
-        asked for since iSAM2 last changed: one joint serves later steps that read a subset)."""
-        if self._joint is None or not set(ids) <= self._joint[0]:
+        asked for since iSAM2 last changed: one joint serves later steps that read a subset), as
+        ``(landmark id → its first row, the whole matrix)``, the pose in rows 0–2."""
+        if self._joint is None or not set(ids) <= self._joint[0].keys():
             wanted = _union(sorted(self._joint[0]) if self._joint else (), ids)
-            self._joint = (set(wanted), isam.jointMarginalCovariance(gtsam.KeyVector([x_key] + [L(i) for i in wanted])))
-        return self._joint[1]
+            joint = isam.jointMarginalCovariance(gtsam.KeyVector([x_key] + [L(i) for i in wanted]))
+            self._joint = ({lid: 3 + 2 * j for j, lid in enumerate(wanted)}, np.asarray(joint.fullMatrix(), dtype=float))
+        return self._joint
 
     def _caught_up_since_chain(self) -> OdometryChain:
         """The odometry since the newest iSAM2 pose, with the records held since the last call."""
         chain = self._since_chain
         for odo, _ in self._since[len(chain.links) :]:
             chain.append(gtsam.Pose2(odo.dx_m, odo.dy_m, odo.dtheta_rad), odometry_noise_covariance(odo))
+        return chain
+
+    def _caught_up_float_chain(self) -> FloatChain:
+        """:meth:`_caught_up_since_chain` in floats (:class:`~fgslam.smoother.chain.FloatChain`)."""
+        chain = self._float_chain
+        for odo, _ in self._since[chain.count :]:
+            chain.append(odo.dx_m, odo.dy_m, odo.dtheta_rad, end_frame_covariance_entries(odo.covariance, odo.dtheta_rad))
         return chain
 
     def covariance(self, isam: gtsam.ISAM2, frame: str) -> np.ndarray:
@@ -93,11 +104,11 @@ class OnlinePose:
                 J = body_to_world(self.pose.theta())
                 cov = J.T @ cov @ J
             return 0.5 * (cov + cov.T)
-        chain = self._caught_up_since_chain()
+        chain = self._caught_up_float_chain()
         if self._marginal is None:
             self._marginal = np.asarray(isam.marginalCovariance(X(chain.start)), dtype=float)
         cov = self._marginal
-        if chain.links:
+        if chain.count:
             A = chain.compound.inverse().AdjointMap()
             cov = A @ cov @ A.T + chain.covariance()
         if frame == "world":
@@ -140,10 +151,10 @@ class OnlinePose:
         ]
         if not wanted:
             return out
-        chain = self._caught_up_since_chain()
+        chain = self._caught_up_float_chain()
         odo = step.odometry
-        increment = gtsam.Pose2(odo.dx_m, odo.dy_m, odo.dtheta_rad)
-        compound, moved_cov = chain.extended(increment, odometry_noise_covariance(odo))
+        compound, moved_cov = chain.extended(odo.dx_m, odo.dy_m, odo.dtheta_rad,
+                                             end_frame_covariance_entries(odo.covariance, odo.dtheta_rad))
         A = compound.inverse().AdjointMap()
         # the prediction whose covariance this is: iSAM2's newest pose ⊕ the odometry since
         # (not the corrected online pose, whose correlation with the landmarks is unknown)
@@ -153,18 +164,19 @@ class OnlinePose:
         x_key = X(chain.start)
         ids = list(dict.fromkeys(o.landmark_id for _, o in wanted))
         try:
-            joint = self._joint_marginal(isam, x_key, ids)
+            row, joint = self._joint_marginal(isam, x_key, ids)
         except RuntimeError:  # gtsam.IndeterminateSystemException: no marginal, so no NIS
             return out
-        pose_cov = J @ joint.at(x_key, x_key) @ J.T + to_world @ moved_cov @ to_world.T
+        pose_cov = J @ joint[:3, :3] @ J.T + to_world @ moved_cov @ to_world.T
         mean = np.array([pose.x(), pose.y(), pose.theta()])
         for j, o in wanted:
             key = L(o.landmark_id)
+            k = row[o.landmark_id]
             cov = np.empty((5, 5))
             cov[:3, :3] = pose_cov
-            cov[:3, 3:] = J @ joint.at(x_key, key)
+            cov[:3, 3:] = J @ joint[:3, k : k + 2]
             cov[3:, :3] = cov[:3, 3:].T
-            cov[3:, 3:] = joint.at(key, key)
+            cov[3:, 3:] = joint[k : k + 2, k : k + 2]
             landmark = isam.calculateEstimatePoint2(key)
             out[j] = observation_nis(mean, landmark, cov, o)
         return out
@@ -184,23 +196,19 @@ def world_joint_marginal(isam: gtsam.ISAM2, since: OdometryChain, pose: gtsam.Po
     to_world = body_to_world(pose.theta())
     J = to_world @ since.compound.inverse().AdjointMap()
     moved_world = to_world @ since.covariance() @ to_world.T
-    keys = [x_key] + [L(i) for i in landmark_ids]
     try:
-        if landmark_ids:
-            joint = isam.jointMarginalCovariance(gtsam.KeyVector(keys))
-            pose = np.asarray(joint.at(x_key, x_key), dtype=float)
+        if landmark_ids:  # one matrix, blocks in the keys' order (the same numbers as its at() blocks)
+            keys = gtsam.KeyVector([x_key] + [L(i) for i in landmark_ids])
+            joint = np.asarray(isam.jointMarginalCovariance(keys).fullMatrix(), dtype=float)
         else:
-            joint, pose = None, np.asarray(isam.marginalCovariance(x_key), dtype=float)
+            joint = np.asarray(isam.marginalCovariance(x_key), dtype=float)
     except RuntimeError:  # gtsam.IndeterminateSystemException
         return None
-    d = 3 + 2 * len(landmark_ids)
-    P = np.zeros((d, d))
-    P[:3, :3] = J @ pose @ J.T + moved_world
-    for a, ka in enumerate(keys[1:]):
-        P[:3, 3 + 2 * a : 5 + 2 * a] = J @ np.asarray(joint.at(x_key, ka), dtype=float)
-        P[3 + 2 * a : 5 + 2 * a, :3] = P[:3, 3 + 2 * a : 5 + 2 * a].T
-        for b, kb in enumerate(keys[1:]):
-            P[3 + 2 * a : 5 + 2 * a, 3 + 2 * b : 5 + 2 * b] = np.asarray(joint.at(ka, kb), dtype=float)
+    P = np.empty_like(joint)
+    P[:3, :3] = J @ joint[:3, :3] @ J.T + moved_world
+    P[:3, 3:] = J @ joint[:3, 3:]
+    P[3:, :3] = P[:3, 3:].T
+    P[3:, 3:] = joint[3:, 3:]
     return 0.5 * (P + P.T)
 
 
@@ -235,24 +243,24 @@ class _Replay:
         with the readings the correction used there, along the prediction.
 
         The EKF of :mod:`ekf.models` (``F = ∂(pose ⊕ u)/∂pose``, ``G = ∂(pose ⊕ u)/∂u``, the
-        range-bearing Jacobians) written for its sparsity: F is the identity but for two
-        entries, so F P Fᵀ is two row and two column updates in place, and a reading's H has
-        two non-zero blocks, so P Hᵀ is two block products and P − K S Kᵀ = P − K (P Hᵀ)ᵀ."""
+        range-bearing Jacobians) written for its sparsity: the predictions between two
+        readings are gathered in a :class:`_Motion` (their F's product and pose noise, in
+        floats) and applied to P at once, where F P Fᵀ is two row and two column updates in
+        place; a reading's H has two non-zero blocks, so P Hᵀ is two block products and
+        P − K S Kᵀ = P − K (P Hᵀ)ᵀ."""
         P = self.P
         x, y, th = (float(v) for v in self.mean)
+        motion = _Motion()
         for odo, used in since[self.steps :]:
             dx, dy = odo.dx_m, odo.dy_m
             c, s = math.cos(th), math.sin(th)
-            a, b = -s * dx - c * dy, c * dx - s * dy  # F = [[1, 0, a], [0, 1, b], [0, 0, 1]]
-            P[0, :] += a * P[2, :]
-            P[1, :] += b * P[2, :]
-            P[:, 0] += a * P[:, 2]
-            P[:, 1] += b * P[:, 2]
-            G = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-            P[:3, :3] += G @ np.asarray(odo.covariance) @ G.T
+            motion.add(-s * dx - c * dy, c * dx - s * dy, c, s, odo.covariance)
             x, y, th = x + c * dx - s * dy, y + s * dx + c * dy, wrap_angle(th + odo.dtheta_rad)
-            for lid, _, _, bearing_rad, R in used:
-                P = self._update(P, (x, y), lid, 2 if bearing_rad is not None else 1, R)
+            if used:
+                motion.apply(P)
+                for lid, _, _, bearing_rad, R in used:
+                    P = self._update(P, (x, y), lid, 2 if bearing_rad is not None else 1, R)
+        motion.apply(P)
         self.P, self.mean, self.steps = P, np.array([x, y, th]), len(since)
 
     def _update(self, P: np.ndarray, position: tuple[float, float], lid: int, rows: int, R) -> np.ndarray:
@@ -261,19 +269,66 @@ class _Replay:
         ex, ey = float(landmark[0]) - position[0], float(landmark[1]) - position[1]
         q = ex * ex + ey * ey
         r = math.sqrt(q)
-        H_pose = np.array([[-ex / r, -ey / r, 0.0], [ey / q, -ex / q, -1.0]])[:rows]
-        H_landmark = np.array([[ex / r, ey / r], [-ey / q, ex / q]])[:rows]
         col = self.column[lid]
-        U = P[:, :3] @ H_pose.T + P[:, col : col + 2] @ H_landmark.T  # P Hᵀ, n × rows
-        S = H_pose @ U[:3] + H_landmark @ U[col : col + 2] + np.atleast_2d(R)
+        rows_at = [0, 1, 2, col, col + 1]  # H = [H_pose | H_landmark] sits in these columns
+        H = np.array([[-ex / r, -ey / r, 0.0, ex / r, ey / r], [ey / q, -ex / q, -1.0, -ey / q, ex / q]][:rows])
+        U = P[:, rows_at] @ H.T  # P Hᵀ, n × rows
+        S = H @ U[rows_at] + R
         if rows == 2:  # S⁻¹ of a 2×2 in closed form (numpy.linalg's call costs more than the sum)
-            (s00, s01), (s10, s11) = S
-            S_inv = np.array([[s11, -s01], [-s10, s00]]) / (s00 * s11 - s01 * s10)
+            (s00, s01), (s10, s11) = S.tolist()
+            d = s00 * s11 - s01 * s10
+            S_inv = np.array([[s11 / d, -s01 / d], [-s10 / d, s00 / d]])
         else:
             S_inv = 1.0 / S
         K = U @ S_inv
         P = P - K @ U.T
         return 0.5 * (P + P.T)
+
+
+class _Motion:
+    """The odometry of replayed steps not yet applied to a replay's covariance P, in floats
+    (numpy's per-call cost is most of a 3×3 product's): the product of their motion
+    Jacobians, F = [[1, 0, a], [0, 1, b], [0, 0, 1]] (such F commute and their product adds
+    the a's and b's), and the pose noise they added, each step's G Σ Gᵀ carried through the
+    later steps' F (``q``, 3×3 row by row). Applying it to P is F P Fᵀ + q on the pose rows
+    and columns: the per-step prediction's result, to rounding."""
+
+    __slots__ = ("a", "b", "q")
+
+    def __init__(self) -> None:
+        self.a, self.b, self.q = 0.0, 0.0, None
+
+    def add(self, a: float, b: float, c: float, s: float, covariance) -> None:
+        """One step: its F (``a``, ``b``), and G = [[c, −s, 0], [s, c, 0], [0, 0, 1]] with the
+        odometry's 3×3 ``covariance`` Σ."""
+        (s00, s01, s02), (s10, s11, s12), (s20, s21, s22) = covariance
+        m00, m01, m02 = c * s00 - s * s10, c * s01 - s * s11, c * s02 - s * s12  # G Σ
+        m10, m11, m12 = s * s00 + c * s10, s * s01 + c * s11, s * s02 + c * s12
+        added = [m00 * c - m01 * s, m00 * s + m01 * c, m02,  # (G Σ) Gᵀ
+                 m10 * c - m11 * s, m10 * s + m11 * c, m12,
+                 s20 * c - s21 * s, s20 * s + s21 * c, s22]
+        q = self.q
+        if q is not None:  # F q Fᵀ first: rows 0 and 1 gain a and b times row 2, then the columns
+            q0, q1, q2, q3, q4, q5, q6, q7, q8 = q
+            q0, q1, q2 = q0 + a * q6, q1 + a * q7, q2 + a * q8
+            q3, q4, q5 = q3 + b * q6, q4 + b * q7, q5 + b * q8
+            q0, q3, q6 = q0 + a * q2, q3 + a * q5, q6 + a * q8
+            q1, q4, q7 = q1 + b * q2, q4 + b * q5, q7 + b * q8
+            added = [q0 + added[0], q1 + added[1], q2 + added[2], q3 + added[3], q4 + added[4],
+                     q5 + added[5], q6 + added[6], q7 + added[7], q8 + added[8]]
+        self.q, self.a, self.b = added, self.a + a, self.b + b
+
+    def apply(self, P: np.ndarray) -> None:
+        """P ← F P Fᵀ + q in place on its pose rows and columns; then nothing is held."""
+        if self.q is None:
+            return
+        a, b = self.a, self.b
+        P[0, :] += a * P[2, :]
+        P[1, :] += b * P[2, :]
+        P[:, 0] += a * P[:, 2]
+        P[:, 1] += b * P[:, 2]
+        P[:3, :3] += np.array(self.q).reshape(3, 3)
+        self.a, self.b, self.q = 0.0, 0.0, None
 
 
 def landmark_covariances(marginals, estimate: gtsam.Values, landmark_ids, tag_ids) -> dict[int, np.ndarray]:
