@@ -186,7 +186,7 @@ def report(name: str, top: int, consistency: bool, by_cpu: bool = True) -> None:
     times = run.step_times_s * 1e3
     cpu = np.array(events.step_cpu_s) * 1e3
     print(f"## {name}: {len(steps)} steps, {smoother.updates} updates; max {times.max():.1f} ms "
-          f"(CPU: max {cpu.max():.1f} ms, p99 {np.percentile(cpu, 99):.2f} ms), "
+          f"(CPU: max {cpu.max():.1f} ms, p99 {np.percentile(cpu, 99):.2f} ms, steps {cpu.sum() / 1e3:.2f} s), "
           f"p99 {np.percentile(times, 99):.2f} ms, total {run.total_time_s:.2f} s "
           f"(steps {times.sum() / 1e3:.2f} s); gen-2 collections {sum(c[2] == 2 for c in events.collections)}")
     print("| step | ms | CPU ms | in update ms (CPU) | updates | relinearised | re-eliminated | pose read ms (CPU) | cap's choice ms (CPU) | rebuild ms | gc ms (gen) |")
