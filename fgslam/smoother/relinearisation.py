@@ -6,8 +6,8 @@ clique that holds one of them (as a frontal or a separator variable) and all the
 ancestors. After iSAM2 has smoothed a stretch of poses seeded from the online correction
 that was up to a thousand poses on MRCLAM and twelve thousand variables re-eliminated on
 Plaza1, in one update of 50–570 ms (docs/performance.md). :class:`CapChoice` lets a check
-relinearise only the ``max_variables`` variables whose step exceeds the threshold by the
-largest factor and names the rest, which go to GTSAM as ``ISAM2UpdateParams.noRelinKeys``.
+relinearise at most ``max_variables`` of the variables past the threshold (which ones:
+below) and names the rest, which go to GTSAM as ``ISAM2UpdateParams.noRelinKeys``.
 Those stay linearised where they are until a later check chooses them (or
 :meth:`~fgslam.smoother.isam2.Isam2Smoother.finish`'s full Gauss–Newton steps); their delta
 still moves the estimate.
@@ -21,8 +21,10 @@ paths share little: 300 of them re-eliminated 1 500–2 300 variables. So by def
 (``choice="block"``) a check relinearises the variables past the threshold within one block
 of ``max_variables`` consecutive variables in the order they entered iSAM2, the block with
 the largest sum of ratios; neighbours in that order are neighbours in the tree, their paths
-to the root are mostly one path, and the same check re-eliminated 400–1 000
-(docs/performance.md, "The long steps, taken apart"). ``choice="ratio"`` is the first rule:
+to the root are mostly one path, and the same checks re-eliminated 400–1 100
+(docs/performance.md, "Relinearising a block of neighbours"; after a rebuild or a window's
+slide the keys are read back in key order, landmarks first, and the block follows that
+order). ``choice="ratio"`` is the first rule:
 the ``max_variables`` furthest past the threshold, wherever they are. Choosing by GTSAM's own
 prediction of the re-elimination (``ISAM2.predictUpdateInfo``) was measured and cost more
 than it saved (docs/performance.md).
