@@ -87,10 +87,10 @@ class Isam2Settings:
         alone do not.
 
         Why, measured (docs/performance.md, "The long steps, taken apart";
-        ``scripts/bench_long_steps.py``, CPU time at a load of 6–12): the longest step of a
-        run fell on Plaza1 from 109–136 to 41–52 ms (its checks re-eliminated 400–750
+        ``scripts/bench_long_steps.py``, CPU time at a load of 6–13): the longest step of a
+        run fell on Plaza1 from 109–136 to 39–52 ms (its checks re-eliminated 400–750
         variables where they re-eliminated up to 2 281), on Victoria Park from 42–44 to
-        29–33 ms, on MRCLAM Dataset 6 robots 1–4 from 22–39 to 11–30 ms and on the
+        29–36 ms, on MRCLAM Dataset 6 robots 1–4 from 22–39 to 11–38 ms and on the
         2 000-landmark grid from 761 to 226 ms, with the online ATE within 2 % of the ratio
         rule's (better on Plaza1 and robots 1 and 3) and the final χ² at the batch optimum.
         A block of 150 was shorter still but lost 8.8 % online on robot 2.
