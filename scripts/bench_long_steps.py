@@ -17,10 +17,10 @@ default ``isam2`` (``fgslam run``'s factory, one process, BLAS on one thread) wi
 :func:`fgslam.runner.run_estimator`, so the step times are the ones ``fgslam run`` reports
 (``--consistency`` also does its NIS/NEES work between the steps). Each step's CPU time
 (``time.thread_time``) is kept too: on a shared machine the wall time of one step includes
-whatever preempted it. For the ``--top`` longest steps (wall) the script prints the step's time, the part inside ``ISAM2.update`` (and how
+whatever preempted it. For the ``--top`` longest steps (by CPU time; ``--by-wall``: by wall time) the script prints the step's time, the part inside ``ISAM2.update`` (wall and CPU; and how
 many updates ran), the variables that update relinearised and re-eliminated
 (``ISAM2Result``), the read of the newest pose after it (``calculateEstimatePose2``: GTSAM's
-lazy back-substitution runs there), the time the relinearisation cap's choice took in Python
+lazy back-substitution runs there; wall and CPU), the time the relinearisation cap's choice took in Python
 (:meth:`fgslam.smoother.relinearisation.CapChoice.held_back`; wall / CPU), a rebuild after a failed update
 (:mod:`fgslam.smoother.recovery`; the failed update counts in the update columns), and the time Python's garbage collector
 ran in that step, by generation; then every collection of the run, by generation (the one
@@ -79,10 +79,10 @@ class Events:
 
     steps: list[tuple[float, float]] = field(default_factory=list)
     step_cpu_s: list[float] = field(default_factory=list)  # the thread's CPU time in each step
-    updates: list[tuple[float, float, int, int]] = field(default_factory=list)  # start, s, relin, reelim
+    updates: list[tuple[float, float, int, int, float]] = field(default_factory=list)  # start, s, relin, reelim, CPU s
     collections: list[tuple[float, float, int]] = field(default_factory=list)  # start, s, generation
     checks: list[tuple[float, float, float]] = field(default_factory=list)  # start, s, CPU s of each cap's choice
-    reads: list[tuple[float, float]] = field(default_factory=list)  # start, s of each newest-pose read
+    reads: list[tuple[float, float, float]] = field(default_factory=list)  # start, s, CPU s of each newest-pose read
     rebuilds: list[tuple[float, float, float]] = field(default_factory=list)  # start, s, CPU s of each rebuild after a failure
     _gc_start: float = 0.0
 
@@ -103,20 +103,20 @@ class _TimedIsam:
         self._isam, self._events = isam, events
 
     def update(self, *args):
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.thread_time()
         try:
             result = self._isam.update(*args)
         except RuntimeError:  # a failed update (the smoother rebuilds): its time, nothing relinearised
-            self._events.updates.append((start, time.perf_counter() - start, 0, 0))
+            self._events.updates.append((start, time.perf_counter() - start, 0, 0, time.thread_time() - cpu))
             raise
         self._events.updates.append((start, time.perf_counter() - start, result.getVariablesRelinearized(),
-                                     result.getVariablesReeliminated()))
+                                     result.getVariablesReeliminated(), time.thread_time() - cpu))
         return result
 
     def calculateEstimatePose2(self, key):  # the read of the newest pose after each update
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.thread_time()
         pose = self._isam.calculateEstimatePose2(key)
-        self._events.reads.append((start, time.perf_counter() - start))
+        self._events.reads.append((start, time.perf_counter() - start, time.thread_time() - cpu))
         return pose
 
     def __getattr__(self, name):
@@ -173,7 +173,7 @@ def instrumented(header, events: Events):
     return smoother
 
 
-def report(name: str, top: int, consistency: bool) -> None:
+def report(name: str, top: int, consistency: bool, by_cpu: bool = True) -> None:
     header, records = load(name)
     steps = group_steps(header, records)
     events = Events()
@@ -186,21 +186,21 @@ def report(name: str, top: int, consistency: bool) -> None:
     times = run.step_times_s * 1e3
     cpu = np.array(events.step_cpu_s) * 1e3
     print(f"## {name}: {len(steps)} steps, {smoother.updates} updates; max {times.max():.1f} ms "
-          f"(CPU: max {cpu.max():.1f} ms, p99 {np.percentile(cpu, 99):.2f} ms), "
+          f"(CPU: max {cpu.max():.1f} ms, p99 {np.percentile(cpu, 99):.2f} ms, steps {cpu.sum() / 1e3:.2f} s), "
           f"p99 {np.percentile(times, 99):.2f} ms, total {run.total_time_s:.2f} s "
           f"(steps {times.sum() / 1e3:.2f} s); gen-2 collections {sum(c[2] == 2 for c in events.collections)}")
-    print("| step | ms | CPU ms | in update ms | updates | relinearised | re-eliminated | pose read ms | cap's choice ms (CPU) | rebuild ms | gc ms (gen) |")
+    print("| step | ms | CPU ms | in update ms (CPU) | updates | relinearised | re-eliminated | pose read ms (CPU) | cap's choice ms (CPU) | rebuild ms | gc ms (gen) |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
-    for k in np.argsort(-times, kind="stable")[:top]:
+    for k in np.argsort(-(cpu if by_cpu else times), kind="stable")[:top]:
         span = events.steps[k]
         ups = [u for u in events.updates if events.within(u[0], span)]
         gcs = [c for c in events.collections if events.within(c[0], span)]
         checks = [c for c in events.checks if events.within(c[0], span)]
-        reads = sum(r[1] for r in events.reads if events.within(r[0], span))
+        reads = [r for r in events.reads if events.within(r[0], span)]
         rebuilt = sum(r[1] for r in events.rebuilds if events.within(r[0], span))
         gc_text = ", ".join(f"{1e3 * c[1]:.1f} ({c[2]})" for c in gcs) or "-"
-        print(f"| {k} | {times[k]:.1f} | {cpu[k]:.1f} | {1e3 * sum(u[1] for u in ups):.1f} | {len(ups)} | "
-              f"{sum(u[2] for u in ups)} | {sum(u[3] for u in ups)} | {1e3 * reads:.1f} | {1e3 * sum(c[1] for c in checks):.1f} / {1e3 * sum(c[2] for c in checks):.1f} | {1e3 * rebuilt:.1f} | {gc_text} |")
+        print(f"| {k} | {times[k]:.1f} | {cpu[k]:.1f} | {1e3 * sum(u[1] for u in ups):.1f} ({1e3 * sum(u[4] for u in ups):.1f}) | {len(ups)} | "
+              f"{sum(u[2] for u in ups)} | {sum(u[3] for u in ups)} | {1e3 * sum(r[1] for r in reads):.1f} ({1e3 * sum(r[2] for r in reads):.1f}) | {1e3 * sum(c[1] for c in checks):.1f} / {1e3 * sum(c[2] for c in checks):.1f} | {1e3 * rebuilt:.1f} | {gc_text} |")
     if events.checks:
         wall, cpu = np.array([c[1] for c in events.checks]) * 1e3, np.array([c[2] for c in events.checks]) * 1e3
         print(f"cap's choice: {len(wall)} checks, longest {wall.max():.1f} ms wall / {cpu.max():.1f} ms CPU, "
@@ -226,9 +226,10 @@ def main(argv=None) -> int:
     ap.add_argument("logs", nargs="+", help="victoria-park, plaza1, plaza2, mrclam:K, grid:N[:LAPS] or a run-log path")
     ap.add_argument("--top", type=int, default=8, help="how many of the longest steps to take apart")
     ap.add_argument("--consistency", action="store_true", help="do fgslam run's NIS/NEES work between steps")
+    ap.add_argument("--by-wall", action="store_true", help="take apart the longest steps by wall time (default: by CPU time)")
     args = ap.parse_args(argv)
     for name in args.logs:
-        report(name, args.top, args.consistency)
+        report(name, args.top, args.consistency, by_cpu=not args.by_wall)
     return 0
 
 

@@ -1,8 +1,10 @@
 """When the default ``isam2`` relinearises, and what checking less often costs.
 
 The default checks relinearisation on every 20th iSAM2 update (``relinearize_skip``) and
-relinearises at most 300 variables in a check (``relinearize_max_variables``;
-docs/performance.md has the measurements behind both). Checked here against independent
+relinearises at most 300 variables in a check (``relinearize_max_variables``), those past the
+threshold in the block of 300 consecutive variables (in the order they entered) whose
+ratios sum highest (``relinearize_choice``; docs/performance.md has the measurements behind
+all three). Checked here against independent
 references: GTSAM's own per-update report of the variables it relinearised, its
 linearisation point before and after each update, an iSAM2 that updates and checks
 relinearisation at every step, and the batch optimum.
@@ -16,7 +18,7 @@ import pytest
 from gtsam.symbol_shorthand import H, L, T, X
 
 from fgslam.smoother import Isam2Smoother, batch_solve
-from fgslam.smoother.relinearisation import CapChoice, component_thresholds, key_list, ratios
+from fgslam.smoother.relinearisation import CapChoice, block_start, component_thresholds, key_list, ratios
 from slamio.errors import FgslamError
 from slamio.log import group_steps
 from slamio.sim import simulate
@@ -314,8 +316,9 @@ def _compared(smoother) -> _ComparedCap:
 
 
 @pytest.mark.parametrize("settings", [
-    dict(relinearize_skip=2, relinearize_max_variables=5),  # a real threshold: ranked by ratio
-    dict(update_every=1, relinearize_skip=3, relinearize_threshold=0.0, relinearize_max_variables=4),  # all tied
+    dict(relinearize_skip=2, relinearize_max_variables=5, relinearize_choice="ratio"),  # a real threshold: ranked by ratio
+    dict(update_every=1, relinearize_skip=3, relinearize_threshold=0.0, relinearize_max_variables=4,
+         relinearize_choice="ratio"),  # all tied
 ])
 def test_the_kept_keys_choose_what_a_full_read_chooses(settings):
     """Through a whole run (poses, landmarks and tags entering between checks), every check's
@@ -341,7 +344,7 @@ def test_the_kept_keys_are_read_again_after_a_rebuild_and_a_slide():
     header, steps, _, _ = make_loop_log(n_steps=80)
     for extra in (dict(), dict(window_poses=10)):
         smoother = Isam2Smoother(header, update_every=1, relinearize_skip=3, relinearize_threshold=0.0,
-                                 relinearize_max_variables=2, **extra)
+                                 relinearize_max_variables=2, relinearize_choice="ratio", **extra)
         compared = _compared(smoother)
         for step in steps:
             smoother.step(with_extra(step, junk(step, 99)) if step.index == 20 and not extra else step)
@@ -359,7 +362,7 @@ def test_the_kept_keys_are_read_again_when_iSAM2_holds_others():
     graph.add(gtsam.PriorFactorPose2(X(0), gtsam.Pose2(), noise))
     values.insert(X(0), gtsam.Pose2(0.3, 0.0, 0.0))
     isam.update(graph, values)
-    cap = CapChoice(0.0, 1)
+    cap = CapChoice(0.0, 1, "ratio")
     assert _listed(cap.held_back(isam)) == []  # one variable, the cap is 1
     for i in range(1, 4):
         graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
@@ -367,3 +370,106 @@ def test_the_kept_keys_are_read_again_when_iSAM2_holds_others():
         values.insert(X(i), gtsam.Pose2(i + 0.2, 0.1, 0.0))
         isam.update(graph, values)  # not told to the cap
     assert _listed(cap.held_back(isam)) == _reference_held_back(isam, 0.0, 1) == [X(1), X(2), X(3)]
+
+
+# ---------------------------------------------------------------- the block choice
+
+
+class _EntryOrder:
+    """Forwards to an ``ISAM2`` and keeps the keys of every successful update's new values, in
+    the order they entered (read from the calls, not from the smoother's cap)."""
+
+    def __init__(self, isam):
+        self._isam = isam
+        self.keys: list[int] = []
+        self.reeliminated_in_checks: list[int] = []
+
+    def update(self, *args):
+        result = self._isam.update(*args)
+        if len(args) > 1:
+            self.keys.extend(args[1].keys())
+        if len(args) == 3:  # a capped check (the smoother passes ISAM2UpdateParams only then)
+            self.reeliminated_in_checks.append(result.getVariablesReeliminated())
+        return result
+
+    def __getattr__(self, name):
+        return getattr(self._isam, name)
+
+
+def _reference_block_held_back(isam, entry_order: list[int], threshold, width: int) -> list[int]:
+    """The block choice by brute force: every window of ``width`` consecutive keys in entry
+    order summed in Python, the first with the largest sum kept; every other key past the
+    threshold held back."""
+    ratio = [min(float(r), 2.0**40) for r in ratios(isam.getDelta(), entry_order, threshold)]
+    past = [r >= 1.0 for r in ratio]
+    if sum(past) <= width:
+        return []
+    weights = [r if p else 0.0 for r, p in zip(ratio, past)]
+    sums = [sum(weights[i:i + width]) for i in range(len(weights) - width + 1)]
+    start = sums.index(max(sums))
+    return [k for i, k in enumerate(entry_order) if past[i] and not start <= i < start + width]
+
+
+@pytest.mark.parametrize("settings", [
+    dict(relinearize_skip=2, relinearize_max_variables=5),
+    dict(update_every=1, relinearize_skip=3, relinearize_threshold=0.0, relinearize_max_variables=4),  # all tied
+])
+def test_the_block_choice_holds_back_all_but_the_heaviest_block_in_entry_order(settings):
+    """Through a whole run (poses, landmarks and tags entering between checks), every check
+    holds back exactly what the brute-force block choice holds back, over the keys in the
+    order the updates entered them."""
+    header, records = simulate("arena-octagon", 2)
+    steps = group_steps(header, records)
+    smoother = Isam2Smoother(header, tags=True, **settings)
+    assert smoother.settings.relinearize_choice == "block"  # the default
+    order = smoother._isam = _EntryOrder(smoother._isam)
+    cap, checked = smoother._cap, []
+
+    class Compared:
+        def entered(self, isam, values):
+            cap.entered(isam, values)
+
+        def held_back(self, isam):
+            out = cap.held_back(isam)
+            expected = _reference_block_held_back(isam, order.keys, settings.get("relinearize_threshold", 0.01),
+                                                  settings["relinearize_max_variables"])
+            assert sorted(_listed(out)) == sorted(expected)
+            checked.append(len(expected))
+            return out
+
+    smoother._cap = Compared()
+    _online(smoother, steps)
+    assert smoother.update_failures == 0
+    assert sum(1 for n in checked if n) >= 5  # several checks held something back
+
+
+def test_the_block_choice_reeliminates_less_than_the_ratio_choice():
+    """The point of the block: the same checks, each relinearising at most 30 variables, on a
+    grid of 50 landmarks; GTSAM's own count of the variables each check re-eliminated, summed
+    and at most, is far smaller when the 30 are neighbours in entry order."""
+    header, records = simulate("grid", 1, landmarks=50)
+    steps = group_steps(header, records)
+    counts = {}
+    for choice in ("ratio", "block"):
+        smoother = Isam2Smoother(header, relinearize_skip=2, relinearize_max_variables=30, relinearize_choice=choice)
+        recording = smoother._isam = _EntryOrder(smoother._isam)
+        for step in steps:
+            smoother.step(step)
+        assert smoother.update_failures == 0
+        counts[choice] = recording.reeliminated_in_checks
+        smoother.finish()
+        assert smoother.error() < 1.001 * batch_solve(smoother).final_error  # both end at the optimum
+    assert len(counts["block"]) == len(counts["ratio"]) >= 50
+    assert sum(counts["block"]) < 0.7 * sum(counts["ratio"])
+    assert max(counts["block"]) < 0.6 * max(counts["ratio"])
+
+
+def test_block_start_is_the_first_heaviest_window():
+    assert block_start(np.array([1.0, 5.0, 0.0, 5.0, 1.0]), 2) == 0  # sums 6, 5, 5, 6: the first
+    assert block_start(np.array([0.0, 0.0, 3.0, 4.0, 0.0]), 2) == 2
+    assert block_start(np.array([2.0, 1.0]), 5) == 0  # fewer entries than the width
+    assert block_start(np.array([2.0, 1.0]), 0) == 2  # an empty block: every entry outside it
+    with pytest.raises(ValueError, match="choice"):
+        CapChoice(0.01, 3, "nearest")
+    with pytest.raises(FgslamError, match="relinearize_choice"):
+        Isam2Smoother(simulate("arena-octagon", 1)[0], relinearize_choice="nearest")

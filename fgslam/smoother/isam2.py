@@ -199,7 +199,8 @@ class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
         self._isam = self._new_isam()
         self._isam_updates = 0  # updates given to this ISAM2 (GTSAM counts them for relinearize_skip)
         # the relinearisation cap's choice, keeping iSAM2's keys between checks (relinearisation.py)
-        self._cap = CapChoice(self.settings.relinearize_threshold, self.settings.relinearize_max_variables or 0)
+        self._cap = CapChoice(self.settings.relinearize_threshold, self.settings.relinearize_max_variables or 0,
+                              self.settings.relinearize_choice)
         self._unlabelled = False  # observations without an id seen: the smoother associates them
         self._graph = gtsam.NonlinearFactorGraph()  # every factor accepted into iSAM2
         self._initial = gtsam.Values()  # the initial guess of every variable in iSAM2

@@ -6,17 +6,28 @@ clique that holds one of them (as a frontal or a separator variable) and all the
 ancestors. After iSAM2 has smoothed a stretch of poses seeded from the online correction
 that was up to a thousand poses on MRCLAM and twelve thousand variables re-eliminated on
 Plaza1, in one update of 50–570 ms (docs/performance.md). :class:`CapChoice` lets a check
-relinearise only the ``max_variables`` variables whose step exceeds the threshold by the
-largest factor and names the rest, which go to GTSAM as ``ISAM2UpdateParams.noRelinKeys``.
+relinearise at most ``max_variables`` of the variables past the threshold (which ones:
+below) and names the rest, which go to GTSAM as ``ISAM2UpdateParams.noRelinKeys``.
 Those stay linearised where they are until a later check chooses them (or
 :meth:`~fgslam.smoother.isam2.Isam2Smoother.finish`'s full Gauss–Newton steps); their delta
 still moves the estimate.
 
-The cap bounds the variables relinearised, not the variables re-eliminated: a landmark seen
-from every pose sits in the separator of every pose's clique, so relinearising it alone
-re-eliminates most of the tree. Choosing by GTSAM's own prediction of the re-elimination
-(``ISAM2.predictUpdateInfo``) instead was measured and cost more than it saved
-(docs/performance.md).
+The cap bounds the variables relinearised, not the variables re-eliminated: GTSAM
+re-eliminates every clique holding a relinearised variable and every clique above it, up to
+the root, so what a check costs is the union of those paths. Variables chosen by ratio
+alone lie all over the tree (on Plaza1 and Victoria Park nearly every variable is past the
+threshold at a check, the furthest past it hundreds to thousands of entries old) and their
+paths share little: 300 of them re-eliminated 1 500–2 300 variables. So by default
+(``choice="block"``) a check relinearises the variables past the threshold within one block
+of ``max_variables`` consecutive variables in the order they entered iSAM2, the block with
+the largest sum of ratios; neighbours in that order are neighbours in the tree, their paths
+to the root are mostly one path, and the same checks re-eliminated 400–1 100
+(docs/performance.md, "Relinearising a block of neighbours"; after a rebuild or a window's
+slide the keys are read back in key order, landmarks first, and the block follows that
+order). ``choice="ratio"`` is the first rule:
+the ``max_variables`` furthest past the threshold, wherever they are. Choosing by GTSAM's own
+prediction of the re-elimination (``ISAM2.predictUpdateInfo``) was measured and cost more
+than it saved (docs/performance.md).
 """
 
 from __future__ import annotations
@@ -34,6 +45,11 @@ _INDEX_BITS = 56
 _INDEX_MASK = (1 << _INDEX_BITS) - 1
 #: Indices below this are exact as float64 (what createKeyList takes them as).
 _EXACT_IN_FLOAT = 1 << 53
+#: How a capped check chooses what to relinearise (:class:`CapChoice`).
+CHOICES = ("block", "ratio")
+#: A block's weight per variable is its ratio, clipped here (a zero threshold makes it
+#: infinite): a power of two, so sums of tied weights are exact.
+_RATIO_CEILING = 2.0**40
 
 
 def component_thresholds(keys: list[int], threshold: float | tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
@@ -68,9 +84,23 @@ def ratios(delta: gtsam.VectorValues, keys: list[int], threshold: float | tuple[
     return np.maximum.reduceat(ratio, starts)
 
 
+def block_start(weights: np.ndarray, width: int) -> int:
+    """Where the ``width`` consecutive entries of ``weights`` with the largest sum start (the
+    first such block on ties; 0 when there are no more than ``width``; past the end for an
+    empty block)."""
+    if width <= 0:
+        return len(weights)
+    if len(weights) <= width:
+        return 0
+    sums = np.concatenate([[0.0], np.cumsum(weights)])
+    return int(np.argmax(sums[width:] - sums[:-width]))
+
+
 class CapChoice:
-    """The variables of one ``ISAM2`` past the threshold beyond the ``max_variables`` furthest
-    past it: what its next check is not to relinearise (``ISAM2UpdateParams.noRelinKeys``).
+    """The variables of one ``ISAM2`` past the threshold that its next check is not to
+    relinearise (``ISAM2UpdateParams.noRelinKeys``): all but those within the block of
+    ``max_variables`` consecutive kept keys with the largest sum of ratios
+    (``choice="block"``), or all but the ``max_variables`` furthest past it (``"ratio"``).
 
     The keys of the ``ISAM2`` and their components' thresholds are kept from check to check
     and extended by the keys each update entered (:meth:`entered`), so a check reads only
@@ -79,8 +109,10 @@ class CapChoice:
     one the keys were kept for (a rebuild, a window's slide) or holds a different number of
     variables than they say, the keys are read back from it."""
 
-    def __init__(self, threshold: float | tuple[float, float], max_variables: int):
-        self._threshold, self._max_variables = threshold, max_variables
+    def __init__(self, threshold: float | tuple[float, float], max_variables: int, choice: str = "block"):
+        if choice not in CHOICES:
+            raise ValueError(f"CapChoice: choice must be one of {CHOICES}, got {choice!r}")
+        self._threshold, self._max_variables, self._choice = threshold, max_variables, choice
         self._isam = None
         self._keys: list[int] = []  # as GTSAM's linearisation point listed them, then as entered
         self._entered: list[int] = []  # entered since the arrays below were last extended
@@ -96,14 +128,21 @@ class CapChoice:
             self._isam, self._keys, self._entered = None, [], []
 
     def held_back(self, isam) -> gtsam.KeyList:
-        """What the check of ``isam``'s next update is not to relinearise (the same keys as
-        reading them all back and ranking by ratio, ties by key: tested)."""
+        """What the check of ``isam``'s next update is not to relinearise (by ratio: the same
+        keys as reading them all back and ranking by ratio, ties by key; by block: the same
+        block as summing the ratios of every window in the order the keys entered: tested)."""
         ratio = self.ratios(isam)
         if ratio is None:
             return gtsam.KeyList()
         past = np.flatnonzero(ratio >= 1.0)
         if len(past) <= self._max_variables:
             return gtsam.KeyList()
+        if self._choice == "block":
+            weights = np.zeros(len(ratio))
+            weights[past] = np.minimum(ratio[past], _RATIO_CEILING)
+            start = block_start(weights, self._max_variables)
+            held = past[(past < start) | (past >= start + self._max_variables)]
+            return key_list(self._array[held])
         keys = self._array[past]
         chosen = keys[np.lexsort((keys, -ratio[past]))][self._max_variables:]  # by ratio, then by key
         return key_list(chosen)

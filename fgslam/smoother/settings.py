@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
+from fgslam.smoother.relinearisation import CHOICES
 from slamio.errors import FgslamError
 
 
@@ -76,6 +77,23 @@ class Isam2Settings:
         the variables relinearised, not the variables re-eliminated: a landmark seen from
         every pose is in every pose's clique, so relinearising it re-eliminates most of the
         tree (Plaza1's four beacons: up to 2 200 variables in one check).
+    relinearize_choice:
+        Which variables past the threshold a capped check relinearises: ``"block"`` (default)
+        those within the ``relinearize_max_variables`` consecutive variables, in the order
+        they entered iSAM2, whose ratios (pending step over threshold) sum highest;
+        ``"ratio"`` the ``relinearize_max_variables`` with the largest ratios, wherever they
+        are (the first rule). GTSAM re-eliminates every clique from a relinearised variable
+        up to the root; neighbours in entry order share that path, variables chosen by ratio
+        alone do not.
+
+        Why, measured (docs/performance.md, "The long steps, taken apart";
+        ``scripts/bench_long_steps.py``, CPU time at a load of 6–13): the longest step of a
+        run fell on Plaza1 from 109–136 to 39–52 ms (its checks re-eliminated 400–750
+        variables where they re-eliminated up to 2 281), on Victoria Park from 42–44 to
+        29–36 ms, on MRCLAM Dataset 6 robots 1–4 from 22–39 to 11–38 ms and on the
+        2 000-landmark grid from 761 to 226 ms, with the online ATE within 2 % of the ratio
+        rule's (better on Plaza1 and robots 1 and 3) and the final χ² at the batch optimum.
+        A block of 150 was shorter still but lost 8.8 % online on robot 2.
     final_updates:
         Extra plain ``isam.update()`` calls (no new factors) at the start of
         :meth:`.Isam2Smoother.finish`, letting a pending relinearisation check happen. Cheap; the full
@@ -169,6 +187,7 @@ class Isam2Settings:
     relinearize_threshold: float | tuple[float, float] = 0.01
     relinearize_skip: int = 20
     relinearize_max_variables: int | None = 300
+    relinearize_choice: str = "block"
     update_every: int = 50
     update_on: str = "any"
     max_held_steps: int = 50
@@ -211,6 +230,8 @@ class Isam2Settings:
             raise FgslamError("Isam2Smoother: need max_keyframe_gap >= 1")
         if self.relinearize_max_variables is not None and self.relinearize_max_variables < 0:
             raise FgslamError("Isam2Smoother: relinearize_max_variables must be None or >= 0")
+        if self.relinearize_choice not in CHOICES:
+            raise FgslamError(f"Isam2Smoother: relinearize_choice must be one of {CHOICES}, got {self.relinearize_choice!r}")
         if self.window_poses is not None and self.window_poses < 2:
             raise FgslamError(f"Isam2Smoother: window_poses must be None or >= 2, got {self.window_poses!r}")
         normalised = {
