@@ -66,6 +66,7 @@ from fgslam.navigate.grid import OccupancyGrid
 from fgslam.navigate.inspect import (grid_sight, inspected_hits, inspection_targets, landmark_viewpoint,
                                      nearest_to_group_middle)
 from fgslam.navigate.paths import coarse_passable, geodesic_from, way_ahead_xy, way_left_m, way_to
+from fgslam.navigate.tour import pairwise_m, tour_order
 from fgslam.navigate.vfh import Vfh
 from slamio.camera.kinect import KINECT_HFOV_RAD
 from slamio.geometry import wrap_angle
@@ -134,6 +135,10 @@ class Goal:
     resolved: bool = True  # False while ``xy`` is only a first guess of the viewpoint
 
 
+def _key(xy) -> tuple[float, float]:
+    return (round(float(xy[0]), 3), round(float(xy[1]), 3))
+
+
 class _Visits:
     """Separate visits per landmark, from the sighting counts (module docstring)."""
 
@@ -170,7 +175,8 @@ class Explore:
                  blacklist_s: float = 60.0, explored_range_m: float = 3.0, read_range_m: float = 2.5,
                  read_incidence_rad: float = math.radians(55), inspect_weight: float = 1.0,
                  glance_range_m: float = 2.8, glance_facing_rad: float = math.radians(45), lookahead_m: float = 0.8,
-                 view_m=(1.0, 1.5, 2.0, 2.5), tile_m: float = 1.0, glance_still_s: float = 2.0, spot_s: float = 5.0):
+                 view_m=(1.0, 1.5, 2.0, 2.5), tile_m: float = 1.0, glance_still_s: float = 2.0, spot_s: float = 5.0,
+                 tour_end: str = "start"):
         self.rng = np.random.default_rng(seed)
         self.grid = grid if grid is not None else OccupancyGrid()
         # the floor counts as explored only where the tag detector could have read a tag
@@ -190,6 +196,11 @@ class Explore:
         self.glance_still_s = glance_still_s
         self._glance_failed: dict[int, float] = {}  # landmark: no glance at it before then
         self._glance_check = False  # look for a glance on the next free step (after a refresh)
+        self.tour_end = tour_end  # "start", "open" or "none" (greedy): :meth:`_plan_tour`
+        self._tour: dict[tuple[float, float], float] = {}  # coverage goal: the tour's length up to it
+        self._tour_due = False  # order the coverage goals on the next free steps (after a refresh)
+        self._tour_goals = None  # (goals, their costs) waiting for their tour
+        self._start_xy = None
         self._targets: list[tuple[float, float, float]] = []  # inspection targets: x, y, facing
         self._frontiers: list[tuple[float, float]] = []
         self._clearance = None  # (block, row slice, column slice)
@@ -239,6 +250,7 @@ class Explore:
             nearest = ndimage.minimum_filter(distance, size=3, mode="constant", cval=math.inf)
             self._ways = (distance, previous, rows.start, cols.start, nearest)
         self._replanned_s = now_s
+        self._tour_due = True
         return True
 
     def _coarse_cell(self, xy, rows: slice, cols: slice, shape) -> tuple[int, int] | None:
@@ -403,6 +415,39 @@ class Explore:
                            for g in goals])
         return weight * (way + self.turn_cost * turn)
 
+    def _coverage_goals(self, situation: Situation) -> list[Goal]:
+        return [Goal("frontier", xy) for xy in self._frontiers] + self._inspect_goals(situation)
+
+    def _unlisted(self, goals: list[Goal], now_s: float) -> list[Goal]:
+        """The goals not black-listed (an inspection's surface neither)."""
+        listed = self._listed_many([g.xy for g in goals] + [g.target or g.xy for g in goals], now_s)
+        return [g for g, a, b in zip(goals, listed[:len(goals)], listed[len(goals):])
+                if not a and not (b and g.kind == "inspect")]
+
+    def _plan_tour(self, situation: Situation) -> None:
+        """Order the coverage goals (frontiers, surfaces to inspect) by a short tour from the
+        robot through all of them (:func:`~fgslam.navigate.tour.tour_order`; the first leg by
+        the floor and the turn as :meth:`_costs_m`, between goals straight), ending where the
+        run started (``tour_end`` "start") or anywhere ("open"); each goal then costs the
+        tour's length up to it, so the nearest goal is put off when taking it now would leave
+        others behind. "none": each costs its own way (greedy). Two steps' work: the goals
+        and their first legs, then the tour."""
+        if self._tour_goals is None:
+            goals = self._unlisted(self._coverage_goals(situation), situation.now_s)
+            cost = self._costs_m(situation.pose, goals)
+            reachable = np.isfinite(cost)
+            self._tour_goals = ([g for g, ok in zip(goals, reachable) if ok], cost[reachable])
+            return
+        (goals, cost), self._tour_goals, self._tour_due, self._tour = self._tour_goals, None, False, {}
+        if self.tour_end == "none" or len(goals) < 2:
+            return
+        xy = np.array([g.xy for g in goals])
+        between = pairwise_m(xy)
+        end = None if self.tour_end == "open" else np.hypot(xy[:, 0] - self._start_xy[0], xy[:, 1] - self._start_xy[1])
+        order = tour_order(cost, between, end)
+        upto = cost[order[0]] + np.r_[0.0, np.cumsum(between[order[:-1], order[1:]])]
+        self._tour = {_key(goals[k].xy): float(m) for k, m in zip(order, upto)}
+
     def _choose(self, situation: Situation, tries: int = 2) -> Goal | None:
         """The cheapest offer (module docstring) whose viewpoint exists; at most ``tries``
         viewpoints are looked for per call (each costs a few hundred µs)."""
@@ -410,13 +455,10 @@ class Explore:
         glance = self._glance(situation)
         if glance is not None:
             return glance
-        goals = [Goal("frontier", xy) for xy in self._frontiers]
-        goals += self._inspect_goals(situation) + self._landmark_goals(situation)
-        listed = self._listed_many([g.xy for g in goals] + [g.target or g.xy for g in goals], situation.now_s)
-        goals = [g for g, a, b in zip(goals, listed[:len(goals)], listed[len(goals):])
-                 if not a and not (b and g.kind == "inspect")]  # an inspection's surface banned too
-        # a goal the known floor leads not to (yet) is left for later
-        offers = [(cost, g) for cost, g in zip(self._costs_m(pose, goals), goals) if cost < math.inf]
+        goals = self._unlisted(self._coverage_goals(situation) + self._landmark_goals(situation), situation.now_s)
+        # a goal the known floor leads not to (yet) is left for later; a coverage goal costs the tour up to it
+        offers = [(self._tour.get(_key(g.xy), cost) if g.kind in ("frontier", "inspect") else cost, g)
+                  for cost, g in zip(self._costs_m(pose, goals), goals) if cost < math.inf]
         if not offers:  # explored and every landmark visited: go back to the one seen longest ago
             returns = [g for g in self._landmark_goals(situation, stale_only=False)
                        if not self._listed(g.xy, situation.now_s)]
@@ -514,6 +556,8 @@ class Explore:
         return situation.now_s - goal.improved_s <= self.stuck_s
 
     def step(self, situation: Situation) -> Command:
+        if self._start_xy is None:
+            self._start_xy = (float(situation.pose[0]), float(situation.pose[1]))
         fresh_scan = self.vfh.observe(situation)
         self.visits.update(situation.sightings, situation.now_s, situation.landmarks, situation.pose[:2])
         if situation.bumped and not self.vfh.backoff.active:
@@ -547,6 +591,9 @@ class Explore:
             glance = self._glance(situation)
             if glance is not None:
                 self.goal, self._way = glance, None  # on the way: a landmark due a visit is in sight, turn to it
+        if self._tour_due and not busy:
+            busy = True
+            self._plan_tour(situation)
         if situation.now_s - self._replanned_s >= self.replan_s and not busy:
             busy = True
             self._glance_check = True

@@ -45,6 +45,21 @@ def tour_length_m(order, first_leg_m, between_m, end_m=None) -> float:
     return float(d[path[:-1], path[1:]].sum())
 
 
+_MOVES: dict[int, tuple] = {}
+
+
+def _moves(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Every move on a path of n goals between fixed ends (positions 0 and n + 1): 2-opt
+    reverses path[i + 1 .. j]; or-opt moves the goal at path[p] between path[q] and
+    path[q + 1]. Built once per n."""
+    if n not in _MOVES:
+        i, j = np.triu_indices(n + 1, k=2)
+        p, q = np.nonzero((np.arange(1, n + 1)[:, None] != np.arange(n + 1)[None, :])
+                          & (np.arange(1, n + 1)[:, None] != np.arange(n + 1)[None, :] + 1))
+        _MOVES[n] = (i, j, p + 1, q)
+    return _MOVES[n]
+
+
 def tour_order(first_leg_m, between_m, end_m=None, max_moves: int = 60) -> np.ndarray:
     """Indices of the goals in the order of a short tour from the robot through all of them:
     ``first_leg_m`` (n,) the way from the robot to each, ``between_m`` (n, n) the distance
@@ -57,17 +72,13 @@ def tour_order(first_leg_m, between_m, end_m=None, max_moves: int = 60) -> np.nd
     if n <= 1:
         return np.arange(n)
     d = _distances(first_leg_m, np.asarray(between_m, dtype=float), end_m)
-    path, left = [0], np.ones(n + 2, bool)
-    left[[0, n + 1]] = False
+    path, masked = [0], d.copy()
+    masked[:, [0, n + 1]] = np.inf
     for _ in range(n):  # nearest neighbour
-        row = np.where(left, d[path[-1]], np.inf)
-        path.append(int(np.argmin(row)))
-        left[path[-1]] = False
+        path.append(int(np.argmin(masked[path[-1]])))
+        masked[:, path[-1]] = np.inf
     path = np.array(path + [n + 1])
-    i, j = np.triu_indices(n + 1, k=2)  # 2-opt: reverse path[i + 1 .. j]
-    p, q = np.nonzero((np.arange(1, n + 1)[:, None] != np.arange(n + 1)[None, :])
-                      & (np.arange(1, n + 1)[:, None] != np.arange(n + 1)[None, :] + 1))
-    p += 1  # or-opt: move the goal at path[p] between path[q] and path[q + 1]
+    i, j, p, q = _moves(n)
     for _ in range(max_moves):  # the better move of the two kinds each time, until none shortens the tour
         a, b, c, e = path[i], path[i + 1], path[j], path[j + 1]
         reverse = d[a, b] + d[c, e] - d[a, c] - d[b, e]
