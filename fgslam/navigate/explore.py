@@ -31,8 +31,12 @@ stays unknown), four kinds of goal:
 Goals are chosen by cost: the length of the way over the known floor (Dijkstra on 0.2 m
 cells with room for the robot's enlarged disc, :mod:`fgslam.navigate.paths`; a goal the
 known floor does not lead to waits) plus ``turn_cost_m_per_rad`` for the turn toward it,
-landmark goals weighted by ``landmark_weight``; when none is left it goes back to the
-landmark it saw longest ago, or wanders. It starts with a look-around turn (a circle less
+landmark goals weighted by ``landmark_weight``. A coverage goal (a frontier or a surface)
+costs instead the length of a tour from the robot through all of them up to it
+(:mod:`fgslam.navigate.tour`, straight between goals), closed where the run started
+(``tour_end``): the nearest is put off when taking it now would leave others behind, and the
+robot sweeps the room once and comes back past what it saw first. When no goal is left it
+goes back to the landmark it saw longest ago, or wanders. It starts with a look-around turn (a circle less
 the camera's view). It steers with :class:`~fgslam.navigate.vfh.Vfh` (local avoidance,
 turn-to-look) toward the point ``lookahead_m`` along the way. A frontier goal is reached
 when the robot is within ``reach_m`` or the cell is no longer a frontier (seen from afar).
@@ -48,7 +52,8 @@ free and turns away from the bump side; bumped twice on the way, the goal is dro
 
 Work per step stays small: at most one heavy job a step besides steering (a scan; the
 surfaces that scan inspected; the clearance map; the frontiers; the inspection targets; the
-ways from the robot; a glance check; a goal choice, which looks for at most two viewpoints),
+ways from the robot; the coverage goals' first legs; their tour; a glance check; a goal
+choice, which looks for at most two viewpoints),
 the map's offers recomputed once every ``replan_s``, on the block of known cells only.
 """
 
@@ -60,11 +65,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from fgslam.navigate.common import ROBOT_RADIUS_M, Command, Situation, heading_error_rad, limited_command, turn_towards
+from fgslam.navigate.common import Command, Situation, heading_error_rad, limited_command, turn_towards
 from fgslam.navigate.escape import ForwardEscape
+from fgslam.navigate.frontiers import FREE_BELOW, OCCUPIED_ABOVE, clearance_map_m, frontier_goals, frontier_mask
 from fgslam.navigate.grid import OccupancyGrid
-from fgslam.navigate.inspect import (grid_sight, inspected_hits, inspection_targets, landmark_viewpoint,
-                                     nearest_to_group_middle)
+from fgslam.navigate.inspect import grid_sight, inspected_hits, inspection_targets, landmark_viewpoint
 from fgslam.navigate.paths import coarse_passable, geodesic_from, way_ahead_xy, way_left_m, way_to
 from fgslam.navigate.tour import pairwise_m, tour_order
 from fgslam.navigate.vfh import Vfh
@@ -73,45 +78,7 @@ from slamio.geometry import wrap_angle
 
 __all__ = ["Explore", "frontier_mask", "frontier_goals", "landmark_viewpoint", "goal_cost_m", "Goal"]
 
-FREE_BELOW = -0.3
 WAY_FACTOR = 2  # the ways' coarse cells: 2 × 2 grid cells (0.2 m)
-OCCUPIED_ABOVE = 0.5
-
-
-def frontier_mask(log_odds: np.ndarray) -> np.ndarray:
-    """Free cells with an unknown (log-odds 0) 4-neighbour."""
-    unknown = log_odds == 0
-    near_unknown = np.zeros_like(unknown)
-    near_unknown[1:, :] |= unknown[:-1, :]
-    near_unknown[:-1, :] |= unknown[1:, :]
-    near_unknown[:, 1:] |= unknown[:, :-1]
-    near_unknown[:, :-1] |= unknown[:, 1:]
-    return (log_odds < FREE_BELOW) & near_unknown
-
-
-def clearance_map_m(log_odds: np.ndarray, resolution_m: float) -> np.ndarray:
-    """Distance from each cell to the nearest occupied cell (the block's edge counts as far)."""
-    return ndimage.distance_transform_edt(~(log_odds > OCCUPIED_ABOVE)) * resolution_m
-
-
-def frontier_goals(log_odds: np.ndarray, clearance_m: np.ndarray, min_cells: int = 3,
-                   room_m: float = ROBOT_RADIUS_M + 0.08) -> list[tuple[int, int, int]]:
-    """(row, column, size) per frontier cluster (8-connected, at least ``min_cells``): the
-    cluster's cell with ``room_m`` clearance nearest its centroid (clusters without one are
-    left out)."""
-    labels, count = ndimage.label(frontier_mask(log_odds), structure=np.ones((3, 3)))
-    if count == 0:
-        return []
-    rows, cols = np.nonzero(labels)
-    which = labels[rows, cols]
-    size = np.bincount(which, minlength=count + 1)
-    roomy = (clearance_m[rows, cols] >= room_m) & (size[which] >= min_cells)
-    if not roomy.any():
-        return []
-    # the roomy cell nearest the middle of its whole cluster
-    pick = nearest_to_group_middle(rows[roomy], cols[roomy], which[roomy], rows, cols, which)
-    r, c, k = rows[roomy][pick], cols[roomy][pick], which[roomy][pick]
-    return [(int(a), int(b), int(size[g])) for a, b, g in zip(r, c, k)]
 
 
 def goal_cost_m(pose, goal_xy, turn_cost_m_per_rad: float = 0.5) -> float:
