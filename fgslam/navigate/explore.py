@@ -102,8 +102,11 @@ class Goal:
     resolved: bool = True  # False while ``xy`` is only a first guess of the viewpoint
 
 
-def _key(xy) -> tuple[float, float]:
-    return (round(float(xy[0]), 3), round(float(xy[1]), 3))
+def _goal_key(goal) -> tuple:
+    """A goal's name from one refresh to the next: its landmark, or where it is."""
+    if goal.landmark is not None:
+        return ("landmark", goal.landmark)
+    return (round(float(goal.xy[0]), 3), round(float(goal.xy[1]), 3))
 
 
 class _Visits:
@@ -143,7 +146,7 @@ class Explore:
                  read_incidence_rad: float = math.radians(55), inspect_weight: float = 1.0,
                  glance_range_m: float = 2.8, glance_facing_rad: float = math.radians(45), lookahead_m: float = 0.8,
                  view_m=(1.0, 1.5, 2.0, 2.5), tile_m: float = 1.0, glance_still_s: float = 2.0, spot_s: float = 5.0,
-                 tour_end: str = "start"):
+                 tour_end: str = "start", tour_landmarks: bool = True):
         self.rng = np.random.default_rng(seed)
         self.grid = grid if grid is not None else OccupancyGrid()
         # the floor counts as explored only where the tag detector could have read a tag
@@ -164,6 +167,7 @@ class Explore:
         self._glance_failed: dict[int, float] = {}  # landmark: no glance at it before then
         self._glance_check = False  # look for a glance on the next free step (after a refresh)
         self.tour_end = tour_end  # "start", "open" or "none" (greedy): :meth:`_plan_tour`
+        self.tour_landmarks = tour_landmarks  # landmarks due a visit in the tour too
         self._tour: dict[tuple[float, float], float] = {}  # coverage goal: the tour's length up to it
         self._tour_due = False  # order the coverage goals on the next free steps (after a refresh)
         self._tour_goals = None  # (goals, their costs) waiting for their tour
@@ -368,7 +372,7 @@ class Explore:
         goal.xy, goal.resolved = view, True
         return True
 
-    def _costs_m(self, pose, goals: list[Goal]) -> np.ndarray:
+    def _costs_m(self, pose, goals: list[Goal], weighted: bool = True) -> np.ndarray:
         """:func:`goal_cost_m` per goal, with the way's length over the floor for the straight
         distance (:meth:`way_lengths_m`), weighted by the goal's kind."""
         if not goals:
@@ -379,7 +383,7 @@ class Explore:
         way = np.where(np.isnan(way), straight, way)
         turn = np.abs(wrap_angle(np.arctan2(xy[:, 1] - pose[1], xy[:, 0] - pose[0]) - pose[2]))
         weight = np.array([{"inspect": self.inspect_weight, "landmark": self.landmark_weight}.get(g.kind, 1.0)
-                           for g in goals])
+                           for g in goals]) if weighted else 1.0
         return weight * (way + self.turn_cost * turn)
 
     def _coverage_goals(self, situation: Situation) -> list[Goal]:
@@ -400,8 +404,10 @@ class Explore:
         others behind. "none": each costs its own way (greedy). Two steps' work: the goals
         and their first legs, then the tour."""
         if self._tour_goals is None:
-            goals = self._unlisted(self._coverage_goals(situation), situation.now_s)
-            cost = self._costs_m(situation.pose, goals)
+            goals = self._coverage_goals(situation)
+            goals = self._unlisted(goals + (self._landmark_goals(situation) if self.tour_landmarks else []),
+                                   situation.now_s)
+            cost = self._costs_m(situation.pose, goals, weighted=not self.tour_landmarks)
             reachable = np.isfinite(cost)
             self._tour_goals = ([g for g, ok in zip(goals, reachable) if ok], cost[reachable])
             return
@@ -413,7 +419,7 @@ class Explore:
         end = None if self.tour_end == "open" else np.hypot(xy[:, 0] - self._start_xy[0], xy[:, 1] - self._start_xy[1])
         order = tour_order(cost, between, end)
         upto = cost[order[0]] + np.r_[0.0, np.cumsum(between[order[:-1], order[1:]])]
-        self._tour = {_key(goals[k].xy): float(m) for k, m in zip(order, upto)}
+        self._tour = {_goal_key(goals[k]): float(m) for k, m in zip(order, upto)}
 
     def _choose(self, situation: Situation, tries: int = 2) -> Goal | None:
         """The cheapest offer (module docstring) whose viewpoint exists; at most ``tries``
@@ -424,7 +430,8 @@ class Explore:
             return glance
         goals = self._unlisted(self._coverage_goals(situation) + self._landmark_goals(situation), situation.now_s)
         # a goal the known floor leads not to (yet) is left for later; a coverage goal costs the tour up to it
-        offers = [(self._tour.get(_key(g.xy), cost) if g.kind in ("frontier", "inspect") else cost, g)
+        offers = [(self._tour.get(_goal_key(g), cost) if g.kind in ("frontier", "inspect") or self.tour_landmarks
+                   else cost, g)
                   for cost, g in zip(self._costs_m(pose, goals), goals) if cost < math.inf]
         if not offers:  # explored and every landmark visited: go back to the one seen longest ago
             returns = [g for g in self._landmark_goals(situation, stale_only=False)
