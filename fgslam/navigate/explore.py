@@ -31,12 +31,8 @@ stays unknown), four kinds of goal:
 Goals are chosen by cost: the length of the way over the known floor (Dijkstra on 0.2 m
 cells with room for the robot's enlarged disc, :mod:`fgslam.navigate.paths`; a goal the
 known floor does not lead to waits) plus ``turn_cost_m_per_rad`` for the turn toward it,
-landmark goals weighted by ``landmark_weight``. A coverage goal (a frontier or a surface)
-costs instead the length of a tour from the robot through all of them up to it
-(:mod:`fgslam.navigate.tour`, straight between goals), closed where the run started
-(``tour_end``): the nearest is put off when taking it now would leave others behind, and the
-robot sweeps the room once and comes back past what it saw first. When no goal is left it
-goes back to the landmark it saw longest ago, or wanders. It starts with a look-around turn (a circle less
+landmark goals weighted by ``landmark_weight``; when none is left it goes back to the
+landmark it saw longest ago, or wanders. It starts with a look-around turn (a circle less
 the camera's view). It steers with :class:`~fgslam.navigate.vfh.Vfh` (local avoidance,
 turn-to-look) toward the point ``lookahead_m`` along the way. A frontier goal is reached
 when the robot is within ``reach_m`` or the cell is no longer a frontier (seen from afar).
@@ -52,8 +48,7 @@ free and turns away from the bump side; bumped twice on the way, the goal is dro
 
 Work per step stays small: at most one heavy job a step besides steering (a scan; the
 surfaces that scan inspected; the clearance map; the frontiers; the inspection targets; the
-ways from the robot; the coverage goals' first legs; their tour; a glance check; a goal
-choice, which looks for at most two viewpoints),
+ways from the robot; a glance check; a goal choice, which looks for at most two viewpoints),
 the map's offers recomputed once every ``replan_s``, on the block of known cells only.
 """
 
@@ -65,20 +60,57 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from fgslam.navigate.common import Command, Situation, heading_error_rad, limited_command, turn_towards
+from fgslam.navigate.common import ROBOT_RADIUS_M, Command, Situation, heading_error_rad, limited_command, turn_towards
 from fgslam.navigate.escape import ForwardEscape
-from fgslam.navigate.frontiers import FREE_BELOW, OCCUPIED_ABOVE, clearance_map_m, frontier_goals, frontier_mask
 from fgslam.navigate.grid import OccupancyGrid
-from fgslam.navigate.inspect import grid_sight, inspected_hits, inspection_targets, landmark_viewpoint
+from fgslam.navigate.inspect import (grid_sight, inspected_hits, inspection_targets, landmark_viewpoint,
+                                     nearest_to_group_middle)
 from fgslam.navigate.paths import coarse_passable, geodesic_from, way_ahead_xy, way_left_m, way_to
-from fgslam.navigate.tour import pairwise_m, tour_order
 from fgslam.navigate.vfh import Vfh
 from slamio.camera.kinect import KINECT_HFOV_RAD
 from slamio.geometry import wrap_angle
 
 __all__ = ["Explore", "frontier_mask", "frontier_goals", "landmark_viewpoint", "goal_cost_m", "Goal"]
 
+FREE_BELOW = -0.3
 WAY_FACTOR = 2  # the ways' coarse cells: 2 × 2 grid cells (0.2 m)
+OCCUPIED_ABOVE = 0.5
+
+
+def frontier_mask(log_odds: np.ndarray) -> np.ndarray:
+    """Free cells with an unknown (log-odds 0) 4-neighbour."""
+    unknown = log_odds == 0
+    near_unknown = np.zeros_like(unknown)
+    near_unknown[1:, :] |= unknown[:-1, :]
+    near_unknown[:-1, :] |= unknown[1:, :]
+    near_unknown[:, 1:] |= unknown[:, :-1]
+    near_unknown[:, :-1] |= unknown[:, 1:]
+    return (log_odds < FREE_BELOW) & near_unknown
+
+
+def clearance_map_m(log_odds: np.ndarray, resolution_m: float) -> np.ndarray:
+    """Distance from each cell to the nearest occupied cell (the block's edge counts as far)."""
+    return ndimage.distance_transform_edt(~(log_odds > OCCUPIED_ABOVE)) * resolution_m
+
+
+def frontier_goals(log_odds: np.ndarray, clearance_m: np.ndarray, min_cells: int = 3,
+                   room_m: float = ROBOT_RADIUS_M + 0.08) -> list[tuple[int, int, int]]:
+    """(row, column, size) per frontier cluster (8-connected, at least ``min_cells``): the
+    cluster's cell with ``room_m`` clearance nearest its centroid (clusters without one are
+    left out)."""
+    labels, count = ndimage.label(frontier_mask(log_odds), structure=np.ones((3, 3)))
+    if count == 0:
+        return []
+    rows, cols = np.nonzero(labels)
+    which = labels[rows, cols]
+    size = np.bincount(which, minlength=count + 1)
+    roomy = (clearance_m[rows, cols] >= room_m) & (size[which] >= min_cells)
+    if not roomy.any():
+        return []
+    # the roomy cell nearest the middle of its whole cluster
+    pick = nearest_to_group_middle(rows[roomy], cols[roomy], which[roomy], rows, cols, which)
+    r, c, k = rows[roomy][pick], cols[roomy][pick], which[roomy][pick]
+    return [(int(a), int(b), int(size[g])) for a, b, g in zip(r, c, k)]
 
 
 def goal_cost_m(pose, goal_xy, turn_cost_m_per_rad: float = 0.5) -> float:
@@ -100,13 +132,6 @@ class Goal:
     facing: bool = False
     facing_rad: float | None = None  # the direction the target faces (where to look at it from)
     resolved: bool = True  # False while ``xy`` is only a first guess of the viewpoint
-
-
-def _goal_key(goal) -> tuple:
-    """A goal's name from one refresh to the next: its landmark, or where it is."""
-    if goal.landmark is not None:
-        return ("landmark", goal.landmark)
-    return (round(float(goal.xy[0]), 3), round(float(goal.xy[1]), 3))
 
 
 class _Visits:
@@ -145,8 +170,7 @@ class Explore:
                  blacklist_s: float = 60.0, explored_range_m: float = 3.0, read_range_m: float = 2.5,
                  read_incidence_rad: float = math.radians(55), inspect_weight: float = 1.0,
                  glance_range_m: float = 2.8, glance_facing_rad: float = math.radians(45), lookahead_m: float = 0.8,
-                 view_m=(1.0, 1.5, 2.0, 2.5), tile_m: float = 1.0, glance_still_s: float = 2.0, spot_s: float = 5.0,
-                 tour_end: str = "start", tour_landmarks: bool = True):
+                 view_m=(1.0, 1.5, 2.0, 2.5), tile_m: float = 1.0, glance_still_s: float = 2.0, spot_s: float = 5.0):
         self.rng = np.random.default_rng(seed)
         self.grid = grid if grid is not None else OccupancyGrid()
         # the floor counts as explored only where the tag detector could have read a tag
@@ -166,12 +190,6 @@ class Explore:
         self.glance_still_s = glance_still_s
         self._glance_failed: dict[int, float] = {}  # landmark: no glance at it before then
         self._glance_check = False  # look for a glance on the next free step (after a refresh)
-        self.tour_end = tour_end  # "start", "open" or "none" (greedy): :meth:`_plan_tour`
-        self.tour_landmarks = tour_landmarks  # landmarks due a visit in the tour too
-        self._tour: dict[tuple[float, float], float] = {}  # coverage goal: the tour's length up to it
-        self._tour_due = False  # order the coverage goals on the next free steps (after a refresh)
-        self._tour_goals = None  # (goals, their costs) waiting for their tour
-        self._start_xy = None
         self._targets: list[tuple[float, float, float]] = []  # inspection targets: x, y, facing
         self._frontiers: list[tuple[float, float]] = []
         self._clearance = None  # (block, row slice, column slice)
@@ -221,7 +239,6 @@ class Explore:
             nearest = ndimage.minimum_filter(distance, size=3, mode="constant", cval=math.inf)
             self._ways = (distance, previous, rows.start, cols.start, nearest)
         self._replanned_s = now_s
-        self._tour_due = True
         return True
 
     def _coarse_cell(self, xy, rows: slice, cols: slice, shape) -> tuple[int, int] | None:
@@ -372,7 +389,7 @@ class Explore:
         goal.xy, goal.resolved = view, True
         return True
 
-    def _costs_m(self, pose, goals: list[Goal], weighted: bool = True) -> np.ndarray:
+    def _costs_m(self, pose, goals: list[Goal]) -> np.ndarray:
         """:func:`goal_cost_m` per goal, with the way's length over the floor for the straight
         distance (:meth:`way_lengths_m`), weighted by the goal's kind."""
         if not goals:
@@ -383,43 +400,8 @@ class Explore:
         way = np.where(np.isnan(way), straight, way)
         turn = np.abs(wrap_angle(np.arctan2(xy[:, 1] - pose[1], xy[:, 0] - pose[0]) - pose[2]))
         weight = np.array([{"inspect": self.inspect_weight, "landmark": self.landmark_weight}.get(g.kind, 1.0)
-                           for g in goals]) if weighted else 1.0
+                           for g in goals])
         return weight * (way + self.turn_cost * turn)
-
-    def _coverage_goals(self, situation: Situation) -> list[Goal]:
-        return [Goal("frontier", xy) for xy in self._frontiers] + self._inspect_goals(situation)
-
-    def _unlisted(self, goals: list[Goal], now_s: float) -> list[Goal]:
-        """The goals not black-listed (an inspection's surface neither)."""
-        listed = self._listed_many([g.xy for g in goals] + [g.target or g.xy for g in goals], now_s)
-        return [g for g, a, b in zip(goals, listed[:len(goals)], listed[len(goals):])
-                if not a and not (b and g.kind == "inspect")]
-
-    def _plan_tour(self, situation: Situation) -> None:
-        """Order the coverage goals (frontiers, surfaces to inspect) by a short tour from the
-        robot through all of them (:func:`~fgslam.navigate.tour.tour_order`; the first leg by
-        the floor and the turn as :meth:`_costs_m`, between goals straight), ending where the
-        run started (``tour_end`` "start") or anywhere ("open"); each goal then costs the
-        tour's length up to it, so the nearest goal is put off when taking it now would leave
-        others behind. "none": each costs its own way (greedy). Two steps' work: the goals
-        and their first legs, then the tour."""
-        if self._tour_goals is None:
-            goals = self._coverage_goals(situation)
-            goals = self._unlisted(goals + (self._landmark_goals(situation) if self.tour_landmarks else []),
-                                   situation.now_s)
-            cost = self._costs_m(situation.pose, goals, weighted=not self.tour_landmarks)
-            reachable = np.isfinite(cost)
-            self._tour_goals = ([g for g, ok in zip(goals, reachable) if ok], cost[reachable])
-            return
-        (goals, cost), self._tour_goals, self._tour_due, self._tour = self._tour_goals, None, False, {}
-        if self.tour_end == "none" or len(goals) < 2:
-            return
-        xy = np.array([g.xy for g in goals])
-        between = pairwise_m(xy)
-        end = None if self.tour_end == "open" else np.hypot(xy[:, 0] - self._start_xy[0], xy[:, 1] - self._start_xy[1])
-        order = tour_order(cost, between, end)
-        upto = cost[order[0]] + np.r_[0.0, np.cumsum(between[order[:-1], order[1:]])]
-        self._tour = {_goal_key(goals[k]): float(m) for k, m in zip(order, upto)}
 
     def _choose(self, situation: Situation, tries: int = 2) -> Goal | None:
         """The cheapest offer (module docstring) whose viewpoint exists; at most ``tries``
@@ -428,11 +410,13 @@ class Explore:
         glance = self._glance(situation)
         if glance is not None:
             return glance
-        goals = self._unlisted(self._coverage_goals(situation) + self._landmark_goals(situation), situation.now_s)
-        # a goal the known floor leads not to (yet) is left for later; a coverage goal costs the tour up to it
-        offers = [(self._tour.get(_goal_key(g), cost) if g.kind in ("frontier", "inspect") or self.tour_landmarks
-                   else cost, g)
-                  for cost, g in zip(self._costs_m(pose, goals), goals) if cost < math.inf]
+        goals = [Goal("frontier", xy) for xy in self._frontiers]
+        goals += self._inspect_goals(situation) + self._landmark_goals(situation)
+        listed = self._listed_many([g.xy for g in goals] + [g.target or g.xy for g in goals], situation.now_s)
+        goals = [g for g, a, b in zip(goals, listed[:len(goals)], listed[len(goals):])
+                 if not a and not (b and g.kind == "inspect")]  # an inspection's surface banned too
+        # a goal the known floor leads not to (yet) is left for later
+        offers = [(cost, g) for cost, g in zip(self._costs_m(pose, goals), goals) if cost < math.inf]
         if not offers:  # explored and every landmark visited: go back to the one seen longest ago
             returns = [g for g in self._landmark_goals(situation, stale_only=False)
                        if not self._listed(g.xy, situation.now_s)]
@@ -530,8 +514,6 @@ class Explore:
         return situation.now_s - goal.improved_s <= self.stuck_s
 
     def step(self, situation: Situation) -> Command:
-        if self._start_xy is None:
-            self._start_xy = (float(situation.pose[0]), float(situation.pose[1]))
         fresh_scan = self.vfh.observe(situation)
         self.visits.update(situation.sightings, situation.now_s, situation.landmarks, situation.pose[:2])
         if situation.bumped and not self.vfh.backoff.active:
@@ -565,9 +547,6 @@ class Explore:
             glance = self._glance(situation)
             if glance is not None:
                 self.goal, self._way = glance, None  # on the way: a landmark due a visit is in sight, turn to it
-        if self._tour_due and not busy:
-            busy = True
-            self._plan_tour(situation)
         if situation.now_s - self._replanned_s >= self.replan_s and not busy:
             busy = True
             self._glance_check = True
