@@ -148,7 +148,7 @@ def part5(name: str, log: RunLog, repeats: int) -> list[Row]:
         runs.append((time.process_time() - start, wall, peak_mb if peak_mb is not None else float("nan")))
     cpu_s, wall_s, peak_mb = min(runs)
     return [Row(name, 5, "default 3-D fgslam run, CPU", cpu_s, "s", 60.0),
-            Row(name, 5, "the same, wall (loaded machine)", wall_s, "s", None),
+            Row(name, 5, "the same, wall", wall_s, "s", None),
             Row(name, 5, "its peak memory", peak_mb, "MB", 500.0)]
 
 
