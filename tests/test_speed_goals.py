@@ -11,7 +11,7 @@ import argparse
 
 import pytest
 
-from scripts.bench_speed_goals import Row, goal_rows, isam2_over_ekf_goal, longest_step_goal_ms, parse_parts
+from scripts.bench_speed_goals import ResidentPoll, Row, goal_rows, isam2_over_ekf_goal, longest_step_goal_ms, parse_parts
 from scripts.common import DATA
 from slamio.log import read_log
 
@@ -51,3 +51,18 @@ def test_parts_option() -> None:
     assert parse_parts("4,1,1") == [1, 4]
     with pytest.raises(argparse.ArgumentTypeError):
         parse_parts("6")
+
+
+def test_the_resident_poll_sees_a_large_allocation() -> None:
+    import time
+
+    import numpy as np
+
+    from fgslam.memory import resident_kib
+
+    before_mb = resident_kib() / 1024.0
+    with ResidentPoll(every_s=0.005) as poll:
+        block = np.ones(80 * 2**20 // 8)  # 80 MiB, every page touched
+        time.sleep(0.05)
+        del block
+    assert poll.peak_mb >= before_mb + 75.0
