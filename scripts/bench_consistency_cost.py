@@ -51,10 +51,11 @@ def shares(run, truth, has_pose) -> dict:
     return out
 
 
-def measure(path: str, names, repeats: int, sizes=("default",)) -> tuple[dict, dict]:
+def measure(path: str, names, repeats: int, sizes=("default",), base_modes=BASE_MODES) -> tuple[dict, dict]:
     """``(cpu, figures)``: (estimator, mode) → minimum (steps CPU s, consistency CPU s, of which the
     landmark covariances after the run) over the repeats, and (estimator, mode) → :func:`shares` of the last repeat; a mode is ``none``,
-    ``all``, ``default`` (``fgslam run``'s sample) or a sample size."""
+    ``all``, ``default`` (``fgslam run``'s sample) or a sample size (``base_modes``: which of
+    ``none`` and ``all`` to run besides ``sizes``)."""
     log = read_columns(path)
     steps = log.steps()
     truth, has_pose = truth_trajectory(steps)
@@ -62,7 +63,7 @@ def measure(path: str, names, repeats: int, sizes=("default",)) -> tuple[dict, d
     figures: dict = {}
     for _ in range(repeats):
         for name in names:
-            for mode in (*BASE_MODES, *sizes):
+            for mode in (*base_modes, *sizes):
                 size = None if mode in (*BASE_MODES, "default") else int(mode)
                 sample = sample_of_steps(steps, mode if mode in BASE_MODES else "sampled", size=size)
                 run, _ = run_estimator(ESTIMATORS[name](log.header), steps, covariances=mode != "none", sample=sample)

@@ -155,6 +155,14 @@ def _timed_held_back(events: Events):
     relinearisation.CapChoice.held_back = timed(PLAIN["held_back"], events.checks)
 
 
+def _unwrap() -> None:
+    """The plain calls back in place of :func:`_timed_held_back`'s (later runs in the process untimed)."""
+    from fgslam.smoother import relinearisation, updates
+
+    updates.rebuild = PLAIN["rebuild"]
+    relinearisation.CapChoice.held_back = PLAIN["held_back"]
+
+
 def instrumented(header, events: Events):
     """The default isam2 of ``fgslam run``, its ISAM2 calls and steps timed into ``events``."""
     _timed_held_back(events)
@@ -173,9 +181,9 @@ def instrumented(header, events: Events):
     return smoother
 
 
-def report(name: str, top: int, consistency: bool, by_cpu: bool = True) -> None:
-    header, records = load(name)
-    steps = group_steps(header, records)
+def timed_run(header, steps, consistency: bool):
+    """(run, events, smoother) of the default isam2 on ``steps``, every step timed (wall and
+    CPU) into ``events`` with what ran inside it."""
     events = Events()
     smoother = instrumented(header, events)
     gc.callbacks.append(events.on_gc)
@@ -183,6 +191,14 @@ def report(name: str, top: int, consistency: bool, by_cpu: bool = True) -> None:
         run, _ = run_estimator(smoother, steps, covariances=consistency)
     finally:
         gc.callbacks.remove(events.on_gc)
+        _unwrap()
+    return run, events, smoother
+
+
+def report(name: str, top: int, consistency: bool, by_cpu: bool = True) -> None:
+    header, records = load(name)
+    steps = group_steps(header, records)
+    run, events, smoother = timed_run(header, steps, consistency)
     times = run.step_times_s * 1e3
     cpu = np.array(events.step_cpu_s) * 1e3
     print(f"## {name}: {len(steps)} steps, {smoother.updates} updates; max {times.max():.1f} ms "

@@ -24,6 +24,7 @@ import argparse
 import collections
 import json
 import os
+import resource
 import subprocess
 import sys
 import time
@@ -48,13 +49,19 @@ def stream(path: str) -> None:
     collections.deque(iter_log(path), maxlen=0)
 
 
-def best_of(repeat: int, work: Callable[[], object]) -> float:
-    """The shortest wall time of ``repeat`` runs of ``work`` (s)."""
+def children_cpu_s() -> float:
+    """User + system CPU time (s) of every child process waited for so far (their children included)."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def best_of(repeat: int, work: Callable[[], object], clock: Callable[[], float] = time.perf_counter) -> float:
+    """The shortest time on ``clock`` (default: wall) of ``repeat`` runs of ``work`` (s)."""
     times = []
     for _ in range(repeat):
-        start = time.perf_counter()
+        start = clock()
         work()
-        times.append(time.perf_counter() - start)
+        times.append(clock() - start)
     return min(times)
 
 
@@ -66,37 +73,41 @@ _PEAK_RSS = (
 )
 
 
-def validate_child(path: str) -> tuple[float, float]:
-    """(wall time in s, peak RSS in MB) of ``fgslam validate path`` in a child process (the
-    time includes a small wrapper's start-up, ~20 ms, which only counts against it)."""
+def validate_child(path: str, clock: Callable[[], float] = time.perf_counter) -> tuple[float, float]:
+    """(time in s, peak RSS in MB) of ``fgslam validate path`` in a child process (the time,
+    wall or the children's CPU (:func:`children_cpu_s`), includes a small wrapper's start-up,
+    ~20 ms, which only counts against it)."""
     fgslam = os.path.join(os.path.dirname(sys.executable), "fgslam")
-    start = time.perf_counter()
+    start = clock()
     done = subprocess.run([sys.executable, "-c", _PEAK_RSS, fgslam, "validate", path], check=True,
                           capture_output=True, text=True)
-    elapsed = time.perf_counter() - start
+    elapsed = clock() - start
     return elapsed, int(done.stdout.split()[-1]) / 1024.0  # Linux: kB
 
 
 _JSON_LOOP = "import json, sys\nwith open(sys.argv[1], 'rb') as f:\n    for line in f:\n        json.loads(line)"
 
 
-def json_loop_child(path: str) -> float:
-    """Wall time (s) of the ``json.loads`` loop as a child ``python -c`` (start-up included),
+def json_loop_child(path: str, clock: Callable[[], float] = time.perf_counter) -> float:
+    """Time (s) of the ``json.loads`` loop as a child ``python -c`` (start-up included),
     through the same wrapper as :func:`validate_child`."""
-    start = time.perf_counter()
+    start = clock()
     subprocess.run([sys.executable, "-c", _PEAK_RSS, sys.executable, "-c", _JSON_LOOP, path], check=True,
                    capture_output=True)
-    return time.perf_counter() - start
+    return clock() - start
 
 
-def measure(path: str, repeat: int) -> dict[str, float]:
-    loop = best_of(repeat, lambda: json_loop(path))
-    read = best_of(repeat, lambda: read_all(path))
-    streamed = best_of(repeat, lambda: stream(path))
-    runs = [validate_child(path) for _ in range(repeat)]
+def measure(path: str, repeat: int, cpu: bool = False) -> dict[str, float]:
+    """The figures of one log (``main``'s columns); ``cpu``: CPU time (this process's, and
+    the children's for ``fgslam validate`` and the child loop) in place of wall time."""
+    clock, child_clock = (time.process_time, children_cpu_s) if cpu else (time.perf_counter, time.perf_counter)
+    loop = best_of(repeat, lambda: json_loop(path), clock)
+    read = best_of(repeat, lambda: read_all(path), clock)
+    streamed = best_of(repeat, lambda: stream(path), clock)
+    runs = [validate_child(path, child_clock) for _ in range(repeat)]
     validate = min(t for t, _ in runs)
     rss = max(r for _, r in runs)
-    loop_child = min(json_loop_child(path) for _ in range(repeat))
+    loop_child = min(json_loop_child(path, child_clock) for _ in range(repeat))
     return {"MB": os.path.getsize(path) / 1e6, "json_s": loop, "read_s": read, "read_x": read / loop,
             "iter_s": streamed, "iter_x": streamed / loop, "validate_s": validate, "validate_x": validate / loop,
             "validate_xc": validate / loop_child, "rss_MB": rss}
