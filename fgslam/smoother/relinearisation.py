@@ -78,7 +78,14 @@ def ratios(delta: gtsam.VectorValues, keys: list[int], threshold: float | tuple[
     if not keys:
         return np.empty(0)
     thresholds, starts = component_thresholds(keys, threshold)
-    step = np.abs(np.asarray(delta.vector(keys)).ravel())
+    return step_ratios(delta.vector(keys), thresholds, starts)
+
+
+def step_ratios(step, thresholds: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Per variable: the largest |component of ``step``| / its component's threshold
+    (infinity at a zero threshold); ``thresholds`` and ``starts`` as
+    :func:`component_thresholds` gives them."""
+    step = np.abs(np.asarray(step).ravel())
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(thresholds > 0, step / thresholds, np.inf)
     return np.maximum.reduceat(ratio, starts)
@@ -153,9 +160,7 @@ class CapChoice:
         self._sync(isam)
         if not self._keys:
             return None
-        step = np.abs(np.asarray(isam.getDelta().vector(self._keys)).ravel())
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return np.maximum.reduceat(np.where(self._thresholds > 0, step / self._thresholds, np.inf), self._starts)
+        return step_ratios(isam.getDelta().vector(self._keys), self._thresholds, self._starts)
 
     def _sync(self, isam) -> None:
         size = isam.getLinearizationPoint().size()
