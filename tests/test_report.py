@@ -179,6 +179,23 @@ def test_smoothed_reference_aligned_run_and_truth_landmarks(tmp_path):
     assert (tmp_path / "trajectories.png").stat().st_size > 10_000
 
 
+def test_without_truth_the_error_columns_say_vs_reference(tmp_path):
+    """A newcomer must not read distance to our own smoother as accuracy: without ground truth
+    the error columns are named "vs ref" in the table, the HTML and its column glossary; with
+    truth they keep their names."""
+    runs, reference, stamps_s, _ = synthetic_runs("smoothed")
+    metrics = compute_metrics(runs, reference, log_path="run.jsonl")
+    headers, _, notes = table_rows(metrics)
+    assert headers[1:4] == ("vs ref final m", "vs ref online m", "vs ref aligned m")
+    assert not any(h.startswith("ATE") for h in headers)
+    assert any("agreement with it, not accuracy" in n for n in notes)
+    text = write_report(tmp_path, metrics, runs, reference, stamps_s).read_text(encoding="utf-8")
+    assert "<dt>vs ref final m</dt>" in text and "not its accuracy" in text
+    assert "<dt>ATE final m</dt>" not in text
+    truth_runs, truth_reference, _, _ = synthetic_runs()
+    assert table_rows(compute_metrics(truth_runs, truth_reference, log_path="run.jsonl"))[0][1] == "ATE final m"
+
+
 def test_nees_figure_with_covariances_and_ground_truth(tmp_path):
     runs, reference, stamps_s, _ = synthetic_runs()
     n = len(stamps_s)
@@ -381,7 +398,6 @@ def test_detail_is_where_the_estimators_error_is_largest():
 def test_error_axes_follow_the_estimators_not_the_baseline(tmp_path):
     """Position and heading error: the y axis is scaled to the estimators, dead reckoning is
     drawn faint and runs off it."""
-    import matplotlib.image
 
     from fgslam.report import plot_heading_errors, plot_position_errors
 

@@ -26,6 +26,16 @@ TABLE_HEADERS = (
     "step p99 ms",
 )
 
+#: The error columns' names when the reference is our own smoothed solution (no ground truth):
+#: they measure agreement with the batch solution, not accuracy, and their names say so.
+SMOOTHED_HEADERS = {
+    "ATE final m": "vs ref final m",
+    "ATE online m": "vs ref online m",
+    "ATE aligned m": "vs ref aligned m",
+    "final err m": "last pose vs ref m",
+    "map RMSE m": "map vs ref m",
+}
+
 def _association_cell(m: dict) -> str:
     a = m.get("association")
     return "-" if a is None or a.get("rate") is None else f"{100 * a['rate']:.2f}"
@@ -92,6 +102,15 @@ COLUMN_MEANINGS = {
     "Both in % columns are taken at a seeded sample of steps by default (±: the share's standard "
     "error; fgslam run --consistency all: every step)",
     "peak MB": "how far the process's resident memory rose during the run, megabytes (10^6 bytes)",
+    "vs ref final m": "no ground truth: RMS distance, metres, of every pose as estimated after the last step "
+    "to the smoothed reference (the batch solution of the same log) - how far the estimator agrees with our "
+    "own smoother, not its accuracy (the batch solution has errors of its own that no figure here shows)",
+    "vs ref online m": "RMS distance, metres, of each pose as estimated at its own step (what the robot knew "
+    "live) to the smoothed reference; - for a one-shot batch solve",
+    "vs ref aligned m": "vs ref final after the least-squares SE(2) alignment to the smoothed reference",
+    "last pose vs ref m": "distance of the last pose to the smoothed reference's last pose, metres",
+    "map vs ref m": "RMS distance, metres, of the landmarks to the smoothed reference's map, over the ids "
+    "both maps contain",
 }
 
 
@@ -110,15 +129,17 @@ def _in_band_cell(m: dict, what: str) -> str:
     return f"{cell}±{100 * se:.1f}" if _sampled(m) and se is not None and cell != "-" else cell
 
 
-def sample_note(metrics: dict, names) -> str | None:
-    """The line under the table saying the NEES and NIS come from a sample of steps, and how
-    many (None when they were taken at every step, or not at all)."""
+def sample_note(metrics: dict, names, shown: tuple[str, ...] = ("NEES", "NIS")) -> str | None:
+    """The line under the table saying the NEES and NIS (those of ``shown``: the table's
+    columns) come from a sample of steps, and how many (None when they were taken at every
+    step, or not at all)."""
     for name in names:
         c = metrics[name].get("consistency") if isinstance(metrics[name], dict) else None
         if c and c.get("mode") == "sampled":
-            return (f"NEES and NIS in % at a seeded sample of steps (the same for every estimator): NEES at "
-                    f"{c['nees_steps']} and NIS at {c['nis_steps']} of {c['steps']} steps; ± is the share's "
-                    "standard error; --consistency all takes every step")
+            counts = " and ".join(f"{what} at {c[what.lower() + '_steps']}" for what in shown)
+            return (f"{' and '.join(shown)} in % at a seeded sample of steps (the same for every estimator): "
+                    f"{counts} of {c['steps']} steps; ± is the share's standard error; --consistency all takes "
+                    "every step")
     return None
 
 
@@ -236,14 +257,29 @@ def table_rows(metrics: dict) -> tuple[tuple[str, ...], list[tuple[str, ...]], l
         notes += _consistency_notes(name, m)
     if any_aligned:
         notes.insert(0, "* aligned to the reference in SE(2) (first poses differ)")
-    if any(header in ("NEES in %", "NIS in %") for header, _ in optional):
-        note = sample_note(metrics, names)
+    in_band = tuple(what for what in ("NEES", "NIS") if any(h == f"{what} in %" for h, _ in optional))
+    if in_band:
+        note = sample_note(metrics, names, in_band)
         if note:
             notes.append(note)
     if batch_is_reference:
         notes.insert(0, "no ground truth: every error above is the distance to the smoothed solution (batch, the "
                         "reference) - agreement with it, not accuracy")
-    return TABLE_HEADERS + tuple(header for header, _ in optional), rows, notes
+    headers = _reference_headers(metrics) + tuple(header for header, _ in optional)
+    return headers, rows, notes
+
+
+def _reference_headers(metrics: dict) -> tuple[str, ...]:
+    """:data:`TABLE_HEADERS`, with the error columns named "vs ref" when what they are measured
+    against is the smoothed solution (the map's column only when the map is too: surveyed
+    landmarks keep "map RMSE m")."""
+    if metrics.get("reference") != "smoothed":
+        return TABLE_HEADERS
+    map_smoothed = metrics.get("landmark_reference", "smoothed") in (None, "smoothed")
+    return tuple(
+        SMOOTHED_HEADERS[h] if h in SMOOTHED_HEADERS and (h != "map RMSE m" or map_smoothed) else h
+        for h in TABLE_HEADERS
+    )
 
 
 def format_table(metrics: dict) -> str:
