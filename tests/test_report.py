@@ -192,6 +192,7 @@ def test_without_truth_the_error_columns_say_vs_reference(tmp_path):
     text = write_report(tmp_path, metrics, runs, reference, stamps_s).read_text(encoding="utf-8")
     assert "<dt>vs ref final m</dt>" in text and "not its accuracy" in text
     assert "<dt>ATE final m</dt>" not in text
+    assert "distance in metres to the smoothed reference (no ground truth: agreement, not accuracy)" in text
     truth_runs, truth_reference, _, _ = synthetic_runs()
     assert table_rows(compute_metrics(truth_runs, truth_reference, log_path="run.jsonl"))[0][1] == "ATE final m"
 

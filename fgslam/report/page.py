@@ -160,10 +160,13 @@ def _figures(out: Path, runs: list[EstimatorRun], reference: Reference, stamps_s
                 plot_trajectories(out / TRAJECTORIES_PNG, runs, reference, truth_landmarks=truth_landmarks,
                                   title=title, **styles), ""),
         _Figure("fig-position-error", "Position error over time", POSITION_ERROR_PNG,
-                "position error in metres against time: final estimate solid, online dashed",
+                ("distance in metres to the smoothed reference (no ground truth: agreement, not accuracy) "
+                 if reference.kind == "smoothed" else "position error in metres ")
+                + "against time: final estimate solid, online dashed",
                 plot_position_errors(out / POSITION_ERROR_PNG, runs, reference, stamps_s, **styles), ""),
         _Figure("fig-heading-error", "Heading error over time", HEADING_ERROR_PNG,
-                "heading error in degrees against time: final estimate solid, online dashed",
+                ("heading difference in degrees from the smoothed reference " if reference.kind == "smoothed"
+                 else "heading error in degrees ") + "against time: final estimate solid, online dashed",
                 plot_heading_errors(out / HEADING_ERROR_PNG, runs, reference, stamps_s, **styles),
                 "No heading error: the reference has no heading (a truth that measures position only, like GPS)."),
         _Figure("fig-nees", "Consistency: NEES", NEES_PNG,
@@ -186,7 +189,7 @@ def _page_html(title: str, metrics: dict, prov: dict, figures: list[_Figure], ba
     e = html.escape
     reference_text = reference_description(metrics)
     shown, _, _ = table_rows(metrics)
-    columns = "\n".join(f"<dt>{e(k)}</dt><dd>{e(v)}</dd>" for k, v in COLUMN_MEANINGS.items() if k in shown)
+    columns = "\n".join(f"<dt>{e(k)}</dt><dd>{e(COLUMN_MEANINGS[k])}</dd>" for k in shown if k in COLUMN_MEANINGS)
     metrics_json = json.dumps(metrics, indent=2)
     figure_rows = "\n".join(
         f'<tr><td><a href="#{f.anchor}">{e(f.title)}</a></td><td><code>{e(f.file)}</code></td>'

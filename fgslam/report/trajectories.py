@@ -187,10 +187,11 @@ def _ellipse_steps(covariances: np.ndarray, picks_at: int | None) -> np.ndarray:
 
 
 def _draw_detail(ax, detail, plotted, finals: dict, centre: np.ndarray, k_detail: int, span: float,
-                 baselines) -> None:
+                 baselines, smoothed: bool = False) -> None:
     """The detail panel of :func:`trajectory_figure`: pose ``k_detail`` (reference at
     ``centre``) and each estimate joined to it, zoomed to their errors; its window marked on
-    the overview ``ax`` (``span``: the overview's larger side)."""
+    the overview ``ax`` (``span``: the overview's larger side). Against a ``smoothed``
+    reference the distances are called that, not errors, and the batch is the reference."""
     errors = []
     for i, run, faint in plotted:
         final = finals[run.name]
@@ -210,9 +211,14 @@ def _draw_detail(ax, detail, plotted, finals: dict, centre: np.ndarray, k_detail
     detail.set_xlim(centre[0] - half, centre[0] + half)
     detail.set_ylim(centre[1] - half, centre[1] + half)
     detail.set_aspect("equal", adjustable="box")
-    detail.set_title(f"Detail around pose {k_detail}, where the estimators' error is largest", fontsize=10)
-    detail.text(0.02, 0.02, "position error at pose {}:\n{}".format(
-                    k_detail, "\n".join(f"{name}: {e:.3f} m" for name, e, _ in errors)),
+    if smoothed:
+        detail.set_title(f"Detail around pose {k_detail}, farthest from the smoothed reference", fontsize=10)
+    else:
+        detail.set_title(f"Detail around pose {k_detail}, where the estimators' error is largest", fontsize=10)
+    detail.text(0.02, 0.02, "{} at pose {}:\n{}".format(
+                    "distance to the smoothed reference" if smoothed else "position error", k_detail,
+                    "\n".join(f"{name}: {'the reference' if smoothed and name == 'batch' else f'{e:.3f} m'}"
+                              for name, e, _ in errors)),
                 transform=detail.transAxes, fontsize=8, va="bottom", ha="left", zorder=6,
                 bbox={"boxstyle": "round", "fc": "white", "ec": "0.7", "alpha": 0.9})
     ax.add_patch(Rectangle((centre[0] - half, centre[1] - half), 2 * half, 2 * half, fill=False, ec="black",
@@ -284,7 +290,7 @@ def trajectory_figure(
 
     if detail is not None:
         _draw_detail(ax, detail, plotted, finals, ref[k_detail, :2], k_detail,
-                     max(xmax - xmin, ymax - ymin), baselines)
+                     max(xmax - xmin, ymax - ymin), baselines, smoothed=reference.kind == "smoothed")
     for panel in panels:
         panel.set_xlabel("x [m]")
         panel.set_ylabel("y [m]")
