@@ -37,6 +37,9 @@ from slamio.geometry import wrap_angle
 
 
 def random_spd(rng, n, scale=1.0):
+    """A random symmetric positive-definite n×n matrix of order ``scale`` (A·Aᵀ/n + 0.1·I):
+    eigenvalues down to 0.1·scale, so some directions are much tighter than others (not
+    test_ekf's, which is kept well conditioned)."""
     A = rng.normal(size=(n, n))
     return scale * (A @ A.T / n + 0.1 * np.eye(n))
 

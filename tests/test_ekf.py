@@ -40,6 +40,8 @@ from slamio.log import Observation, Odometry, Step, as_matrix3
 
 
 def random_spd(rng, n, scale=1.0):
+    """A random symmetric positive-definite n×n matrix, well conditioned: every eigenvalue
+    ≥ n·scale (A·Aᵀ + n·I). Not test_association's, which allows eigenvalues down to 0.1·scale."""
     A = rng.normal(size=(n, n))
     return scale * (A @ A.T + n * np.eye(n))
 
