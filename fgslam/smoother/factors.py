@@ -22,6 +22,12 @@ from slamio.log import Header, Observation, Odometry
 #: The robust kernels :class:`~fgslam.smoother.isam2.Isam2Smoother` offers for landmark factors.
 ROBUST_KERNELS = ("huber", "cauchy", "tukey", "dcs")
 
+#: ``X(k)`` is ``X0 + k``: a key is its symbol's character in the top 8 bits and its index
+#: below (gtsam.Symbol); the sum costs a tenth of the ``X(k)`` call, made at every step.
+X0 = X(0)
+L0 = L(0)  # the same for point landmarks
+_COVARIANCE = gtsam.noiseModel.Gaussian.Covariance
+
 #: Default kernel widths k, in whitened units (σ of the factor's whole 2-D residual).
 #:
 #: GTSAM's robust noise model applies the kernel to the *norm* r of the factor's whitened
@@ -216,7 +222,7 @@ class FactorBuilder:
     def odometry(self, k: int, odo: Odometry) -> gtsam.BetweenFactorPose2:
         """``BetweenFactorPose2(X(k − 1), X(k))`` for the odometry record ``odo``."""
         increment = gtsam.Pose2(odo.dx_m, odo.dy_m, odo.dtheta_rad)
-        return gtsam.BetweenFactorPose2(X(k - 1), X(k), increment, self.odometry_noise(odo))
+        return gtsam.BetweenFactorPose2(X0 + k - 1, X0 + k, increment, self.odometry_noise(odo))
 
     def odometry_noise(self, odo: Odometry):
         """The odometry factor's noise model (see :func:`odometry_noise_covariance`).
@@ -224,13 +230,19 @@ class FactorBuilder:
         When the rotation there changes nothing (isotropic translation, no x/y–theta
         correlation) records with equal covariances share one model: logs usually repeat
         a handful of covariances, and building a model is a third of a step's Python cost.
+        Otherwise (Victoria Park, Plaza1, MRCLAM: a covariance of its own at every step) the
+        model is built from :func:`end_frame_covariance_entries` directly, the same numbers
+        as :func:`odometry_noise_covariance` in one flat array (this runs once per step).
         """
         Q = odo.covariance
-        shareable = Q[0][0] == Q[1][1] and Q[0][1] == 0 and Q[0][2] == 0 and Q[1][2] == 0
-        noise = self._noise_cache.get(Q) if shareable else None
+        (a, b, c), (_, d, e), _ = Q
+        if not (a == d and b == 0 and c == 0 and e == 0):
+            xx, xy, xt, yy, yt, f = end_frame_covariance_entries(Q, odo.dtheta_rad)
+            return _COVARIANCE(np.array((xx, xy, xt, xy, yy, yt, xt, yt, f)).reshape(3, 3))
+        noise = self._noise_cache.get(Q)
         if noise is None:
-            noise = gtsam.noiseModel.Gaussian.Covariance(odometry_noise_covariance(odo))
-            if shareable and len(self._noise_cache) < 10_000:
+            noise = _COVARIANCE(odometry_noise_covariance(odo))
+            if len(self._noise_cache) < 10_000:
                 self._noise_cache[Q] = noise
         return noise
 
@@ -255,13 +267,13 @@ class FactorBuilder:
         noise, used = self._observation_noise(obs)
         bearing = gtsam.Rot2(obs.bearing_rad)
         if not is_tag:
-            factor = gtsam.BearingRangeFactor2D(X(k), L(lid), bearing, obs.range_m, used)
+            pose_key, key = X0 + k, L0 + lid
+            factor = gtsam.BearingRangeFactor2D(pose_key, key, bearing, obs.range_m, used)
             gate_factor = factor
             if used is not noise:
-                gate_factor = gtsam.BearingRangeFactor2D(X(k), L(lid), bearing, obs.range_m, noise)
+                gate_factor = gtsam.BearingRangeFactor2D(pose_key, key, bearing, obs.range_m, noise)
             # the landmark's guess, seed ⊕ the reading, is computed when first asked for
-            return PendingObservation(lid, L(lid), k, factor, gate_factor, None, seed,
-                                      polar=(obs.range_m, obs.bearing_rad))
+            return PendingObservation(lid, key, k, factor, gate_factor, None, seed, 0, (obs.range_m, obs.bearing_rad))
         p_robot = np.array([obs.range_m * math.cos(obs.bearing_rad), obs.range_m * math.sin(obs.bearing_rad)])
         if has_tag_yaw(obs):  # the tag's whole pose relative to the robot
             measured = tag_relative_pose(obs)

@@ -28,19 +28,21 @@ class Isam2Updates:
 
     def _due(self, k: int) -> bool:
         """Whether the held steps go to iSAM2 now (see ``update_every`` / ``update_on``)."""
-        if k == 0 or self._held.steps >= self.settings.max_held_steps or self._held.urgent:
+        held, settings = self._held, self.settings  # (asked at every step)
+        steps = held.steps
+        if k == 0 or steps >= settings.max_held_steps or held.urgent:
             return True
-        if self._held.unlikely and self._held.steps >= self.settings.update_tail_min_steps:
+        if held.unlikely and steps >= settings.update_tail_min_steps:
             return True
-        if (self.settings.update_observations and self._held.uncorrected
-                and self._held.steps >= self.settings.update_observations_min_steps):
+        if (settings.update_observations and held.uncorrected
+                and steps >= settings.update_observations_min_steps):
             return True
-        if (self.settings.update_observations and self._held.observations >= self.settings.update_observations
-                and self._held.steps >= self.settings.update_observations_min_steps):
+        if (settings.update_observations and held.observations >= settings.update_observations
+                and steps >= settings.update_observations_min_steps):
             return True
-        if self._held.steps < self.settings.update_every:
+        if steps < settings.update_every:
             return False
-        return self.settings.update_on == "any" or self._held.observed
+        return settings.update_on == "any" or held.observed
 
     def _flush(self) -> None:
         """Give every held step to iSAM2 in one update; read back the newest pose."""
