@@ -322,17 +322,18 @@ def update_batch(core: gtsam.NonlinearFactorGraph, core_values: gtsam.Values, en
     each landmark not in ``known_landmarks``: the latest of its observations that took part
     in the fewest failed updates (a fresh observation beats a withheld one)."""
     factors = gtsam.NonlinearFactorGraph(core)
+    add = factors.add
     for e in entries:
-        factors.add(e.factor)
+        add(e.factor)
     best: dict[int, PendingObservation] = {}
     for e in entries:
         if e.landmark_id in known_landmarks:
             continue
         if e.landmark_id not in best or e.attempts <= best[e.landmark_id].attempts:
             best[e.landmark_id] = e
-    landmark_values = gtsam.Values()
-    for e in best.values():
-        landmark_values.insert(e.key, e.landmark_guess)
+    if not best:  # (most updates: no new landmark) the core's values, not a copy of them
+        return factors, core_values
     values = gtsam.Values(core_values)
-    values.insert(landmark_values)
+    for e in best.values():
+        values.insert(e.key, e.landmark_guess)
     return factors, values

@@ -11,9 +11,8 @@ A mixin: it works on the state :class:`~fgslam.smoother.isam2.Isam2Smoother` set
 from __future__ import annotations
 
 import gtsam
-from gtsam.symbol_shorthand import X
 
-from fgslam.smoother.factors import PendingObservation, update_batch
+from fgslam.smoother.factors import X0, PendingObservation, update_batch
 from fgslam.smoother.recovery import rebuild
 from slamio.errors import FgslamError
 
@@ -58,7 +57,7 @@ class Isam2Updates:
             self._association.entered(self._landmarks.known)
         # the newest pose in iSAM2 is the last keyframe; only the open chain's steps follow it
         last = self._keyframes.last
-        anchor = self._isam.calculateEstimatePose2(X(last))
+        anchor = self._isam.calculateEstimatePose2(X0 + last)
         pose = self._keyframes.latest_pose(anchor)
         self._online.updated(pose, last, len(self._keyframes.open.links), anchor)
         self._landmark_xy.clear()
