@@ -113,7 +113,7 @@ def construction_floor(header, steps, update_at: set[int] | None) -> float:
     for step in steps:
         k = step.index
         graph.add(factors.prior(header) if k == 0 else factors.odometry(k, step.odometry))
-        values.insert(X(k), seed)
+        values.insert(X(k), pose2=seed)  # by keyword, as the smoother's HeldSteps.take
         for observation in step.observations:
             if observation.landmark_id is None or observation.range_only:
                 continue

@@ -51,6 +51,7 @@ from fgslam.smoother.association import SmootherAssociation
 from fgslam.smoother.batch import gauss_newton_steps
 from fgslam.smoother.factors import (
     DEFAULT_ROBUST_K,
+    X0,
     FactorBuilder,
     has_tag_yaw,
     odometry_noise_covariance,
@@ -245,7 +246,8 @@ class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
         if k != self._num_poses:
             raise FgslamError(f"Isam2Smoother: expected step {self._num_poses}, got step {k}; feed steps in order")
         self._finished, self._final_marginals = False, None  # a step after finish(): iSAM2 answers again
-        self._association.begin_step(step.observations)  # for step_associations()
+        observations = step.observations
+        self._association.begin_step(observations)  # for step_associations()
         if k == 0:
             if step.odometry is not None:
                 raise FgslamError("Isam2Smoother: step 0 is the start pose and cannot have odometry")
@@ -258,13 +260,13 @@ class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
             assert self._online.pose is not None
             # latest iSAM2 estimate ⊕ the increments since, not dead reckoning from the start …
             if self._corrector is not None:  # … corrected by the observations of mapped landmarks
-                seed, used = self._corrected(odo, step.observations)
+                seed, used = self._corrected(odo, observations)
             else:
                 seed, used = self._online.pose.compose(gtsam.Pose2(odo.dx_m, odo.dy_m, odo.dtheta_rad)), ()
             self._online.moved(odo, used)
             if self.settings.keyframes:
                 increment = gtsam.Pose2(odo.dx_m, odo.dy_m, odo.dtheta_rad)
-                observed = any(o.landmark_id is not None or self.associate for o in step.observations)
+                observed = any(o.landmark_id is not None or self.associate for o in observations)
                 chain = self._keyframes.fold(k, increment, odometry_noise_covariance(odo), observed)
                 if chain is not None:  # a keyframe: the chain since the last one becomes one compound factor
                     noise = gtsam.noiseModel.Gaussian.Covariance(chain.covariance())
@@ -272,11 +274,12 @@ class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
             else:
                 self._held.core.append((k, odo))  # its factor is built when the held steps go to iSAM2
         if not self._keyframes.open.links:  # a variable of its own (always, without keyframes)
-            self._held.values.append((X(k), seed))
+            self._held.values.append((X0 + k, seed))
             self._keyframes.indices.append(k)
-            self._add_observations(k, seed, step.observations)
+            if observations or self._association.retry:  # (retries are due at any step; most steps see nothing)
+                self._add_observations(k, seed, observations)
         else:  # folded into the open chain; it saw no landmark id
-            self.skipped_unknown_observations += len(step.observations)
+            self.skipped_unknown_observations += len(observations)
         self._held.steps += 1
         self._num_poses = k + 1
         self._online.pose = seed
@@ -300,7 +303,7 @@ class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
             self._held.ranges += self._ranges.add(k, seed, obs, self._factors)
             self._held.observed = True
             return
-        if has_height(obs):
+        if obs.height_m is not None and has_height(obs):
             self._add_height(obs)
         is_tag = self._landmarks.is_tag(obs.landmark_id, self.tags and has_tag_yaw(obs))
         self._held.entries.append(self._factors.observation(k, seed, obs, is_tag))

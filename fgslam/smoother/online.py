@@ -37,7 +37,9 @@ class OnlinePose:
         # current_covariance() is asked at every step (NEES): the marginal is kept until
         # iSAM2 changes, and the held odometry is propagated only once per record
         self._marginal: np.ndarray | None = None
-        self._since_chain = OdometryChain(0)  # for the association (fgslam.smoother.pairings)
+        # for the association (fgslam.smoother.pairings): built when first asked for after an
+        # update (None until then: most updates of a log with ids never need it)
+        self._since_chain: OdometryChain | None = None
         self._float_chain = FloatChain(0)  # the same in floats, for the covariance and the NIS
         # predicted_nis() asks at every step with readings for the joint marginal of the newest
         # iSAM2 pose and the landmarks read; until iSAM2 changes one joint over every landmark
@@ -59,7 +61,7 @@ class OnlinePose:
         self.pose = pose
         self._anchor = anchor
         self._since = self._since[len(self._since) - steps_after :] if steps_after else []
-        self._since_chain = OdometryChain(newest_in_isam)
+        self._since_chain = None
         self._float_chain = FloatChain(newest_in_isam)
         self.forget_marginal()
 
@@ -83,6 +85,8 @@ class OnlinePose:
     def _caught_up_since_chain(self) -> OdometryChain:
         """The odometry since the newest iSAM2 pose, with the records held since the last call."""
         chain = self._since_chain
+        if chain is None:
+            chain = self._since_chain = OdometryChain(self._float_chain.start)
         for odo, _ in self._since[len(chain.links) :]:
             chain.append(gtsam.Pose2(odo.dx_m, odo.dy_m, odo.dtheta_rad), odometry_noise_covariance(odo))
         return chain
@@ -134,7 +138,7 @@ class OnlinePose:
         ids = [lid for _, used in self._since for lid, *_ in used]
         replay = self._replay
         if replay is None or not set(ids) <= set(replay.column):  # a landmark not in it: start over with all
-            replay = self._replay = _Replay.start(isam, self._since_chain.start,
+            replay = self._replay = _Replay.start(isam, self._float_chain.start,
                                                   _union(replay.column if replay else (), ids))
         replay.run(self._since)  # only the steps since the last call: O(k) per step, not O(k²) per update
         return replay.P[:3, :3]

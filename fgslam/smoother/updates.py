@@ -11,9 +11,8 @@ A mixin: it works on the state :class:`~fgslam.smoother.isam2.Isam2Smoother` set
 from __future__ import annotations
 
 import gtsam
-from gtsam.symbol_shorthand import X
 
-from fgslam.smoother.factors import PendingObservation, update_batch
+from fgslam.smoother.factors import X0, PendingObservation, update_batch
 from fgslam.smoother.recovery import rebuild
 from slamio.errors import FgslamError
 
@@ -28,19 +27,21 @@ class Isam2Updates:
 
     def _due(self, k: int) -> bool:
         """Whether the held steps go to iSAM2 now (see ``update_every`` / ``update_on``)."""
-        if k == 0 or self._held.steps >= self.settings.max_held_steps or self._held.urgent:
+        held, settings = self._held, self.settings  # (asked at every step)
+        steps = held.steps
+        if k == 0 or steps >= settings.max_held_steps or held.urgent:
             return True
-        if self._held.unlikely and self._held.steps >= self.settings.update_tail_min_steps:
+        if held.unlikely and steps >= settings.update_tail_min_steps:
             return True
-        if (self.settings.update_observations and self._held.uncorrected
-                and self._held.steps >= self.settings.update_observations_min_steps):
+        if (settings.update_observations and held.uncorrected
+                and steps >= settings.update_observations_min_steps):
             return True
-        if (self.settings.update_observations and self._held.observations >= self.settings.update_observations
-                and self._held.steps >= self.settings.update_observations_min_steps):
+        if (settings.update_observations and held.observations >= settings.update_observations
+                and steps >= settings.update_observations_min_steps):
             return True
-        if self._held.steps < self.settings.update_every:
+        if steps < settings.update_every:
             return False
-        return self.settings.update_on == "any" or self._held.observed
+        return settings.update_on == "any" or held.observed
 
     def _flush(self) -> None:
         """Give every held step to iSAM2 in one update; read back the newest pose."""
@@ -56,7 +57,7 @@ class Isam2Updates:
             self._association.entered(self._landmarks.known)
         # the newest pose in iSAM2 is the last keyframe; only the open chain's steps follow it
         last = self._keyframes.last
-        anchor = self._isam.calculateEstimatePose2(X(last))
+        anchor = self._isam.calculateEstimatePose2(X0 + last)
         pose = self._keyframes.latest_pose(anchor)
         self._online.updated(pose, last, len(self._keyframes.open.links), anchor)
         self._landmark_xy.clear()
