@@ -23,13 +23,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from slamio.errors import FgslamError
 import slamio.log.fields as _fields  # the package's own bounds checks (fields imports nothing of it)
-from slamio.se3 import quaternion_from_rotation, rotation_from_quaternion
+
+if TYPE_CHECKING:  # numpy and slamio.se3 load when used: reading and validating a planar log needs neither
+    import numpy as np
 
 __all__ = [
     "RECORDS_3D",
@@ -95,6 +95,8 @@ class VelocityOdometry:
 
     def twist(self) -> np.ndarray:
         """``u = (v, ω)`` as a 6-vector."""
+        import numpy as np
+
         return np.array(self.v_mps + self.w_radps, dtype=float)
 
 
@@ -125,10 +127,14 @@ class StereoObservation:
 
     def pixels(self) -> np.ndarray:
         """``(u_L, v_L, u_R, v_R)`` as a 4-vector."""
+        import numpy as np
+
         return np.array([self.u_left_px, self.v_left_px, self.u_right_px, self.v_right_px])
 
     def pixel_covariance(self) -> np.ndarray:
         """4×4 covariance of :meth:`pixels` (px²): ``covariance_px2``, or σ² I."""
+        import numpy as np
+
         if self.covariance_px2 is not None:
             return np.array(self.covariance_px2, dtype=float)
         return float(self.sigma_px) ** 2 * np.eye(4)  # type: ignore[arg-type]
@@ -186,6 +192,10 @@ class StereoCalibration:
 
 def pose3_matrix(pose: Pose3) -> np.ndarray:
     """4×4 transform of ``(x, y, z, qx, qy, qz, qw)`` (the quaternion normalised first)."""
+    import numpy as np
+
+    from slamio.se3 import rotation_from_quaternion
+
     T = np.eye(4)
     T[:3, :3] = rotation_from_quaternion(*pose[3:])
     T[:3, 3] = pose[:3]
@@ -194,6 +204,10 @@ def pose3_matrix(pose: Pose3) -> np.ndarray:
 
 def pose3_from_matrix(T: Any) -> Pose3:
     """``(x, y, z, qx, qy, qz, qw)`` of a 4×4 rigid transform (qw ≥ 0)."""
+    import numpy as np
+
+    from slamio.se3 import quaternion_from_rotation
+
     T = np.asarray(T, dtype=float)
     q = np.array(quaternion_from_rotation(T[:3, :3]))
     q /= np.linalg.norm(q)
@@ -256,6 +270,8 @@ def parse_sigma3(value: Any, what: str) -> tuple[float, ...]:
 
 
 def _matrix(value: Any, n: int, what: str) -> np.ndarray:
+    import numpy as np
+
     if not (isinstance(value, list) and len(value) == n):
         raise _Bad(f"{what} must be a {n}×{n} list of lists")
     return np.array([_vector(row, n, f"each row of {what}") for row in value])
@@ -291,6 +307,8 @@ def _spd_matrix(value: Any, n: int, key: str, largest_allowed: float, smallest_a
                 why_large: str, why_small: str) -> tuple[tuple[float, ...], ...]:
     """An n×n symmetric matrix with entries ≤ ``largest_allowed`` and its smallest eigenvalue
     ≥ ``smallest_allowed`` (field ``key``), as nested tuples."""
+    import numpy as np
+
     m = _matrix(value, n, f"'{key}'")
     largest = float(np.max(np.abs(m)))
     if largest > largest_allowed:
@@ -382,6 +400,8 @@ _STEREO_KEYS = ("fx_px", "fy_px", "cx_px", "cy_px", "baseline_m", "cam_T_imu")
 
 def parse_stereo_sensor(sensor: dict) -> StereoCalibration:
     """The calibration in a 3-D header's ``sensor`` (kind ``"stereo"``)."""
+    import numpy as np
+
     if sensor.get("kind") != "stereo":
         raise _Bad(
             f"a 3-D log's header field 'sensor.kind' must be \"stereo\", got {_fields._show(sensor.get('kind'))} "
@@ -412,6 +432,8 @@ def parse_stereo_sensor(sensor: dict) -> StereoCalibration:
 
 def stereo_sensor(K: Any, baseline_m: float, cam_T_imu: Any, **extra: Any) -> dict:
     """A 3-D header's ``sensor`` object from the calibration (``extra`` keys are kept)."""
+    import numpy as np
+
     K = np.asarray(K, dtype=float)
     return {
         "kind": "stereo",
