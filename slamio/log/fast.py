@@ -130,18 +130,44 @@ def _decoders(kinds: tuple[str, ...], unset: bool) -> tuple[msgspec.json.Decoder
 
 
 class FastDecoder:
-    """The fast path for the records of a planar or a 3-D log (the header says which)."""
+    """The fast path for the records of a planar or a 3-D log (the header says which).
+
+    ``record(raw)``: the record of one line (bytes, line ending allowed), or None: let the slow
+    path decide.
+    """
 
     def __init__(self, is_3d: bool) -> None:
         kinds = KINDS_3D if is_3d else PLANAR_KINDS
         self._plain, self._plain_classes = _decoders(kinds, unset=False)
         self._unset, self._unset_classes = _decoders(kinds, unset=True)
+        self.record: Callable[[bytes], Any] = self._record_function()
 
-    def record(self, raw: bytes) -> Any:
-        """The record of one line (bytes, line ending allowed), or None: let the slow path decide."""
-        if b"null" in raw:  # an explicit null is told apart from an absent field (UNSET)
-            return _decoded(self._unset, self._unset_classes, raw, UNSET)
-        return _decoded(self._plain, self._plain_classes, raw, None)
+    def _record_function(self) -> Callable[[bytes], Any]:
+        """``record``: a line with a null through :func:`_decoded` (its structs tell an explicit null
+        from an absent field), any other (nearly every line) through the same steps inlined, a few
+        calls fewer on each line."""
+        decode, unset, unset_classes = self._plain.decode, self._unset, self._unset_classes
+        finishing = {struct: (cls, _CHECKS.get(cls)) for struct, cls in self._plain_classes.items()}
+        asdict, new, failed = msgspec.structs.asdict, _new, (msgspec.DecodeError, RecursionError)
+
+        def record(raw: bytes) -> Any:
+            if b"null" in raw:
+                return _decoded(unset, unset_classes, raw, UNSET)
+            try:
+                struct = decode(raw)
+            except failed:
+                return None
+            values = asdict(struct)
+            if raw.count(b":") != 1 + len(values) - list(values.values()).count(None):
+                return None  # a key given twice
+            cls, check = finishing[type(struct)]
+            if check is not None and not check(values):
+                return None
+            made = new(cls)
+            made.__dict__.update(values)  # a frozen dataclass, built without its __init__'s per-field setattr
+            return made
+
+        return record
 
 
 def _decoded(decoder: msgspec.json.Decoder, classes: dict[type, type], raw: bytes, absent: Any) -> Any:
