@@ -2,7 +2,10 @@
 
 - ``fgslam.cli.<verb>`` (``sim``, ``run``, ``import_``, ``export``, ``validate``, ``check``,
   ``bench``, ``record``, ``calibrate``, ``detect``, ``tune_colours`` (``tune-colours``), ``live``): ``add_parser(verbs)`` adds the
-  verb and its ``--help``; ``cmd_<verb>(args)`` does it and returns the exit status.
+  verb and its ``--help``; ``cmd_<verb>(args)`` does it and returns the exit status. :func:`main`
+  imports the module of the verb it runs and no other (a short verb such as ``validate``
+  starts in the time of its own imports); ``fgslam --help`` lists every verb from
+  :mod:`fgslam.cli.verbs` (each verb's name, module and help line) without importing one.
 - :mod:`fgslam.cli.common`: the one error path (:func:`~fgslam.cli.common.run_verb`: every
   :class:`~slamio.errors.FgslamError` or :class:`OSError` becomes ``fgslam: error: <what,
   where, how to fix it>`` and exit status 1 — status 2 when an input file cannot be used,
@@ -96,7 +99,7 @@ def build_parser(verbs: Collection[str] | None = None) -> argparse.ArgumentParse
         if verbs is None or verb in verbs:
             _module(verb).add_parser(subparsers)
         else:
-            subparsers.add_parser(verb, help=help_line).set_defaults(func=None)
+            subparsers.add_parser(verb, help=help_line, add_help=False).set_defaults(func=None)
     return parser
 
 
