@@ -84,3 +84,9 @@ def test_a_line_longer_than_the_limit_is_refused_at_its_number(tmp_path):
     assert error.value.line == 3
     path.write_bytes(header + record + b" " * (reader.MAX_LINE_BYTES - len(other)) + other)  # just within
     assert len(read_log(path).records) == 2
+
+
+def test_a_stream_closed_after_its_header_yields_nothing():
+    stream = iter_log(ROOT / "data" / "arena_octagon.jsonl")  # its first buffer holds every line
+    stream.close()
+    assert list(stream) == []

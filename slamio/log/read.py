@@ -231,11 +231,11 @@ def _raw_lines(path: str, limit: int | None, chunk_bytes: int = CHUNK_BYTES) -> 
             lines = (head + chunk).split(b"\n") if head else chunk.split(b"\n")
             head = lines.pop()
             if lines:
-                size = sum(map(len, lines)) + len(lines)
-                if (limit is not None and done + size > limit) or max(map(len, lines)) >= MAX_LINE_BYTES:
+                nbytes = sum(map(len, lines)) + len(lines)  # with their newlines
+                if (limit is not None and done + nbytes > limit) or max(map(len, lines)) >= MAX_LINE_BYTES:
                     yield from _up_to_refused(path, lines, True, number, done, limit)
                 yield lines, True
-                done, number = done + size, number + len(lines)
+                done, number = done + nbytes, number + len(lines)
             if len(head) > MAX_LINE_BYTES or (limit is not None and done + len(head) > limit):
                 yield from _up_to_refused(path, [head], False, number, done, limit)
         if head:
@@ -311,6 +311,7 @@ class LogStream:
 
     def close(self) -> None:
         """Stop reading: the file is closed (iterating yields nothing more)."""
+        self._after_header = ([], True)
         self._lines.close()
 
     def _slow(self, number: int, raw: bytes, ended: bool) -> Record | Rejected | None:
