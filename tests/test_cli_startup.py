@@ -64,6 +64,16 @@ def test_validate_imports_neither_numpy_nor_the_other_verbs(tmp_path):
         assert _heavy(modules, NOT_FOR_VALIDATE) == [], log.name
 
 
+def test_validate_of_a_3d_log_imports_no_numpy(tmp_path):
+    """A 3-D log's header (its stereo calibration, a rigid cam_T_imu) is checked without numpy too."""
+    drive = tmp_path / "drive.jsonl"
+    subprocess.run([sys.executable, "-m", "fgslam.cli", "sim", "stereo-loop", "--seed", "1", "--out", str(drive)],
+                   check=True, capture_output=True, cwd=ROOT)
+    status, modules = _modules_after("validate", str(drive))
+    assert status == 0
+    assert _heavy(modules, NOT_FOR_VALIDATE) == []
+
+
 def test_help_lists_every_verb_without_importing_one():
     from fgslam.cli.verbs import VERBS
 

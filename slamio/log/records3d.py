@@ -217,9 +217,16 @@ def pose3_from_matrix(T: Any) -> Pose3:
 
 
 def top_view(pose: Pose3) -> tuple[float, float, float]:
-    """``(x, y, yaw)`` of a 3-D pose seen from above (yaw of the body x axis)."""
-    R = pose3_matrix(pose)[:3, :3]
-    return float(pose[0]), float(pose[1]), math.atan2(R[1, 0], R[0, 0])
+    """``(x, y, yaw)`` of a 3-D pose seen from above (yaw of the body x axis): the entries (1, 0)
+    and (0, 0) of :func:`pose3_matrix`'s rotation, by the same arithmetic as
+    :func:`slamio.se3.rotation_from_quaternion` (so the same bits), without numpy."""
+    x, y, z, w = pose[3:]
+    n = math.sqrt(x * x + y * y + z * z + w * w)
+    if not n > 1e-12:  # no rotation: what the matrix says of it
+        R = pose3_matrix(pose)[:3, :3]
+        return float(pose[0]), float(pose[1]), math.atan2(R[1, 0], R[0, 0])
+    x, y, z, w = x / n, y / n, z / n, w / n
+    return float(pose[0]), float(pose[1]), math.atan2(2 * (x * y + z * w), 1 - 2 * (y * y + z * z))
 
 
 # --------------------------------------------------------------------------- parsing
@@ -428,6 +435,48 @@ def parse_stereo_sensor(sensor: dict) -> StereoCalibration:
         )
     K = np.array([[values["fx_px"], 0.0, values["cx_px"]], [0.0, values["fy_px"], values["cy_px"]], [0.0, 0.0, 1.0]])
     return StereoCalibration(K=K, baseline_m=float(values["baseline_m"]), cam_T_imu=T)  # type: ignore[arg-type]
+
+
+def check_stereo_sensor(sensor: dict) -> None:
+    """:func:`parse_stereo_sensor`'s checks, for the reader: without numpy when the sensor is
+    surely accepted (:func:`_clearly_stereo`), else by :func:`parse_stereo_sensor` itself (its
+    messages)."""
+    if not _clearly_stereo(sensor):
+        parse_stereo_sensor(sensor)
+
+
+#: How far inside :func:`parse_stereo_sensor`'s tolerances (``allclose``'s ``atol`` of 1e-9
+#: and 1e-6) the numpy-free check accepts a rigid transform: far from any rounding.
+_RIGID_MARGIN = 0.5
+
+
+def _clearly_stereo(sensor: dict) -> bool:
+    """True when :func:`parse_stereo_sensor` surely accepts ``sensor``: every value within its
+    bounds and ``cam_T_imu`` rigid within half the tolerances (RRᵀ = I by sums of products
+    here, by numpy there: they differ by rounding, ~1e-16); False for anything it may refuse."""
+    if sensor.get("kind") != "stereo" or any(k not in sensor for k in _STEREO_KEYS):
+        return False
+    T = sensor["cam_T_imu"]
+    try:
+        fx, fy, cx, cy, baseline = (_fields._number(sensor, k) for k in _STEREO_KEYS[:5])
+        rows = [_vector(row, 4, "") for row in T] if isinstance(T, list) and len(T) == 4 else None
+    except _Bad:
+        return False
+    if rows is None or not (fx > 0.0 and fy > 0.0 and baseline > 0.0):  # type: ignore[operator]
+        return False
+    if max(abs(fx), abs(fy), abs(cx), abs(cy)) > MAX_PIXEL_PX or baseline > MAX_MOUNT_M:  # type: ignore[arg-type]
+        return False
+    if max(abs(rows[i][3]) for i in range(3)) > MAX_MOUNT_M:
+        return False
+    if any(abs(v - e) > _RIGID_MARGIN * 1e-9 for v, e in zip(rows[3], (0.0, 0.0, 0.0, 1.0))):
+        return False
+    R = [row[:3] for row in rows[:3]]
+    if any(abs(sum(R[i][k] * R[j][k] for k in range(3)) - (i == j)) > _RIGID_MARGIN * 1e-6
+           for i in range(3) for j in range(3)):
+        return False
+    det = (R[0][0] * (R[1][1] * R[2][2] - R[1][2] * R[2][1]) - R[0][1] * (R[1][0] * R[2][2] - R[1][2] * R[2][0])
+           + R[0][2] * (R[1][0] * R[2][1] - R[1][1] * R[2][0]))
+    return det > 0.5  # a rotation's is 1
 
 
 def stereo_sensor(K: Any, baseline_m: float, cam_T_imu: Any, **extra: Any) -> dict:
