@@ -2,7 +2,10 @@
 
 - ``fgslam.cli.<verb>`` (``sim``, ``run``, ``import_``, ``export``, ``validate``, ``check``,
   ``bench``, ``record``, ``calibrate``, ``detect``, ``tune_colours`` (``tune-colours``), ``live``): ``add_parser(verbs)`` adds the
-  verb and its ``--help``; ``cmd_<verb>(args)`` does it and returns the exit status.
+  verb and its ``--help``; ``cmd_<verb>(args)`` does it and returns the exit status. :func:`main`
+  imports the module of the verb it runs and no other (a short verb such as ``validate``
+  starts in the time of its own imports); ``fgslam --help`` lists every verb from
+  :mod:`fgslam.cli.verbs` (each verb's name, module and help line) without importing one.
 - :mod:`fgslam.cli.common`: the one error path (:func:`~fgslam.cli.common.run_verb`: every
   :class:`~slamio.errors.FgslamError` or :class:`OSError` becomes ``fgslam: error: <what,
   where, how to fix it>`` and exit status 1 — status 2 when an input file cannot be used,
@@ -19,27 +22,14 @@ from __future__ import annotations
 
 import argparse
 import functools
+import importlib
 import re
 import sys
-from typing import Sequence
+from types import ModuleType
+from typing import Collection, Sequence
 
-from fgslam.cli import (
-    bench,
-    calibrate,
-    calibrate_camera,
-    check,
-    detect,
-    export,
-    import_,
-    live,
-    record,
-    run,
-    sim,
-    tune_colours,
-    validate,
-)
 from fgslam.cli.common import fail, run_verb
-from fgslam.cli.estimators import ESTIMATOR_HELP
+from fgslam.cli.verbs import VERBS as VERB_TABLE
 from slamio.errors import InputFileError
 
 __all__ = ["main", "build_parser", "ESTIMATOR_HELP", "VERBS"]
@@ -58,9 +48,26 @@ typical use:
   fgslam run drive.jsonl --out results3d/
 """
 
-#: The verb modules, in the order ``fgslam --help`` lists them.
-VERBS = (sim, run, import_, export, validate, check, bench, detect, tune_colours, record, calibrate,
-         calibrate_camera, live)
+
+def __getattr__(name: str):
+    """The verb modules (``fgslam.cli.run``, ...), :data:`VERBS` and :data:`ESTIMATOR_HELP`,
+    imported when first asked for: ``fgslam VERB`` imports that verb's module alone."""
+    if name in _MODULES:
+        return importlib.import_module(f"{__name__}.{name}")
+    if name == "VERBS":  # the verb modules, in the order ``fgslam --help`` lists them
+        return tuple(_module(verb) for verb in VERB_TABLE)
+    if name == "ESTIMATOR_HELP":
+        from fgslam.cli.estimators import ESTIMATOR_HELP
+
+        return ESTIMATOR_HELP
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+_MODULES = frozenset(module for module, _ in VERB_TABLE.values())
+
+
+def _module(verb: str) -> ModuleType:
+    return importlib.import_module(f"{__name__}.{VERB_TABLE[verb][0]}")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -79,15 +86,27 @@ class _Parser(argparse.ArgumentParser):
         self.exit(1, f"fgslam: error: {message} (see {self.prog} --help)\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(verbs: Collection[str] | None = None) -> argparse.ArgumentParser:
+    """``fgslam``'s parser. ``verbs``: the verbs whose own parser (options, handler) is built,
+    their modules imported; every other verb is listed with its help line only (enough for
+    ``fgslam --help`` and for a wrong verb's message). Default: every verb, built."""
     parser = _Parser(
         prog="fgslam", description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--version", action=_VersionAction, nargs=0, help="show the version and exit")
-    verbs = parser.add_subparsers(dest="verb", metavar="VERB", required=True)
-    for module in VERBS:
-        module.add_parser(verbs)
+    subparsers = parser.add_subparsers(dest="verb", metavar="VERB", required=True)
+    for verb, (_, help_line) in VERB_TABLE.items():
+        if verbs is None or verb in verbs:
+            _module(verb).add_parser(subparsers)
+        else:
+            subparsers.add_parser(verb, help=help_line, add_help=False).set_defaults(func=None)
     return parser
+
+
+def _verb_named(argv: Sequence[str]) -> str | None:
+    """The verb ``argv`` names (its first argument that is no option), if fgslam has it."""
+    verb = next((arg for arg in argv if not arg.startswith("-")), None)
+    return verb if verb in VERB_TABLE else None
 
 
 class _VersionAction(argparse.Action):
@@ -110,8 +129,12 @@ def _version() -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    parser = build_parser()
+    verb = _verb_named(argv)
+    parser = build_parser(() if verb is None else (verb,))
     args, extra = parser.parse_known_args(argv)
+    if getattr(args, "func", True) is None:  # a verb other than the one guessed: build them all
+        parser = build_parser()
+        args, extra = parser.parse_known_args(argv)
     if extra:  # `import DATASET SOURCE --robot 2 OUT`: positionals after an option
         if getattr(args, "takes_extra_paths", False) and not any(e.startswith("-") for e in extra):
             args.paths.extend(extra)

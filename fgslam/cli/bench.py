@@ -11,6 +11,7 @@ from fgslam.atomic import write_text_whole
 from fgslam.cli.common import add_overwrite_option, add_verb, command_line, holds_outputs
 from fgslam.cli.progress import Progress
 from fgslam.cli.results import ResultsFolder
+from fgslam.cli.verbs import help_of
 
 OWN_NAMES = ("montecarlo.json", "nees.png", "ate.png")
 
@@ -21,7 +22,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     scenarios = (*SCENARIOS, STEREO_LOOP)
     bench = add_verb(
         verbs, "bench",
-        help="Monte Carlo: many seeded simulations, average NEES per step against its chi-square band",
+        help=help_of("bench"),
         description=(
             "Simulate SCENARIO with seeds SEED..SEED+RUNS-1, run the estimators on each (in a process\n"
             "pool, or on a Dask cluster), and report for each estimator the share of steps at which\n"

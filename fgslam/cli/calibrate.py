@@ -20,6 +20,7 @@ from pathlib import Path
 
 from fgslam.cli.common import (add_overwrite_option, add_verb, check_new_file, check_number, holds_outputs, read,
                                write_new_file)
+from fgslam.cli.verbs import help_of
 from slamio.errors import FgslamError
 from slamio.noise.errors import NoiseModelError
 
@@ -78,9 +79,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     """Add ``fgslam calibrate`` to the sub-parsers ``verbs``; returns its parser."""
     p = add_verb(
         verbs, "calibrate",
-        help="learn the odometry and reading noise: a noise model fitted to logs with ground truth "
-        "(LOG.jsonl...), or seed 001's covariances from measured trials (TRIALS.csv); "
-        "not the camera (calibrate-camera)",
+        help=help_of("calibrate"),
         description=CALIBRATE_DESCRIPTION,
     )
     p.add_argument("trials", nargs="+", metavar="LOG.jsonl|TRIALS.csv",

@@ -13,6 +13,7 @@ import glob
 from fgslam.cli.common import (
     add_overwrite_option, add_verb, check_new_file, check_number, holds_outputs, write_new_file,
 )
+from fgslam.cli.verbs import help_of
 
 DESCRIPTION = """\
 Calibrate a camera from pictures of a printed chessboard: intrinsics (fx, fy, cx, cy) and
@@ -61,7 +62,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
 
     p = add_verb(
         verbs, "calibrate-camera",
-        help="camera intrinsics and lens distortion from chessboard pictures -> camera_info YAML",
+        help=help_of("calibrate-camera"),
         description=DESCRIPTION,
         epilog="example:\n  fgslam calibrate-camera 'calib/*.png' --board 9x6 --square 0.025 "
                "--mount 0.10,0,0.30,0,0,0 --out kinect.yaml",

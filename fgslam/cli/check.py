@@ -6,6 +6,7 @@ import argparse
 
 from fgslam.cli.common import add_verb
 from fgslam.cli.estimators import ESTIMATOR_HELP, ESTIMATOR_HELP_3D
+from fgslam.cli.verbs import help_of
 
 
 def _tolerance(key: str):
@@ -29,7 +30,7 @@ def _tolerance(key: str):
 def add_parser(verbs) -> argparse.ArgumentParser:
     check = add_verb(
         verbs, "check",
-        help="regression check: one estimator against the smoothed solution or the truth (exit 0/1)",
+        help=help_of("check"),
         description=(
             "Run one estimator on LOG and compare it with the smoothed solution (batch LM from\n"
             "iSAM2) or with the log's ground truth. Prints one line, PASS or FAIL, and exits 0 or 1.\n"

@@ -29,14 +29,11 @@ import functools
 import json
 import math
 import os
-import shlex
 import stat
 import sys
-import tempfile
 from pathlib import Path
 from typing import Callable, Iterator
 
-from fgslam.atomic import naming, temp_path
 from slamio.errors import FgslamError
 
 PROG = "fgslam"
@@ -123,6 +120,8 @@ def command_line(args: argparse.Namespace, default: str = "") -> str:
     ``--overwrite`` is left out: it says what happens to an older file, not what is in this
     one, so ``make data`` (which needs it) gives the same bytes as the first ``fgslam sim``.
     """
+    import shlex
+
     argv = getattr(args, "argv", None)
     if argv is None:
         return f"{PROG} {default}".strip()
@@ -379,6 +378,8 @@ def probe_writable(folder: Path, *, option: str = "--out", target: Path | None =
     existing parent, where it will be made): create a probe file there and remove it — the
     only test that also holds for root on a read-only disk. Creates nothing that stays.
     One clear line (:class:`FgslamError`) if it fails."""
+    import tempfile
+
     target = folder if target is None else target
     existing = folder
     while not existing.exists() and existing != existing.parent:
@@ -401,6 +402,8 @@ def write_new_file(path: Path, write: Callable[[str], None], *, overwrite: bool 
     appeared during the work), and never leaves a half-written file at ``path``. A new file
     gets the umask's mode; a replaced one keeps its permission bits.
     """
+    from fgslam.atomic import naming, temp_path
+
     path = Path(path)
     check_new_file(path, overwrite=overwrite, option=option)
     path.parent.mkdir(parents=True, exist_ok=True)

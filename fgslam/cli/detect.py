@@ -55,6 +55,7 @@ from pathlib import Path
 from fgslam.cli.common import add_verb, check_number, command_line, holds_outputs, probe_writable, write_new_file
 from fgslam.cli.detect_checks import DetectError, FrameProblems, check_show, parse_tag_ids, summary_with_details
 from fgslam.cli.progress import Progress
+from fgslam.cli.verbs import help_of
 from slamio.log import Header, Observation, Odometry, read_log, write_log
 from slamio.log.mount import camera_mount_fields, pose_on_robot
 
@@ -440,7 +441,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
 
     detect = add_verb(
         verbs, "detect",
-        help="camera frames -> landmark observations (AprilTags or Kinect colour cylinders) in a run log",
+        help=help_of("detect"),
         description=(
             "Detect landmarks in camera frames and add them to a run log as observations in the robot\n"
             "frame (range, bearing, and tag yaw or cylinder height). FRAMES is a TUM RGB-D folder\n"

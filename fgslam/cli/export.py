@@ -10,13 +10,14 @@ from pathlib import Path
 
 from fgslam.atomic import temp_path
 from fgslam.cli.common import explain, hold_outputs, probe_writable, read
+from fgslam.cli.verbs import help_of
 from slamio.errors import FgslamError
 
 
 def add_parser(verbs) -> argparse.ArgumentParser:
     export = verbs.add_parser(
         "export",
-        help="write a run log in another format (a ROS 2 bag)",
+        help=help_of("export"),
         description="Write a run log as a ROS 2 bag (sqlite3): odometry as nav_msgs/Odometry, ground truth as "
                     "geometry_msgs/PoseStamped (truth with a heading; GPS positions are on /fgslam/run_log only), detections as apriltag_ros arrays, plus the exact log on "
                     "/fgslam/run_log so `fgslam import rosbag BAG OUT` gives it back unchanged. See "

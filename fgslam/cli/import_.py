@@ -17,6 +17,7 @@ from fgslam.cli.common import (
     write_run_log,
 )
 from fgslam.cli.import_rosbag import ROSBAG_OPTIONS, add_rosbag_options
+from fgslam.cli.verbs import help_of
 from slamio.errors import FgslamError
 
 DATASETS = ["victoria-park", "plaza1", "plaza2", "mrclam", "rosbag", "seed003"]
@@ -26,7 +27,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     imp = add_verb(
         verbs, "import",
         usage="%(prog)s DATASET [SOURCE] OUT [options]",
-        help="convert a dataset from elsewhere into a run log",
+        help=help_of("import"),
         description=(
             "Convert a public dataset into a run log, so every estimator can run on it.\n\n"
             "datasets:\n"

@@ -22,6 +22,7 @@ import fgslam.cli.live_navigate as live_navigate
 from fgslam.cli.common import add_overwrite_option, add_verb, check_new_file, check_number
 from fgslam.cli.progress import Progress
 from fgslam.cli.robot_end import report_end, robot_session, say
+from fgslam.cli.verbs import help_of
 from slamio.errors import FgslamError
 
 
@@ -66,7 +67,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     from slamio.sim_worlds import ARENA_PATH_WIDTH_M, ARENA_SIDE_M
 
     live = add_verb(verbs, "live", description=DESCRIPTION,
-                    help="drive the Create on the iSAM2 pose with the camera in the loop; record it all")
+                    help=help_of("live"))
     live.add_argument("--port", required=True, help="serial port (e.g. /dev/ttyUSB0) or 'sim'")
     live.add_argument("--model", choices=("create1", "create2"), default="create2")
     live.add_argument("--path", default=None, help="square, octagon or a waypoint file (default octagon)")

@@ -18,6 +18,7 @@ from pathlib import Path
 from fgslam.cli.common import (add_overwrite_option, add_verb, check_new_file, check_number, command_line,
                                stale_status_files, status_path)
 from fgslam.cli.robot_end import EXIT_STOPPED_EARLY, report_end, robot_session, say  # noqa: F401 (fgslam.record_cli)
+from fgslam.cli.verbs import help_of
 from slamio.errors import FgslamError
 
 EXIT_INTERRUPTED = 130  # SIGINT; any signal N exits 128 + N
@@ -78,7 +79,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
     """Add ``fgslam record`` to the sub-parsers ``verbs``; returns its parser."""
     p = add_verb(
         verbs, "record",
-        help="drive an iRobot Create (or the simulated one) and record its odometry to a run log",
+        help=help_of("record"),
         description=RECORD_DESCRIPTION,
     )
     p.add_argument("--port", required=True, metavar="PORT",

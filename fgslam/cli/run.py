@@ -13,6 +13,7 @@ from fgslam.cli.common import add_overwrite_option, add_verb, command_line, hold
 from fgslam.cli.estimators import ESTIMATOR_HELP, ESTIMATOR_HELP_3D
 from fgslam.cli.progress import Progress
 from fgslam.cli.results import ResultsFolder
+from fgslam.cli.verbs import help_of
 from fgslam.failure import FAILED_EXIT_STATUS
 from slamio.errors import FgslamError
 
@@ -37,7 +38,7 @@ def own_names() -> list[str]:
 def add_parser(verbs) -> argparse.ArgumentParser:
     run = add_verb(
         verbs, "run",
-        help="run the estimators on a log and write the comparison",
+        help=help_of("run"),
         epilog="estimators:\n" + "\n".join(f"  {name:<15} {text}" for name, text in ESTIMATOR_HELP.items())
         + "\n\nestimators of a 3-D log (seed 003: stereo camera + IMU):\n"
         + "\n".join(f"  {name:<16} {text}" for name, text in ESTIMATOR_HELP_3D.items())

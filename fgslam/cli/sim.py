@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from fgslam.cli.common import add_overwrite_option, add_verb, check_new_file, command_line, holds_outputs, write_run_log
+from fgslam.cli.verbs import help_of
 from slamio.errors import FgslamError
 
 
@@ -18,7 +19,7 @@ STEREO_LOOP = "stereo-loop"
 def add_parser(verbs) -> argparse.ArgumentParser:
     sim = add_verb(
         verbs, "sim",
-        help="simulate a run and write its log (with ground truth)",
+        help=help_of("sim"),
         description=(
             "Simulate a differential-drive robot with noisy wheel odometry and a range-bearing "
             "landmark sensor, and write the run log with ground truth. The same seed gives the "

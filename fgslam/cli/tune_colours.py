@@ -25,6 +25,7 @@ from fgslam.cli.common import (
     probe_writable,
     write_new_file,
 )
+from fgslam.cli.verbs import help_of
 from slamio.errors import FgslamError
 
 DESCRIPTION = """\
@@ -43,7 +44,7 @@ def add_parser(verbs) -> argparse.ArgumentParser:
 
     p = add_verb(
         verbs, "tune-colours",
-        help="fit the colour-landmark file's HSV ranges to your frames; write masks and detections to look at",
+        help=help_of("tune-colours"),
         description=DESCRIPTION,
         epilog="example:\n  fgslam tune-colours run/frames --camera kinect.yaml --out landmarks.yaml --show run/tuning",
     )

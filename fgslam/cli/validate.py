@@ -5,11 +5,13 @@ from __future__ import annotations
 import argparse
 import sys
 
+from fgslam.cli.verbs import help_of
+
 
 def add_parser(verbs) -> argparse.ArgumentParser:
     validate = verbs.add_parser(
         "validate",
-        help="check a run log line by line and summarise it",
+        help=help_of("validate"),
         description="Read a run log, validate every line, and print a one-line summary. "
         "Exits 1 with file:line and how to fix it at the first bad line.",
     )

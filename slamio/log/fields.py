@@ -10,8 +10,6 @@ import json
 import math
 from typing import Any, Iterable
 
-import numpy as np
-
 #: A 3×3 covariance as written (rows of three floats).
 Matrix3 = tuple[tuple[float, float, float], tuple[float, float, float], tuple[float, float, float]]
 
@@ -273,6 +271,8 @@ def _paired(value: float | None, sigma: float | None, value_key: str, sigma_key:
 
 
 def _covariance(value: Any) -> Matrix3:
+    import numpy as np
+
     if not (isinstance(value, list) and len(value) == 3):
         raise _BadLine("'covariance' must be a 3×3 list of lists over (dx, dy, dtheta)")
     rows = tuple(_vector3(row, "each covariance row") for row in value)

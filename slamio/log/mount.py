@@ -18,10 +18,10 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import TYPE_CHECKING
 
-import numpy as np
-
-from slamio.geometry import wrap_angle
+if TYPE_CHECKING:  # numpy loads when used: the reader checks the header's mount without it
+    import numpy as np
 
 __all__ = ["MAX_MOUNT_OFFSET_M", "camera_mount_fields", "checked_mount", "moved_to_robot_centre", "pose_on_robot",
            "reading_in_robot_frame"]
@@ -43,7 +43,7 @@ def pose_on_robot(sensor: dict) -> tuple[float, float, float] | None:
     if value is None:
         return None
     x, y, yaw = checked_mount(value if isinstance(value, list) else None, "header field 'sensor.pose_on_robot'")
-    if x == 0.0 and y == 0.0 and wrap_angle(yaw) == 0.0:
+    if x == 0.0 and y == 0.0 and (yaw + math.pi) % (2.0 * math.pi) - math.pi == 0.0:  # wrap_angle(yaw), a float's
         return None
     return x, y, yaw
 
@@ -68,6 +68,8 @@ def checked_mount(value, field: str) -> tuple[float, float, float]:
 def camera_mount_fields(T_robot_camera) -> dict:
     """The header ``sensor`` fields of a camera whose detections the front-end placed from its
     mount (``T_robot_camera``, 4×4): the mount, and that the readings are the centre's."""
+    import numpy as np
+
     T = np.asarray(T_robot_camera, dtype=float)
     return {"T_robot_camera": [[round(float(v), 9) for v in row] for row in T], "readings_at": READINGS_AT_ROBOT_CENTRE}
 
@@ -77,6 +79,8 @@ def reading_in_robot_frame(range_m: float, bearing_rad: float, mount: tuple[floa
     """``(range, bearing, J)``: a reading taken by a sensor at ``mount`` as seen from the
     robot's centre, and the Jacobian of (range, bearing) from the centre with respect to
     (range, bearing) from the sensor."""
+    import numpy as np
+
     mx, my, myaw = mount
     c, s = math.cos(myaw + bearing_rad), math.sin(myaw + bearing_rad)
     px, py = mx + range_m * c, my + range_m * s
@@ -97,6 +101,10 @@ def moved_to_robot_centre(observation, mount: tuple[float, float, float]):
     """``observation`` (a planar :class:`~slamio.log.Observation`) as if taken at the robot's
     centre: range and bearing moved exactly, their σ by first-order propagation (module
     docstring); a range-only reading is returned as it is."""
+    import numpy as np
+
+    from slamio.geometry import wrap_angle
+
     if observation.bearing_rad is None:
         return observation
     r, b, J = reading_in_robot_frame(observation.range_m, observation.bearing_rad, mount)

@@ -119,7 +119,7 @@ def _parse_header3(d: dict, version: int) -> Header:
     pose3 = log3d.parse_pose3(start["pose3"], "start.pose3")
     sigma3 = log3d.parse_sigma3(start["sigma3"], "start.sigma3")
     sensor = _object(d, "sensor", ("kind",))
-    log3d.parse_stereo_sensor(sensor)
+    log3d.check_stereo_sensor(sensor)
     return Header(
         stamp_s=_stamp(start),  # type: ignore[arg-type]
         start_pose=log3d.top_view(pose3),

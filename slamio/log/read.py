@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import collections
 import gc
+import itertools
 import json
 import math
 import os
@@ -204,39 +205,62 @@ def _check_interval(record: Record, pose_stamp: float) -> float:
         )
     return record.stamp_s
 
-def _raw_lines(path: str, limit: int | None) -> Iterator[bytes]:
+#: How much of a log is read at once (bytes); its lines are split in one call.
+CHUNK_BYTES = 2**20
+
+
+def _raw_lines(path: str, limit: int | None, chunk_bytes: int = CHUNK_BYTES) -> Iterator[tuple[list[bytes], bool]]:
     """The lines of the regular file at ``path`` (:func:`~slamio.errors.open_regular`: never a
-    FIFO or a device), each with its line ending, read a buffer at a time; at most ``limit``
-    bytes in all and :data:`MAX_LINE_BYTES` in one line, else one :class:`InputFileError`."""
+    FIFO or a device), read ``chunk_bytes`` at a time: lists of lines without their ``\\n``,
+    each list with whether a newline ended its lines (only the file's last line may lack one);
+    at most ``limit`` bytes in all and :data:`MAX_LINE_BYTES` in one line (its newline
+    included), else one :class:`InputFileError` after the lines before it."""
     fd = open_regular(path, "run log")
-    with os.fdopen(fd, "rb", buffering=2**20) as f:
+    with os.fdopen(fd, "rb", buffering=0) as f:
         size = os.fstat(fd).st_size
         if limit is not None and size > limit:
             raise _too_large(path, "run log", size, limit, InputFileError)
-        total, number, readline = 0, 0, f.readline
+        done, number, head = 0, 0, b""  # bytes and lines yielded; the start of a line not ended yet
         while True:
             try:
-                raw = readline(MAX_LINE_BYTES + 1)
+                chunk = f.read(chunk_bytes)
             except OSError as exc:
                 raise _os_error(path, "run log", exc, InputFileError) from None
-            if not raw:
-                return
-            number += 1
-            total += len(raw)
-            if limit is not None and total > limit:  # the file grew while it was read
+            if not chunk:
+                break
+            lines = (head + chunk).split(b"\n") if head else chunk.split(b"\n")
+            head = lines.pop()
+            if lines:
+                nbytes = sum(map(len, lines)) + len(lines)  # with their newlines
+                if (limit is not None and done + nbytes > limit) or max(map(len, lines)) >= MAX_LINE_BYTES:
+                    yield from _up_to_refused(path, lines, True, number, done, limit)
+                yield lines, True
+                done, number = done + nbytes, number + len(lines)
+            if len(head) > MAX_LINE_BYTES or (limit is not None and done + len(head) > limit):
+                yield from _up_to_refused(path, [head], False, number, done, limit)
+        if head:
+            yield [head], False
+
+
+def _up_to_refused(path: str, lines: list[bytes], ended: bool, number: int, done: int,
+                   limit: int | None) -> Iterator[tuple[list[bytes], bool]]:
+    """The lines before the first of ``lines`` that is too long or crosses ``limit`` (the file
+    grew while it was read), then its error; ``number`` lines and ``done`` bytes came before."""
+    for i, line in enumerate(lines):
+        done += len(line) + ended
+        if (limit is not None and done > limit) or len(line) + ended > MAX_LINE_BYTES:
+            if i:
+                yield lines[:i], ended
+            if limit is not None and done > limit:
                 raise _too_large(path, "run log", None, limit, InputFileError)
-            if len(raw) > MAX_LINE_BYTES:
-                raise LogFormatError(path, number, f"the line is longer than {MAX_LINE_BYTES // 2**20} MiB; no line "
-                                     "of a run log is that long (a record is a few hundred bytes): is this a run log?")
-            yield raw
+            raise LogFormatError(path, number + i + 1, f"the line is longer than {MAX_LINE_BYTES // 2**20} MiB; no "
+                                 "line of a run log is that long (a record is a few hundred bytes): is this a run log?")
+    raise AssertionError("no line refused")  # pragma: no cover
 
 
-def _split(raw: bytes) -> tuple[bytes, bool]:
-    """A line without its ending (``\\n``, and a ``\\r`` before it), and whether a newline ended it."""
-    ended = raw.endswith(b"\n")
-    if ended:
-        raw = raw[:-1]
-    return (raw[:-1] if raw.endswith(b"\r") else raw), ended
+def _without_cr(raw: bytes) -> bytes:
+    """A line without the ``\\r`` of a ``\\r\\n`` ending."""
+    return raw[:-1] if raw.endswith(b"\r") else raw
 
 
 class LogStream:
@@ -254,12 +278,13 @@ class LogStream:
         self.truncated: str | None = None
         self.state = _ReadState(self.path, keep)
         self._lines = _raw_lines(self.path, limit)
-        raw = next(self._lines, None)
-        if raw is None:
+        first = next(self._lines, None)
+        if first is None:
             raise LogFormatError(self.path, 1, "the file is empty; a run log starts with a header line")
-        text, _ = _split(raw)
+        lines, ended = first
+        self._after_header = (lines[1:], ended)
         try:
-            self.state.take(1, _loads(_decode(text, 1)))
+            self.state.take(1, _loads(_decode(_without_cr(lines[0]), 1)))
         except _BadLine as bad:
             raise self.state.error(1, bad) from None
 
@@ -271,26 +296,29 @@ class LogStream:
     def __iter__(self) -> Iterator[Record | Rejected]:
         state, fast = self.state, FastDecoder(self.header.is_3d).record
         add, number = state.add, 1
-        for raw in self._lines:
-            number += 1
-            record = fast(raw)
-            try:
-                item = add(number, record) if record is not None else self._slow(number, raw)
-            except _BadLine as bad:
-                raise state.error(number, bad) from None
-            if item is None:
-                return
-            yield item
+        after_header, self._after_header = self._after_header, ([], True)
+        for lines, ended in itertools.chain((after_header,), self._lines):
+            for raw in lines:
+                number += 1
+                record = fast(raw)
+                try:
+                    item = add(number, record) if record is not None else self._slow(number, raw, ended)
+                except _BadLine as bad:
+                    raise state.error(number, bad) from None
+                if item is None:
+                    return
+                yield item
 
     def close(self) -> None:
         """Stop reading: the file is closed (iterating yields nothing more)."""
+        self._after_header = ([], True)
         self._lines.close()
 
-    def _slow(self, number: int, raw: bytes) -> Record | Rejected | None:
-        """Line ``number`` through the slow path; None for a cut-off last line (noted in :attr:`truncated`)."""
-        text, ended = _split(raw)
+    def _slow(self, number: int, raw: bytes, ended: bool) -> Record | Rejected | None:
+        """Line ``number`` (without its newline; ``ended``: it had one) through the slow path; None
+        for a cut-off last line (noted in :attr:`truncated`)."""
         try:
-            return self.state.take(number, _loads(_decode(text, number)))
+            return self.state.take(number, _loads(_decode(_without_cr(raw), number)))
         except _NotJson:
             if ended:
                 raise

@@ -8,8 +8,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Iterator, Union
 
-import numpy as np
-
 from slamio.log.fields import Matrix3
 from slamio.log.records3d import StereoObservation, TruthPose3, VelocityOdometry
 
@@ -333,6 +331,8 @@ def in_event_kind_order(counts: dict[str, int]) -> dict[str, int]:
 
 def as_matrix3(m: Any) -> Matrix3:
     """A 3×3 array-like as the nested tuple of floats that records hold."""
+    import numpy as np
+
     a = np.asarray(m, dtype=float)
     if a.shape != (3, 3):
         raise ValueError(f"expected a 3×3 matrix, got shape {a.shape}")

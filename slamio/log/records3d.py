@@ -23,13 +23,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from slamio.errors import FgslamError
 import slamio.log.fields as _fields  # the package's own bounds checks (fields imports nothing of it)
-from slamio.se3 import quaternion_from_rotation, rotation_from_quaternion
+
+if TYPE_CHECKING:  # numpy and slamio.se3 load when used: reading and validating a planar log needs neither
+    import numpy as np
 
 __all__ = [
     "RECORDS_3D",
@@ -95,6 +95,8 @@ class VelocityOdometry:
 
     def twist(self) -> np.ndarray:
         """``u = (v, ω)`` as a 6-vector."""
+        import numpy as np
+
         return np.array(self.v_mps + self.w_radps, dtype=float)
 
 
@@ -125,10 +127,14 @@ class StereoObservation:
 
     def pixels(self) -> np.ndarray:
         """``(u_L, v_L, u_R, v_R)`` as a 4-vector."""
+        import numpy as np
+
         return np.array([self.u_left_px, self.v_left_px, self.u_right_px, self.v_right_px])
 
     def pixel_covariance(self) -> np.ndarray:
         """4×4 covariance of :meth:`pixels` (px²): ``covariance_px2``, or σ² I."""
+        import numpy as np
+
         if self.covariance_px2 is not None:
             return np.array(self.covariance_px2, dtype=float)
         return float(self.sigma_px) ** 2 * np.eye(4)  # type: ignore[arg-type]
@@ -186,6 +192,10 @@ class StereoCalibration:
 
 def pose3_matrix(pose: Pose3) -> np.ndarray:
     """4×4 transform of ``(x, y, z, qx, qy, qz, qw)`` (the quaternion normalised first)."""
+    import numpy as np
+
+    from slamio.se3 import rotation_from_quaternion
+
     T = np.eye(4)
     T[:3, :3] = rotation_from_quaternion(*pose[3:])
     T[:3, 3] = pose[:3]
@@ -194,6 +204,10 @@ def pose3_matrix(pose: Pose3) -> np.ndarray:
 
 def pose3_from_matrix(T: Any) -> Pose3:
     """``(x, y, z, qx, qy, qz, qw)`` of a 4×4 rigid transform (qw ≥ 0)."""
+    import numpy as np
+
+    from slamio.se3 import quaternion_from_rotation
+
     T = np.asarray(T, dtype=float)
     q = np.array(quaternion_from_rotation(T[:3, :3]))
     q /= np.linalg.norm(q)
@@ -203,9 +217,16 @@ def pose3_from_matrix(T: Any) -> Pose3:
 
 
 def top_view(pose: Pose3) -> tuple[float, float, float]:
-    """``(x, y, yaw)`` of a 3-D pose seen from above (yaw of the body x axis)."""
-    R = pose3_matrix(pose)[:3, :3]
-    return float(pose[0]), float(pose[1]), math.atan2(R[1, 0], R[0, 0])
+    """``(x, y, yaw)`` of a 3-D pose seen from above (yaw of the body x axis): the entries (1, 0)
+    and (0, 0) of :func:`pose3_matrix`'s rotation, by the same arithmetic as
+    :func:`slamio.se3.rotation_from_quaternion` (so the same bits), without numpy."""
+    x, y, z, w = pose[3:]
+    n = math.sqrt(x * x + y * y + z * z + w * w)
+    if not n > 1e-12:  # no rotation: what the matrix says of it
+        R = pose3_matrix(pose)[:3, :3]
+        return float(pose[0]), float(pose[1]), math.atan2(R[1, 0], R[0, 0])
+    x, y, z, w = x / n, y / n, z / n, w / n
+    return float(pose[0]), float(pose[1]), math.atan2(2 * (x * y + z * w), 1 - 2 * (y * y + z * z))
 
 
 # --------------------------------------------------------------------------- parsing
@@ -256,6 +277,8 @@ def parse_sigma3(value: Any, what: str) -> tuple[float, ...]:
 
 
 def _matrix(value: Any, n: int, what: str) -> np.ndarray:
+    import numpy as np
+
     if not (isinstance(value, list) and len(value) == n):
         raise _Bad(f"{what} must be a {n}×{n} list of lists")
     return np.array([_vector(row, n, f"each row of {what}") for row in value])
@@ -291,6 +314,8 @@ def _spd_matrix(value: Any, n: int, key: str, largest_allowed: float, smallest_a
                 why_large: str, why_small: str) -> tuple[tuple[float, ...], ...]:
     """An n×n symmetric matrix with entries ≤ ``largest_allowed`` and its smallest eigenvalue
     ≥ ``smallest_allowed`` (field ``key``), as nested tuples."""
+    import numpy as np
+
     m = _matrix(value, n, f"'{key}'")
     largest = float(np.max(np.abs(m)))
     if largest > largest_allowed:
@@ -382,6 +407,8 @@ _STEREO_KEYS = ("fx_px", "fy_px", "cx_px", "cy_px", "baseline_m", "cam_T_imu")
 
 def parse_stereo_sensor(sensor: dict) -> StereoCalibration:
     """The calibration in a 3-D header's ``sensor`` (kind ``"stereo"``)."""
+    import numpy as np
+
     if sensor.get("kind") != "stereo":
         raise _Bad(
             f"a 3-D log's header field 'sensor.kind' must be \"stereo\", got {_fields._show(sensor.get('kind'))} "
@@ -410,8 +437,52 @@ def parse_stereo_sensor(sensor: dict) -> StereoCalibration:
     return StereoCalibration(K=K, baseline_m=float(values["baseline_m"]), cam_T_imu=T)  # type: ignore[arg-type]
 
 
+def check_stereo_sensor(sensor: dict) -> None:
+    """:func:`parse_stereo_sensor`'s checks, for the reader: without numpy when the sensor is
+    surely accepted (:func:`_clearly_stereo`), else by :func:`parse_stereo_sensor` itself (its
+    messages)."""
+    if not _clearly_stereo(sensor):
+        parse_stereo_sensor(sensor)
+
+
+#: How far inside :func:`parse_stereo_sensor`'s tolerances (``allclose``'s ``atol`` of 1e-9
+#: and 1e-6) the numpy-free check accepts a rigid transform: far from any rounding.
+_RIGID_MARGIN = 0.5
+
+
+def _clearly_stereo(sensor: dict) -> bool:
+    """True when :func:`parse_stereo_sensor` surely accepts ``sensor``: every value within its
+    bounds and ``cam_T_imu`` rigid within half the tolerances (RRᵀ = I by sums of products
+    here, by numpy there: they differ by rounding, ~1e-16); False for anything it may refuse."""
+    if sensor.get("kind") != "stereo" or any(k not in sensor for k in _STEREO_KEYS):
+        return False
+    T = sensor["cam_T_imu"]
+    try:
+        fx, fy, cx, cy, baseline = (_fields._number(sensor, k) for k in _STEREO_KEYS[:5])
+        rows = [_vector(row, 4, "") for row in T] if isinstance(T, list) and len(T) == 4 else None
+    except _Bad:
+        return False
+    if rows is None or not (fx > 0.0 and fy > 0.0 and baseline > 0.0):  # type: ignore[operator]
+        return False
+    if max(abs(fx), abs(fy), abs(cx), abs(cy)) > MAX_PIXEL_PX or baseline > MAX_MOUNT_M:  # type: ignore[arg-type]
+        return False
+    if max(abs(rows[i][3]) for i in range(3)) > MAX_MOUNT_M:
+        return False
+    if any(abs(v - e) > _RIGID_MARGIN * 1e-9 for v, e in zip(rows[3], (0.0, 0.0, 0.0, 1.0))):
+        return False
+    R = [row[:3] for row in rows[:3]]
+    if any(abs(sum(R[i][k] * R[j][k] for k in range(3)) - (i == j)) > _RIGID_MARGIN * 1e-6
+           for i in range(3) for j in range(3)):
+        return False
+    det = (R[0][0] * (R[1][1] * R[2][2] - R[1][2] * R[2][1]) - R[0][1] * (R[1][0] * R[2][2] - R[1][2] * R[2][0])
+           + R[0][2] * (R[1][0] * R[2][1] - R[1][1] * R[2][0]))
+    return det > 0.5  # a rotation's is 1
+
+
 def stereo_sensor(K: Any, baseline_m: float, cam_T_imu: Any, **extra: Any) -> dict:
     """A 3-D header's ``sensor`` object from the calibration (``extra`` keys are kept)."""
+    import numpy as np
+
     K = np.asarray(K, dtype=float)
     return {
         "kind": "stereo",
