@@ -49,6 +49,7 @@ from ekf.observation import has_height  # the same rule as the EKF's for a usabl
 from fgslam.smoother.correction import PoseCorrector
 from fgslam.smoother.association import SmootherAssociation
 from fgslam.smoother.batch import gauss_newton_steps
+from fgslam.smoother.map_marginals import JointBlocks
 from fgslam.smoother.factors import (
     DEFAULT_ROBUST_K,
     FactorBuilder,
@@ -220,6 +221,7 @@ class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
         self._estimate_cache: gtsam.Values | None = None
         self._finished = False  # finish() ran and nothing changed since: its estimate is the final one
         self._final_marginals: gtsam.Marginals | None = None  # the whole graph's, at that estimate
+        self._final_map: JointBlocks | None = None  # the landmarks' joint there (map_marginals.py)
         # id-less observations: associated (fgslam/smoother/association.py) or skipped
         self.associate = bool(associate)
         self.redecide = True  # re-decide the id-less pairings against the settled map at the end (_redecide)
@@ -244,7 +246,7 @@ class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
         k = step.index
         if k != self._num_poses:
             raise FgslamError(f"Isam2Smoother: expected step {self._num_poses}, got step {k}; feed steps in order")
-        self._finished, self._final_marginals = False, None  # a step after finish(): iSAM2 answers again
+        self._finished, self._final_marginals, self._final_map = False, None, None  # a step after finish(): iSAM2 answers again
         self._association.begin_step(step.observations)  # for step_associations()
         if k == 0:
             if step.odometry is not None:

@@ -13,6 +13,7 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import X
 
+from fgslam.smoother.map_marginals import map_joint_blocks
 from fgslam.smoother.online import landmark_covariances
 from slamio.errors import FgslamError
 from slamio.log import Step
@@ -80,9 +81,20 @@ class EstimateQueries:
     def landmark_covariances(self) -> dict[int, np.ndarray]:
         """Landmark id → 2×2 marginal covariance of its (x, y) in the world frame
         (``isam.marginalCovariance``; for a tag, the position block of its Pose2 marginal
-        rotated from the tag's frame). Flushes held steps."""
+        rotated from the tag's frame). Flushes held steps.
+
+        After :meth:`finish`, the whole graph's marginals at the final estimate: every
+        landmark's block of their joint covariance, the poses eliminated first
+        (:func:`fgslam.smoother.map_marginals.map_joint_blocks`; ``gtsam.Marginals`` for a map
+        too large for one dense joint)."""
         self._flush()
-        return landmark_covariances(self._marginals(), self._estimate(), self._landmarks.ids, self._landmarks.tag_ids)
+        ids, tag_ids = self._landmarks.ids, self._landmarks.tag_ids
+        marginals = None
+        if self._finished:
+            if self._final_map is None:
+                self._final_map = map_joint_blocks(self._graph, self._estimate_cache, ids, tag_ids)
+            marginals = self._final_map
+        return landmark_covariances(marginals or self._marginals(), self._estimate(), ids, tag_ids)
 
     def predicted_nis(self, step: Step) -> list[float | None]:
         """NIS of each observation of ``step`` against the smoother's prediction, before
