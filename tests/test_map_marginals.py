@@ -1,5 +1,6 @@
-"""The map's covariances after a run (fgslam/smoother/map_marginals.py): every landmark's block
-of the landmarks' joint covariance, the poses eliminated first.
+"""The map's covariances after a run (fgslam/smoother/map_marginals.py): the whole graph's
+Bayes tree in the final Gauss–Newton steps' ordering, or, for a map of many landmarks, every
+landmark's block of the landmarks' joint covariance, the poses eliminated first.
 
 References: the inverse of the whole graph's dense information matrix (numpy), and
 ``gtsam.Marginals`` built independently on the same graph and estimate (what
@@ -18,6 +19,7 @@ from gtsam.symbol_shorthand import L, T, X
 from builders import run_smoother
 from fgslam.smoother.map_marginals import (JointBlocks, landmark_joint_covariance, landmark_keys,
                                            map_joint_blocks)
+from fgslam.smoother.online import landmark_covariances
 from slamio.log import group_steps
 from slamio.sim import simulate
 
@@ -61,29 +63,62 @@ def test_the_joint_is_the_dense_inverse_of_the_whole_information():
 
 def test_a_map_too_large_or_singular_is_left_to_marginals():
     graph, values = _small_graph()
-    assert map_joint_blocks(graph, values, [4, 7], {7}, max_dims=4) is None  # 5 dimensions
-    assert map_joint_blocks(graph, values, [], set()) is None
+    assert map_joint_blocks(graph, values, [4, 7], {7}, min_landmarks=1) is not None
+    assert map_joint_blocks(graph, values, [4, 7], {7}) is None  # fewer than MIN_JOINT_LANDMARKS
+    assert map_joint_blocks(graph, values, [4, 7], {7}, max_dims=4, min_landmarks=1) is None  # 5 dimensions
+    assert map_joint_blocks(graph, values, [], set(), min_landmarks=0) is None
     values.insert(L(9), gtsam.Point2(0.0, 5.0))  # a landmark no factor constrains
     graph.add(gtsam.RangeFactor2D(X(0), L(9), 5.0, gtsam.noiseModel.Isotropic.Sigma(1, 0.1)))  # range only: rank 1
-    assert map_joint_blocks(graph, values, [4, 7, 9], {7}) is None
+    assert map_joint_blocks(graph, values, [4, 7, 9], {7}, min_landmarks=1) is None
 
 
-@pytest.mark.parametrize("tags", [False, True])
-def test_a_finished_run_s_map_covariances_are_the_whole_graph_s_marginals(tags):
-    """What ``landmark_covariances`` returned before (``gtsam.Marginals`` at the final estimate,
-    a tag's position block rotated into the world frame), to a relative 1e-9."""
+@pytest.fixture(scope="module", params=[False, True], ids=["points", "tags"])
+def finished(request):
     header, records = simulate("arena-octagon", 3, laps=1)
-    smoother = run_smoother(header, group_steps(header, records), tags=tags)
-    covariances = smoother.landmark_covariances()
-    assert smoother._final_map is not None  # the joint answered, not Marginals
+    smoother = run_smoother(header, group_steps(header, records), tags=request.param)
+    return smoother, request.param
+
+
+def _reference(smoother, tags):
+    """What ``landmark_covariances`` returned before: ``gtsam.Marginals`` at the final
+    estimate, a tag's position block rotated into the world frame."""
     marginals = gtsam.Marginals(smoother.graph(), smoother.estimate())
-    assert covariances and set(covariances) == set(smoother.landmarks())
-    for lid, cov in covariances.items():
+    out = {}
+    for lid in smoother.landmarks():
         if tags:
             theta = smoother.estimate().atPose2(T(lid)).theta()
             rot = np.array([[math.cos(theta), -math.sin(theta)], [math.sin(theta), math.cos(theta)]])
-            expected = rot @ marginals.marginalCovariance(T(lid))[:2, :2] @ rot.T
+            out[lid] = rot @ marginals.marginalCovariance(T(lid))[:2, :2] @ rot.T
         else:
-            expected = marginals.marginalCovariance(L(lid))
-        assert np.allclose(cov, expected, rtol=1e-9, atol=1e-15)
+            out[lid] = marginals.marginalCovariance(L(lid))
+    return out
+
+
+def test_a_small_map_s_covariances_are_marginals_bit_for_bit(finished):
+    """Eight landmarks: the Bayes tree in the final Gauss–Newton steps' ordering, which is
+    the graph's COLAMD ordering, so ``Marginals``' own numbers."""
+    smoother, tags = finished
+    ordering, colamd = smoother._final_ordering, smoother.graph().orderingCOLAMD()
+    assert [ordering.at(i) for i in range(ordering.size())] == [colamd.at(i) for i in range(colamd.size())]
+    covariances = smoother.landmark_covariances()
+    assert smoother._final_map is False  # too few landmarks for the joint
+    reference = _reference(smoother, tags)
+    assert covariances and set(covariances) == set(reference)
+    for lid, cov in covariances.items():
+        assert np.array_equal(cov, reference[lid])
+    pose = X(smoother.num_poses - 1)
+    assert np.array_equal(smoother._marginals().marginalCovariance(pose),
+                          gtsam.Marginals(smoother.graph(), smoother.estimate()).marginalCovariance(pose))
+
+
+def test_the_joint_of_a_finished_run_s_map_is_its_marginals(finished):
+    """The joint path on the same graph (taken here for eight landmarks), to a relative 1e-9."""
+    smoother, tags = finished
+    blocks = map_joint_blocks(smoother.graph(), smoother.estimate(), smoother._landmarks.ids,
+                              smoother._landmarks.tag_ids, min_landmarks=1)
+    assert blocks is not None
+    covariances = landmark_covariances(blocks, smoother.estimate(), smoother._landmarks.ids, smoother._landmarks.tag_ids)
+    reference = _reference(smoother, tags)
+    for lid, cov in covariances.items():
+        assert np.allclose(cov, reference[lid], rtol=1e-9, atol=1e-15)
         assert tags or np.array_equal(cov, cov.T)  # a point's block of the symmetrised joint
