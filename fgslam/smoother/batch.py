@@ -57,12 +57,14 @@ class BatchResult:
 @dataclass(frozen=True, eq=False)
 class Polished:
     """What :func:`gauss_newton_steps` ended with: the values, the steps taken and kept,
-    ``graph.error`` (χ²/2) there, and GTSAM's message if a step met a singular system."""
+    ``graph.error`` (χ²/2) there, GTSAM's message if a step met a singular system, and the
+    graph's COLAMD ordering the steps eliminated in (for the marginals at the values after)."""
 
     values: gtsam.Values
     iterations: int
     error: float
     failure: str | None = None
+    ordering: gtsam.Ordering | None = field(default=None, repr=False, compare=False)
 
 
 def extrapolated_step_scale(step, previous_step, min_ratio: float = 0.2, max_ratio: float = 0.95) -> float:
@@ -119,7 +121,7 @@ def gauss_newton_steps(graph: gtsam.NonlinearFactorGraph, start: gtsam.Values, m
         try:
             step = graph.linearize(values).optimize(ordering)
         except RuntimeError as exc:  # gtsam.IndeterminantLinearSystemException: keep what we have
-            return Polished(values, iterations, error, str(exc))
+            return Polished(values, iterations, error, str(exc), ordering)
         new_values = values.retract(step)
         new_error = float(graph.error(new_values))
         if not new_error <= error:  # worse, or NaN: Gauss–Newton overshot; keep the values before
@@ -137,7 +139,7 @@ def gauss_newton_steps(graph: gtsam.NonlinearFactorGraph, start: gtsam.Values, m
         iterations += 1
         if not decrease > tolerance * new_error:
             break
-    return Polished(values, iterations, error)
+    return Polished(values, iterations, error, ordering=ordering)
 
 
 def batch_solve(smoother: WholeGraphSmoother, *, max_iterations: int = 100) -> BatchResult:

@@ -49,6 +49,7 @@ from ekf.observation import has_height  # the same rule as the EKF's for a usabl
 from fgslam.smoother.correction import PoseCorrector
 from fgslam.smoother.association import SmootherAssociation
 from fgslam.smoother.batch import gauss_newton_steps
+from fgslam.smoother.map_marginals import JointBlocks
 from fgslam.smoother.factors import (
     DEFAULT_ROBUST_K,
     X0,
@@ -220,7 +221,9 @@ class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
         self._num_poses = 0
         self._estimate_cache: gtsam.Values | None = None
         self._finished = False  # finish() ran and nothing changed since: its estimate is the final one
-        self._final_marginals: gtsam.Marginals | None = None  # the whole graph's, at that estimate
+        self._final_marginals: gtsam.GaussianBayesTree | None = None  # the whole graph's, at that estimate
+        self._final_map: JointBlocks | bool | None = None  # the landmarks' joint there (map_marginals.py; False: not used)
+        self._final_ordering: gtsam.Ordering | None = None  # the final Gauss–Newton steps' elimination ordering
         # id-less observations: associated (fgslam/smoother/association.py) or skipped
         self.associate = bool(associate)
         self.redecide = True  # re-decide the id-less pairings against the settled map at the end (_redecide)
@@ -245,7 +248,7 @@ class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
         k = step.index
         if k != self._num_poses:
             raise FgslamError(f"Isam2Smoother: expected step {self._num_poses}, got step {k}; feed steps in order")
-        self._finished, self._final_marginals = False, None  # a step after finish(): iSAM2 answers again
+        self._finished, self._final_marginals, self._final_map = False, None, None  # a step after finish(): iSAM2 answers again
         observations = step.observations
         self._association.begin_step(observations)  # for step_associations()
         if k == 0:
@@ -364,12 +367,14 @@ class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
 
         The final estimate is then those steps' result, not iSAM2's, and the covariances
         asked for after it (:meth:`landmark_covariances`, :meth:`current_covariance`) are the
-        whole graph's marginals at that estimate (``gtsam.Marginals``)."""
+        whole graph's marginals at that estimate (``gtsam.Marginals``' numbers, from
+        :mod:`fgslam.smoother.map_marginals`)."""
         if self._num_poses == 0:
             return
         self._flush()
         self._settle_pairings()
         self._estimate_cache = None
+        self._final_marginals, self._final_map, self._final_ordering = None, None, None
         self._landmark_xy.clear()
         self._online.forget_marginal()  # the final updates below change iSAM2
         for _ in range(self.settings.final_updates):
@@ -387,6 +392,7 @@ class Isam2Smoother(IdlessPairings, Isam2Updates, EstimateQueries):
             if polished.failure is not None:
                 self.last_failure = polished.failure
             estimate = polished.values
+            self._final_ordering = polished.ordering
         self._estimate_cache = estimate
         self._finished = True
         self._online.pose = self._keyframes.latest_pose(self._estimate_cache.atPose2(X(self._keyframes.last)))

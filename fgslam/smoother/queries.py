@@ -13,6 +13,7 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import X
 
+from fgslam.smoother.map_marginals import map_joint_blocks, whole_graph_bayes_tree
 from fgslam.smoother.online import landmark_covariances
 from slamio.errors import FgslamError
 from slamio.log import Step
@@ -80,9 +81,17 @@ class EstimateQueries:
     def landmark_covariances(self) -> dict[int, np.ndarray]:
         """Landmark id → 2×2 marginal covariance of its (x, y) in the world frame
         (``isam.marginalCovariance``; for a tag, the position block of its Pose2 marginal
-        rotated from the tag's frame). Flushes held steps."""
+        rotated from the tag's frame). Flushes held steps.
+
+        After :meth:`finish`, the whole graph's marginals at the final estimate: for a map of
+        many landmarks, each one's block of their joint covariance, the poses eliminated first
+        (:func:`fgslam.smoother.map_marginals.map_joint_blocks`); otherwise :meth:`_marginals`'."""
         self._flush()
-        return landmark_covariances(self._marginals(), self._estimate(), self._landmarks.ids, self._landmarks.tag_ids)
+        ids, tag_ids = self._landmarks.ids, self._landmarks.tag_ids
+        if self._finished and self._final_map is None:
+            self._final_map = map_joint_blocks(self._graph, self._estimate_cache, ids, tag_ids) or False
+        marginals = self._final_map if self._finished and self._final_map else self._marginals()
+        return landmark_covariances(marginals, self._estimate(), ids, tag_ids)
 
     def predicted_nis(self, step: Step) -> list[float | None]:
         """NIS of each observation of ``step`` against the smoother's prediction, before
@@ -165,13 +174,15 @@ class EstimateQueries:
 
     def _marginals(self):
         """Where marginal covariances come from: iSAM2's Bayes tree during the run; after
-        :meth:`finish`, the whole graph linearised at the final estimate (``gtsam.Marginals``,
-        built on the first question), since the final Gauss–Newton steps moved the estimate
-        past iSAM2's linearisation point."""
+        :meth:`finish`, the whole graph linearised at the final estimate and eliminated in
+        the final Gauss–Newton steps' COLAMD ordering (built on the first question;
+        :func:`~fgslam.smoother.map_marginals.whole_graph_bayes_tree`, what ``gtsam.Marginals``
+        builds, bit for bit), since those steps moved the estimate past iSAM2's
+        linearisation point."""
         if not self._finished:
             return self._isam
         if self._final_marginals is None:
-            self._final_marginals = gtsam.Marginals(self._graph, self._estimate_cache)
+            self._final_marginals = whole_graph_bayes_tree(self._graph, self._estimate_cache, self._final_ordering)
         return self._final_marginals
 
     def _estimate(self) -> gtsam.Values:
