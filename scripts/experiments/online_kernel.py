@@ -20,7 +20,10 @@ time. Two measurements and the variants that separate the causes:
   ordinary readings under the kernel instead of being gated at 7σ and dropped);
   ``innovation-gate`` (they are gated once the landmark is in iSAM2, against the
   innovation covariance R + J Σ Jᵀ, Σ the iSAM2 marginals of their pose and the landmark,
-  cross-covariance left out; ``½ d² ≤ PENDING_GATE``).
+  cross-covariance left out; ``½ d² ≤ PENDING_GATE``); ``corrector-gaussian`` (a reading the
+  online correction used, i.e. whose NIS against the pose's predicted covariance was not a
+  surprise, enters with its Gaussian factor, the others under the kernel), and that with the
+  innovation gate.
 
 Prints one line per log and variant: anchored / aligned ATE of the final and the online
 estimate against the log's truth, and how many waiting sightings were dropped.
@@ -58,7 +61,7 @@ from slamio.noise.model import load_noise_model  # noqa: E402
 from scripts.bench_mrclam import ate_pair_m  # noqa: E402
 
 VARIANTS = ("base", "gaussian-weights", "dcs-k5", "dcs-k8", "relinearise-on-entry", "no-confirm", "wait-robust",
-            "innovation-gate")
+            "innovation-gate", "corrector-gaussian", "corrector-gaussian+innovation-gate")
 #: DCS's Φ = k² (whitened units): weight 1 for r² ≤ Φ, (2Φ/(Φ + r²))² beyond.
 DCS_PHI = DEFAULT_ROBUST_K["dcs"] ** 2
 
@@ -184,17 +187,39 @@ class RelineariseOnEntry(WeightProbe):
         self._isam.update(gtsam.NonlinearFactorGraph(), gtsam.Values(), params)
 
 
+class CorrectorGaussian(WeightProbe):
+    """Readings the online correction used (consistent with the pose's predicted covariance)
+    enter with their Gaussian factor; the others keep the kernel."""
+
+    def step(self, step):
+        self._used_now = set()
+        super().step(step)
+
+    def _corrected(self, odo, observations):
+        seed, used = super()._corrected(odo, observations)
+        self._used_now = {u[0] for u in used}
+        return seed, used
+
+    def _add_observation(self, k, seed, obs):
+        n = len(self._held.entries)
+        super()._add_observation(k, seed, obs)
+        if len(self._held.entries) > n and obs.landmark_id in self._used_now:
+            entry = self._held.entries[-1]
+            entry.factor = entry.gate_factor
+
+
 def smoother(variant: str, header, log_drop, weights: bool = False) -> Isam2Smoother:
     kernel = expected_outlier_kernel(header)
     k = {"gaussian-weights": 1000.0, "dcs-k5": 5.0, "dcs-k8": 8.0}.get(variant) if kernel else None
     cls = RelineariseOnEntry if variant == "relinearise-on-entry" else (WeightProbe if weights else Isam2Smoother)
+    cls = CorrectorGaussian if variant.startswith("corrector-gaussian") else cls
     sm = cls(header, robust=kernel, robust_k=k)
     pending = sm._pending
     if variant == "no-confirm":
         pending.confirm_first_sightings = lambda fresh, known: fresh
     elif variant == "wait-robust":
         pending.confirm_first_sightings = types.MethodType(confirm_all, pending)
-    pending.screen = types.MethodType(make_screen(variant == "innovation-gate", log_drop), pending)
+    pending.screen = types.MethodType(make_screen(variant.endswith("innovation-gate"), log_drop), pending)
     return sm
 
 
