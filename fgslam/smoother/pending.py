@@ -170,11 +170,12 @@ class PendingObservations:
         ``known``) wait. Each new one is checked against those waiting (its gate factor at
         its own seed pose and the waiting observation's landmark guess, ½‖whitened
         residual‖² ≤ ``PENDING_GATE``); at the first agreement both enter, seeded from the
-        newer, and the rest that waited are gated against the landmark's estimate like
-        withheld observations (kept when they fit, dropped when not). Nothing good is
-        thrown away on the way: dropping a good first sighting made from the precisely
-        known start pose doubled the ATE of an arena run. A landmark seen once tells
-        nothing about the poses, so the wait costs the trajectory nothing. At most
+        newer, and the rest that waited are screened like withheld observations
+        (:meth:`screen`: kept when they fit the landmark's estimate, within R alone or
+        within the innovation covariance, dropped when not). Nothing good is thrown away on
+        the way: dropping a good first sighting made from the precisely known start pose
+        doubled the ATE of an arena run, and judging an old sighting with R alone against a
+        landmark seeded after the odometry drifted dropped MRCLAM robot 1's loop closures. At most
         ``MAX_UNCONFIRMED`` observations wait per landmark; older ones are dropped
         (``rejected_first_sightings``).
         """
