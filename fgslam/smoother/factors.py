@@ -185,7 +185,7 @@ class PendingObservation:
     """
 
     __slots__ = ("landmark_id", "key", "pose_index", "factor", "gate_factor", "seed_pose", "attempts",
-                 "_guess", "_polar")
+                 "awaiting_estimate", "_guess", "_polar")
 
     def __init__(self, landmark_id: int, key: int, pose_index: int, factor: gtsam.NonlinearFactor,
                  gate_factor: gtsam.NonlinearFactor, landmark_guess: np.ndarray | gtsam.Pose2 | None,
@@ -197,6 +197,7 @@ class PendingObservation:
         self.gate_factor = gate_factor  # the same with the plain Gaussian noise (for the gate)
         self.seed_pose = seed_pose  # the robot pose the observation was made from, as seeded then
         self.attempts = attempts  # failed updates it took part in
+        self.awaiting_estimate = False  # failed the gate at a fresh guess: judged again once its landmark is in iSAM2
         self._guess = landmark_guess
         self._polar = polar  # (range_m, bearing_rad) of a point's reading, when its guess waits
 
