@@ -61,6 +61,12 @@ def _is_baseline(run: EstimatorRun, baselines) -> bool:
     return run.name in baselines
 
 
+def _is_the_reference(name: str, reference: Reference) -> bool:
+    """Whether the estimator ``name`` is what the figures measure against: the batch, when
+    the reference is the smoothed solution (no ground truth)."""
+    return name == "batch" and reference.kind == "smoothed"
+
+
 def _plotted(runs: list[EstimatorRun], baselines, baseline: str) -> list[tuple[int, EstimatorRun, bool]]:
     """``(colour index, run, is_baseline)`` for every run a figure draws: the colour index is
     the run's place in ``runs`` (the same colour in every figure whatever is dropped), and

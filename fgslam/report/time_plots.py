@@ -29,6 +29,7 @@ from fgslam.report.style import (
     BASELINE_ESTIMATORS,
     _aligned_final,
     _faint,
+    _is_the_reference,
     _legend_and_save,
     _new_figure,
     _plotted,
@@ -81,7 +82,7 @@ def _position_error_series(runs: list[EstimatorRun], reference: Reference, ref: 
         err = position_errors_m(final, ref[:m])  # NaN where the reference has no pose
         finite_err = err[np.isfinite(err)]
         zero = bool(len(finite_err)) and float(finite_err.max()) < _ZERO_ERROR_M
-        if zero and run.name == "batch" and reference.kind == "smoothed":
+        if zero and _is_the_reference(run.name, reference):
             label = "batch (the reference itself)"
         elif zero:
             label = f"{run.name} final (= reference, error < 1 µm)"
@@ -197,7 +198,7 @@ def plot_heading_errors(path, runs: list[EstimatorRun], reference: Reference, st
         scored = err[np.isfinite(err)]
         rms = float(np.sqrt(np.mean(scored**2))) if len(scored) else float("nan")
         label = f"{run.name} final (RMS {rms:.2f}°)"
-        if run.name == "batch" and reference.kind == "smoothed" and rms < 1e-6:
+        if _is_the_reference(run.name, reference) and rms < 1e-6:
             label = "batch (the reference itself)"
         ax.plot(t[:m], err, color=colour, label=_faint(label) if faint else label, **style)
         faded |= faint

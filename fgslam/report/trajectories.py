@@ -24,6 +24,7 @@ from fgslam.report.style import (
     _aligned_final,
     _faint,
     _is_baseline,
+    _is_the_reference,
     _landmark_array,
     _plotted,
     _style,
@@ -187,11 +188,12 @@ def _ellipse_steps(covariances: np.ndarray, picks_at: int | None) -> np.ndarray:
 
 
 def _draw_detail(ax, detail, plotted, finals: dict, centre: np.ndarray, k_detail: int, span: float,
-                 baselines, smoothed: bool = False) -> None:
+                 baselines, reference: Reference) -> None:
     """The detail panel of :func:`trajectory_figure`: pose ``k_detail`` (reference at
     ``centre``) and each estimate joined to it, zoomed to their errors; its window marked on
-    the overview ``ax`` (``span``: the overview's larger side). Against a ``smoothed``
-    reference the distances are called that, not errors, and the batch is the reference."""
+    the overview ``ax`` (``span``: the overview's larger side). Against a smoothed
+    ``reference`` the distances are called that, not errors, and the batch is the reference."""
+    smoothed = reference.kind == "smoothed"
     errors = []
     for i, run, faint in plotted:
         final = finals[run.name]
@@ -217,7 +219,7 @@ def _draw_detail(ax, detail, plotted, finals: dict, centre: np.ndarray, k_detail
         detail.set_title(f"Detail around pose {k_detail}, where the estimators' error is largest", fontsize=10)
     detail.text(0.02, 0.02, "{} at pose {}:\n{}".format(
                     "distance to the smoothed reference" if smoothed else "position error", k_detail,
-                    "\n".join(f"{name}: {'the reference' if smoothed and name == 'batch' else f'{e:.3f} m'}"
+                    "\n".join(f"{name}: {'the reference' if _is_the_reference(name, reference) else f'{e:.3f} m'}"
                               for name, e, _ in errors)),
                 transform=detail.transAxes, fontsize=8, va="bottom", ha="left", zorder=6,
                 bbox={"boxstyle": "round", "fc": "white", "ec": "0.7", "alpha": 0.9})
@@ -290,7 +292,7 @@ def trajectory_figure(
 
     if detail is not None:
         _draw_detail(ax, detail, plotted, finals, ref[k_detail, :2], k_detail,
-                     max(xmax - xmin, ymax - ymin), baselines, smoothed=reference.kind == "smoothed")
+                     max(xmax - xmin, ymax - ymin), baselines, reference)
     for panel in panels:
         panel.set_xlabel("x [m]")
         panel.set_ylabel("y [m]")

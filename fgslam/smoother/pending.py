@@ -31,6 +31,7 @@ import math
 
 import gtsam
 import numpy as np
+import scipy.linalg
 from gtsam.symbol_shorthand import L, T, X
 
 from ekf.range_only import DelayedInitRule, try_initialise
@@ -72,12 +73,7 @@ def innovation_gate_half_d2(entry: PendingObservation, pose: gtsam.Pose2, landma
         blocks = [isam.marginalCovariance(key) for key in linear.keys()]
     except RuntimeError:
         return math.inf
-    covariance = np.zeros((A.shape[1], A.shape[1]))
-    i = 0
-    for block in blocks:
-        covariance[i:i + len(block), i:i + len(block)] = block
-        i += len(block)
-    return innovation_half_d2(b, A, covariance)
+    return innovation_half_d2(b, A, scipy.linalg.block_diag(*blocks))
 
 
 def within_gate(entry: PendingObservation, pose: gtsam.Pose2, landmark, gate: float = PENDING_GATE) -> bool:
